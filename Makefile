@@ -1,0 +1,39 @@
+# Two commands do everything on a fresh machine:
+#   make demo   - create .venv, install, warp the shipped example frames, write a figure
+#   make test   - create .venv, install, run the test suite
+PYTHON ?= python3
+VENV   ?= .venv
+PY     := $(VENV)/bin/python
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+OUT    ?= out/demo
+
+.PHONY: install test demo bench clean
+
+# torch==2.13.0 first: it resolves to the local CPU build; the package's own range (torch>=2.1,<3)
+# is then already satisfied, so pip never pulls a multi-GB CUDA build.
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q torch==2.13.0
+	$(PY) -m pip install -q -e '.[dev]'
+	touch $(STAMP)
+
+install: $(STAMP)
+
+test: $(STAMP)
+	$(PY) -m pytest
+
+demo: $(STAMP)
+	$(BIN)/vcprep warp --camera camvid --images examples/camvid/images --labels examples/camvid/labels \
+		--label-format camvid --out $(OUT)/store --quiet
+	$(BIN)/vcprep warp --camera examples/kitti/calib/um_000000.txt --images examples/kitti/image_2 \
+		--labels examples/kitti/gt_image_2 --label-format kitti --out $(OUT)/store --quiet
+	$(BIN)/vcprep store show $(OUT)/store
+	$(BIN)/vcprep figure warp $(OUT)/store -o $(OUT)/warp.png
+	@echo "demo: open $(OUT)/warp.png (original | virtual camera, road in green)"
+
+bench: $(STAMP)
+	$(PY) benchmarks/warp.py
+
+clean:
+	rm -rf $(VENV) out *.egg-info

@@ -1,0 +1,65 @@
+"""Back-projection: virtual-domain masks / probability maps -> the item's original camera.
+
+For a store item with ``H = virt_H_src`` (source pixel -> store pixel), the map back is the
+remap that samples the store image at ``H @ (u, v, 1)`` for every source pixel centre (u, v):
+the exact inverse of the forward warp. Labels/masks use nearest neighbour, probabilities
+bilinear; source pixels that fall outside the store image get ``fill`` (0: not road).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from .errors import InputError
+from .imageio import read_image, write_png
+from .store import Store
+from .warp import maps_for, warp_image, warp_label
+
+__all__ = ["src_H_virt", "backproject_array", "backproject_folder"]
+
+
+def src_H_virt(record: dict) -> np.ndarray:
+    """Store pixel -> source pixel for one item record."""
+    return np.linalg.inv(np.asarray(record["H"], dtype=np.float64).reshape(3, 3))
+
+
+def backproject_array(arr: np.ndarray, record: dict, kind: str = "mask", fill: int = 0) -> np.ndarray:
+    """Map ``arr`` (store-sized) back to the source image of ``record``.
+
+    ``kind='mask'``: nearest neighbour (values never mixed); ``'prob'``: bilinear."""
+    sw, sh = record["store_size"]
+    if arr.shape[:2] != (sh, sw):
+        raise InputError(f"map is {arr.shape[1]}x{arr.shape[0]} but the store is {sw}x{sh}", record.get("id"),
+                         "back-project maps predicted on this store")
+    w, h = record["size"]
+    # the back map is the forward map of src_H_virt: source pixels are the destination
+    maps = maps_for(src_H_virt(record), (sw, sh), (w, h))
+    if kind == "mask":
+        return warp_label(arr, maps, border_value=fill)
+    if kind == "prob":
+        out = warp_image(arr, maps)
+        if fill:
+            out[maps.valid == 0] = fill
+        return out
+    raise InputError(f"unknown kind '{kind}'", None, "use --kind mask or --kind prob")
+
+
+def backproject_folder(store: str | Path, masks: str | Path, out: str | Path, kind: str = "mask",
+                       progress: bool = True) -> int:
+    """Back-project every ``<id>.png`` in ``masks`` that names an item of ``store`` into ``out``."""
+    st = Store.open(store)
+    masks, out = Path(masks), Path(out)
+    if not masks.is_dir():
+        raise InputError("mask folder not found", masks, "give the folder of virtual-domain PNGs named <id>.png")
+    files = sorted(p for p in masks.glob("*.png") if p.stem in st.items)
+    if not files:
+        raise InputError(f"no PNG named after an item of store {store}", masks, "masks must be named <id>.png")
+    if out.exists() and not out.is_dir():
+        raise InputError("exists and is not a directory", out, "choose another --out")
+    out.mkdir(parents=True, exist_ok=True)
+    for f in tqdm(files, desc="backproject", unit="img", disable=not progress, leave=False):
+        arr = read_image(f, label=(kind == "mask")).array
+        write_png(out / f.name, backproject_array(arr, st.items[f.stem], kind))
+    return len(files)

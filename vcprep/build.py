@@ -1,0 +1,216 @@
+"""Building a store: pair images with labels, warp each item into the virtual camera, record it.
+
+Three layers (style.md): :func:`list_dataset` (files -> jobs), :func:`warp_item` (one item,
+in memory), :func:`warp_dataset` (the loop: up-to-date check, atomic writes, manifest, progress).
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+from tqdm import tqdm
+
+from . import __version__
+from .camera import Camera
+from .errors import InputError, VCError
+from .homography import check_not_folded, virt_H_src, virtual_at_scale, vp_from_pose
+from .imageio import IMAGE_EXTENSIONS, image_size_from_header, read_image, write_png
+from .labels import LabelFormat, decode_label, image_id, label_stem_for
+from .store import Store
+from .warp import maps_for, warp_image, warp_label
+
+__all__ = ["Job", "BuildSummary", "list_dataset", "store_params", "item_geometry", "warp_dataset"]
+
+WARP_ALGORITHM = "warp-v1"  # bump when stored outputs of identical inputs would change
+
+
+@dataclass(frozen=True)
+class Job:
+    """One item to build: its id, source image and (optional) source label."""
+
+    id: str
+    image: Path
+    label: Path | None = None
+
+
+@dataclass
+class BuildSummary:
+    total: int = 0
+    built: int = 0
+    up_to_date: int = 0
+    failed: list[str] = field(default_factory=list)
+
+    def line(self) -> str:
+        return (f"{self.total} items: {self.built} built, {self.up_to_date} up to date, "
+                f"{len(self.failed)} failed")
+
+
+def _images_in(folder: Path) -> list[Path]:
+    if not folder.exists():
+        raise InputError("image folder not found", folder, "check --images")
+    if not folder.is_dir():
+        raise InputError("is a file, expected a folder of images", folder, "give the folder that holds the images")
+    files = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_EXTENSIONS and not p.name.startswith("."))
+    if not files:
+        raise InputError(f"no images ({', '.join(IMAGE_EXTENSIONS)}) in folder", folder, "check --images")
+    return files
+
+
+def list_dataset(images: str | Path, labels: str | Path | None = None, fmt: LabelFormat | None = None,
+                 id_prefix: str = "") -> list[Job]:
+    """Jobs for every image in ``images``; with ``labels``, each image's label is found by the
+    format's naming rule (``labels.LABEL_FORMATS``) and a missing one is an error."""
+    images = Path(images)
+    files = _images_in(images)
+    label_dir = Path(labels) if labels is not None else None
+    if label_dir is not None:
+        if fmt is None:
+            raise InputError("labels given without a label format", label_dir, "add --label-format (e.g. camvid)")
+        if not label_dir.is_dir():
+            raise InputError("label folder not found" if not label_dir.exists() else "is not a folder", label_dir,
+                             "check --labels")
+        label_files = {p.stem: p for p in label_dir.iterdir() if p.suffix.lower() in IMAGE_EXTENSIONS}
+    jobs: list[Job] = []
+    seen: dict[str, Path] = {}
+    for f in files:
+        iid = id_prefix + image_id(f, fmt)
+        if iid in seen:
+            raise InputError(f"duplicate image id '{iid}' (also {seen[iid].name})", f,
+                             "give each image a unique file name stem")
+        seen[iid] = f
+        lab = None
+        if label_dir is not None:
+            stem = label_stem_for(f, fmt)
+            lab = label_files.get(stem)
+            if lab is None:
+                raise InputError(f"no label '{stem}.png' for this image in {label_dir}", f,
+                                 "check --labels and --label-format, or remove the image")
+        jobs.append(Job(iid, f, lab))
+    return jobs
+
+
+def store_params(virtual: Camera, scale: float) -> dict[str, Any]:
+    """The parameters that define a store: one virtual camera at one scale."""
+    vs = virtual_at_scale(virtual, scale)
+    return {"virtual": virtual.to_dict(), "scale": float(scale), "store_size": list(vs.size),
+            "virtual_scaled": vs.to_dict()}
+
+
+def item_geometry(camera: Camera, size: tuple[int, int], virtual_scaled: Camera, file: Path | None = None,
+                  pan: float | None = None, tilt: float | None = None) -> tuple[Camera, np.ndarray]:
+    """The camera at this image's size and ``virt_H_src`` to the scaled virtual camera, checked
+    not to fold the image."""
+    cam = camera.for_image_size(size, file)
+    H = virt_H_src(cam, virtual_scaled, pan, tilt)
+    check_not_folded(H, cam.size, str(file) if file else cam.name)
+    return cam, H
+
+
+def _sha256_file(path: Path, kind: str) -> tuple[str, bytes]:
+    try:
+        data = path.read_bytes()
+    except OSError as e:
+        raise InputError(f"cannot read {kind}: {e.strerror or e}", path, "check the file") from None
+    return hashlib.sha256(data).hexdigest(), data
+
+
+def _item_key(parts: dict[str, Any]) -> str:
+    return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
+
+
+def warp_item(job: Job, camera: Camera, store_size: tuple[int, int], H: np.ndarray, fmt: LabelFormat | None):
+    """Warp one item in memory: returns (image, label or None, valid)."""
+    img = read_image(job.image)
+    maps = maps_for(H, img.size, store_size)
+    warped = warp_image(img.array, maps)
+    label = None
+    if job.label is not None:
+        raw = read_image(job.label, label=True)
+        if raw.size != img.size:
+            raise InputError(f"label is {raw.size[0]}x{raw.size[1]} but its image is {img.size[0]}x{img.size[1]}",
+                             job.label, "labels must have the size of their images")
+        label = warp_label(decode_label(raw.array, fmt, job.label), maps)
+    return warped, label, maps.valid
+
+
+def warp_dataset(jobs: list[Job], camera: Camera, virtual: Camera, scale: float, out: str | Path,
+                 fmt: LabelFormat | None = None, progress: bool = True,
+                 log: Callable[[str], None] | None = None) -> tuple[Store, BuildSummary]:
+    """Warp ``jobs`` from ``camera`` into ``virtual`` at ``scale`` into the store ``out``.
+
+    Items whose inputs and parameters are unchanged (same key, files present) are skipped. On a
+    bad input the manifest keeps every item finished so far and the error propagates.
+    """
+    params = store_params(virtual, scale)
+    store = Store.open_or_create(out, params)
+    vs = store.virtual
+    store_size = store.store_size
+    summary = BuildSummary(total=len(jobs))
+    dirty = 0
+    bar = tqdm(jobs, desc="warp", unit="img", disable=not progress, leave=False)
+    try:
+        for job in bar:
+            old = store.items.get(job.id)
+            if old is not None and old.get("source") != str(job.image):
+                raise InputError(f"store item '{job.id}' already holds another source ({old.get('source')})", job.image,
+                                 "use --id-prefix to keep datasets apart, or another --out")
+            src_hash, data = _sha256_file(job.image, "image")
+            size = image_size_from_header(data)
+            if size is None:
+                size = read_image(job.image).size
+            cam, H = item_geometry(camera, size, vs, job.image)
+            lab_hash = _sha256_file(job.label, "label")[0] if job.label is not None else None
+            pan, tilt = cam.pan, cam.tilt
+            key = _item_key({"algorithm": WARP_ALGORITHM, "source_sha256": src_hash, "label_sha256": lab_hash,
+                             "label_format": fmt.name if fmt and job.label else None, "camera": cam.to_dict(),
+                             "store": {k: params[k] for k in ("virtual", "scale", "store_size")},
+                             "H": np.round(H, 12).ravel().tolist()})
+            if old is not None and old.get("key") == key and store.is_complete(old):
+                summary.up_to_date += 1
+                continue
+            image, label, valid = warp_item(job, camera=cam, store_size=store_size, H=H, fmt=fmt)
+            rec = {
+                "id": job.id,
+                "source": str(job.image),
+                "source_sha256": src_hash,
+                "label_source": str(job.label) if job.label else None,
+                "label_sha256": lab_hash,
+                "label_format": fmt.name if fmt and job.label else None,
+                "camera": camera.name,
+                "camera_params": cam.to_dict(),
+                "size": list(cam.size),
+                "vp": list(vp_from_pose(cam, pan, tilt)),
+                "vp_status": "camera",
+                "pan_deg": pan,
+                "tilt_deg": tilt,
+                "H": H.ravel().tolist(),
+                "image": f"images/{job.id}.png",
+                "label": f"labels/{job.id}.png" if label is not None else None,
+                "valid": f"valid/{job.id}.png",
+                "store_size": list(store_size),
+                "completion": "none",
+                "key": key,
+                "tool_version": __version__,
+            }
+            write_png(store.path(rec["image"]), image)
+            if label is not None:
+                write_png(store.path(rec["label"]), label)
+            write_png(store.path(rec["valid"]), valid)
+            store.items[job.id] = rec
+            summary.built += 1
+            dirty += 1
+            if dirty >= 50:
+                store.save()
+                dirty = 0
+    except VCError:
+        summary.failed.append(job.id)
+        raise
+    finally:
+        bar.close()
+        if dirty:
+            store.save()
+    return store, summary

@@ -1,0 +1,159 @@
+"""Label formats: the one table that says how each dataset encodes road / not road / ignore,
+and how its label files are named. Everything else derives from :data:`LABEL_FORMATS`.
+
+Decoded labels are uint8 with ``ROAD = 1``, ``NOT_ROAD = 0``, ``IGNORE = 255``.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import InputError
+
+__all__ = ["ROAD", "NOT_ROAD", "IGNORE", "LabelFormat", "LABEL_FORMATS", "get_label_format", "decode_label",
+           "label_stem_for"]
+
+NOT_ROAD, ROAD, IGNORE = 0, 1, 255
+
+
+@dataclass(frozen=True)
+class LabelFormat:
+    """How one dataset encodes road in its label files.
+
+    ``kind`` is ``ids`` (single-channel class ids) or ``colours`` (BGR triples, read per channel).
+    ``max_value`` bounds valid ids (None: any value; unlisted values are not road).
+    ``image_suffix``/``label_suffix``: an image ``<stem><image_suffix>.<ext>`` has the label
+    ``<stem><label_suffix>.png``; ``label_infix`` (kitti) inserts ``_road`` after the category.
+    """
+
+    name: str
+    kind: str
+    road: tuple = ()
+    ignore: tuple = ()
+    not_road: tuple = ()
+    max_value: int | None = None
+    image_suffix: str = ""
+    label_suffix: str = ""
+    kitti_naming: bool = False
+    description: str = ""
+    extra: dict = field(default_factory=dict)
+
+
+# BGR colours for KITTI gt_image_2 (road magenta (255,0,255), not road red (255,0,0), ignore black)
+LABEL_FORMATS: dict[str, LabelFormat] = {
+    f.name: f
+    for f in [
+        LabelFormat("camvid", "ids", road=(3,), ignore=(11,), max_value=11,
+                    description="SegNet CamVid ids: 3 road, 11 unlabelled (ego bonnet) = ignore, 0..11"),
+        LabelFormat("kitti", "colours", road=((255, 0, 255),), not_road=((0, 0, 255),), ignore=((0, 0, 0),),
+                    kitti_naming=True,
+                    description="KITTI road gt_image_2 colours: magenta road, red not road, black ignore"),
+        LabelFormat("cityscapes", "ids", road=(7,), ignore=(1, 2, 3), max_value=33,
+                    image_suffix="_leftImg8bit", label_suffix="_gtFine_labelIds",
+                    description="Cityscapes labelIds: 7 road; 1 ego vehicle, 2 rectification border, 3 out of roi = ignore"),
+        LabelFormat("bdd", "ids", road=(1, 2), max_value=2, label_suffix="_drivable_id",
+                    description="BDD100K drivable ids: 1 direct, 2 alternative = road, 0 background"),
+    ]
+}
+
+
+def _parse_values(spec: str) -> LabelFormat:
+    """``values:road=3,4;ignore=11[;max=11]`` -> a generic ids format."""
+    body = spec[len("values:"):]
+    road: list[int] = []
+    ignore: list[int] = []
+    max_value = None
+    for part in filter(None, (p.strip() for p in body.split(";"))):
+        key, sep, vals = part.partition("=")
+        key = key.strip()
+        try:
+            nums = [int(v) for v in vals.split(",") if v.strip()]
+        except ValueError:
+            nums = None
+        if not sep or key not in ("road", "ignore", "max") or not nums or any(n < 0 or n > 65535 for n in nums):
+            raise InputError(f"cannot parse label format part '{part}'", spec,
+                             "write e.g. values:road=3;ignore=11 (comma-separated ids, optional ;max=N)")
+        if key == "road":
+            road += nums
+        elif key == "ignore":
+            ignore += nums
+        else:
+            max_value = nums[0]
+    if not road:
+        raise InputError("generic label format names no road value", spec, "write e.g. values:road=3;ignore=11")
+    return LabelFormat(spec, "ids", road=tuple(road), ignore=tuple(ignore), max_value=max_value,
+                       description="generic ids")
+
+
+def get_label_format(name: str) -> LabelFormat:
+    if name in LABEL_FORMATS:
+        return LABEL_FORMATS[name]
+    if name.startswith("values:"):
+        return _parse_values(name)
+    raise InputError(f"unknown label format '{name}'", None,
+                     f"use one of {', '.join(LABEL_FORMATS)} or values:road=ID[,ID];ignore=ID")
+
+
+def decode_label(raw: np.ndarray, fmt: LabelFormat, file: str | Path | None = None) -> np.ndarray:
+    """Raw label image -> uint8 (h, w) with 0 not road, 1 road, 255 ignore.
+
+    Values outside the format (an id above ``max_value``, a colour not in the table) raise
+    :class:`InputError` naming the first offending value.
+    """
+    if fmt.kind == "colours":
+        if raw.ndim != 3 or raw.shape[2] < 3:
+            raise InputError(f"label has {1 if raw.ndim == 2 else raw.shape[2]} channel(s), format '{fmt.name}' "
+                             "needs a colour image", file, "give the colour-coded gt_image_2 file")
+        bgr = raw[..., :3].astype(np.uint32)
+        code = (bgr[..., 0] << 16) | (bgr[..., 1] << 8) | bgr[..., 2]
+        out = np.full(code.shape, 254, dtype=np.uint8)
+        for value, colours in ((ROAD, fmt.road), (NOT_ROAD, fmt.not_road), (IGNORE, fmt.ignore)):
+            for b, g, r in colours:
+                out[code == ((b << 16) | (g << 8) | r)] = value
+        bad = out == 254
+        if bad.any():
+            y, x = np.argwhere(bad)[0]
+            b, g, r = raw[y, x, :3]
+            raise InputError(f"label colour (R,G,B)=({r},{g},{b}) at pixel ({x}, {y}) is not in format '{fmt.name}'",
+                             file, "check --label-format (kitti expects magenta road, red not road, black ignore)")
+        return out
+    if raw.ndim == 3:
+        if raw.shape[2] >= 3 and np.array_equal(raw[..., 0], raw[..., 1]) and np.array_equal(raw[..., 0], raw[..., 2]):
+            raw = raw[..., 0]
+        else:
+            raise InputError(f"label has {raw.shape[2]} channels, format '{fmt.name}' needs single-channel ids", file,
+                             "give the id/label image, not a colour visualisation")
+    if fmt.max_value is not None:
+        mx = int(raw.max()) if raw.size else 0
+        if mx > fmt.max_value:
+            raise InputError(f"label value {mx} is outside format '{fmt.name}' (ids 0..{fmt.max_value})", file,
+                             "check --label-format")
+    out = np.zeros(raw.shape, dtype=np.uint8)
+    out[np.isin(raw, fmt.road)] = ROAD
+    if fmt.ignore:
+        out[np.isin(raw, fmt.ignore)] = IGNORE
+    return out
+
+
+_KITTI_RE = re.compile(r"^(?P<cat>[a-z]+)_(?P<num>\d+)$")
+
+
+def image_id(image: Path, fmt: LabelFormat | None) -> str:
+    """The item id of an image: its stem, minus the format's image suffix (``_leftImg8bit``)."""
+    stem = image.stem
+    if fmt is not None and fmt.image_suffix and stem.endswith(fmt.image_suffix):
+        stem = stem[: -len(fmt.image_suffix)]
+    return stem
+
+
+def label_stem_for(image: Path, fmt: LabelFormat) -> str:
+    """File stem of the label that belongs to ``image`` under ``fmt``'s naming rule."""
+    stem = image_id(image, fmt)
+    if fmt.kitti_naming:
+        m = _KITTI_RE.match(stem)
+        if m:
+            return f"{m['cat']}_road_{m['num']}"
+    return stem + fmt.label_suffix

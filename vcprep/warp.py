@@ -1,0 +1,110 @@
+"""Warping images and labels between a physical camera and the virtual camera with one
+``cv2.remap`` per image, using inverse maps that are built once per homography and cached.
+
+Convention: a map for ``dst_H_src`` gives, for every destination pixel centre (u, v) (integers),
+the source coordinate ``src_H_dst @ (u, v, 1)`` (pixel centres at integers, as OpenCV's remap
+and warpPerspective use). A destination pixel is *valid* where that coordinate lies inside the
+source image's outer pixel edges ``[-0.5, w - 0.5) x [-0.5, h - 0.5)``; valid coordinates in the
+half-pixel rim are clamped to the edge pixel (= border replication), invalid ones are sent far
+outside so that the constant border value applies (0 for images, 255 = ignore for labels).
+"""
+from __future__ import annotations
+
+from collections import OrderedDict
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+__all__ = ["RemapMaps", "build_maps", "warp_image", "warp_label", "maps_for", "OUTSIDE"]
+
+OUTSIDE = -64.0  # map value for destination pixels that have no source pixel
+
+
+@dataclass(frozen=True)
+class RemapMaps:
+    """Precomputed inverse maps for one homography and one (source, destination) size pair.
+
+    ``map_x``/``map_y`` float32 source coordinates (clamped / OUTSIDE as described above);
+    ``linear`` fixed-point maps for bilinear remap; ``nearest`` rounded maps for labels;
+    ``valid`` uint8 (1 where a source pixel landed).
+    """
+
+    map_x: np.ndarray
+    map_y: np.ndarray
+    linear: tuple[np.ndarray, np.ndarray]
+    nearest: np.ndarray
+    valid: np.ndarray
+
+    @property
+    def size(self) -> tuple[int, int]:
+        return int(self.valid.shape[1]), int(self.valid.shape[0])
+
+
+def source_coordinates(src_H_dst: np.ndarray, dst_size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Exact (float64) source coordinates of every destination pixel centre, and the sign mask
+    of the homogeneous scale (False beyond the line that maps to infinity)."""
+    W, H = dst_size
+    M = np.asarray(src_H_dst, dtype=np.float64)
+    u = np.arange(W, dtype=np.float64)[None, :]
+    v = np.arange(H, dtype=np.float64)[:, None]
+    den = M[2, 0] * u + (M[2, 1] * v + M[2, 2])
+    front = den > 0
+    inv = 1.0 / np.where(front, den, 1.0)
+    x = (M[0, 0] * u + (M[0, 1] * v + M[0, 2])) * inv
+    y = (M[1, 0] * u + (M[1, 1] * v + M[1, 2])) * inv
+    return x, y, front
+
+
+def build_maps(dst_H_src: np.ndarray, src_size: tuple[int, int], dst_size: tuple[int, int]) -> RemapMaps:
+    """Remap maps that warp a ``src_size`` image into ``dst_size`` through ``dst_H_src``."""
+    M = np.linalg.inv(np.asarray(dst_H_src, dtype=np.float64))
+    if M[2] @ np.array([dst_size[0] / 2, dst_size[1] / 2, 1.0]) < 0:
+        M = -M  # homogeneous sign: make the middle of the destination 'in front'
+    x, y, front = source_coordinates(M, dst_size)
+    w, h = src_size
+    valid = front & (x >= -0.5) & (x < w - 0.5) & (y >= -0.5) & (y < h - 0.5)
+    map_x = np.where(valid, np.clip(x, 0, w - 1), OUTSIDE).astype(np.float32)
+    map_y = np.where(valid, np.clip(y, 0, h - 1), OUTSIDE).astype(np.float32)
+    linear = cv2.convertMaps(map_x, map_y, cv2.CV_16SC2)
+    nearest = cv2.convertMaps(map_x, map_y, cv2.CV_16SC2, nninterpolation=True)[0]
+    return RemapMaps(map_x, map_y, linear, nearest, valid.astype(np.uint8))
+
+
+_CACHE: "OrderedDict[tuple, RemapMaps]" = OrderedDict()
+_CACHE_MAX = 8
+
+
+def maps_for(dst_H_src: np.ndarray, src_size: tuple[int, int], dst_size: tuple[int, int]) -> RemapMaps:
+    """:func:`build_maps` with a small LRU cache keyed by the exact matrix and sizes (all images
+    of one camera share one homography in between-camera mode, so maps are built once)."""
+    H = np.ascontiguousarray(dst_H_src, dtype=np.float64)
+    key = (H.tobytes(), tuple(src_size), tuple(dst_size))
+    hit = _CACHE.get(key)
+    if hit is not None:
+        _CACHE.move_to_end(key)
+        return hit
+    maps = build_maps(H, src_size, dst_size)
+    _CACHE[key] = maps
+    if len(_CACHE) > _CACHE_MAX:
+        _CACHE.popitem(last=False)
+    return maps
+
+
+def _remap(img: np.ndarray, m1, m2, interp: int, border_value) -> np.ndarray:
+    # remap supports up to 4 channels; any dtype cv2 handles (uint8, uint16, float32)
+    return cv2.remap(img, m1, m2, interp, borderMode=cv2.BORDER_CONSTANT, borderValue=border_value)
+
+
+def warp_image(img: np.ndarray, maps: RemapMaps, exact: bool = False) -> np.ndarray:
+    """Bilinear warp of an image (any channels/depth); uncovered pixels are 0.
+
+    ``exact=True`` uses the float maps (no 1/32-pixel fixed-point quantisation)."""
+    if exact:
+        return _remap(img, maps.map_x, maps.map_y, cv2.INTER_LINEAR, 0)
+    return _remap(img, maps.linear[0], maps.linear[1], cv2.INTER_LINEAR, 0)
+
+
+def warp_label(label: np.ndarray, maps: RemapMaps, border_value: int = 255) -> np.ndarray:
+    """Nearest-neighbour warp of a label (values are never mixed); uncovered -> ``border_value``."""
+    return _remap(label, maps.nearest, None, cv2.INTER_NEAREST, border_value)
