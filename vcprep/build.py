@@ -9,7 +9,7 @@ import hashlib
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Mapping
 
 import numpy as np
 from tqdm import tqdm
@@ -17,13 +17,13 @@ from tqdm import tqdm
 from . import __version__
 from .camera import Camera
 from .errors import InputError, VCError
-from .homography import check_not_folded, virt_H_src, virtual_at_scale, vp_from_pose
+from .homography import apply_homography, check_not_folded, pose_from_vp, virt_H_src, virtual_at_scale, vp_from_pose
 from .imageio import IMAGE_EXTENSIONS, image_size_from_header, read_image, write_png
 from .labels import LabelFormat, decode_label, image_id, label_stem_for
 from .store import Store
 from .warp import maps_for, warp_image, warp_label
 
-__all__ = ["Job", "BuildSummary", "list_dataset", "store_params", "item_geometry", "warp_dataset"]
+__all__ = ["Job", "ItemPose", "BuildSummary", "item_maps", "warp_item", "list_dataset", "store_params", "item_geometry", "warp_dataset"]
 
 WARP_ALGORITHM = "warp-v1"  # bump when stored outputs of identical inputs would change
 
@@ -35,6 +35,17 @@ class Job:
     id: str
     image: Path
     label: Path | None = None
+
+
+@dataclass(frozen=True)
+class ItemPose:
+    """A per-image pose from its road vanishing point (within-camera correction).
+
+    ``vp`` is [u, v] in source pixels of the image as stored on disk; ``status`` is
+    'accepted', 'fallback' or 'given' (see the vanishing-point module)."""
+
+    vp: tuple[float, float]
+    status: str
 
 
 @dataclass
@@ -122,10 +133,19 @@ def _item_key(parts: dict[str, Any]) -> str:
     return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
 
 
-def warp_item(job: Job, camera: Camera, store_size: tuple[int, int], H: np.ndarray, fmt: LabelFormat | None):
+def item_maps(H: np.ndarray, src_size: tuple[int, int], store_size: tuple[int, int], completion: str = "none",
+              vp_store: tuple[float, float] | None = None):
+    """The remap maps of one item: the bare warp for ``completion='none'``."""
+    if completion != "none":
+        raise InputError(f"completion method '{completion}' is not available", None, "use --complete none")
+    return maps_for(H, src_size, store_size)
+
+
+def warp_item(job: Job, camera: Camera, store_size: tuple[int, int], H: np.ndarray, fmt: LabelFormat | None,
+              completion: str = "none", vp_store: tuple[float, float] | None = None):
     """Warp one item in memory: returns (image, label or None, valid)."""
     img = read_image(job.image)
-    maps = maps_for(H, img.size, store_size)
+    maps = item_maps(H, img.size, store_size, completion, vp_store)
     warped = warp_image(img.array, maps)
     label = None
     if job.label is not None:
@@ -139,9 +159,13 @@ def warp_item(job: Job, camera: Camera, store_size: tuple[int, int], H: np.ndarr
 
 def warp_dataset(jobs: list[Job], camera: Camera, virtual: Camera, scale: float, out: str | Path,
                  fmt: LabelFormat | None = None, progress: bool = True,
-                 log: Callable[[str], None] | None = None) -> tuple[Store, BuildSummary]:
+                 poses: Mapping[str, ItemPose] | None = None,
+                 completion: str = "none") -> tuple[Store, BuildSummary]:
     """Warp ``jobs`` from ``camera`` into ``virtual`` at ``scale`` into the store ``out``.
 
+    ``poses`` maps item ids to a per-image VP pose (within-camera correction); items without
+    one use the camera's average pose (``vp_status`` 'camera'). ``completion`` names the
+    method that fills uncovered store pixels ('none': left 0 / label 255).
     Items whose inputs and parameters are unchanged (same key, files present) are skipped. On a
     bad input the manifest keeps every item finished so far and the error propagates.
     """
@@ -162,17 +186,27 @@ def warp_dataset(jobs: list[Job], camera: Camera, virtual: Camera, scale: float,
             size = image_size_from_header(data)
             if size is None:
                 size = read_image(job.image).size
-            cam, H = item_geometry(camera, size, vs, job.image)
+            cam = camera.for_image_size(size, job.image)
+            pose = poses.get(job.id) if poses else None
+            if pose is not None:
+                pan, tilt = pose_from_vp(cam, pose.vp)
+                vp, vp_status = (float(pose.vp[0]), float(pose.vp[1])), pose.status
+            else:
+                pan, tilt = cam.pan, cam.tilt
+                vp, vp_status = vp_from_pose(cam, pan, tilt), "camera"
+            cam, H = item_geometry(cam, size, vs, job.image, pan, tilt)
+            vp_store = tuple(apply_homography(H, [vp])[0])  # = the virtual principal point (H maps VP -> pp)
             lab_hash = _sha256_file(job.label, "label")[0] if job.label is not None else None
-            pan, tilt = cam.pan, cam.tilt
             key = _item_key({"algorithm": WARP_ALGORITHM, "source_sha256": src_hash, "label_sha256": lab_hash,
                              "label_format": fmt.name if fmt and job.label else None, "camera": cam.to_dict(),
                              "store": {k: params[k] for k in ("virtual", "scale", "store_size")},
-                             "H": np.round(H, 12).ravel().tolist()})
+                             "H": np.round(H, 12).ravel().tolist(), "vp_status": vp_status,
+                             "completion": completion})
             if old is not None and old.get("key") == key and store.is_complete(old):
                 summary.up_to_date += 1
                 continue
-            image, label, valid = warp_item(job, camera=cam, store_size=store_size, H=H, fmt=fmt)
+            image, label, valid = warp_item(job, camera=cam, store_size=store_size, H=H, fmt=fmt,
+                                            completion=completion, vp_store=vp_store)
             rec = {
                 "id": job.id,
                 "source": str(job.image),
@@ -183,8 +217,8 @@ def warp_dataset(jobs: list[Job], camera: Camera, virtual: Camera, scale: float,
                 "camera": camera.name,
                 "camera_params": cam.to_dict(),
                 "size": list(cam.size),
-                "vp": list(vp_from_pose(cam, pan, tilt)),
-                "vp_status": "camera",
+                "vp": [float(vp[0]), float(vp[1])],
+                "vp_status": vp_status,
                 "pan_deg": pan,
                 "tilt_deg": tilt,
                 "H": H.ravel().tolist(),
@@ -192,7 +226,7 @@ def warp_dataset(jobs: list[Job], camera: Camera, virtual: Camera, scale: float,
                 "label": f"labels/{job.id}.png" if label is not None else None,
                 "valid": f"valid/{job.id}.png",
                 "store_size": list(store_size),
-                "completion": "none",
+                "completion": completion,
                 "key": key,
                 "tool_version": __version__,
             }
