@@ -59,7 +59,7 @@ def backproject_folder(store: str | Path, masks: str | Path, out: str | Path, ki
     if out.exists() and not out.is_dir():
         raise InputError("exists and is not a directory", out, "choose another --out")
     out.mkdir(parents=True, exist_ok=True)
-    for f in tqdm(files, desc="backproject", unit="img", disable=not progress, leave=False):
+    for f in tqdm(files, desc="backproject", unit="img", disable=None if progress else True, leave=False):
         arr = read_image(f, label=(kind == "mask")).array
         write_png(out / f.name, backproject_array(arr, st.items[f.stem], kind))
     return len(files)

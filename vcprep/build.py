@@ -175,7 +175,7 @@ def warp_dataset(jobs: list[Job], camera: Camera, virtual: Camera, scale: float,
     store_size = store.store_size
     summary = BuildSummary(total=len(jobs))
     dirty = 0
-    bar = tqdm(jobs, desc="warp", unit="img", disable=not progress, leave=False)
+    bar = tqdm(jobs, desc="warp", unit="img", disable=None if progress else True, leave=False)
     try:
         for job in bar:
             old = store.items.get(job.id)

@@ -105,7 +105,8 @@ class Camera:
         if (w, h) == (W, H):
             return self
         sx, sy = w / W, h / H
-        if abs(sx * H - h) <= 1.0 and abs(sy * W - w) <= 1.0:
+        # uniform: one factor s that, rounded either way, gives both sides (|s*W - w| <= 1, |s*H - h| <= 1)
+        if max((w - 1) / W, (h - 1) / H) <= min((w + 1) / W, (h + 1) / H):
             return self.resized(sx, sy, size=(w, h))
         raise InputError(
             f"image is {w}x{h} but camera '{self.name}' is calibrated for {W}x{H}, "

@@ -18,6 +18,9 @@ from .errors import InputError
 __all__ = ["LoadedImage", "read_image", "write_png", "write_bytes_atomic", "IMAGE_EXTENSIONS", "MAX_PIXELS",
            "image_size_from_header"]
 
+# we report every decoding problem ourselves, as one Error: line; OpenCV's own log would add noise
+cv2.utils.logging.setLogLevel(cv2.utils.logging.LOG_LEVEL_SILENT)
+
 IMAGE_EXTENSIONS = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff")
 MAX_PIXELS = 120_000_000  # > the 15.4 Mpx full virtual camera; refuses absurd headers before decoding
 

@@ -1,0 +1,59 @@
+"""Shared fixtures: synthetic scenes with exact geometry, and a runner for the real CLI."""
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from vcprep.camera import Camera, PRESETS
+from vcprep.synthetic import RoadScene, render_road
+
+BIN = Path(sys.executable).parent
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+
+cv2.setNumThreads(1)
+
+
+def run_cli(*args: str, prog: str = "vcprep", cwd: Path | None = None) -> subprocess.CompletedProcess:
+    """Run the installed console script (the real command a user types)."""
+    exe = BIN / prog
+    return subprocess.run([str(exe), *map(str, args)], capture_output=True, text=True, cwd=cwd, timeout=300)
+
+
+def assert_one_error_line(proc: subprocess.CompletedProcess, *needles: str) -> None:
+    assert proc.returncode != 0, proc.stdout
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1, proc.stderr
+    assert lines[0].startswith("Error: "), proc.stderr
+    assert "Traceback" not in proc.stderr
+    for n in needles:
+        assert n in lines[0], (n, lines[0])
+
+
+@pytest.fixture(scope="session")
+def camvid_half() -> Camera:
+    """The camvid preset at the 480x360 size of the SegNet release."""
+    return PRESETS["camvid"].for_image_size((480, 360))
+
+
+def write_synthetic_dataset(folder: Path, cam: Camera, n: int = 3, poses=None, bonnet_rows: int = 0,
+                            scene: RoadScene = RoadScene()) -> tuple[Path, Path]:
+    """Render ``n`` frames to ``folder/images`` and CamVid-format labels (3 road, 0 else, 11 the
+    bottom ``bonnet_rows`` rows) to ``folder/labels``."""
+    img_dir, lab_dir = folder / "images", folder / "labels"
+    img_dir.mkdir(parents=True, exist_ok=True)
+    lab_dir.mkdir(parents=True, exist_ok=True)
+    for i in range(n):
+        pan, tilt = poses[i] if poses else (None, None)
+        img, lab = render_road(cam, RoadScene(offset=scene.offset + 0.3 * i, texture_seed=i), pan=pan, tilt=tilt,
+                               supersample=1)
+        ids = np.where(lab == 1, 3, 0).astype(np.uint8)
+        if bonnet_rows:
+            ids[-bonnet_rows:] = 11
+        cv2.imwrite(str(img_dir / f"seq_{i:04d}.png"), img)
+        cv2.imwrite(str(lab_dir / f"seq_{i:04d}.png"), ids)
+    return img_dir, lab_dir

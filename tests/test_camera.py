@@ -1,0 +1,124 @@
+"""Camera model: presets, YAML schema and its errors, resizing with the pixel-centre rule, and the
+KITTI / Cityscapes readers."""
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from vcprep.camera import PRESETS, Camera, camera_to_yaml, load_camera, read_camera_yaml, read_cityscapes_camera, \
+    read_kitti_calib
+from vcprep.errors import InputError
+
+from conftest import EXAMPLES
+
+GOOD = """name: mycam
+image_size: [960, 720]
+fx: 862
+fy: 1141
+cx: 485
+cy: 365
+height: 1.21
+tilt: 0
+"""
+
+
+def test_presets_match_paper_table():
+    assert set(PRESETS) == {"camvid", "cityscapes", "kitti", "qian", "toronto2020", "virtual"}
+    v = PRESETS["virtual"]
+    assert v.size == (5500, 2800) and v.fx == v.fy == 2262 and v.height == 1.38
+    hf, vf = v.fov_deg()
+    assert hf == pytest.approx(101.1, abs=0.1) and vf == pytest.approx(63.5, abs=0.1)  # paper Table 1
+    assert PRESETS["cityscapes"].tilt == 2.4
+
+
+def test_yaml_round_trip(tmp_path):
+    p = tmp_path / "cam.yaml"
+    p.write_text(GOOD)
+    cam = read_camera_yaml(p)
+    assert cam == Camera("mycam", (960, 720), 862, 1141, 485, 365, 1.21)
+    p2 = tmp_path / "again.yaml"
+    p2.write_text(camera_to_yaml(cam))
+    assert read_camera_yaml(p2) == cam
+    assert load_camera(p) == cam and load_camera("camvid") is PRESETS["camvid"]
+
+
+@pytest.mark.parametrize("edit, needle", [
+    (lambda t: t + "focal: 3\n", "unknown key 'focal'"),
+    (lambda t: t.replace("fx: 862\n", ""), "missing key 'fx'"),
+    (lambda t: t.replace("fx: 862", "fx: -862"), "'fx' must be a positive"),
+    (lambda t: t.replace("fy: 1141", "fy: 0"), "'fy' must be a positive"),
+    (lambda t: t.replace("height: 1.21", "height: -1"), "'height' must be a positive"),
+    (lambda t: t.replace("height: 1.21", "height: .nan"), "'height' is nan"),
+    (lambda t: t.replace("cx: 485", "cx: 2000"), "principal point"),
+    (lambda t: t.replace("tilt: 0", "tilt: 89.5"), "'tilt'"),
+    (lambda t: t.replace("height: 1.21", "height: 720"), "not a road camera height"),
+    (lambda t: t.replace("image_size: [960, 720]", "image_size: [960]"), "image_size"),
+    (lambda t: t.replace("fx: 862", "fx: abc"), "'fx' must be a number"),
+    (lambda t: "fx: [", "not valid YAML"),
+    (lambda t: "", "must be a mapping"),
+])
+def test_yaml_errors_name_file_and_key(tmp_path, edit, needle):
+    p = tmp_path / "bad.yaml"
+    p.write_text(edit(GOOD))
+    with pytest.raises(InputError) as e:
+        read_camera_yaml(p)
+    assert needle in str(e.value) and str(p) in str(e.value)
+
+
+def test_resize_follows_pixel_centre_rule():
+    cam = PRESETS["camvid"]
+    half = cam.for_image_size((480, 360))
+    # u' = s (u + 0.5) - 0.5 for pixel centres at integers
+    assert half.fx == 431 and half.fy == 570.5
+    assert half.cx == pytest.approx(0.5 * (485 + 0.5) - 0.5) and half.cy == pytest.approx(0.5 * (365 + 0.5) - 0.5)
+    # a 3D point projects to the same place in the resized image as resizing its projection
+    P = np.array([1.3, 0.7, 9.0])
+    u_full = cam.K @ P
+    u_full = u_full[:2] / u_full[2]
+    u_half = half.K @ P
+    u_half = u_half[:2] / u_half[2]
+    assert np.allclose(u_half, 0.5 * (u_full + 0.5) - 0.5)
+    assert cam.for_image_size((960, 720)) is cam
+
+
+def test_non_uniform_size_is_an_error():
+    with pytest.raises(InputError, match="not a uniform rescale"):
+        PRESETS["camvid"].for_image_size((480, 300), "x.png")
+
+
+def test_kitti_calib_reader():
+    cam = read_kitti_calib(EXAMPLES / "kitti" / "calib" / "um_000000.txt")
+    assert cam.fx == pytest.approx(721.5377) and cam.cx == pytest.approx(609.5593) and cam.cy == pytest.approx(172.854)
+    assert cam.height == pytest.approx(1.597, abs=1e-3)  # from Tr_cam_to_road
+    # road normal in camera coords is (0.0054, 0.9999, -0.0111): optical axis pitched slightly UP
+    assert cam.tilt == pytest.approx(math.degrees(math.atan2(-1.111504746388e-02, 9.999234779341e-01)), abs=1e-6)
+    assert cam.tilt < 0
+
+
+def test_kitti_calib_without_p2(tmp_path):
+    p = tmp_path / "calib.txt"
+    p.write_text("P0: 1 0 0 0 0 1 0 0 0 0 1 0\n")
+    with pytest.raises(InputError, match="no 'P2' line"):
+        read_kitti_calib(p)
+
+
+def test_cityscapes_camera_reader(tmp_path):
+    d = {"extrinsic": {"baseline": 0.21, "pitch": 0.038, "roll": 0.0, "yaw": -0.0195, "x": 1.7, "y": 0.1, "z": 1.22},
+         "intrinsic": {"fx": 2262.52, "fy": 2265.3, "u0": 1096.98, "v0": 513.137}}
+    p = tmp_path / "aachen_000000_000019_camera.json"
+    p.write_text(json.dumps(d))
+    cam = read_cityscapes_camera(p)
+    assert cam.tilt == pytest.approx(math.degrees(0.038)) and cam.height == 1.22 and cam.size == (2048, 1024)
+    assert cam.pan == pytest.approx(math.degrees(-0.0195))
+    del d["intrinsic"]["v0"]
+    p.write_text(json.dumps(d))
+    with pytest.raises(InputError, match="intrinsic.v0"):
+        read_cityscapes_camera(p)
+
+
+def test_unknown_camera_spec():
+    with pytest.raises(InputError, match="not a camera preset"):
+        load_camera("camvidd")

@@ -1,0 +1,260 @@
+"""The real vcprep command: store building, up-to-date logic, records, back-projection, help, and
+bad inputs (one `Error:` line naming the file, exit != 0, nothing half-written)."""
+from __future__ import annotations
+
+import json
+import shutil
+
+import cv2
+import numpy as np
+import pytest
+
+from vcprep.camera import PRESETS, camera_to_yaml
+from vcprep.homography import virt_H_src, virtual_at_scale
+
+from conftest import EXAMPLES, assert_one_error_line, run_cli, write_synthetic_dataset
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory, camvid_half):
+    root = tmp_path_factory.mktemp("ds")
+    images, labels = write_synthetic_dataset(root, camvid_half, n=3, bonnet_rows=20)
+    return root, images, labels
+
+
+def _warp(images, labels, out, *extra):
+    return run_cli("warp", "--camera", "camvid", "--images", images, "--labels", labels, "--label-format", "camvid",
+                   "--out", out, *extra)
+
+
+def _records(store):
+    proc = run_cli("store", "show", store, "--json")
+    assert proc.returncode == 0, proc.stderr
+    return [json.loads(line) for line in proc.stdout.splitlines()]
+
+
+def test_warp_builds_store_with_documented_records(dataset, tmp_path, camvid_half):
+    _, images, labels = dataset
+    out = tmp_path / "store"
+    proc = _warp(images, labels, out)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == str(out)
+    assert "3 built, 0 up to date" in proc.stderr
+    recs = _records(out)
+    assert [r["id"] for r in recs] == ["seq_0000", "seq_0001", "seq_0002"]
+    r = recs[0]
+    for key in ("id", "source", "camera", "size", "H", "image", "label", "store_size", "valid", "vp", "vp_status",
+                "pan_deg", "tilt_deg", "source_sha256"):
+        assert key in r
+    assert r["source"] == str(images / "seq_0000.png") and r["camera"] == "camvid" and r["size"] == [480, 360]
+    assert r["store_size"] == [688, 350]
+    v = virtual_at_scale(PRESETS["virtual"], 0.125)
+    assert np.allclose(np.array(r["H"]).reshape(3, 3) / r["H"][8], virt_H_src(camvid_half, v) / virt_H_src(camvid_half, v)[2, 2])
+    lab = cv2.imread(str(out / r["label"]), cv2.IMREAD_UNCHANGED)
+    img = cv2.imread(str(out / r["image"]), cv2.IMREAD_UNCHANGED)
+    valid = cv2.imread(str(out / r["valid"]), cv2.IMREAD_UNCHANGED)
+    assert lab.shape == img.shape[:2] == valid.shape == (350, 688)
+    assert set(np.unique(lab)) <= {0, 1, 255} and (lab == 1).sum() > 1000
+    assert set(np.unique(valid)) == {0, 1}
+    assert (lab[valid == 0] == 255).all() and not img[valid == 0].any()
+    # the CamVid bonnet (id 11) became ignore inside the covered region
+    assert ((lab == 255) & (valid == 1)).sum() > 0
+
+
+def test_rerun_does_no_work_and_changes_redo_exactly_the_affected_items(dataset, tmp_path):
+    root, images, labels = dataset
+    imgs = tmp_path / "images"
+    shutil.copytree(images, imgs)
+    out = tmp_path / "store"
+    assert _warp(imgs, labels, out).returncode == 0
+    before = {r["id"]: r for r in _records(out)}
+    mtimes = {p.name: p.stat().st_mtime_ns for p in (out / "images").iterdir()}
+    proc = _warp(imgs, labels, out)
+    assert "0 built, 3 up to date" in proc.stderr
+    assert {p.name: p.stat().st_mtime_ns for p in (out / "images").iterdir()} == mtimes
+    # change one image: exactly that item is rebuilt
+    a = cv2.imread(str(imgs / "seq_0001.png"))
+    cv2.imwrite(str(imgs / "seq_0001.png"), 255 - a)
+    proc = _warp(imgs, labels, out)
+    assert "1 built, 2 up to date" in proc.stderr, proc.stderr
+    after = {r["id"]: r for r in _records(out)}
+    assert after["seq_0001"]["source_sha256"] != before["seq_0001"]["source_sha256"]
+    assert after["seq_0000"] == before["seq_0000"]
+    # a different camera (height) changes every H: everything is redone
+    cam = PRESETS["camvid"].to_dict()
+    cam["height"] = 1.5
+    cam_file = tmp_path / "cam.yaml"
+    from vcprep.camera import camera_from_dict
+    cam_file.write_text(camera_to_yaml(camera_from_dict(cam)))
+    proc = run_cli("warp", "--camera", cam_file, "--images", imgs, "--labels", labels, "--label-format", "camvid",
+                   "--out", out)
+    assert "3 built, 0 up to date" in proc.stderr, proc.stderr
+    # a different scale into the same store is refused, and nothing changes
+    proc = _warp(imgs, labels, out, "--scale", "0.25")
+    assert_one_error_line(proc, str(out), "scale")
+    assert len(_records(out)) == 3
+
+
+def test_backproject_cli_inverts_the_warp(dataset, tmp_path):
+    _, images, labels = dataset
+    out = tmp_path / "store"
+    assert _warp(images, labels, out, "--scale", "0.25").returncode == 0
+    masks = tmp_path / "masks"
+    masks.mkdir()
+    recs = _records(out)
+    for r in recs:  # a virtual-domain 'prediction': the stored label as 0/255
+        lab = cv2.imread(str(out / r["label"]), cv2.IMREAD_UNCHANGED)
+        cv2.imwrite(str(masks / f"{r['id']}.png"), np.where(lab == 1, 255, 0).astype(np.uint8))
+    proc = run_cli("backproject", out, masks, "--out", tmp_path / "back")
+    assert proc.returncode == 0, proc.stderr
+    for r in recs:
+        back = cv2.imread(str(tmp_path / "back" / f"{r['id']}.png"), cv2.IMREAD_UNCHANGED)
+        src = cv2.imread(r["label_source"], cv2.IMREAD_UNCHANGED)
+        assert back.shape == src.shape == (360, 480)
+        sure = src != 11  # the bonnet was ignore, predicted as 0 here
+        agree = ((back == 255) == (src == 3))[sure].mean()
+        assert agree > 0.99, agree
+
+
+def test_every_command_has_help_with_an_example():
+    commands = [[], ["cameras"], ["camera"], ["camera", "show"], ["camera", "design"], ["warp"], ["store"],
+                ["store", "show"], ["backproject"], ["figure"], ["figure", "warp"]]
+    top = run_cli("--help")
+    assert top.returncode == 0
+    for cmd in commands:
+        proc = run_cli(*cmd, "--help")
+        assert proc.returncode == 0, cmd
+        if cmd and cmd[0] not in ("camera", "store", "figure") or len(cmd) == 2:
+            assert "Example" in proc.stdout, cmd
+
+
+def test_cameras_and_camera_show(tmp_path):
+    proc = run_cli("cameras", "--json")
+    rows = [json.loads(x) for x in proc.stdout.splitlines()]
+    assert {r["name"] for r in rows} == set(PRESETS)
+    v = next(r for r in rows if r["name"] == "virtual")
+    assert v["fov_deg"] == pytest.approx([101.1, 63.5], abs=0.1)
+    proc = run_cli("camera", "show", EXAMPLES / "kitti" / "calib" / "um_000000.txt", "--json")
+    assert json.loads(proc.stdout)["height"] == pytest.approx(1.597, abs=1e-3)
+
+
+def test_camera_design_reproduces_paper_virtual_camera(tmp_path):
+    out = tmp_path / "virtual.yaml"
+    proc = run_cli("camera", "design", "camvid", "cityscapes", "kitti", "qian", "toronto2020", "-o", out)
+    assert proc.returncode == 0, proc.stderr
+    from vcprep.camera import read_camera_yaml
+    v = read_camera_yaml(out)
+    assert v.height == pytest.approx(1.38, abs=0.005) and v.fx == v.fy == 2262
+    assert v.size[0] == pytest.approx(5500, rel=0.03) and v.size[1] == pytest.approx(2800, rel=0.06)
+    assert v.cx == (v.size[0] - 1) / 2 and v.tilt == 0
+
+
+def test_demo_examples_warp(tmp_path):
+    out = tmp_path / "s"
+    proc = run_cli("warp", "--camera", EXAMPLES / "kitti" / "calib" / "um_000000.txt", "--images",
+                   EXAMPLES / "kitti" / "image_2", "--labels", EXAMPLES / "kitti" / "gt_image_2", "--label-format",
+                   "kitti", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    rec = _records(out)[0]
+    lab = cv2.imread(str(out / rec["label"]), cv2.IMREAD_UNCHANGED)
+    assert (lab == 1).sum() > 500 and rec["size"] == [1242, 375]
+    proc = run_cli("figure", "warp", out, "-o", tmp_path / "fig.png")
+    assert proc.returncode == 0 and cv2.imread(str(tmp_path / "fig.png")) is not None
+
+
+# ---------------------------------------------------------------- bad inputs
+def _bad_png(kind):
+    def make(images, labels, tmp):
+        target = images / "seq_0001.png"
+        data = target.read_bytes()
+        if kind == "truncated":
+            target.write_bytes(data[: len(data) // 2])
+        elif kind == "corrupt":
+            target.write_bytes(data[:40] + b"\x00garbage" * 50 + data[-12:])
+        elif kind == "empty":
+            target.write_bytes(b"")
+        elif kind == "huge":
+            # a 40000x40000 PNG header: refused without allocating it
+            import struct, zlib
+            ihdr = struct.pack(">IIBBBBB", 40000, 40000, 8, 2, 0, 0, 0)
+            chunk = lambda t, d: struct.pack(">I", len(d)) + t + d + struct.pack(">I", zlib.crc32(t + d))
+            target.write_bytes(b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", ihdr) + chunk(b"IEND", b""))
+        return target
+    return make
+
+
+def _wrong_size(images, labels, tmp):
+    target = images / "seq_0002.png"
+    cv2.imwrite(str(target), np.zeros((300, 480, 3), np.uint8))
+    return target
+
+
+def _label_out_of_range(images, labels, tmp):
+    target = labels / "seq_0002.png"
+    lab = cv2.imread(str(target), cv2.IMREAD_UNCHANGED)
+    lab[5, 5] = 40
+    cv2.imwrite(str(target), lab)
+    return target
+
+
+@pytest.mark.parametrize("make, needle", [
+    (_bad_png("truncated"), "truncated"),
+    (_bad_png("corrupt"), "decode"),
+    (_bad_png("empty"), "empty"),
+    (_bad_png("huge"), "40000x40000"),
+    (_wrong_size, "not a uniform rescale"),
+    (_label_out_of_range, "label value 40"),
+])
+def test_bad_input_files(dataset, tmp_path, make, needle):
+    _, images, labels = dataset
+    imgs, labs = tmp_path / "images", tmp_path / "labels"
+    shutil.copytree(images, imgs)
+    shutil.copytree(labels, labs)
+    bad = make(imgs, labs, tmp_path)
+    out = tmp_path / "store"
+    proc = _warp(imgs, labs, out)
+    assert_one_error_line(proc, str(bad), needle)
+    # nothing half-written: no temp files; the bad item has no record and no files
+    leftovers = [p for p in out.rglob("*") if p.name.startswith(".") or p.suffix == ".tmp"]
+    assert not leftovers
+    ids = [r["id"] for r in _records(out)]
+    assert bad.stem not in ids
+    for sub in ("images", "labels", "valid"):
+        assert not (out / sub / f"{bad.stem}.png").exists()
+    assert all((out / "images" / f"{i}.png").exists() for i in ids)
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--camera", "nosuchcam"], "not a camera preset"),
+    (["--images", "/nonexistent/dir"], "image folder not found"),
+    (["--label-format", "pascal"], "unknown label format"),
+])
+def test_bad_arguments(dataset, tmp_path, args, needle):
+    _, images, labels = dataset
+    base = {"--camera": "camvid", "--images": str(images), "--labels": str(labels), "--label-format": "camvid",
+            "--out": str(tmp_path / "s")}
+    base.update(dict(zip(args[::2], args[1::2])))
+    proc = run_cli("warp", *[x for kv in base.items() for x in kv])
+    assert_one_error_line(proc, needle)
+
+
+def test_negative_focal_yaml_via_cli(dataset, tmp_path):
+    _, images, labels = dataset
+    cam = tmp_path / "neg.yaml"
+    cam.write_text(camera_to_yaml(PRESETS["camvid"]).replace("fx: 862", "fx: -862"))
+    proc = run_cli("warp", "--camera", cam, "--images", images, "--out", tmp_path / "s")
+    assert_one_error_line(proc, str(cam), "'fx'")
+    assert not (tmp_path / "s").exists()
+
+
+def test_output_is_a_file(dataset, tmp_path):
+    _, images, labels = dataset
+    f = tmp_path / "file"
+    f.write_text("x")
+    assert_one_error_line(_warp(images, labels, f), str(f), "not a directory")
+
+
+def test_debug_shows_traceback(dataset, tmp_path):
+    _, images, labels = dataset
+    proc = run_cli("warp", "--camera", "nosuch", "--images", images, "--out", tmp_path / "s", "--debug")
+    assert proc.returncode == 1 and "Traceback" in proc.stderr
