@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from dataclasses import dataclass
+from functools import cached_property
 
 import cv2
 import numpy as np
@@ -39,6 +40,17 @@ class RemapMaps:
     @property
     def size(self) -> tuple[int, int]:
         return int(self.valid.shape[1]), int(self.valid.shape[0])
+
+    @cached_property
+    def roi(self) -> tuple[int, int, int, int]:
+        """(x0, y0, x1, y1): bounding box of the destination pixels that sample the source at
+        all (map_x >= 0); everything outside it is border value, so remap only this box."""
+        inside = self.map_x >= 0
+        rows = np.flatnonzero(inside.any(axis=1))
+        cols = np.flatnonzero(inside.any(axis=0))
+        if rows.size == 0:
+            return (0, 0, 0, 0)
+        return int(cols[0]), int(rows[0]), int(cols[-1]) + 1, int(rows[-1]) + 1
 
 
 def source_coordinates(src_H_dst: np.ndarray, dst_size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -91,20 +103,29 @@ def maps_for(dst_H_src: np.ndarray, src_size: tuple[int, int], dst_size: tuple[i
     return maps
 
 
-def _remap(img: np.ndarray, m1, m2, interp: int, border_value) -> np.ndarray:
-    # remap supports up to 4 channels; any dtype cv2 handles (uint8, uint16, float32)
-    return cv2.remap(img, m1, m2, interp, borderMode=cv2.BORDER_CONSTANT, borderValue=border_value)
+def _remap(img: np.ndarray, maps: RemapMaps, m1, m2, interp: int, border_value) -> np.ndarray:
+    """cv2.remap restricted to ``maps.roi`` (the rest is ``border_value``): a physical camera
+    usually covers a fraction of the virtual view, so this skips most of the work."""
+    W, H = maps.size
+    x0, y0, x1, y1 = maps.roi
+    if (x0, y0, x1, y1) == (0, 0, W, H):
+        return cv2.remap(img, m1, m2, interp, borderMode=cv2.BORDER_CONSTANT, borderValue=border_value)
+    out = np.full((H, W) + img.shape[2:], border_value, dtype=img.dtype)
+    if x1 > x0 and y1 > y0:
+        cv2.remap(img, m1[y0:y1, x0:x1], None if m2 is None else m2[y0:y1, x0:x1], interp,
+                  dst=out[y0:y1, x0:x1], borderMode=cv2.BORDER_CONSTANT, borderValue=border_value)
+    return out
 
 
 def warp_image(img: np.ndarray, maps: RemapMaps, exact: bool = False) -> np.ndarray:
-    """Bilinear warp of an image (any channels/depth); uncovered pixels are 0.
+    """Bilinear warp of an image (any channels/depth, up to 4 channels); uncovered pixels are 0.
 
     ``exact=True`` uses the float maps (no 1/32-pixel fixed-point quantisation)."""
     if exact:
-        return _remap(img, maps.map_x, maps.map_y, cv2.INTER_LINEAR, 0)
-    return _remap(img, maps.linear[0], maps.linear[1], cv2.INTER_LINEAR, 0)
+        return _remap(img, maps, maps.map_x, maps.map_y, cv2.INTER_LINEAR, 0)
+    return _remap(img, maps, maps.linear[0], maps.linear[1], cv2.INTER_LINEAR, 0)
 
 
 def warp_label(label: np.ndarray, maps: RemapMaps, border_value: int = 255) -> np.ndarray:
     """Nearest-neighbour warp of a label (values are never mixed); uncovered -> ``border_value``."""
-    return _remap(label, maps.nearest, None, cv2.INTER_NEAREST, border_value)
+    return _remap(label, maps, maps.nearest, None, cv2.INTER_NEAREST, border_value)
