@@ -8,7 +8,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= out/demo
 
-.PHONY: install test demo bench clean
+.PHONY: install test demo bench clean fuzz
 
 # torch==2.13.0 first: it resolves to the local CPU build; the package's own range (torch>=2.1,<3)
 # is then already satisfied, so pip never pulls a multi-GB CUDA build.
@@ -37,3 +37,7 @@ bench: $(STAMP)
 
 clean:
 	rm -rf $(VENV) out *.egg-info
+
+# property-based fuzzing of the readers: >= 10^4 examples each (the default test run uses 60)
+fuzz: $(STAMP)
+	HYPOTHESIS_PROFILE=fuzz $(PY) -m pytest tests/test_fuzz_readers.py -q
