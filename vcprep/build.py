@@ -21,9 +21,11 @@ from .homography import apply_homography, check_not_folded, pose_from_vp, virt_H
 from .imageio import IMAGE_EXTENSIONS, image_size_from_header, read_image, write_png
 from .labels import LabelFormat, decode_label, image_id, label_stem_for
 from .store import Store
+from .completion import border_ignore, check_method, completion_maps
 from .warp import maps_for, warp_image, warp_label
 
-__all__ = ["Job", "ItemPose", "BuildSummary", "item_maps", "warp_item", "list_dataset", "store_params", "item_geometry", "warp_dataset"]
+__all__ = ["Job", "ItemPose", "BuildSummary", "item_maps", "warp_item", "list_dataset", "store_params", "item_geometry", "warp_dataset",
+           "WarpedItem", "warp_item_full", "complete_store", "record_key"]
 
 WARP_ALGORITHM = "warp-v1"  # bump when stored outputs of identical inputs would change
 
@@ -54,6 +56,7 @@ class BuildSummary:
     built: int = 0
     up_to_date: int = 0
     failed: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)  # per-item remarks for the user (e.g. VP outside)
 
     def line(self) -> str:
         return (f"{self.total} items: {self.built} built, {self.up_to_date} up to date, "
@@ -134,27 +137,45 @@ def _item_key(parts: dict[str, Any]) -> str:
 
 
 def item_maps(H: np.ndarray, src_size: tuple[int, int], store_size: tuple[int, int], completion: str = "none",
-              vp_store: tuple[float, float] | None = None):
-    """The remap maps of one item: the bare warp for ``completion='none'``."""
-    if completion != "none":
-        raise InputError(f"completion method '{completion}' is not available", None, "use --complete none")
-    return maps_for(H, src_size, store_size)
+              vp_store: tuple[float, float] | None = None, src_ignore: np.ndarray | None = None):
+    """The remap maps of one item: warp and completion in one inverse map (:mod:`vcprep.completion`).
+
+    ``src_ignore``: the label's border ignore pixels (source), which completion must not smear."""
+    return completion_maps(H, src_size, store_size, completion, vp_store, src_ignore)
 
 
-def warp_item(job: Job, camera: Camera, store_size: tuple[int, int], H: np.ndarray, fmt: LabelFormat | None,
-              completion: str = "none", vp_store: tuple[float, float] | None = None):
-    """Warp one item in memory: returns (image, label or None, valid)."""
+@dataclass(frozen=True)
+class WarpedItem:
+    """One warped (and completed) item in memory; ``maps`` says how (centre, vp_inside, note)."""
+
+    image: np.ndarray
+    label: np.ndarray | None
+    valid: np.ndarray
+    maps: Any
+
+
+def warp_item_full(job: Job, store_size: tuple[int, int], H: np.ndarray, fmt: LabelFormat | None,
+                   completion: str = "none", vp_store: tuple[float, float] | None = None) -> WarpedItem:
+    """Warp + complete one item in memory with one remap per image/label."""
     img = read_image(job.image)
-    maps = item_maps(H, img.size, store_size, completion, vp_store)
-    warped = warp_image(img.array, maps)
-    label = None
+    lab = None
     if job.label is not None:
         raw = read_image(job.label, label=True)
         if raw.size != img.size:
             raise InputError(f"label is {raw.size[0]}x{raw.size[1]} but its image is {img.size[0]}x{img.size[1]}",
                              job.label, "labels must have the size of their images")
-        label = warp_label(decode_label(raw.array, fmt, job.label), maps)
-    return warped, label, maps.valid
+        lab = decode_label(raw.array, fmt, job.label)
+    maps = item_maps(H, img.size, store_size, completion, vp_store, border_ignore(lab))
+    warped = warp_image(img.array, maps)
+    label = warp_label(lab, maps, border_value=maps.label_border) if lab is not None else None
+    return WarpedItem(warped, label, maps.valid, maps)
+
+
+def warp_item(job: Job, camera: Camera, store_size: tuple[int, int], H: np.ndarray, fmt: LabelFormat | None,
+              completion: str = "none", vp_store: tuple[float, float] | None = None):
+    """Warp one item in memory: returns (image, label or None, valid)."""
+    item = warp_item_full(job, store_size, H, fmt, completion, vp_store)
+    return item.image, item.label, item.valid
 
 
 def warp_dataset(jobs: list[Job], camera: Camera, virtual: Camera, scale: float, out: str | Path,
@@ -169,6 +190,7 @@ def warp_dataset(jobs: list[Job], camera: Camera, virtual: Camera, scale: float,
     Items whose inputs and parameters are unchanged (same key, files present) are skipped. On a
     bad input the manifest keeps every item finished so far and the error propagates.
     """
+    check_method(completion)
     params = store_params(virtual, scale)
     store = Store.open_or_create(out, params)
     vs = store.virtual
@@ -201,12 +223,12 @@ def warp_dataset(jobs: list[Job], camera: Camera, virtual: Camera, scale: float,
                              "label_format": fmt.name if fmt and job.label else None, "camera": cam.to_dict(),
                              "store": {k: params[k] for k in ("virtual", "scale", "store_size")},
                              "H": np.round(H, 12).ravel().tolist(), "vp_status": vp_status,
-                             "completion": completion})
+                             "completion": completion_key_part(completion)})
             if old is not None and old.get("key") == key and store.is_complete(old):
                 summary.up_to_date += 1
                 continue
-            image, label, valid = warp_item(job, camera=cam, store_size=store_size, H=H, fmt=fmt,
-                                            completion=completion, vp_store=vp_store)
+            item = warp_item_full(job, store_size=store_size, H=H, fmt=fmt, completion=completion, vp_store=vp_store)
+            image, label, valid = item.image, item.label, item.valid
             rec = {
                 "id": job.id,
                 "source": str(job.image),
@@ -227,6 +249,7 @@ def warp_dataset(jobs: list[Job], camera: Camera, virtual: Camera, scale: float,
                 "valid": f"valid/{job.id}.png",
                 "store_size": list(store_size),
                 "completion": completion,
+                **completion_fields(item.maps),
                 "key": key,
                 "tool_version": __version__,
             }
@@ -235,6 +258,8 @@ def warp_dataset(jobs: list[Job], camera: Camera, virtual: Camera, scale: float,
                 write_png(store.path(rec["label"]), label)
             write_png(store.path(rec["valid"]), valid)
             store.items[job.id] = rec
+            if item.maps.note:
+                summary.notes.append(f"{job.id}: {item.maps.note}")
             summary.built += 1
             dirty += 1
             if dirty >= 50:
@@ -242,6 +267,100 @@ def warp_dataset(jobs: list[Job], camera: Camera, virtual: Camera, scale: float,
                 dirty = 0
     except VCError:
         summary.failed.append(job.id)
+        raise
+    finally:
+        bar.close()
+        if dirty:
+            store.save()
+    return store, summary
+
+
+# -- completion of an existing store ---------------------------------------------------------------
+
+def completion_key_part(completion: str) -> str:
+    """What an item key records about completion ('none' unchanged; others carry the algorithm)."""
+    from .completion import COMPLETION_VERSION
+
+    return completion if completion == "none" else f"{completion}/{COMPLETION_VERSION}"
+
+
+def completion_fields(maps: Any) -> dict[str, Any]:
+    """Record fields that say how an item was completed: the projective ray centre (store
+    pixels) and whether it is the item's VP (False: the VP was outside the covered region)."""
+    centre = getattr(maps, "centre", None)
+    method = getattr(maps, "method", "none")
+    return {"completion_centre": [float(centre[0]), float(centre[1])] if centre is not None and method == "projective"
+            else None,
+            "completion_vp_inside": bool(maps.vp_inside) if method == "projective" else None}
+
+
+def record_key(rec: dict[str, Any], params: dict[str, Any], completion: str) -> str:
+    """The item key :func:`warp_dataset` computes, rebuilt from a stored record for another
+    ``completion`` (so that ``vcprep complete`` and ``vcprep warp --complete`` agree)."""
+    return _item_key({"algorithm": WARP_ALGORITHM, "source_sha256": rec["source_sha256"],
+                      "label_sha256": rec.get("label_sha256"), "label_format": rec.get("label_format"),
+                      "camera": rec["camera_params"],
+                      "store": {k: params[k] for k in ("virtual", "scale", "store_size")},
+                      "H": np.round(np.asarray(rec["H"], dtype=np.float64), 12).ravel().tolist(),
+                      "vp_status": rec["vp_status"], "completion": completion_key_part(completion)})
+
+
+def _check_unchanged(path: Path, sha: str | None, kind: str) -> None:
+    digest, _ = _sha256_file(path, kind)
+    if sha is not None and digest != sha:
+        raise InputError(f"{kind} changed since the store was built", path,
+                         "re-run 'vcprep warp' with the same options to rebuild the store")
+
+
+def complete_store(store_dir: str | Path, method: str = "projective",
+                   progress: bool = True) -> tuple[Store, BuildSummary]:
+    """Complete every item of an already-warped store in place with ``method``.
+
+    Each item is rebuilt from its recorded source image and label (their SHA-256 must still
+    match), its H and VP, as one warp + completion remap: the files, record fields and key are
+    identical to ``vcprep warp --complete METHOD``. Items already completed that way are skipped;
+    files and the manifest are written atomically.
+    """
+    check_method(method)
+    from .labels import get_label_format
+
+    store = Store.open(store_dir)
+    summary = BuildSummary(total=len(store))
+    dirty = 0
+    recs = list(store)
+    bar = tqdm(recs, desc="complete", unit="img", disable=None if progress else True, leave=False)
+    rec: dict[str, Any] = {}
+    try:
+        for rec in bar:
+            key = record_key(rec, store.params, method)
+            if rec.get("completion") == method and rec.get("key") == key and store.is_complete(rec):
+                summary.up_to_date += 1
+                continue
+            src = Path(rec["source"])
+            _check_unchanged(src, rec.get("source_sha256"), "image")
+            lab = Path(rec["label_source"]) if rec.get("label_source") else None
+            if lab is not None:
+                _check_unchanged(lab, rec.get("label_sha256"), "label")
+            fmt = get_label_format(rec["label_format"]) if rec.get("label_format") else None
+            H = np.asarray(rec["H"], dtype=np.float64).reshape(3, 3)
+            vp_store = tuple(apply_homography(H, [rec["vp"]])[0])
+            item = warp_item_full(Job(rec["id"], src, lab), store.store_size, H, fmt, method, vp_store)
+            new = dict(rec)
+            new.update({"completion": method, **completion_fields(item.maps), "key": key})
+            write_png(store.path(new["image"]), item.image)
+            if item.label is not None and new.get("label"):
+                write_png(store.path(new["label"]), item.label)
+            write_png(store.path(new["valid"]), item.valid)
+            store.items[new["id"]] = new
+            if item.maps.note:
+                summary.notes.append(f"{new['id']}: {item.maps.note}")
+            summary.built += 1
+            dirty += 1
+            if dirty >= 50:
+                store.save()
+                dirty = 0
+    except VCError:
+        summary.failed.append(rec.get("id", "?"))
         raise
     finally:
         bar.close()

@@ -23,7 +23,13 @@ app.add_typer(camera_app, name="camera")
 app.add_typer(store_app, name="store")
 app.add_typer(figure_app, name="figure")
 
+COMPLETE_HELP = ("fill uncovered virtual pixels: projective (paper §4.3: rays from the VP), zero (image 0, label "
+                 "not road), replicate (nearest covered pixel) or none (image 0, label ignore)")
 CAMERA_HELP = f"camera preset ({', '.join(PRESETS)}) or file (.yaml camera, .txt KITTI calib, .json Cityscapes)"
+WITHIN_HELP = ("within-camera correction: 'none' (camera's average pose), 'estimate' (detect each image's road "
+               "VP) or a CSV file 'id,u,v' of known VPs in source pixels")
+SMOOTH_HELP = ("temporal smoothing of estimated VPs: median over N frames either side within a sequence "
+               "(sequence = file name up to the first '_', frames in name order); 0 = off")
 
 
 def _version(value: bool):
@@ -127,18 +133,29 @@ def warp_cmd(
     virtual: str = typer.Option("virtual", "--virtual", help="virtual camera: preset or YAML file"),
     scale: float = typer.Option(0.125, "--scale", "-s", help="store scale of the full virtual camera (1/8 -> 688x350)"),
     id_prefix: str = typer.Option("", "--id-prefix", help="prefix for item ids (keeps datasets apart in one store)"),
+    complete: str = typer.Option("projective", "--complete", help=COMPLETE_HELP),
+    within: str = typer.Option("none", "--within", help=WITHIN_HELP),
+    vp_smooth: int = typer.Option(0, "--vp-smooth", min=0, help=SMOOTH_HELP),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar or summary on stderr"),
 ):
     """Warp a folder of images (and labels) from CAMERA into the virtual camera store OUT.
 
     Images are resampled bilinearly, labels by nearest neighbour and stored as 0 = not road,
-    1 = road, 255 = ignore. Re-running with unchanged inputs does no work; a changed image,
+    1 = road, 255 = ignore. Virtual pixels no source pixel covers are filled in the same remap
+    by --complete (default projective, the paper's §4.3; 'none' leaves image 0 / label ignore;
+    the valid/ mask always marks the covered pixels). Re-running with unchanged inputs does no work; a changed image,
     label, camera or parameter redoes exactly the affected items. Prints the store path.
+
+    With --within, each image's own pan and tilt come from its road vanishing point
+    (within-camera correction): 'estimate' detects it (see 'vcprep vp'), FILE reads a CSV
+    'id,u,v' of known VPs (source pixels); the record gets vp, vp_status, pan_deg, tilt_deg.
 
     \b
     Example:
       vcprep warp --camera camvid --images data/camvid/train \\
           --labels data/camvid/trainannot --label-format camvid --out stores/camvid
+      vcprep warp --camera camvid --images data/camvid/val --out stores/val --within estimate
+      vcprep warp --camera camvid --images data/camvid/val --out stores/val --within vps.csv
     """
     from .build import list_dataset, warp_dataset
 
@@ -148,10 +165,76 @@ def warp_cmd(
     jobs = list_dataset(images, labels, fmt, id_prefix)
     cam = camera_for(camera, jobs[0].image)
     virt = load_camera(virtual)
-    store, summary = warp_dataset(jobs, cam, virt, scale, out, fmt, progress=not quiet)
+    poses = _within_poses(jobs, cam, within, vp_smooth, id_prefix, quiet)
+    store, summary = warp_dataset(jobs, cam, virt, scale, out, fmt, progress=not quiet, completion=complete,
+                                  poses=poses)
     if not quiet:
         err(f"{out}: {summary.line()} (store {store.store_size[0]}x{store.store_size[1]})")
+        _notes(summary)
     print(out)
+
+
+def _vp_counts(results) -> str:
+    from collections import Counter
+
+    c = Counter(r.status for r in results)
+    return ", ".join(f"{c[k]} {k}" for k in ("accepted", "fallback", "given") if c[k])
+
+
+def _within_poses(jobs, cam: Camera, within: str, smooth: int, id_prefix: str, quiet: bool):
+    """The ``poses`` mapping for warp_dataset from ``--within`` (None for 'none')."""
+    if within == "none":
+        if smooth:
+            raise InputError("--vp-smooth needs --within estimate", None, "add --within estimate or drop --vp-smooth")
+        return None
+    from tqdm import tqdm
+
+    from .build import ItemPose
+    from .vanishing_point import vps_for_items
+
+    if within != "estimate" and smooth:
+        raise InputError("--vp-smooth applies to estimated VPs only", within, "use --within estimate")
+    bar = tqdm(total=len(jobs), desc="vp", unit="img", disable=True if quiet or within != "estimate" else None, leave=False)
+    try:
+        results = vps_for_items([j.image for j in jobs], [j.id for j in jobs], cam, within, smooth,
+                                id_prefix=id_prefix, on_image=lambda i: bar.update())
+    finally:
+        bar.close()
+    if not quiet:
+        err(f"vanishing points: {_vp_counts(results)}")
+    return {j.id: ItemPose((r.vp[0], r.vp[1]), r.status) for j, r in zip(jobs, results)}
+
+
+def _notes(summary, limit: int = 10) -> None:
+    """Per-item remarks (e.g. VP outside the covered region) on stderr, the first ``limit``."""
+    for n in summary.notes[:limit]:
+        err(f"warning: {n}")
+    if len(summary.notes) > limit:
+        err(f"warning: ... and {len(summary.notes) - limit} more (see completion_vp_inside in the records)")
+
+
+@app.command("complete")
+def complete_cmd(store: Path = typer.Argument(..., help="store directory built by 'vcprep warp'"),
+                 method: str = typer.Option("projective", "--method", "-m", help=COMPLETE_HELP),
+                 quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar or summary on stderr")):
+    """Complete an already-warped store in place: fill the pixels no source pixel covers.
+
+    Each item is rebuilt from its recorded source image and label (which must be unchanged)
+    as one warp + completion remap, so the result is identical to 'vcprep warp --complete
+    METHOD'. Items already completed with METHOD are skipped. Prints the store path.
+
+    \b
+    Example:
+      vcprep warp --camera camvid --images data/camvid/train --out stores/camvid --complete none
+      vcprep complete stores/camvid --method projective
+    """
+    from .build import complete_store
+
+    st, summary = complete_store(store, method, progress=not quiet)
+    if not quiet:
+        err(f"{store}: {summary.line().replace('built', 'completed')} ({method})")
+        _notes(summary)
+    print(store)
 
 
 @store_app.command("show")
@@ -218,6 +301,133 @@ def figure_warp(store: Path = typer.Argument(..., help="store directory"),
     fig = warp_figure(st, ids or None, width=width)
     from .imageio import write_png
 
+    try:
+        write_png(out, fig, compression=3)
+    except (FileNotFoundError, NotADirectoryError):
+        raise InputError("cannot write here (parent folder missing)", out, "create the folder first") from None
+    print(out)
+
+
+@figure_app.command("completion")
+def figure_completion(store: Path = typer.Argument(..., help="store directory"),
+                      item: str = typer.Argument(..., help="item id"),
+                      out: Path = typer.Option(..., "-o", "--out", help="PNG to write"),
+                      rays: int = typer.Option(24, "--rays", help="number of completion rays to draw"),
+                      width: int = typer.Option(1400, help="figure width in pixels")):
+    """Projective completion of one item, like the paper's Fig. 5: completed image with the VP
+    (red), the source boundary (red dashed) and a fan of completion rays (green) | completed
+    label overlay (road green, ignore dark).
+
+    \b
+    Example:
+      vcprep figure completion stores/camvid 0001TP_006690 -o completion.png
+    """
+    from .figures import completion_figure
+    from .imageio import write_png
+    from .store import Store
+
+    fig = completion_figure(Store.open(store), item, rays=rays, width=width)
+    try:
+        write_png(out, fig, compression=3)
+    except (FileNotFoundError, NotADirectoryError):
+        raise InputError("cannot write here (parent folder missing)", out, "create the folder first") from None
+    print(out)
+
+
+def _image_files(paths: List[Path]) -> list[Path]:
+    """IMAGES arguments: files as given, folders expanded to their images (sorted)."""
+    from .imageio import IMAGE_EXTENSIONS
+
+    files: list[Path] = []
+    for p in paths:
+        if p.is_dir():
+            inside = sorted(q for q in p.iterdir() if q.suffix.lower() in IMAGE_EXTENSIONS and not q.name.startswith("."))
+            if not inside:
+                raise InputError("no images in folder", p, f"give image files ({', '.join(IMAGE_EXTENSIONS)})")
+            files += inside
+        elif not p.exists():
+            raise InputError("image file not found", p, "check the path")
+        else:
+            files.append(p)
+    return files
+
+
+@app.command("vp")
+def vp_cmd(images: List[Path] = typer.Argument(..., help="image files or folders of images"),
+           camera: str = typer.Option(..., "--camera", "-c", help=CAMERA_HELP),
+           out: Optional[Path] = typer.Option(None, "-o", "--out", help="CSV 'id,u,v,status,...' to write"),
+           as_json: bool = typer.Option(False, "--json", help="one JSON object per image on stdout"),
+           smooth: int = typer.Option(0, "--smooth", min=0, help=SMOOTH_HELP),
+           quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar or summary on stderr")):
+    """Detect the road vanishing point (VP) of each image, with the reliability rule:
+    a VP whose implied pan is more than 20 deg (tilt 15 deg) from the camera's average pose,
+    or with too few supporting line segments, is replaced by the mean of the accepted VPs of
+    this run (status 'fallback'; with none accepted, the camera's average-pose VP).
+
+    Prints CSV (id,u,v,status,confidence,n_support,pan_deg,tilt_deg; u, v in source pixels)
+    to stdout, or writes it to --out and prints the path; --json prints one object per image
+    instead (image = the path as given). The CSV is what 'vcprep warp --within FILE' reads.
+
+    \b
+    Example:
+      vcprep vp --camera camvid data/camvid/val -o vps.csv
+      vcprep vp --camera camvid examples/camvid/images/*.png --json | jq -c '[.status, .vp]'
+    """
+    import sys
+
+    from tqdm import tqdm
+
+    from .vanishing_point import estimate_files, format_vp_csv, write_vp_csv
+
+    files = _image_files(images)
+    ids = [f.stem for f in files]
+    seen: dict[str, Path] = {}
+    for f, i in zip(files, ids):
+        if i in seen:
+            raise InputError(f"duplicate image id '{i}' (also {seen[i]})", f, "VP files are keyed by file stem: give each image a unique name")
+        seen[i] = f
+    cam = camera_for(camera, files[0])
+    bar = tqdm(total=len(files), desc="vp", unit="img", disable=True if quiet else None, leave=False)
+    try:
+        results = estimate_files(files, cam, smooth=smooth, ids=ids, on_image=lambda i: bar.update())
+    finally:
+        bar.close()
+    if out is not None:
+        write_vp_csv(out, ids, results)
+    if as_json:
+        for f, i, r in zip(files, ids, results):
+            emit_json({"image": str(f), "id": i, **r.to_dict()})
+    elif out is not None:
+        print(out)
+    else:
+        sys.stdout.write(format_vp_csv(ids, results))
+    if not quiet:
+        err(f"{len(results)} images: {_vp_counts(results)}")
+
+
+@figure_app.command("vp")
+def figure_vp(image: Path = typer.Argument(..., help="image file"),
+              camera: str = typer.Option(..., "--camera", "-c", help=CAMERA_HELP),
+              out: Path = typer.Option(..., "-o", "--out", help="PNG to write")):
+    """Draw why a road VP was chosen or rejected: all line segments (grey), the supporting
+    ones (green, thin lines to the VP), the window of VPs the reliability rule allows (cyan),
+    the detected VP (red cross), the final VP (yellow circle) and the status with its reason.
+    A single image has no dataset to fall back to: a rejected VP falls back to the camera's
+    average-pose VP.
+
+    \b
+    Example:
+      vcprep figure vp examples/camvid/images/0016E5_05280.png --camera camvid -o vp.png
+    """
+    from .figures import vp_figure
+    from .imageio import read_image, write_png
+    from .vanishing_point import VPConfig, apply_reliability, estimate_vp, prior_window
+
+    img = read_image(image).array
+    cam = camera_for(camera, image).for_image_size((img.shape[1], img.shape[0]), image)
+    cfg = VPConfig()
+    res = apply_reliability([estimate_vp(img, cam, cfg)], [cam])[0]
+    fig = vp_figure(img, res, cam, prior_window(cam, cfg.pan_range, cfg.tilt_range))
     try:
         write_png(out, fig, compression=3)
     except (FileNotFoundError, NotADirectoryError):

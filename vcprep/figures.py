@@ -8,7 +8,7 @@ from .imageio import read_image
 from .labels import IGNORE, ROAD, decode_label, get_label_format
 from .store import Store
 
-__all__ = ["to_bgr8", "overlay_label", "warp_figure"]
+__all__ = ["to_bgr8", "overlay_label", "warp_figure", "vp_figure", "completion_figure"]
 
 
 def to_bgr8(img: np.ndarray) -> np.ndarray:
@@ -71,3 +71,109 @@ def warp_figure(store: Store, ids: list[str] | None = None, width: int = 1400, m
                     cv2.LINE_AA)
         rows.append(np.vstack([bar, pair]))
     return np.vstack(rows)
+
+
+def vp_figure(image: np.ndarray, result, cam=None, prior_box=None) -> np.ndarray:
+    """The road-VP evidence of one image (``result``: a :class:`vcprep.vanishing_point.VPResult`):
+    all line segments thin grey, supporting segments green and extended to the VP (thin), the
+    prior window (VPs allowed by the reliability rule) as a cyan box, the detector's VP as a red
+    cross, the final VP as a yellow circle (differs after a fallback), and a status caption."""
+    out = to_bgr8(image).copy()
+    h, w = out.shape[:2]
+    lw = max(1, w // 480)
+    seg, sup = result.segments, result.support
+    for i, s in enumerate(seg):
+        if len(sup) and sup[i]:
+            continue
+        cv2.line(out, (int(round(s[0])), int(round(s[1]))), (int(round(s[2])), int(round(s[3]))), (160, 160, 160), lw,
+                 cv2.LINE_AA)
+    # the canvas is enlarged when the VP or the prior box lies outside the image
+    det = result.detected
+    for i in np.flatnonzero(sup) if len(sup) else []:
+        s = seg[i]
+        if det is not None:
+            m = ((s[0] + s[2]) / 2, (s[1] + s[3]) / 2)
+            cv2.line(out, (int(round(m[0])), int(round(m[1]))), (int(round(det[0])), int(round(det[1]))),
+                     (0, 160, 0), 1, cv2.LINE_AA)
+        cv2.line(out, (int(round(s[0])), int(round(s[1]))), (int(round(s[2])), int(round(s[3]))), (0, 255, 0),
+                 2 * lw, cv2.LINE_AA)
+    if prior_box is not None:
+        u0, v0, u1, v1 = prior_box
+        cv2.rectangle(out, (int(round(u0)), int(round(v0))), (int(round(u1)), int(round(v1))), (255, 255, 0), lw)
+    mk = max(12, w // 30)
+    if det is not None:
+        cv2.drawMarker(out, (int(round(det[0])), int(round(det[1]))), (0, 0, 255), cv2.MARKER_CROSS, mk, 2 * lw)
+    vp = result.vp
+    cv2.circle(out, (int(round(vp[0])), int(round(vp[1]))), mk // 2, (0, 255, 255), 2 * lw, cv2.LINE_AA)
+    caption = (f"{result.status}  vp=({vp[0]:.1f}, {vp[1]:.1f})  pan {result.pan_deg:+.1f}  tilt {result.tilt_deg:+.1f}"
+               f"  support {result.n_support}  conf {result.confidence:.2f}")
+    bar = np.full((28 + (22 if result.reason else 0), w, 3), 255, np.uint8)
+    fs = min(0.55, w / 1100)
+    cv2.putText(bar, caption, (6, 19), cv2.FONT_HERSHEY_SIMPLEX, fs, (0, 0, 0), 1, cv2.LINE_AA)
+    if result.reason:
+        cv2.putText(bar, result.reason[:160], (6, 41), cv2.FONT_HERSHEY_SIMPLEX, fs * 0.9, (0, 0, 160), 1, cv2.LINE_AA)
+    return np.vstack([out, bar])
+
+
+def _dashed_contours(img: np.ndarray, mask: np.ndarray, colour, thickness: int, dash: int) -> None:
+    """Outline ``mask`` with a dashed polyline (dash and gap ``dash`` pixels long)."""
+    contours, _ = cv2.findContours(mask.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    for c in contours:
+        pts = c[:, 0, :]
+        for i in range(0, len(pts) - 1, 2 * dash):
+            seg = pts[i:i + dash + 1]
+            if len(seg) > 1:
+                cv2.polylines(img, [seg.reshape(-1, 1, 2)], False, colour, thickness, cv2.LINE_AA)
+
+
+def completion_figure(store: Store, item_id: str, rays: int = 24, width: int = 1400) -> np.ndarray:
+    """Paper Fig. 5 for one store item: completed image with the ray centre (VP, red dot), the
+    source boundary (covered region outline, red dashed) and a fan of completion rays (green,
+    from where each ray leaves the covered region to the image edge) | completed label overlay."""
+    rec = store.get(item_id)
+    vimg = read_image(store.path(rec["image"])).array
+    vlab = read_image(store.path(rec["label"]), label=True).array if rec.get("label") else None
+    valid = read_image(store.path(rec["valid"]), label=True).array > 0
+    vh, vw = valid.shape
+    centre = rec.get("completion_centre")
+    if centre is None:  # not projective: show the VP in store coordinates anyway
+        H = np.asarray(rec["H"], dtype=np.float64).reshape(3, 3)
+        p = H @ np.array([rec["vp"][0], rec["vp"][1], 1.0])
+        centre = [p[0] / p[2], p[1] / p[2]]
+    cu, cv_ = float(centre[0]), float(centre[1])
+    left = to_bgr8(vimg).copy()
+    lw = max(1, vw // 500)
+    diag = int(np.hypot(vw, vh)) + 2
+    t = np.arange(diag, dtype=np.float64)
+    for k in range(max(0, rays)):
+        a = 2 * np.pi * (k + 0.5) / rays
+        xs, ys = cu + t * np.cos(a), cv_ + t * np.sin(a)
+        inside = (xs >= 0) & (xs <= vw - 1) & (ys >= 0) & (ys <= vh - 1)
+        if not inside.any():
+            continue
+        xi = np.clip(np.rint(xs), 0, vw - 1).astype(int)
+        yi = np.clip(np.rint(ys), 0, vh - 1).astype(int)
+        cov = inside & valid[yi, xi]
+        if not cov.any():
+            continue
+        last_in = np.flatnonzero(inside)[-1]
+        first_out = np.flatnonzero(cov[: last_in + 1] == 0)
+        first_out = first_out[first_out > np.flatnonzero(cov)[0]]
+        if not len(first_out):
+            continue
+        i0 = first_out[0]
+        cv2.line(left, (int(round(xs[i0])), int(round(ys[i0]))), (int(round(xs[last_in])), int(round(ys[last_in]))),
+                 (0, 200, 0), lw, cv2.LINE_AA)
+    _dashed_contours(left, valid, (0, 0, 255), lw, max(4, vw // 120))
+    cv2.circle(left, (int(round(cu)), int(round(cv_))), max(3, vw // 150), (0, 0, 255), -1, cv2.LINE_AA)
+    right = overlay_label(vimg, vlab)
+    col = width // 2
+    h = int(col * vh / vw)
+    pair = np.hstack([_fit(left, col, h), _fit(right, col, h)])
+    bar = np.full((28, pair.shape[1], 3), 255, np.uint8)
+    inside_txt = "" if rec.get("completion_vp_inside") in (True, None) else "  (VP outside: fallback centre)"
+    cv2.putText(bar, f"{rec['id']}  completion: {rec.get('completion', 'none')}{inside_txt}", (8, 20),
+                cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 0, 0), 1, cv2.LINE_AA)
+    cv2.putText(bar, "completed label (road green, ignore dark)", (col + 8, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.55,
+                (0, 0, 0), 1, cv2.LINE_AA)
+    return np.vstack([bar, pair])

@@ -1,0 +1,320 @@
+"""Road vanishing-point benchmark: our detector vs a plain LSD + unweighted RANSAC baseline.
+
+Run (one thread, as the figures below are stated):
+
+    .venv/bin/python benchmarks/vp.py                 # synthetic + CamVid (if ../shared/data exists)
+    .venv/bin/python benchmarks/vp.py --n-synthetic 40 --repeats 3
+
+Data
+----
+* **synthetic**: ``vcprep.synthetic.render_road`` through the camvid camera at 480x360 (and a
+  few at 960x720 for the timing), pan uniform in [-20, 20] deg, tilt uniform in [-15, 15] deg,
+  random road offset/width, Gaussian noise (sigma 5 grey levels) and 10 clutter segments
+  (random position, direction and colour, 20-160 px long, 1-3 px thick; some near-vertical
+  "poles"). Seed 0. Ground truth: ``vp_from_pose(cam, pan, tilt)`` (exact).
+* **real**: CamVid (SegNet release, 480x360) ``val`` (101 frames) and ``train`` (367 frames) from
+  ``../shared/data/camvid`` with the camvid camera scaled by 1/2. Reference VP from the
+  ground-truth road mask (label 3), rule:
+
+  1. road = largest 8-connected component of label 3;
+  2. per image row (below the top 15 % of the road's rows, road width >= 12 px), the leftmost and
+     rightmost road pixel are boundary points if they are at least 3 px from the image border
+     and the pixel just outside is a static class (building 1, pavement 4, tree 5, fence 7,
+     sky 0) - not a car, pedestrian, cyclist, pole, sign or unlabelled pixel (occluders);
+  3. per side, a line x = a*y + b is fitted by deterministic RANSAC (all point pairs up to 4000,
+     inlier band 2 px) and refined by least squares on the inliers; a side is good if it has
+     >= 25 inliers, >= 60 % of its points are inliers, the inliers span >= 40 rows, and the
+     inlier RMS is <= 1.2 px;
+  4. both sides good, the two lines meet at >= 8 deg, the intersection lies above every fitted
+     point and inside the camera's prior window (pan +/-20, tilt +/-15): keep the frame with
+     that intersection as the reference VP; otherwise the frame is skipped (counted).
+
+  The reference itself is uncertain by roughly a pixel or two (hand-drawn polygons), i.e. a
+  few tenths of a percent of the width: errors near that level are at the reference's noise.
+  No parameter of the detector was tuned on ``val``; ``train`` was used during development.
+
+Metrics: error = |VP - reference| in pixels / image width * 100 (median, 90th percentile),
+time = wall ms per image for detection from the decoded image (grey conversion, downscale,
+line detection, voting), median over ``--repeats`` passes, single thread (``cv2.setNumThreads(1)``).
+Results: ``benchmarks/results/vp.json``; the last stdout line is one JSON object with the headline
+figures (``median_pct_width``, ``p90_pct_width``, ``ms_per_image_480`` for ours on real val frames,
+and ``baseline_*`` for the baseline).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import platform
+import sys
+import time
+from dataclasses import asdict, replace
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from vcprep.camera import PRESETS  # noqa: E402
+from vcprep.homography import vp_from_pose  # noqa: E402
+from vcprep.synthetic import RoadScene, render_road  # noqa: E402
+from vcprep.vanishing_point import VPConfig, detect_segments, estimate_vp, prior_window, to_gray  # noqa: E402
+
+DATA = ROOT.parent / "shared" / "data" / "camvid"
+STATIC = np.array([0, 1, 4, 5, 7])  # classes whose border with road is a real road edge
+
+
+# ------------------------------------------------------------------------------- baseline
+
+def baseline_vp(image: np.ndarray, work_width: int = 480, iters: int = 500, inlier_deg: float = 2.0,
+                min_len_px: float = 12.0, seed: int = 0) -> tuple[float, float]:
+    """Plain baseline: LSD segments (>= ``min_len_px`` at working scale), RANSAC over pairs of
+    segments with an unweighted inlier count (angular residual < ``inlier_deg``), then an
+    unweighted least-squares intersection of the inliers. No prior, no weights."""
+    h, w = image.shape[:2]
+    seg = detect_segments(to_gray(image), work_width)
+    s = min(1.0, work_width / w)
+    d = seg[:, 2:4] - seg[:, 0:2]
+    L = np.hypot(d[:, 0], d[:, 1])
+    keep = L * s >= min_len_px
+    seg, d, L = seg[keep], d[keep], L[keep]
+    if len(seg) < 2:
+        return (w / 2 - 0.5, h / 2 - 0.5)
+    dirs = d / L[:, None]
+    mid = 0.5 * (seg[:, :2] + seg[:, 2:])
+    hom = np.cross(np.c_[seg[:, :2], np.ones(len(seg))], np.c_[seg[:, 2:], np.ones(len(seg))])
+    hom /= np.linalg.norm(hom[:, :2], axis=1, keepdims=True)
+    rng = np.random.default_rng(seed)
+    tau = math.sin(math.radians(inlier_deg))
+    i = rng.integers(0, len(seg), iters)
+    j = rng.integers(0, len(seg), iters)
+    X = np.cross(hom[i], hom[j])
+    ok = (i != j) & (np.abs(X[:, 2]) > 1e-9)
+    X = X[ok, :2] / X[ok, 2:3]
+    if len(X) == 0:
+        return (w / 2 - 0.5, h / 2 - 0.5)
+    rx = X[:, None, 0] - mid[None, :, 0]
+    ry = X[:, None, 1] - mid[None, :, 1]
+    r = np.abs(rx * dirs[None, :, 1] - ry * dirs[None, :, 0]) / (np.hypot(rx, ry) + 1e-9)
+    inl = r < tau
+    best = int(np.argmax(inl.sum(1)))
+    m = inl[best]
+    if m.sum() < 2:
+        return tuple(X[best])
+    A, b = hom[m, :2], -hom[m, 2]
+    try:
+        c = np.linalg.lstsq(A, b, rcond=None)[0]
+    except np.linalg.LinAlgError:
+        c = X[best]
+    return float(c[0]), float(c[1])
+
+
+# ------------------------------------------------------------------------------- references
+
+def _fit_side(ys: np.ndarray, xs: np.ndarray):
+    """RANSAC + LSQ line x = a*y + b; returns (a, b) or None if the fit is not good (rule 3)."""
+    n = len(ys)
+    if n < 25:
+        return None
+    i, j = np.triu_indices(n, 1)
+    if len(i) > 4000:
+        sel = np.linspace(0, len(i) - 1, 4000).astype(int)
+        i, j = i[sel], j[sel]
+    dy = ys[j] - ys[i]
+    ok = np.abs(dy) >= 10
+    i, j, dy = i[ok], j[ok], dy[ok]
+    if len(i) == 0:
+        return None
+    a = (xs[j] - xs[i]) / dy
+    b = xs[i] - a * ys[i]
+    res = np.abs(xs[None, :] - (a[:, None] * ys[None, :] + b[:, None]))
+    cnt = (res < 2.0).sum(1)
+    k = int(np.argmax(cnt))
+    inl = res[k] < 2.0
+    A = np.c_[ys[inl], np.ones(inl.sum())]
+    a, b = np.linalg.lstsq(A, xs[inl], rcond=None)[0]
+    r = xs[inl] - (a * ys[inl] + b)
+    span = ys[inl].max() - ys[inl].min()
+    if inl.sum() < 25 or inl.mean() < 0.6 or span < 40 or math.sqrt(np.mean(r ** 2)) > 1.2:
+        return None
+    return float(a), float(b), float(ys[inl].min())
+
+
+def reference_vp(label: np.ndarray, cam) -> tuple[float, float] | None:
+    """Reference road VP of a CamVid label image (rule in the module docstring), or None."""
+    road = (label == 3).astype(np.uint8)
+    n, comp, stats, _ = cv2.connectedComponentsWithStats(road, connectivity=8)
+    if n < 2:
+        return None
+    big = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
+    road = comp == big
+    h, w = road.shape
+    rows = np.flatnonzero(road.any(1))
+    top = rows.min() + 0.15 * (rows.max() - rows.min())
+    pts = {"l": ([], []), "r": ([], [])}
+    for y in rows:
+        if y < top:
+            continue
+        xs = np.flatnonzero(road[y])
+        xl, xr = xs[0], xs[-1]
+        if xr - xl < 12:
+            continue
+        if xl >= 3 and np.isin(label[y, xl - 1], STATIC):
+            pts["l"][0].append(y), pts["l"][1].append(xl - 0.5)
+        if xr <= w - 4 and np.isin(label[y, xr + 1], STATIC):
+            pts["r"][0].append(y), pts["r"][1].append(xr + 0.5)
+    fits = [_fit_side(np.array(pts[s][0], float), np.array(pts[s][1], float)) for s in ("l", "r")]
+    if fits[0] is None or fits[1] is None:
+        return None
+    (al, bl, yl), (ar, br, yr) = fits
+    ang = abs(math.degrees(math.atan(al) - math.atan(ar)))
+    if ang < 8 or abs(al - ar) < 1e-9:
+        return None
+    y = (br - bl) / (al - ar)
+    x = al * y + bl
+    u0, v0, u1, v1 = prior_window(cam)
+    if y >= min(yl, yr) or not (u0 <= x <= u1 and v0 <= y <= v1):
+        return None
+    return float(x), float(y)
+
+
+# ------------------------------------------------------------------------------- data sets
+
+def synthetic_set(n: int, cam, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    out = []
+    W, H = cam.size
+    for k in range(n):
+        pan, tilt = rng.uniform(-20, 20), rng.uniform(-15, 15)
+        scene = RoadScene(offset=float(rng.uniform(-3, 3)), width=float(rng.uniform(6, 12)),
+                          lanes=int(rng.integers(1, 4)), texture_seed=k)
+        img, _ = render_road(cam, scene, pan=pan, tilt=tilt, supersample=2)
+        img = img.astype(np.float64) + rng.normal(0, 5, img.shape)
+        for c in range(10):
+            p = rng.uniform([0, 0], [W, H])
+            ang = rng.uniform(85, 95) if c < 3 else rng.uniform(0, 180)  # 3 "poles", 7 random
+            ln = rng.uniform(20, 160) * W / 480
+            q = p + ln * np.array([math.cos(math.radians(ang)), -math.sin(math.radians(ang))])
+            cv2.line(img, tuple(int(v) for v in p), tuple(int(v) for v in q),
+                     tuple(float(v) for v in rng.uniform(0, 255, 3)), int(rng.integers(1, 4)))
+        img = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+        out.append((f"syn{k:03d}", img, vp_from_pose(cam, pan, tilt)))
+    return out
+
+
+def camvid_set(split: str, cam):
+    img_dir, lab_dir = DATA / split, DATA / f"{split}annot"
+    out, skipped = [], 0
+    for p in sorted(img_dir.glob("*.png")):
+        lab = cv2.imread(str(lab_dir / p.name), cv2.IMREAD_UNCHANGED)
+        ref = reference_vp(lab, cam) if lab is not None else None
+        if ref is None:
+            skipped += 1
+            continue
+        out.append((p.stem, cv2.imread(str(p), cv2.IMREAD_COLOR), ref))
+    return out, skipped
+
+
+# ------------------------------------------------------------------------------- evaluation
+
+def evaluate(items, cam, cfg: VPConfig, repeats: int):
+    """Errors (% width) and median ms/image for ours and the baseline, same images, same run."""
+    res = {}
+    for name, fn in (("ours", lambda im: estimate_vp(im, cam, cfg).vp),
+                     ("baseline", lambda im: baseline_vp(im, cfg.work_width))):
+        errs, per_pass = [], []
+        for rep in range(repeats):
+            t0 = time.perf_counter()
+            vps = [fn(im) for _, im, _ in items]
+            per_pass.append((time.perf_counter() - t0) * 1000 / max(1, len(items)))
+            if rep == 0:
+                errs = [math.hypot(v[0] - r[0], v[1] - r[1]) / cam.size[0] * 100 for v, (_, _, r) in zip(vps, items)]
+        e = np.array(errs)
+        res[name] = {"n": len(items), "median_pct_width": round(float(np.median(e)), 3) if len(e) else None,
+                     "p90_pct_width": round(float(np.percentile(e, 90)), 3) if len(e) else None,
+                     "mean_pct_width": round(float(np.mean(e)), 3) if len(e) else None,
+                     "ms_per_image": round(float(np.median(per_pass)), 2),
+                     "ms_spread": [round(float(min(per_pass)), 2), round(float(max(per_pass)), 2)],
+                     "errors": [round(float(x), 4) for x in e]}
+    return res
+
+
+def _row(label, size, r):
+    return (f"{label:<26} {size:>8} {r['n']:>4}  {r['median_pct_width']!s:>7} {r['p90_pct_width']!s:>7} "
+            f"{r['ms_per_image']:>8.2f}")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--n-synthetic", type=int, default=40)
+    ap.add_argument("--n-synthetic-960", type=int, default=8, help="960x720 renders (timing + error)")
+    ap.add_argument("--repeats", type=int, default=3, help="timing passes (median reported)")
+    ap.add_argument("--splits", default="val,train")
+    ap.add_argument("--set", action="append", default=[], help="override a VPConfig field, e.g. work_width=360")
+    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "vp.json"))
+    args = ap.parse_args(argv)
+    cv2.setNumThreads(1)
+    cfg = VPConfig()
+    for kv in args.set:
+        k, v = kv.split("=")
+        cfg = replace(cfg, **{k: type(getattr(cfg, k))(v)})
+    cam480 = PRESETS["camvid"].for_image_size((480, 360))
+    cam960 = PRESETS["camvid"]
+    results = {"config": asdict(cfg), "threads": 1, "opencv": cv2.__version__, "python": platform.python_version(),
+               "seed": 0, "sets": {}}
+    print(f"threads: 1 (cv2.setNumThreads(1)); opencv {cv2.__version__}; repeats {args.repeats}", file=sys.stderr)
+    print(f"{'set':<26} {'size':>8} {'n':>4}  {'med %w':>7} {'p90 %w':>7} {'ms/img':>8}")
+    sets = [("synthetic", "480x360", synthetic_set(args.n_synthetic, cam480), cam480)]
+    if args.n_synthetic_960:
+        sets.append(("synthetic", "960x720", synthetic_set(args.n_synthetic_960, cam960, seed=1), cam960))
+    if DATA.is_dir():
+        for split in args.splits.split(","):
+            items, skipped = camvid_set(split, cam480)
+            print(f"camvid/{split}: {len(items)} frames with a good reference VP, {skipped} skipped by the rule",
+                  file=sys.stderr)
+            sets.append((f"camvid/{split}", "480x360", items, cam480))
+            results.setdefault("skipped", {})[f"camvid/{split}"] = skipped
+    else:
+        print(f"NOTE: {DATA} is absent: real-frame figures are NOT measured (synthetic only).", file=sys.stderr)
+    for name, size, items, cam in sets:
+        r = evaluate(items, cam, cfg, args.repeats)
+        results["sets"][f"{name}@{size}"] = r
+        for who in ("ours", "baseline"):
+            print(_row(f"{name} {who}", size, r[who]))
+    S = results["sets"]
+    real = S.get("camvid/val@480x360")
+    head_src = real or S["synthetic@480x360"]
+    headline = {
+        "data": "camvid/val" if real else "synthetic (../shared/data absent)",
+        "n": head_src["ours"]["n"],
+        "median_pct_width": head_src["ours"]["median_pct_width"],
+        "p90_pct_width": head_src["ours"]["p90_pct_width"],
+        "ms_per_image_480": S["synthetic@480x360"]["ours"]["ms_per_image"] if not real else real["ours"]["ms_per_image"],
+        "ms_per_image_960": S.get("synthetic@960x720", {}).get("ours", {}).get("ms_per_image"),
+        "baseline_median_pct_width": head_src["baseline"]["median_pct_width"],
+        "baseline_p90_pct_width": head_src["baseline"]["p90_pct_width"],
+        "baseline_ms_per_image_480": head_src["baseline"]["ms_per_image"],
+        "synthetic_median_pct_width": S["synthetic@480x360"]["ours"]["median_pct_width"],
+        "synthetic_p90_pct_width": S["synthetic@480x360"]["ours"]["p90_pct_width"],
+        "synthetic_baseline_median_pct_width": S["synthetic@480x360"]["baseline"]["median_pct_width"],
+        "synthetic_baseline_p90_pct_width": S["synthetic@480x360"]["baseline"]["p90_pct_width"],
+    }
+    if "camvid/train@480x360" in S:
+        t = S["camvid/train@480x360"]
+        headline.update({"train_median_pct_width": t["ours"]["median_pct_width"],
+                         "train_p90_pct_width": t["ours"]["p90_pct_width"],
+                         "train_baseline_median_pct_width": t["baseline"]["median_pct_width"],
+                         "train_baseline_p90_pct_width": t["baseline"]["p90_pct_width"]})
+    results["headline"] = headline
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    out.write_text(json.dumps(results, indent=1) + "\n")
+    print(f"wrote {out}", file=sys.stderr)
+    print(json.dumps(headline))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,326 @@
+"""Road vanishing points: detector accuracy on exact synthetic renders, the reliability rule,
+temporal smoothing, the VP CSV reader, within-camera warping (VP -> virtual principal point) and
+the `vcprep vp` / `vcprep figure vp` / `vcprep warp --within` commands."""
+from __future__ import annotations
+
+import json
+import math
+
+import cv2
+import numpy as np
+import pytest
+
+from vcprep.camera import PRESETS
+from vcprep.errors import InputError
+from vcprep.homography import apply_homography, pose_from_vp, virtual_at_scale, vp_from_pose
+from vcprep.synthetic import RoadScene, render_road
+from vcprep.vanishing_point import (VPConfig, VPResult, apply_reliability, estimate_vp, read_vp_csv,
+                                    sequence_key, smooth_sequences, write_vp_csv)
+
+from conftest import EXAMPLES, assert_one_error_line, run_cli
+
+RNG_SEED = 7
+
+
+def _cluttered_render(cam, pan, tilt, rng, n_clutter=6, noise=5.0):
+    scene = RoadScene(offset=float(rng.uniform(-2, 2)), width=float(rng.uniform(6, 10)),
+                      texture_seed=int(rng.integers(0, 100)))
+    img, _ = render_road(cam, scene, pan=pan, tilt=tilt, supersample=1)
+    img = img.astype(np.float64) + rng.normal(0, noise, img.shape)
+    W, H = cam.size
+    for _ in range(n_clutter):  # short random clutter segments (signs, poles, shadows)
+        p = rng.uniform([0, 0], [W, H])
+        a = rng.uniform(0, math.pi)
+        q = p + rng.uniform(20, 80) * np.array([math.cos(a), math.sin(a)])
+        cv2.line(img, tuple(int(v) for v in p), tuple(int(v) for v in q), tuple(float(v) for v in rng.uniform(0, 255, 3)), 2)
+    return np.clip(np.rint(img), 0, 255).astype(np.uint8)
+
+
+@pytest.fixture(scope="module")
+def renders(camvid_half):
+    """(image, pan, tilt) at random pan +/-20, tilt +/-15 with clutter and noise."""
+    rng = np.random.default_rng(RNG_SEED)
+    out = []
+    for _ in range(8):
+        pan, tilt = float(rng.uniform(-20, 20)), float(rng.uniform(-15, 15))
+        out.append((_cluttered_render(camvid_half, pan, tilt, rng), pan, tilt))
+    return out
+
+
+# ---------------------------------------------------------------------------------- detector
+
+def test_smoke_result_fields(camvid_half, renders):
+    r = estimate_vp(renders[0][0], camvid_half)
+    assert isinstance(r, VPResult)
+    assert r.status in ("accepted", "rejected")
+    assert len(r.vp) == 2 and all(math.isfinite(x) for x in r.vp)
+    assert 0.0 <= r.confidence <= 1.0
+    assert r.segments.shape[1] == 4 and r.support.shape == (len(r.segments),)
+    assert r.n_support == int(r.support.sum())
+    assert (r.pan_deg, r.tilt_deg) == pytest.approx(pose_from_vp(camvid_half, r.vp))
+
+
+def test_vp_error_bound_on_synthetic_renders(camvid_half, renders):
+    """Median error below 0.5 % of the width and every image below 3 %."""
+    errs = []
+    for img, pan, tilt in renders:
+        r = estimate_vp(img, camvid_half)
+        gt = vp_from_pose(camvid_half, pan, tilt)
+        errs.append(math.hypot(r.vp[0] - gt[0], r.vp[1] - gt[1]) / camvid_half.width * 100)
+        assert r.status == "accepted", (pan, tilt, r.reason)
+    assert np.median(errs) < 0.5, errs
+    assert max(errs) < 3.0, errs
+
+
+def test_deterministic(camvid_half, renders):
+    a = estimate_vp(renders[1][0], camvid_half)
+    b = estimate_vp(renders[1][0].copy(), camvid_half)
+    assert a.vp == b.vp and a.n_support == b.n_support
+
+
+def test_rescaled_image_gives_rescaled_vp():
+    """Same scene at 960x720 and 480x360: each VP is in its own image's pixels, same pose."""
+    big = PRESETS["camvid"]
+    small = big.for_image_size((480, 360))
+    img, _ = render_road(big, RoadScene(), pan=6.0, tilt=-4.0, supersample=1)
+    r = estimate_vp(img, big)
+    rs = estimate_vp(cv2.resize(img, small.size, interpolation=cv2.INTER_AREA), small)
+    for res in (r, rs):
+        assert res.pan_deg == pytest.approx(6.0, abs=1.5) and res.tilt_deg == pytest.approx(-4.0, abs=1.5)
+
+
+@pytest.mark.parametrize("kind", ["uniform", "noise", "tiny"])
+def test_no_usable_lines_is_rejected_not_a_crash(camvid_half, kind):
+    if kind == "uniform":
+        img, cam = np.full((360, 480, 3), 90, np.uint8), camvid_half
+    elif kind == "noise":
+        img, cam = np.random.default_rng(0).integers(0, 255, (360, 480), dtype=np.uint8), camvid_half
+    else:
+        cam = PRESETS["camvid"].for_image_size((8, 6))
+        img = np.zeros((6, 8, 3), np.uint8)
+    r = estimate_vp(img, cam)
+    assert r.status == "rejected" and r.reason
+    assert all(math.isfinite(x) for x in (*r.vp, r.pan_deg, r.tilt_deg, r.confidence))
+    f = apply_reliability([r], [cam])[0]
+    assert f.status == "fallback" and f.vp == pytest.approx(vp_from_pose(cam))
+
+
+def test_wrong_camera_size_raises(camvid_half):
+    with pytest.raises(InputError):
+        estimate_vp(np.zeros((100, 100, 3), np.uint8), camvid_half)
+
+
+# ---------------------------------------------------------------------------------- reliability rule
+
+def _res(cam, vp, n=10, status="accepted"):
+    pan, tilt = pose_from_vp(cam, vp)
+    return VPResult(vp=vp, confidence=0.5, n_support=n, pan_deg=pan, tilt_deg=tilt, status=status)
+
+
+def test_reliability_rule_thresholds(camvid_half):
+    from vcprep.vanishing_point import is_reliable
+
+    cfg = VPConfig()
+    assert is_reliable(camvid_half, 19.9, 0, 10, cfg) == ""
+    assert "pan" in is_reliable(camvid_half, 20.1, 0, 10, cfg)
+    assert "pan" in is_reliable(camvid_half, -20.1, 0, 10, cfg)
+    assert is_reliable(camvid_half, 0, 14.9, 10, cfg) == ""
+    assert "tilt" in is_reliable(camvid_half, 0, -15.1, 10, cfg)
+    assert "support" in is_reliable(camvid_half, 0, 0, cfg.min_support - 1, cfg)
+    tilted = camvid_half.with_pose(tilt=10.0)  # relative to the camera's average pose
+    assert is_reliable(tilted, 0, 24.0, 10, cfg) == ""
+
+
+def test_an_out_of_range_detection_is_rejected(camvid_half):
+    """A road panned by 30 deg is outside the prior: the detector must not report it accepted."""
+    img, _ = render_road(camvid_half, RoadScene(), pan=0.0, tilt=0.0, supersample=1)
+    r = estimate_vp(img, camvid_half.with_pose(pan=-30.0 + 0.0))  # camera thinks it looks 30 deg left
+    assert r.status == "rejected" or abs(r.pan_deg - (-30.0)) <= 20.0
+
+
+def test_fallback_is_mean_of_accepted_over_rays(camvid_half):
+    big = PRESETS["camvid"]
+    a = _res(camvid_half, (250.0, 170.0))
+    b = _res(big, vp_from_pose(big, 4.0, -2.0))
+    bad = _res(camvid_half, (10.0, 10.0), status="rejected")
+    out = apply_reliability([a, b, bad], [camvid_half, big, camvid_half])
+    assert [r.status for r in out] == ["accepted", "accepted", "fallback"]
+    rays = [((a.vp[0] - camvid_half.cx) / camvid_half.fx, (a.vp[1] - camvid_half.cy) / camvid_half.fy),
+            ((b.vp[0] - big.cx) / big.fx, (b.vp[1] - big.cy) / big.fy)]
+    m = np.mean(rays, axis=0)
+    assert out[2].vp == pytest.approx((camvid_half.cx + camvid_half.fx * m[0], camvid_half.cy + camvid_half.fy * m[1]))
+    assert "replaced by the mean of 2 accepted" in out[2].reason
+
+
+def test_sequence_key_and_smoothing(camvid_half):
+    assert sequence_key("0016E5_07959") == "0016E5"
+    assert sequence_key("frame") == "frame"
+    ids = [f"seqA_{i:03d}" for i in range(5)] + ["seqB_000"]
+    vps = [(240.0, 180.0), (241.0, 181.0), (300.0, 100.0), (242.0, 182.0), (243.0, 183.0), (100.0, 200.0)]
+    res = [_res(camvid_half, v) for v in vps]
+    out = smooth_sequences(ids, res, [camvid_half] * len(ids), window=2)
+    assert out[2].vp == pytest.approx((242.0, 181.0))  # the outlier frame takes the median of frames 0..4
+    assert out[5].vp == pytest.approx(vps[5])           # another sequence is not mixed in
+    assert smooth_sequences(ids, res, [camvid_half] * len(ids), window=0)[2].vp == vps[2]
+
+
+# ---------------------------------------------------------------------------------- CSV
+
+def test_csv_round_trip(tmp_path, camvid_half):
+    res = [_res(camvid_half, (240.5, 180.25)), _res(camvid_half, (200.0, 150.0))]
+    p = tmp_path / "vps.csv"
+    write_vp_csv(p, ["a", "b"], res)
+    assert read_vp_csv(p) == {"a": (240.5, 180.25), "b": (200.0, 150.0)}
+
+
+def test_csv_without_header_and_with_comments(tmp_path):
+    p = tmp_path / "vps.csv"
+    p.write_text("# hand-annotated\nx_1, 10, 20\n\nx_2,11.5,21\n")
+    assert read_vp_csv(p) == {"x_1": (10.0, 20.0), "x_2": (11.5, 21.0)}
+
+
+@pytest.mark.parametrize("text, needle", [
+    ("id,u,v\na,1,2\na,3,4\n", "line 3: duplicate id 'a' (first on line 2)"),
+    ("id,u,v\na,1\n", "line 2"),
+    ("id,u,v\na,1,\n", "line 2"),
+    ("id,u,v\na,one,2\n", "line 2 ('a')"),
+    ("id,u,v\na,nan,2\n", "finite"),
+    ("id,u,v\n", "no rows"),
+    ("", "no rows"),
+])
+def test_csv_bad_rows_name_the_line(tmp_path, text, needle):
+    p = tmp_path / "vps.csv"
+    p.write_text(text)
+    with pytest.raises(InputError) as e:
+        read_vp_csv(p)
+    assert needle in str(e.value) and str(p) in str(e.value)
+
+
+def test_csv_missing_file(tmp_path):
+    with pytest.raises(InputError, match="not found"):
+        read_vp_csv(tmp_path / "nope.csv")
+
+
+# ---------------------------------------------------------------------------------- CLI
+
+@pytest.fixture(scope="module")
+def posed_dataset(tmp_path_factory, camvid_half):
+    """Three synthetic frames of one sequence at different poses + their exact VPs as a CSV."""
+    root = tmp_path_factory.mktemp("vpds")
+    img_dir = root / "images"
+    img_dir.mkdir()
+    poses = [(8.0, -5.0), (-12.0, 6.0), (3.0, 11.0)]
+    rows = ["id,u,v"]
+    for i, (pan, tilt) in enumerate(poses):
+        img, _ = render_road(camvid_half, RoadScene(texture_seed=i), pan=pan, tilt=tilt, supersample=1)
+        cv2.imwrite(str(img_dir / f"seq_{i:04d}.png"), img)
+        u, v = vp_from_pose(camvid_half, pan, tilt)
+        rows.append(f"seq_{i:04d},{u!r},{v!r}")
+    (root / "vps.csv").write_text("\n".join(rows) + "\n")
+    return root, img_dir, poses
+
+
+def _records(store):
+    proc = run_cli("store", "show", store, "--json")
+    assert proc.returncode == 0, proc.stderr
+    return [json.loads(line) for line in proc.stdout.splitlines()]
+
+
+@pytest.mark.parametrize("within", ["file", "estimate"])
+def test_warp_within_maps_each_vp_to_virtual_principal_point(posed_dataset, tmp_path, within):
+    root, img_dir, poses = posed_dataset
+    arg = str(root / "vps.csv") if within == "file" else "estimate"
+    out = tmp_path / "store"
+    proc = run_cli("warp", "--camera", "camvid", "--images", img_dir, "--out", out, "--within", arg,
+                   "--complete", "none", "-q")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == str(out)
+    vs = virtual_at_scale(PRESETS["virtual"], 0.125)
+    recs = _records(out)
+    assert len(recs) == 3
+    for rec, (pan, tilt) in zip(sorted(recs, key=lambda r: r["id"]), poses):
+        assert rec["vp_status"] == ("given" if within == "file" else "accepted")
+        H = np.array(rec["H"]).reshape(3, 3)
+        assert apply_homography(H, [rec["vp"]])[0] == pytest.approx((vs.cx, vs.cy), abs=1e-6)
+        assert (rec["pan_deg"], rec["tilt_deg"]) == pytest.approx(pose_from_vp(PRESETS["camvid"].for_image_size((480, 360)), rec["vp"]))
+        tol = 1e-6 if within == "file" else 0.5
+        assert rec["pan_deg"] == pytest.approx(pan, abs=tol) and rec["tilt_deg"] == pytest.approx(tilt, abs=tol)
+
+
+def test_vp_command_json_and_csv(posed_dataset, tmp_path):
+    root, img_dir, poses = posed_dataset
+    files = sorted(img_dir.glob("*.png"))
+    proc = run_cli("vp", "--camera", "camvid", *files, "--json", "-q")
+    assert proc.returncode == 0, proc.stderr
+    objs = [json.loads(line) for line in proc.stdout.splitlines()]
+    assert [o["image"] for o in objs] == [str(f) for f in files]
+    for o in objs:
+        assert {"image", "vp", "confidence", "n_support", "pan_deg", "tilt_deg", "status"} <= set(o)
+        assert o["status"] == "accepted"
+    out = tmp_path / "vps.csv"
+    proc = run_cli("vp", "--camera", "camvid", img_dir, "-o", out)
+    assert proc.returncode == 0 and proc.stdout.strip() == str(out)
+    assert "3 accepted" in proc.stderr
+    assert set(read_vp_csv(out)) == {f.stem for f in files}
+
+
+def test_vp_command_uniform_image_falls_back(tmp_path):
+    p = tmp_path / "grey_0001.png"
+    cv2.imwrite(str(p), np.full((360, 480, 3), 128, np.uint8))
+    proc = run_cli("vp", "--camera", "camvid", p, EXAMPLES / "camvid" / "images" / "0001TP_007170.png", "--json", "-q")
+    assert proc.returncode == 0, proc.stderr
+    grey, real = [json.loads(line) for line in proc.stdout.splitlines()]
+    assert grey["status"] == "fallback" and real["status"] == "accepted"
+    assert grey["vp"] == pytest.approx(real["vp"], abs=1e-2)  # mean of the one accepted VP
+
+
+def test_figure_vp(tmp_path):
+    out = tmp_path / "vp.png"
+    proc = run_cli("figure", "vp", EXAMPLES / "camvid" / "images" / "0016E5_05280.png", "--camera", "camvid", "-o", out)
+    assert proc.returncode == 0, proc.stderr
+    img = cv2.imread(str(out))
+    assert img is not None and img.shape[1] == 480 and img.shape[0] > 360
+
+
+@pytest.mark.parametrize("case", ["missing_row", "duplicate", "unparsable", "no_file", "smooth_without_estimate"])
+def test_warp_within_bad_inputs_one_error_line(posed_dataset, tmp_path, case):
+    root, img_dir, _ = posed_dataset
+    good = (root / "vps.csv").read_text().splitlines()
+    csv_path = tmp_path / "bad.csv"
+    extra = []
+    if case == "missing_row":
+        csv_path.write_text("\n".join(good[:-1]) + "\n")
+        needles = ("no VP row for image id 'seq_0002'", str(csv_path))
+    elif case == "duplicate":
+        csv_path.write_text("\n".join(good + [good[1]]) + "\n")
+        needles = ("duplicate id 'seq_0000'", "line 5")
+    elif case == "unparsable":
+        csv_path.write_text("\n".join(good[:2] + ["seq_0001,abc,3"] + good[3:]) + "\n")
+        needles = ("line 3 ('seq_0001')",)
+    elif case == "no_file":
+        csv_path = tmp_path / "absent.csv"
+        needles = ("not found",)
+    else:
+        extra, needles = ["--vp-smooth", "2"], ("--vp-smooth",)
+    proc = run_cli("warp", "--camera", "camvid", "--images", img_dir, "--out", tmp_path / "st", "--within", csv_path,
+                   "-q", *extra)
+    assert_one_error_line(proc, *needles)
+    assert not (tmp_path / "st").exists()
+
+
+def test_vp_command_bad_inputs(tmp_path):
+    proc = run_cli("vp", "--camera", "camvid", tmp_path / "nope.png")
+    assert_one_error_line(proc, "nope.png", "not found")
+    bad = tmp_path / "odd.png"
+    cv2.imwrite(str(bad), np.zeros((100, 100, 3), np.uint8))
+    proc = run_cli("vp", "--camera", "camvid", bad)
+    assert_one_error_line(proc, "odd.png", "not a uniform rescale")
+    proc = run_cli("figure", "vp", bad, "--camera", "camvid", "-o", tmp_path / "missing" / "f.png")
+    assert_one_error_line(proc)
+
+
+@pytest.mark.parametrize("cmd", [["vp"], ["figure", "vp"], ["warp"]])
+def test_help_has_example(cmd):
+    proc = run_cli(*cmd, "--help")
+    assert proc.returncode == 0
+    assert "Example:" in proc.stdout

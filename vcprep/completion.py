@@ -1,0 +1,369 @@
+"""Completion of the virtual image (paper §4.3): fill every store pixel that no source pixel
+covers, fused with the warp into one inverse map and one ``cv2.remap``.
+
+Methods (:data:`METHODS`):
+
+- ``projective`` (the paper's): polar coordinates centred on the road VP in store coordinates;
+  an uncovered pixel takes the value where the ray from the VP through it leaves the covered
+  region, linearly interpolated in angle along the region's boundary.
+- ``zero``: image 0, label 0 (not road) -- the paper's zero-padding ablation.
+- ``replicate``: the value of the nearest covered store pixel (border replication in the
+  virtual image) -- the paper's pixel-replication ablation.
+- ``none``: the bare warp (image 0, label 255 = ignore).
+
+Why one remap is enough: the homography ``virt_H_src`` maps lines to lines and the VP to the VP,
+so the ray from the VP ``c`` through an uncovered store pixel ``p`` is the image of a ray from
+``c_src = src_H_virt c`` in the source. Its source direction is ``J (p - c)`` with ``J`` the
+Jacobian of ``src_H_virt`` at ``c`` (exact: a homography maps a ray from ``c`` onto a ray from
+``c_src``), and the point where the store ray leaves the covered region is the image of the
+point where the source ray leaves the source region. So every uncovered store pixel gets a
+*source* coordinate, written into the same ``map_x``/``map_y`` as the warp.
+
+The covered region is the source rectangle (pixel centres ``[0, w-1] x [0, h-1]``) minus the
+label's ignore pixels that touch the image border (an ego-vehicle bonnet, a rectification
+border). Without such pixels the exit point is the exact ray/rectangle intersection (which is
+what linear interpolation in angle between boundary pixels converges to on straight edges);
+with them, it is looked up in a table of the region's boundary pixels sorted by angle: the
+image map interpolates the boundary point linearly in angle and steps 1 px inward (so bilinear
+sampling never reaches into the ignore pixels); the label map takes the boundary pixel nearest
+in angle (values are never mixed). Ignore pixels inside the covered region keep their warped
+value (the bonnet stays ignore). Ignore holes that do not touch the border are not boundary.
+
+VP outside the covered region (a bad estimate, or a VP above the source image): rays from an
+outside point do not leave the region once, so the rays are centred instead on the covered
+pixel nearest to the VP, moved 10 % of the way toward the region's centroid (strictly inside).
+The result says so (``vp_inside=False``, ``centre``), and stores record it.
+
+Conventions as in :mod:`vcprep.warp`: (x, y) = (u, v), pixel centres at integers, maps are
+store pixel -> source pixel.
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+from collections import OrderedDict
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from .errors import GeometryError, InputError
+from .labels import IGNORE
+from .warp import OUTSIDE, RemapMaps, maps_for
+
+__all__ = ["METHODS", "COMPLETION_VERSION", "CompletionMaps", "check_method", "border_ignore", "completion_maps",
+           "complete_maps", "exit_points_rectangle", "store_vp"]
+
+METHODS = ("projective", "zero", "replicate", "none")
+COMPLETION_VERSION = "completion-v1"  # bump when completed outputs of identical inputs would change
+INSET = 1.0            # px the image map steps inward from a cut (ignore) boundary
+FALLBACK_TOWARD = 0.1  # VP outside: move the nearest covered pixel this far toward the centroid
+TABLE_MAX = 32000      # angles in the lookup table (remap coordinates must fit in int16)
+
+
+@dataclass(frozen=True)
+class CompletionMaps(RemapMaps):
+    """:class:`RemapMaps` whose uncovered pixels are filled by ``method``.
+
+    ``valid`` is still 1 only where a source pixel landed. ``label_border``: label value for
+    pixels the maps leave outside (255 for 'none', 0 for 'zero'). ``centre``: the store point
+    the projective rays start from (the VP, or the fallback when ``vp_inside`` is False).
+    """
+
+    method: str
+    label_border: int
+    centre: tuple[float, float] | None
+    vp_inside: bool
+
+    @property
+    def note(self) -> str | None:
+        """A sentence for the user when the result is not the plain method (VP outside)."""
+        if self.method == "projective" and not self.vp_inside:
+            return (f"VP outside the covered region; completion rays start at the nearest covered point "
+                    f"({self.centre[0]:.1f}, {self.centre[1]:.1f}) instead")
+        return None
+
+
+def check_method(method: str) -> str:
+    if method not in METHODS:
+        raise InputError(f"unknown completion method '{method}'", None, f"use one of {', '.join(METHODS)}")
+    return method
+
+
+def border_ignore(label: np.ndarray | None) -> np.ndarray | None:
+    """Boolean mask of the ignore pixels connected (8-neighbourhood) to the image border, or None
+    when there are none. These cut the covered region; interior ignore holes do not."""
+    if label is None:
+        return None
+    ign = (label == IGNORE).astype(np.uint8)
+    if not ign.any():
+        return None
+    edge = np.zeros_like(ign, dtype=bool)
+    edge[0, :] = edge[-1, :] = True
+    edge[:, 0] = edge[:, -1] = True
+    if not (ign.astype(bool) & edge).any():
+        return None
+    n, comp = cv2.connectedComponents(ign, connectivity=8)
+    touching = np.unique(comp[edge & ign.astype(bool)])
+    touching = touching[touching > 0]
+    return np.isin(comp, touching)
+
+
+def store_vp(H: np.ndarray, vp_src: tuple[float, float]) -> tuple[float, float]:
+    """The VP ``vp_src`` (source pixels) in store coordinates: ``H @ vp``."""
+    p = np.asarray(H, dtype=np.float64) @ np.array([vp_src[0], vp_src[1], 1.0])
+    return float(p[0] / p[2]), float(p[1] / p[2])
+
+
+# -- geometry ------------------------------------------------------------------------------------
+
+def _src_H_dst(dst_H_src: np.ndarray) -> np.ndarray:
+    return np.linalg.inv(np.asarray(dst_H_src, dtype=np.float64))
+
+
+def _to_source(M: np.ndarray, c: tuple[float, float]) -> tuple[np.ndarray | None, np.ndarray]:
+    """Source point of store point ``c`` (None if it lies beyond the source's horizon line, where
+    the homogeneous scale changes sign relative to the source image) and the 2x2 matrix ``J``
+    with source direction = ``J @ (p - c)`` for the ray from ``c`` toward ``p`` (independent of
+    the overall sign of ``M``)."""
+    V = M @ np.array([c[0], c[1], 1.0])
+    J = np.array([[M[0, 0] * V[2] - V[0] * M[2, 0], M[0, 1] * V[2] - V[0] * M[2, 1]],
+                  [M[1, 0] * V[2] - V[1] * M[2, 0], M[1, 1] * V[2] - V[1] * M[2, 1]]])
+    if abs(V[2]) < 1e-12:
+        return None, J
+    return V[:2] / V[2], J
+
+
+def exit_points_rectangle(c_src: np.ndarray, dx: np.ndarray, dy: np.ndarray, src_size: tuple[int, int]):
+    """Where rays ``c_src + s (dx, dy)``, s > 0, leave the rectangle of pixel centres
+    ``[0, w-1] x [0, h-1]`` (``c_src`` inside). Returns (x, y) arrays."""
+    w, h = src_size
+    cx, cy = float(c_src[0]), float(c_src[1])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        sx = np.where(dx > 0, (w - 1 - cx) / dx, np.where(dx < 0, -cx / dx, np.inf))
+        sy = np.where(dy > 0, (h - 1 - cy) / dy, np.where(dy < 0, -cy / dy, np.inf))
+    s = np.minimum(sx, sy)
+    s = np.where(np.isfinite(s), s, 0.0)
+    x = np.clip(cx + s * dx, 0, w - 1)
+    y = np.clip(cy + s * dy, 0, h - 1)
+    return x, y
+
+
+def _boundary_table(region: np.ndarray, c_src: np.ndarray):
+    """The first-exit boundary of ``region`` (uint8 0/1, source pixels) seen from ``c_src``.
+
+    Boundary pixels are region pixels with a 4-neighbour outside it (or on the image edge). Each
+    covers the angular interval it subtends from ``c_src`` (half-width 0.71/r); in every angular
+    bin the nearest covering pixel wins (a ray leaves the region there first; pixels hidden
+    behind a nearer boundary, e.g. the side walls of a bonnet notch, never win). Returns the
+    winners (theta, x, y) sorted by theta."""
+    inner = cv2.erode(region, cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3)),
+                      borderType=cv2.BORDER_CONSTANT, borderValue=0)
+    ys, xs = np.nonzero(region.astype(bool) & (inner == 0))
+    x = xs.astype(np.float64)
+    y = ys.astype(np.float64)
+    th = np.arctan2(y - c_src[1], x - c_src[0])
+    r = np.hypot(x - c_src[0], y - c_src[1])
+    nbins = int(np.clip(2 * math.pi * r.max(), 2048, 1 << 16))  # ~1 px at the farthest boundary
+    bw = 2 * math.pi / nbins
+    half = 0.71 / np.maximum(r, 0.5)
+    lo = np.floor((th - half + math.pi) / bw).astype(np.int64)
+    cnt = np.minimum(np.floor((th + half + math.pi) / bw).astype(np.int64) - lo + 1, nbins)
+    owner = np.repeat(np.arange(len(x)), cnt)
+    offs = np.arange(cnt.sum()) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+    b = (lo[owner] + offs) % nbins
+    order = np.lexsort((r[owner], b))
+    first = np.ones(len(order), dtype=bool)
+    first[1:] = b[order][1:] != b[order][:-1]
+    win = np.unique(owner[order[first]])
+    win = win[np.argsort(th[win], kind="stable")]
+    return th[win], x[win], y[win]
+
+
+def _exit_table(cx_: np.ndarray, cy_: np.ndarray, J: np.ndarray, c_src: np.ndarray, src_size, region_src):
+    """Source points for store directions (cx_, cy_) from the centre: (image x, y, label x, y)."""
+    w, h = src_size
+    dx = J[0, 0] * cx_ + J[0, 1] * cy_
+    dy = J[1, 0] * cx_ + J[1, 1] * cy_
+    if region_src is None:
+        x, y = exit_points_rectangle(c_src, dx, dy, src_size)
+        return x, y, x, y
+    th_k, x_k, y_k = _boundary_table(region_src, c_src)
+    th = np.arctan2(dy, dx)
+    n = len(th_k)
+    hi = np.searchsorted(th_k, th) % n
+    lo = (hi - 1) % n
+    span = np.mod(th_k[hi] - th_k[lo], 2 * math.pi)
+    a = np.where(span > 0, np.mod(th - th_k[lo], 2 * math.pi) / np.where(span > 0, span, 1.0), 0.0)
+    a = np.clip(a, 0.0, 1.0)
+    near = np.where(a <= 0.5, lo, hi)  # label: the boundary pixel nearest in angle
+    # image: linear in angle between neighbouring boundary pixels, unless they are not
+    # neighbours on the boundary (an occlusion jump): then the nearest one
+    jump = np.hypot(x_k[hi] - x_k[lo], y_k[hi] - y_k[lo]) > 1.5
+    x = np.where(jump, x_k[near], (1 - a) * x_k[lo] + a * x_k[hi])
+    y = np.where(jump, y_k[near], (1 - a) * y_k[lo] + a * y_k[hi])
+    ox, oy = x - c_src[0], y - c_src[1]
+    r = np.hypot(ox, oy)
+    f = np.where(r > INSET, (r - INSET) / np.maximum(r, 1e-9), 0.0)
+    x = np.clip(c_src[0] + f * ox, 0, w - 1)
+    y = np.clip(c_src[1] + f * oy, 0, h - 1)
+    # bilinear must not reach a pixel outside the region: else sample the boundary pixel itself
+    x0, y0 = np.floor(x).astype(np.int64), np.floor(y).astype(np.int64)
+    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
+    ok = (region_src[y0, x0] & region_src[y0, x1] & region_src[y1, x0] & region_src[y1, x1]).astype(bool)
+    return np.where(ok, x, x_k[near]), np.where(ok, y, y_k[near]), x_k[near], y_k[near]
+
+
+def _centre(vp: tuple[float, float], M: np.ndarray, src_size, region_src: np.ndarray | None,
+            region_dst: np.ndarray) -> tuple[tuple[float, float], bool]:
+    """The ray centre in store coordinates and whether it is the VP itself (see module doc)."""
+    w, h = src_size
+    c_src, _ = _to_source(M, vp)
+    mid = M @ np.array([region_dst.shape[1] / 2, region_dst.shape[0] / 2, 1.0])
+    front = c_src is not None and np.sign((M @ np.array([vp[0], vp[1], 1.0]))[2]) == np.sign(mid[2])
+    if front and 0 <= c_src[0] <= w - 1 and 0 <= c_src[1] <= h - 1:
+        if region_src is None or region_src[int(round(c_src[1])), int(round(c_src[0]))]:
+            return (float(vp[0]), float(vp[1])), True
+    ys, xs = np.nonzero(region_dst)
+    if len(xs) == 0:
+        raise GeometryError("no source pixel lands in the virtual image, nothing to complete from", None,
+                            "check the camera, pose and scale")
+    k = int(np.argmin((xs - vp[0]) ** 2 + (ys - vp[1]) ** 2))
+    q = np.array([xs[k], ys[k]], dtype=np.float64)
+    g = np.array([xs.mean(), ys.mean()])
+    for cand in (q + FALLBACK_TOWARD * (g - q), g, q):
+        u, v = int(round(cand[0])), int(round(cand[1]))
+        if 0 <= v < region_dst.shape[0] and 0 <= u < region_dst.shape[1] and region_dst[v, u]:
+            return (float(cand[0]), float(cand[1])), False
+    return (float(q[0]), float(q[1])), False  # unreachable: q is a region pixel
+
+
+# -- maps ------------------------------------------------------------------------------------------
+
+def _finish(map_x, map_y, lab_x, lab_y, valid, method, label_border, centre, vp_inside) -> CompletionMaps:
+    map_x = np.ascontiguousarray(map_x, dtype=np.float32)
+    map_y = np.ascontiguousarray(map_y, dtype=np.float32)
+    linear = cv2.convertMaps(map_x, map_y, cv2.CV_16SC2)
+    nearest = cv2.convertMaps(np.ascontiguousarray(lab_x, dtype=np.float32),
+                              np.ascontiguousarray(lab_y, dtype=np.float32), cv2.CV_16SC2, nninterpolation=True)[0]
+    return CompletionMaps(map_x, map_y, linear, nearest, valid, method, label_border, centre, vp_inside)
+
+
+def complete_maps(base: RemapMaps, dst_H_src: np.ndarray, src_size: tuple[int, int], method: str,
+                  vp: tuple[float, float] | None = None, src_ignore: np.ndarray | None = None) -> CompletionMaps:
+    """Fill the uncovered pixels of the bare-warp maps ``base`` by ``method``.
+
+    ``vp``: the ray centre in store coordinates (projective; default: the store centre).
+    ``src_ignore``: boolean (h, w) source mask of border ignore pixels (see :func:`border_ignore`),
+    excluded from the region that values are taken from.
+    """
+    check_method(method)
+    valid = base.valid
+    if method == "none":
+        return CompletionMaps(base.map_x, base.map_y, base.linear, base.nearest, valid, method, IGNORE, None, True)
+    if method == "zero":
+        return CompletionMaps(base.map_x, base.map_y, base.linear, base.nearest, valid, method, 0, None, True)
+    w, h = src_size
+    unc = valid == 0
+    if not unc.any():  # nothing to fill (also makes completion idempotent)
+        return CompletionMaps(base.map_x, base.map_y, base.linear, base.nearest, valid, method,
+                              IGNORE, None if vp is None else tuple(map(float, vp)), True)
+    region_src = None
+    region_dst = valid.astype(bool)
+    if src_ignore is not None and src_ignore.any():
+        region_src = (~src_ignore).astype(np.uint8)
+        inside = cv2.remap(region_src, base.nearest, None, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT,
+                           borderValue=0)
+        region_dst = region_dst & (inside == 1)
+        if not region_src.any():
+            raise InputError("the whole label is ignore at the border, nothing to complete from", None,
+                             "check the label, or use --complete none")
+    if not region_dst.any():
+        raise GeometryError("no source pixel lands in the virtual image, nothing to complete from", None,
+                            "check the camera, pose and scale")
+    map_x, map_y = base.map_x.copy(), base.map_y.copy()
+
+    if method == "replicate":
+        vs, us = np.nonzero(unc)
+        # nearest region pixel of every store pixel (labels of the zero pixels of 1 - region)
+        _, lab = cv2.distanceTransformWithLabels((~region_dst).astype(np.uint8), cv2.DIST_L2, 5,
+                                                 labelType=cv2.DIST_LABEL_PIXEL)
+        ry, rx = np.nonzero(region_dst)
+        lut = np.zeros(int(lab.max()) + 1, dtype=np.int64)
+        lut[lab[ry, rx]] = np.arange(len(rx))
+        k = lut[lab[vs, us]]
+        map_x[vs, us] = base.map_x[ry[k], rx[k]]
+        map_y[vs, us] = base.map_y[ry[k], rx[k]]
+        lab_x, lab_y = map_x, map_y
+        return _finish(map_x, map_y, lab_x, lab_y, valid, method, IGNORE, None, True)
+
+    # projective
+    if vp is None:
+        vp = ((valid.shape[1] - 1) / 2, (valid.shape[0] - 1) / 2)
+    M = _src_H_dst(dst_H_src)
+    centre, vp_inside = _centre(vp, M, src_size, region_src, region_dst)
+    c_src, J = _to_source(M, centre)
+    if c_src is None:  # cannot happen for a covered centre
+        raise GeometryError("the completion centre has no source point", None, "check the VP")
+    c_src = np.clip(c_src, [0, 0], [w - 1, h - 1])
+    # The source point depends only on the ray's store angle: tabulate it for N angles (arc step
+    # <= 2/3 px at the farthest store pixel), then look every uncovered pixel up by its angle with
+    # a remap of the 1 x (N + 1) table (linear in angle; nearest when labels cut the region, as
+    # interpolating across an occlusion jump would land in the ignore area).
+    H_, W_ = valid.shape
+    far = max(np.hypot(cx - centre[0], cy - centre[1]) for cx in (0, W_ - 1) for cy in (0, H_ - 1))
+    n = int(np.clip(np.ceil(2 * math.pi * far * 1.5), 1024, TABLE_MAX))
+    phi = np.arange(n + 1) * (2 * math.pi / n)
+    tx, ty, lx, ly = _exit_table(np.cos(phi), np.sin(phi), J, c_src, src_size, region_src)
+    grid_u = np.arange(W_, dtype=np.float32)[None, :] - np.float32(centre[0])
+    grid_v = np.arange(H_, dtype=np.float32)[:, None] - np.float32(centre[1])
+    angle = cv2.phase(np.broadcast_to(grid_u, (H_, W_)).copy(), np.broadcast_to(grid_v, (H_, W_)).copy())
+    idx = angle * np.float32(n / (2 * math.pi))
+    zero = np.zeros_like(idx)
+    table = np.dstack([tx, ty]).astype(np.float32).reshape(1, n + 1, 2)
+    interp = cv2.INTER_LINEAR if region_src is None else cv2.INTER_NEAREST
+    look = cv2.remap(table, idx, zero, interp, borderMode=cv2.BORDER_REPLICATE)
+    mask = unc.astype(np.uint8)
+    cv2.copyTo(look[..., 0], mask, map_x)
+    cv2.copyTo(look[..., 1], mask, map_y)
+    if region_src is None:
+        lab_x, lab_y = map_x, map_y  # rounding a point of the pixel-centre rectangle stays inside
+    else:
+        ltable = np.dstack([lx, ly]).astype(np.float32).reshape(1, n + 1, 2)
+        llook = cv2.remap(ltable, idx, zero, cv2.INTER_NEAREST, borderMode=cv2.BORDER_REPLICATE)
+        lab_x, lab_y = base.map_x.copy(), base.map_y.copy()
+        cv2.copyTo(llook[..., 0], mask, lab_x)
+        cv2.copyTo(llook[..., 1], mask, lab_y)
+    return _finish(map_x, map_y, lab_x, lab_y, valid, method, IGNORE, centre, vp_inside)
+
+
+_CACHE: "OrderedDict[tuple, CompletionMaps]" = OrderedDict()
+_CACHE_MAX = 4
+
+
+def completion_maps(dst_H_src: np.ndarray, src_size: tuple[int, int], dst_size: tuple[int, int], method: str,
+                    vp: tuple[float, float] | None = None, src_ignore: np.ndarray | None = None) -> CompletionMaps:
+    """Warp + completion maps for one (homography, sizes, method, VP, border-ignore mask), with a
+    small LRU cache: in between-camera mode every image of a camera shares H and VP, so the maps
+    are built once (per distinct ignore mask when labels cut the region)."""
+    check_method(method)
+    H = np.ascontiguousarray(dst_H_src, dtype=np.float64)
+    if src_ignore is not None and src_ignore.shape != (src_size[1], src_size[0]):
+        raise InputError(f"ignore mask is {src_ignore.shape[1]}x{src_ignore.shape[0]}, image is "
+                         f"{src_size[0]}x{src_size[1]}", None, "labels must have the size of their images")
+    if src_ignore is not None and not src_ignore.any():
+        src_ignore = None
+    mask_key = None if src_ignore is None else hashlib.sha1(np.packbits(src_ignore).tobytes()).hexdigest()
+    vp_key = None if (vp is None or method != "projective") else (round(float(vp[0]), 9), round(float(vp[1]), 9))
+    key = (H.tobytes(), tuple(src_size), tuple(dst_size), method, vp_key,
+           mask_key if method in ("projective", "replicate") else None)
+    hit = _CACHE.get(key)
+    if hit is not None:
+        _CACHE.move_to_end(key)
+        return hit
+    base = maps_for(H, src_size, dst_size)
+    maps = complete_maps(base, H, src_size, method, vp, src_ignore if method in ("projective", "replicate") else None)
+    _CACHE[key] = maps
+    if len(_CACHE) > _CACHE_MAX:
+        _CACHE.popitem(last=False)
+    return maps

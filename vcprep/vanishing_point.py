@@ -1,0 +1,580 @@
+"""Road vanishing points (VPs) and the reliability rule for within-camera correction (paper §4.2).
+
+Three layers (style.md):
+
+* :func:`detect_segments` / :func:`estimate_vp` — pure, in memory: one image -> :class:`VPResult`;
+* :func:`apply_reliability`, :func:`smooth_sequences` — the dataset rules over many results;
+* :func:`estimate_files`, :func:`read_vp_csv`, :func:`write_vp_csv` — file I/O wrappers.
+
+Conventions: a VP is (u, v) in pixels of the image as stored on disk, origin at the CENTRE of
+the top-left pixel (method.md). Pan/tilt in degrees from :func:`vcprep.homography.pose_from_vp`.
+
+The detector (measured in ``benchmarks/vp.py``):
+
+1. grey image, downscaled (INTER_AREA) to at most ``work_width`` px wide; OpenCV LSD segments
+   (internal scale ``lsd_scale``, standard refinement), mapped back to source pixels with the
+   pixel-centre rule;
+2. keep segments longer than ``min_length`` (fraction of the width) whose angle to the horizontal
+   lies in [``min_angle_deg``, ``max_angle_deg``] and whose supporting line crosses the *prior
+   window* — the VPs the camera can have under its average pose ± ``pan_range`` / ``tilt_range``;
+3. weight = length, x ``above_weight`` for a segment lying above the candidate VP (the road is
+   below its VP): long lane markings, kerbs and road edges dominate, facades and wires count less;
+4. candidates = intersections of the strongest segments plus a regular grid over the prior
+   window; each is scored by a robust (Tukey) vote of every segment on the angle between the
+   segment and the ray from its midpoint to the candidate; the best is refined by iteratively
+   reweighted least squares on its supporting segments. No randomness: deterministic.
+
+Per image the result says how much it trusts the VP (``confidence`` = share of the line weight
+that supports it, ``n_support`` = number of supporting segments). :func:`apply_reliability` then
+applies method.md's rule: implied pan more than 20° or tilt more than 15° from the camera's
+average pose, or fewer than ``min_support`` supporting segments -> rejected and replaced by the
+mean of the dataset's accepted VPs (status ``fallback``). The mean is taken over normalised rays
+((u - cx)/fx, (v - cy)/fy), so images of different (uniformly rescaled) sizes average correctly.
+When no VP of the dataset is accepted, the camera's average-pose VP is the fallback.
+"""
+from __future__ import annotations
+
+import csv
+import io
+import math
+import re
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Callable, Iterable, Mapping, Sequence
+
+import cv2
+import numpy as np
+
+from .camera import Camera
+from .errors import InputError
+from .homography import pose_from_vp, vp_from_pose
+
+__all__ = [
+    "VPConfig",
+    "VPResult",
+    "STATUSES",
+    "to_gray",
+    "detect_segments",
+    "prior_window",
+    "estimate_vp",
+    "is_reliable",
+    "apply_reliability",
+    "sequence_key",
+    "smooth_sequences",
+    "estimate_files",
+    "read_vp_csv",
+    "format_vp_csv",
+    "write_vp_csv",
+    "given_results",
+    "vps_for_items",
+]
+
+#: final statuses of a VP: detected and reliable, replaced by the dataset mean, read from a file.
+#: (``rejected`` is the intermediate status of :func:`estimate_vp` before the dataset rule.)
+STATUSES = ("accepted", "fallback", "given")
+
+
+@dataclass(frozen=True)
+class VPConfig:
+    """Detector parameters (defaults measured on synthetic and CamVid frames, benchmarks/vp.py)."""
+
+    work_width: int = 480          # images wider than this are downscaled before line detection (px)
+    lsd_scale: float = 0.6         # LSD's own internal scale (OpenCV default 0.8; 0.6 is ~2x faster)
+    lsd_refine: int = 1            # cv2.LSD_REFINE_STD (1: splits bent segments) or _NONE (0)
+    min_length: float = 0.025      # shortest segment kept, as a fraction of the working width
+    min_angle_deg: float = 8.0     # reject segments closer than this to horizontal
+    max_angle_deg: float = 86.0    # reject segments steeper than this (poles, building edges)
+    above_weight: float = 0.3      # weight factor for segments lying above the candidate VP (not road)
+    inlier_deg: float = 2.0        # a segment supports a VP if its angular residual is below this
+    n_strong: int = 30             # strongest segments whose pairwise intersections are candidates
+    max_segments: int = 150        # at most this many (strongest) segments vote
+    grid_deg: float = 2.0          # step of the candidate grid over the prior window (degrees)
+    pan_range: float = 20.0        # reliability rule: |pan - camera pan| <= pan_range (degrees)
+    tilt_range: float = 15.0       # reliability rule: |tilt - camera tilt| <= tilt_range (degrees)
+    min_support: int = 4           # fewer supporting segments -> rejected
+
+
+@dataclass(frozen=True)
+class VPResult:
+    """The road VP of one image.
+
+    ``vp`` (u, v) source pixels; ``status`` one of :data:`STATUSES` (or ``rejected`` before
+    :func:`apply_reliability`); ``reason`` says why a VP was rejected ('' otherwise);
+    ``detected`` is the detector's own VP (None when it found none), kept when ``vp`` is replaced.
+    ``segments`` (N, 4) x1, y1, x2, y2 in source pixels and ``support`` (N,) bool are for figures.
+    """
+
+    vp: tuple[float, float]
+    confidence: float
+    n_support: int
+    pan_deg: float
+    tilt_deg: float
+    status: str
+    reason: str = ""
+    detected: tuple[float, float] | None = None
+    segments: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)), repr=False, compare=False)
+    support: np.ndarray = field(default_factory=lambda: np.zeros(0, bool), repr=False, compare=False)
+
+    def to_dict(self) -> dict:
+        """JSON-ready summary (no segment arrays)."""
+        return {"vp": [round(float(self.vp[0]), 3), round(float(self.vp[1]), 3)],
+                "confidence": round(float(self.confidence), 4), "n_support": int(self.n_support),
+                "pan_deg": round(float(self.pan_deg), 4), "tilt_deg": round(float(self.tilt_deg), 4),
+                "status": self.status, "reason": self.reason}
+
+
+# --------------------------------------------------------------------------------------------
+# segments
+
+
+def to_gray(image: np.ndarray) -> np.ndarray:
+    """Any decoded image (grey/BGR, 8/16-bit) -> uint8 grey."""
+    img = image
+    if img.dtype == np.uint16:
+        img = (img >> 8).astype(np.uint8)
+    elif img.dtype != np.uint8:
+        img = np.clip(img, 0, 255).astype(np.uint8)
+    if img.ndim == 3:
+        img = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+    return np.ascontiguousarray(img)
+
+
+_LSD: dict[tuple[float, int], object] = {}
+
+
+def _lsd(scale: float, refine: int = 0):
+    key = (float(scale), int(refine))
+    if key not in _LSD:  # stateless detector: one per setting and process
+        _LSD[key] = cv2.createLineSegmentDetector(int(refine), float(scale))
+    return _LSD[key]
+
+
+def detect_segments(gray: np.ndarray, work_width: int = 480, lsd_scale: float = 0.6, lsd_refine: int = 1) -> np.ndarray:
+    """LSD line segments of a grey image: (N, 4) float ``x1, y1, x2, y2`` in SOURCE pixels.
+
+    An image wider than ``work_width`` is first resized by s = work_width / w (INTER_AREA);
+    working pixel centres map back by ``u = (u' + 0.5) / s - 0.5``.
+    """
+    h, w = gray.shape[:2]
+    if min(h, w) < 8:
+        return np.zeros((0, 4))
+    s = 1.0
+    if w > work_width:
+        s = work_width / w
+        gray = cv2.resize(gray, (work_width, max(8, int(round(h * s)))), interpolation=cv2.INTER_AREA)
+    sx, sy = gray.shape[1] / w, gray.shape[0] / h
+    lines = _lsd(lsd_scale, lsd_refine).detect(gray)[0]
+    if lines is None or len(lines) == 0:
+        return np.zeros((0, 4))
+    seg = lines.reshape(-1, 4).astype(np.float64)
+    seg[:, [0, 2]] = (seg[:, [0, 2]] + 0.5) / sx - 0.5
+    seg[:, [1, 3]] = (seg[:, [1, 3]] + 0.5) / sy - 0.5
+    return seg
+
+
+def prior_window(cam: Camera, pan_range: float = 20.0, tilt_range: float = 15.0) -> tuple[float, float, float, float]:
+    """Bounding box (u0, v0, u1, v1) in pixels of the VPs the camera can have with pan within
+    ``pan_range`` and tilt within ``tilt_range`` degrees of its average pose."""
+    pts = [vp_from_pose(cam, cam.pan + a, cam.tilt + b)
+           for a in np.linspace(-pan_range, pan_range, 5) for b in np.linspace(-tilt_range, tilt_range, 5)]
+    p = np.array(pts)
+    return float(p[:, 0].min()), float(p[:, 1].min()), float(p[:, 0].max()), float(p[:, 1].max())
+
+
+def _line_crosses_box(seg: np.ndarray, box: tuple[float, float, float, float]) -> np.ndarray:
+    """(N,) bool: the infinite line through each segment crosses the box (corners on both sides)."""
+    u0, v0, u1, v1 = box
+    corners = np.array([[u0, v0], [u1, v0], [u1, v1], [u0, v1]])
+    d = seg[:, 2:4] - seg[:, 0:2]
+    rel = corners[None, :, :] - seg[:, None, 0:2]                     # (N, 4, 2)
+    side = d[:, None, 0] * rel[:, :, 1] - d[:, None, 1] * rel[:, :, 0]  # cross product sign
+    return (side.min(axis=1) <= 0) & (side.max(axis=1) >= 0)
+
+
+# --------------------------------------------------------------------------------------------
+# voting
+
+
+def _residual_sin(cands: np.ndarray, mid: np.ndarray, dirs: np.ndarray) -> np.ndarray:
+    """|sin| of the angle between each segment direction and the ray midpoint -> candidate: (M, N)."""
+    rx = cands[:, None, 0] - mid[None, :, 0]
+    ry = cands[:, None, 1] - mid[None, :, 1]
+    norm = np.sqrt(rx * rx + ry * ry) + 1e-9
+    return np.abs(rx * dirs[None, :, 1] - ry * dirs[None, :, 0]) / norm
+
+
+def _votes(cands: np.ndarray, mid: np.ndarray, dirs: np.ndarray, length: np.ndarray, tau: float,
+           above_weight: float) -> np.ndarray:
+    """(M, N) vote of each segment for each candidate VP (before the length weight).
+
+    Tukey kernel (1 - (r/tau)^2)^2 on the angular residual r; x ``above_weight`` when the
+    segment lies above the candidate (the road is below its VP); 0 when the candidate lies on
+    the segment itself (its extent along the segment direction).
+    """
+    rx = cands[:, None, 0] - mid[None, :, 0]
+    ry = cands[:, None, 1] - mid[None, :, 1]
+    norm = np.sqrt(rx * rx + ry * ry) + 1e-9
+    r = np.abs(rx * dirs[None, :, 1] - ry * dirs[None, :, 0]) / norm / tau
+    v = np.clip(1.0 - r * r, 0.0, None)
+    v *= v
+    along = np.abs(rx * dirs[None, :, 0] + ry * dirs[None, :, 1])
+    v *= along > 0.5 * length[None, :]
+    return v * np.where(ry < 0, 1.0, above_weight)
+
+
+def _intersections(seg: np.ndarray) -> np.ndarray:
+    """Pairwise intersections of the lines through ``seg`` (finite ones only): (M, 2)."""
+    p1 = np.column_stack([seg[:, 0:2], np.ones(len(seg))])
+    p2 = np.column_stack([seg[:, 2:4], np.ones(len(seg))])
+    L = np.cross(p1, p2)
+    i, j = np.triu_indices(len(seg), 1)
+    X = np.cross(L[i], L[j])
+    ok = np.abs(X[:, 2]) > 1e-9
+    return X[ok, :2] / X[ok, 2:3]
+
+
+def _refine(c: np.ndarray, seg: np.ndarray, mid: np.ndarray, dirs: np.ndarray, length: np.ndarray,
+            wts: np.ndarray, tau: float, above_weight: float, iters: int = 5) -> np.ndarray:
+    """IRLS: minimise sum_i w_i * (angular residual_i)^2 with the votes at the current VP as weights.
+
+    The angular residual of line l_i (unit normal) at c is ``(l_i . c) / |c - m_i|``: a weighted
+    linear least-squares problem in c for fixed distances |c - m_i|.
+    """
+    p1 = np.column_stack([seg[:, 0:2], np.ones(len(seg))])
+    p2 = np.column_stack([seg[:, 2:4], np.ones(len(seg))])
+    L = np.cross(p1, p2)
+    L /= np.linalg.norm(L[:, :2], axis=1, keepdims=True) + 1e-12
+    for _ in range(iters):
+        tw = _votes(c[None], mid, dirs, length, tau, above_weight)[0]
+        dist = np.linalg.norm(c[None] - mid, axis=1) + 1e-9
+        w = wts * tw / dist ** 2
+        if np.count_nonzero(w) < 2:
+            break
+        A = L[:, :2] * np.sqrt(w)[:, None]
+        b = -L[:, 2] * np.sqrt(w)
+        M = A.T @ A
+        if np.linalg.cond(M) > 1e10:
+            break
+        c_new = np.linalg.solve(M, A.T @ b)
+        done = np.linalg.norm(c_new - c) < 1e-3
+        c = c_new
+        if done:
+            break
+    return c
+
+
+def _result(cam: Camera, vp, confidence: float, n_support: int, status: str, reason: str = "",
+            detected=None, segments=None, support=None) -> VPResult:
+    pan, tilt = pose_from_vp(cam, vp)
+    return VPResult(vp=(float(vp[0]), float(vp[1])), confidence=float(confidence), n_support=int(n_support),
+                    pan_deg=float(pan), tilt_deg=float(tilt), status=status, reason=reason,
+                    detected=None if detected is None else (float(detected[0]), float(detected[1])),
+                    segments=np.zeros((0, 4)) if segments is None else segments,
+                    support=np.zeros(0, bool) if support is None else support)
+
+
+def is_reliable(cam: Camera, pan: float, tilt: float, n_support: int, cfg: VPConfig = VPConfig()) -> str:
+    """'' if a VP passes the reliability rule (method.md), else the reason it is rejected."""
+    if n_support < cfg.min_support:
+        return f"too little support ({n_support} segments < {cfg.min_support})"
+    if abs(pan - cam.pan) > cfg.pan_range:
+        return f"pan {pan:.1f} deg is more than {cfg.pan_range:g} deg from the camera's {cam.pan:g}"
+    if abs(tilt - cam.tilt) > cfg.tilt_range:
+        return f"tilt {tilt:.1f} deg is more than {cfg.tilt_range:g} deg from the camera's {cam.tilt:g}"
+    return ""
+
+
+def estimate_vp(image: np.ndarray, cam: Camera, cfg: VPConfig = VPConfig(),
+                segments: np.ndarray | None = None) -> VPResult:
+    """The road VP of one image; ``cam`` must be calibrated for this image's size.
+
+    Returns status 'accepted', or 'rejected' with a ``reason`` and ``vp`` = the camera's
+    average-pose VP (the dataset rule :func:`apply_reliability` replaces it). ``segments``
+    (N, 4) may be given to skip line detection. Never raises on image content.
+    """
+    h, w = image.shape[:2]
+    if (w, h) != tuple(cam.size):
+        raise InputError(f"image is {w}x{h} but the camera is for {cam.size[0]}x{cam.size[1]}", None,
+                         "use camera.for_image_size(...) first")
+    prior = vp_from_pose(cam)
+    seg = detect_segments(to_gray(image), cfg.work_width, cfg.lsd_scale, cfg.lsd_refine) if segments is None else np.asarray(segments, float)
+    all_seg = seg
+    d = seg[:, 2:4] - seg[:, 0:2]
+    length = np.hypot(d[:, 0], d[:, 1])
+    ang = np.degrees(np.arctan2(np.abs(d[:, 1]), np.abs(d[:, 0]) + 1e-12))
+    box = prior_window(cam, cfg.pan_range, cfg.tilt_range)
+    scale = min(1.0, cfg.work_width / w)  # lengths are judged at the working resolution
+    keep = ((length * scale >= cfg.min_length * min(w, cfg.work_width)) & (ang >= cfg.min_angle_deg)
+            & (ang <= cfg.max_angle_deg))
+    if len(seg):
+        keep &= _line_crosses_box(seg, box)
+    idx = np.flatnonzero(keep)
+    # vote weight = length (the road-below-VP factor is applied per candidate in _votes)
+    mid_all = 0.5 * (seg[:, 0:2] + seg[:, 2:4])
+    wts_all = length
+    idx = idx[np.argsort(-wts_all[idx], kind="stable")][: cfg.max_segments]
+    support_all = np.zeros(len(all_seg), bool)
+
+    def rejected(reason, n=0, conf=0.0, detected=None):
+        return _result(cam, prior, conf, n, "rejected", reason, detected, all_seg, support_all)
+
+    if len(idx) < 2:
+        return rejected(f"too little support ({len(idx)} usable line segments)")
+    seg, mid, wts, seg_len = seg[idx], mid_all[idx], wts_all[idx], length[idx]
+    dirs = (seg[:, 2:4] - seg[:, 0:2]) / length[idx, None]
+    tau = math.sin(math.radians(cfg.inlier_deg))
+    # candidates: intersections of the strongest segments inside the (slightly enlarged) window
+    u0, v0, u1, v1 = box
+    mu, mv = 0.1 * (u1 - u0), 0.1 * (v1 - v0)
+    X = _intersections(seg[: cfg.n_strong])
+    X = X[(X[:, 0] >= u0 - mu) & (X[:, 0] <= u1 + mu) & (X[:, 1] >= v0 - mv) & (X[:, 1] <= v1 + mv)]
+    pans = np.arange(-cfg.pan_range, cfg.pan_range + 1e-9, cfg.grid_deg) + cam.pan
+    tilts = np.arange(-cfg.tilt_range, cfg.tilt_range + 1e-9, cfg.grid_deg) + cam.tilt
+    ta = np.tan(np.radians(pans))
+    # VP of (pan a, tilt b): u = cx + fx tan a, v = cy - fy tan b / cos a
+    G = np.stack([np.broadcast_to(cam.cx + cam.fx * ta[:, None], (len(pans), len(tilts))),
+                  cam.cy - cam.fy * np.tan(np.radians(tilts))[None, :] / np.cos(np.radians(pans))[:, None]],
+                 axis=-1).reshape(-1, 2)
+    cands = np.vstack([X, G]) if len(X) else G
+    sc = _votes(cands, mid, dirs, seg_len, tau, cfg.above_weight) @ wts
+    best = cands[int(np.argmax(sc))]
+    c = _refine(best.astype(float), seg, mid, dirs, seg_len, wts, tau, cfg.above_weight)
+    # keep the refinement only if it stays finite, near the window and at least as well supported
+    if (not np.all(np.isfinite(c)) or not (u0 - mu <= c[0] <= u1 + mu and v0 - mv <= c[1] <= v1 + mv)
+            or _votes(c[None], mid, dirs, seg_len, tau, cfg.above_weight)[0] @ wts < 0.95 * sc.max()):
+        c = best.astype(float)
+    votes = _votes(c[None], mid, dirs, seg_len, tau, cfg.above_weight)[0]
+    sup = votes > 0
+    n_sup = int(sup.sum())
+    conf = float(votes @ wts / (wts.sum() + 1e-12))
+    support_all[idx[sup]] = True
+    pan, tilt = pose_from_vp(cam, c)
+    reason = is_reliable(cam, pan, tilt, n_sup, cfg)
+    if reason:
+        return rejected(reason, n_sup, conf, c)
+    return _result(cam, c, conf, n_sup, "accepted", "", c, all_seg, support_all)
+
+
+# --------------------------------------------------------------------------------------------
+# dataset rules
+
+
+def _ray(cam: Camera, vp) -> np.ndarray:
+    return np.array([(vp[0] - cam.cx) / cam.fx, (vp[1] - cam.cy) / cam.fy])
+
+
+def _from_ray(cam: Camera, r) -> tuple[float, float]:
+    return float(cam.cx + cam.fx * r[0]), float(cam.cy + cam.fy * r[1])
+
+
+def apply_reliability(results: Sequence[VPResult], cams: Sequence[Camera]) -> list[VPResult]:
+    """Replace every non-accepted result by the mean of the accepted VPs (status 'fallback').
+
+    ``cams[i]`` is the camera of image i at its own size. The mean is over normalised rays, so
+    it is the same direction for every image size. With no accepted VP at all, each image
+    falls back to its camera's average-pose VP (reason says so). 'given' results pass through.
+    """
+    acc = [_ray(c, r.vp) for r, c in zip(results, cams) if r.status in ("accepted", "given")]
+    mean = np.mean(acc, axis=0) if acc else None
+    out = []
+    for r, c in zip(results, cams):
+        if r.status in ("accepted", "given"):
+            out.append(r)
+            continue
+        if mean is not None:
+            vp, why = _from_ray(c, mean), f"mean of {len(acc)} accepted VPs"
+        else:
+            vp, why = vp_from_pose(c), "camera average pose (no accepted VP in the dataset)"
+        reason = f"{r.reason or 'rejected'}; replaced by the {why}"
+        pan, tilt = pose_from_vp(c, vp)
+        out.append(replace(r, vp=(float(vp[0]), float(vp[1])), pan_deg=float(pan), tilt_deg=float(tilt),
+                           status="fallback", reason=reason))
+    return out
+
+
+_SEQ_RE = re.compile(r"^(.+?)_")
+
+
+def sequence_key(image_id: str) -> str:
+    """The sequence an image belongs to: its id up to the first '_' (CamVid ``0016E5_07959`` ->
+    ``0016E5``); an id without '_' is a sequence of its own."""
+    m = _SEQ_RE.match(image_id)
+    return m.group(1) if m else image_id
+
+
+def smooth_sequences(ids: Sequence[str], results: Sequence[VPResult], cams: Sequence[Camera],
+                     window: int = 2) -> list[VPResult]:
+    """Temporal smoothing of VPs over consecutive frames (VPSeg: VPs of a video are coherent).
+
+    Frames are grouped by :func:`sequence_key` and ordered by id (zero-padded frame numbers sort
+    in time order). Each accepted or fallback VP becomes the median (per normalised-ray
+    coordinate) of the accepted VPs among the ``window`` frames either side and itself; a frame
+    with no accepted neighbour keeps its VP. 'given' VPs are never changed. Apply after
+    :func:`apply_reliability`.
+    """
+    if window <= 0:
+        return list(results)
+    groups: dict[str, list[int]] = {}
+    for i, iid in enumerate(ids):
+        groups.setdefault(sequence_key(iid), []).append(i)
+    out = list(results)
+    for members in groups.values():
+        members.sort(key=lambda i: ids[i])
+        for k, i in enumerate(members):
+            r = results[i]
+            if r.status == "given":
+                continue
+            near = [members[j] for j in range(max(0, k - window), min(len(members), k + window + 1))]
+            rays = [_ray(cams[j], results[j].vp) for j in near if results[j].status == "accepted"]
+            if not rays:
+                continue
+            vp = _from_ray(cams[i], np.median(np.array(rays), axis=0))
+            pan, tilt = pose_from_vp(cams[i], vp)
+            out[i] = replace(r, vp=vp, pan_deg=float(pan), tilt_deg=float(tilt),
+                             status="accepted" if r.status == "accepted" else "fallback",
+                             reason=(r.reason + "; " if r.reason else "") + f"smoothed over {len(rays)} frames")
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# files
+
+
+def estimate_files(images: Sequence[str | Path], camera: Camera, cfg: VPConfig = VPConfig(), smooth: int = 0,
+                   ids: Sequence[str] | None = None,
+                   on_image: Callable[[int], None] | None = None) -> list[VPResult]:
+    """Detect the VP of every image file, then apply the reliability rule (and ``smooth``).
+
+    ``camera`` is rescaled to each image's size (uniform rescales only, else InputError).
+    ``ids`` (default: file stems) define sequences for smoothing. ``on_image(i)`` is called after
+    each image (progress).
+    """
+    from .imageio import read_image
+
+    results, cams = [], []
+    for i, p in enumerate(images):
+        img = read_image(p).array
+        cam = camera.for_image_size((img.shape[1], img.shape[0]), p)
+        results.append(estimate_vp(img, cam, cfg))
+        cams.append(cam)
+        if on_image is not None:
+            on_image(i)
+    results = apply_reliability(results, cams)
+    if smooth > 0:
+        results = smooth_sequences(list(ids) if ids is not None else [Path(p).stem for p in images],
+                                   results, cams, smooth)
+    return results
+
+
+def read_vp_csv(path: str | Path) -> dict[str, tuple[float, float]]:
+    """Read known VPs from a CSV ``id,u,v`` (u, v in source pixels of the image as stored).
+
+    A first row ``id,u,v`` is a header; further columns are ignored; blank lines and lines
+    starting with '#' are skipped. A row with a missing field, a number that does not parse or
+    is not finite, or an id seen before raises :class:`InputError` naming the line.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except FileNotFoundError:
+        raise InputError("VP file not found", path, "give a CSV with columns id,u,v") from None
+    except IsADirectoryError:
+        raise InputError("is a directory, expected a VP CSV file", path, "give a CSV with columns id,u,v") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise InputError(f"cannot read VP file: {e.__class__.__name__}", path, "check the file") from None
+    vps: dict[str, tuple[float, float]] = {}
+    lines: dict[str, int] = {}
+    first = True
+    for n, row in enumerate(csv.reader(io.StringIO(text)), 1):
+        if not row or not "".join(row).strip() or row[0].lstrip().startswith("#"):
+            continue
+        cells = [c.strip() for c in row]
+        if first and [c.lower() for c in cells[:3]] == ["id", "u", "v"]:
+            first = False
+            continue
+        first = False
+        if len(cells) < 3 or not cells[0] or not cells[1] or not cells[2]:
+            raise InputError(f"line {n}: expected 'id,u,v', got {','.join(row)!r}", path,
+                             "give every row an image id and the VP's u and v in pixels")
+        iid = cells[0]
+        try:
+            u, v = float(cells[1]), float(cells[2])
+        except ValueError:
+            raise InputError(f"line {n} ('{iid}'): u, v must be numbers, got {cells[1]!r}, {cells[2]!r}", path,
+                             "write the VP as pixel coordinates, e.g. 241.5,180.0") from None
+        if not (math.isfinite(u) and math.isfinite(v)):
+            raise InputError(f"line {n} ('{iid}'): u, v must be finite, got {cells[1]}, {cells[2]}", path,
+                             "write the VP as finite pixel coordinates")
+        if iid in vps:
+            raise InputError(f"line {n}: duplicate id '{iid}' (first on line {lines[iid]})", path,
+                             "keep one VP per image id")
+        vps[iid] = (u, v)
+        lines[iid] = n
+    if not vps:
+        raise InputError("VP file has no rows", path, "write one 'id,u,v' row per image")
+    return vps
+
+
+def format_vp_csv(ids: Iterable[str], results: Iterable[VPResult]) -> str:
+    """CSV text ``id,u,v,status,confidence,n_support,pan_deg,tilt_deg`` with a header row
+    (readable by :func:`read_vp_csv`, which uses the first three columns)."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["id", "u", "v", "status", "confidence", "n_support", "pan_deg", "tilt_deg"])
+    for iid, r in zip(ids, results):
+        w.writerow([iid, f"{r.vp[0]:.3f}", f"{r.vp[1]:.3f}", r.status, f"{r.confidence:.4f}", r.n_support,
+                    f"{r.pan_deg:.4f}", f"{r.tilt_deg:.4f}"])
+    return buf.getvalue()
+
+
+def write_vp_csv(path: str | Path, ids: Iterable[str], results: Iterable[VPResult]) -> None:
+    """Write :func:`format_vp_csv` to ``path`` atomically."""
+    from .imageio import write_bytes_atomic
+
+    try:
+        write_bytes_atomic(path, format_vp_csv(ids, results).encode())
+    except (FileNotFoundError, NotADirectoryError):
+        raise InputError("cannot write here (parent folder missing)", path, "create the folder first") from None
+
+
+def given_results(vps: Mapping[str, tuple[float, float]], ids: Sequence[str], cams: Sequence[Camera],
+                  file: str | Path | None = None) -> list[VPResult]:
+    """Results with status 'given' for ``ids`` from a VP table; a missing id raises InputError."""
+    missing = [i for i in ids if i not in vps]
+    if missing:
+        more = f" and {len(missing) - 1} more" if len(missing) > 1 else ""
+        raise InputError(f"no VP row for image id '{missing[0]}'{more}", file,
+                         "add an 'id,u,v' row for every image (ids are file stems)")
+    return [_result(c, vps[i], 1.0, 0, "given", detected=vps[i]) for i, c in zip(ids, cams)]
+
+
+def _image_size(path: Path) -> tuple[int, int]:
+    from .imageio import image_size_from_header, read_image
+
+    try:
+        with open(path, "rb") as f:
+            size = image_size_from_header(f.read(65536))
+    except OSError:
+        size = None
+    return size if size is not None else read_image(path).size
+
+
+def vps_for_items(images: Sequence[str | Path], ids: Sequence[str], camera: Camera, within: str,
+                  smooth: int = 0, cfg: VPConfig = VPConfig(), id_prefix: str = "",
+                  on_image: Callable[[int], None] | None = None) -> list[VPResult]:
+    """Per-image VPs for within-camera correction: ``within`` is 'estimate' (detector + reliability
+    rule + optional smoothing) or the path of a CSV ``id,u,v`` (status 'given'; every id must
+    have a row; an id is looked up as given, then without ``id_prefix``)."""
+    if within == "estimate":
+        return estimate_files(images, camera, cfg, smooth, ids, on_image)
+    path = Path(within)
+    table = read_vp_csv(path)
+    keys = [i if i in table or not (id_prefix and i.startswith(id_prefix)) else i[len(id_prefix):] for i in ids]
+    cams = [camera.for_image_size(_image_size(Path(p)), p) for p in images]
+    res = given_results(table, keys, cams, path)
+    for (u, v), c, k in zip((r.vp for r in res), cams, keys):
+        w, h = c.size
+        if not (-10 * w <= u <= 11 * w and -10 * h <= v <= 11 * h):
+            raise InputError(f"VP of '{k}' ({u:g}, {v:g}) is far outside its {w}x{h} image", path,
+                             "give u, v in pixels of the image as stored on disk")
+    return res
