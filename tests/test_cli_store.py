@@ -258,3 +258,13 @@ def test_debug_shows_traceback(dataset, tmp_path):
     _, images, labels = dataset
     proc = run_cli("warp", "--camera", "nosuch", "--images", images, "--out", tmp_path / "s", "--debug")
     assert proc.returncode == 1 and "Traceback" in proc.stderr
+
+
+def test_geometry_figures(tmp_path):
+    for cmd in (["figure", "footprints", "camvid", "kitti", "-o", tmp_path / "fp.png"],
+                ["figure", "fov", "camvid", "kitti", "--virtual", "virtual", "-o", tmp_path / "fov.png"]):
+        proc = run_cli(*cmd)
+        assert proc.returncode == 0, proc.stderr
+        img = cv2.imread(str(cmd[-1]))
+        assert img is not None and img.std() > 10 and "Example" in run_cli(*cmd[:2], "--help").stdout
+    assert_one_error_line(run_cli("figure", "fov", "nosuchcam", "-o", tmp_path / "x.png"), "nosuchcam")

@@ -43,6 +43,17 @@ def _root(version: bool = typer.Option(False, "--version", callback=_version, is
     pass
 
 
+def save_figure(out: Path, fig) -> None:
+    """Write a figure PNG atomically and print its path (stdout is data)."""
+    from .imageio import write_png
+
+    try:
+        write_png(out, fig, compression=3)
+    except (FileNotFoundError, NotADirectoryError):
+        raise InputError("cannot write here (parent folder missing)", out, "create the folder first") from None
+    print(out)
+
+
 def camera_for(spec: str, sample_image: Path | None = None) -> Camera:
     """Load ``spec``; calibration files (.txt/.json) carry no image size, so take it from a frame."""
     size = None
@@ -295,17 +306,7 @@ def figure_warp(store: Path = typer.Argument(..., help="store directory"),
     from .figures import warp_figure
     from .store import Store
 
-    import cv2
-
-    st = Store.open(store)
-    fig = warp_figure(st, ids or None, width=width)
-    from .imageio import write_png
-
-    try:
-        write_png(out, fig, compression=3)
-    except (FileNotFoundError, NotADirectoryError):
-        raise InputError("cannot write here (parent folder missing)", out, "create the folder first") from None
-    print(out)
+    save_figure(out, warp_figure(Store.open(store), ids or None, width=width))
 
 
 @figure_app.command("completion")
@@ -323,15 +324,41 @@ def figure_completion(store: Path = typer.Argument(..., help="store directory"),
       vcprep figure completion stores/camvid 0001TP_006690 -o completion.png
     """
     from .figures import completion_figure
-    from .imageio import write_png
     from .store import Store
 
-    fig = completion_figure(Store.open(store), item, rays=rays, width=width)
-    try:
-        write_png(out, fig, compression=3)
-    except (FileNotFoundError, NotADirectoryError):
-        raise InputError("cannot write here (parent folder missing)", out, "create the folder first") from None
-    print(out)
+    save_figure(out, completion_figure(Store.open(store), item, rays=rays, width=width))
+
+
+@figure_app.command("footprints")
+def figure_footprints(cameras: List[str] = typer.Argument(..., help=CAMERA_HELP),
+                      out: Path = typer.Option(..., "-o", "--out", help="PNG to write"),
+                      fraction: float = typer.Option(0.25, help="lower fraction of each image to map (paper: 0.25)")):
+    """Ground-plane footprint of the lower part of each camera's view, top view (paper Fig. 3).
+
+    \b
+    Example:
+      vcprep figure footprints camvid cityscapes kitti qian toronto2020 -o footprints.png
+    """
+    from .figures import footprints_figure
+
+    if not 0 < fraction <= 0.5:
+        raise InputError(f"--fraction {fraction} is out of range", None, "use a value in (0, 0.5]")
+    save_figure(out, footprints_figure([load_camera(c) for c in cameras], fraction=fraction))
+
+
+@figure_app.command("fov")
+def figure_fov(cameras: List[str] = typer.Argument(..., help=CAMERA_HELP),
+               out: Path = typer.Option(..., "-o", "--out", help="PNG to write"),
+               virtual: str = typer.Option("virtual", "--virtual", help="virtual camera: preset or YAML file")):
+    """Each camera's field of view drawn in the virtual image plane (paper Fig. 4).
+
+    \b
+    Example:
+      vcprep figure fov camvid cityscapes kitti qian toronto2020 --virtual virtual -o fov.png
+    """
+    from .figures import fov_figure
+
+    save_figure(out, fov_figure([load_camera(c) for c in cameras], load_camera(virtual)))
 
 
 def _image_files(paths: List[Path]) -> list[Path]:

@@ -8,7 +8,7 @@ from .imageio import read_image
 from .labels import IGNORE, ROAD, decode_label, get_label_format
 from .store import Store
 
-__all__ = ["to_bgr8", "overlay_label", "warp_figure", "vp_figure", "completion_figure"]
+__all__ = ["to_bgr8", "overlay_label", "warp_figure", "vp_figure", "completion_figure", "footprints_figure", "fov_figure"]
 
 
 def to_bgr8(img: np.ndarray) -> np.ndarray:
@@ -177,3 +177,83 @@ def completion_figure(store: Store, item_id: str, rays: int = 24, width: int = 1
     cv2.putText(bar, "completed label (road green, ignore dark)", (col + 8, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.55,
                 (0, 0, 0), 1, cv2.LINE_AA)
     return np.vstack([bar, pair])
+
+
+_PALETTE = [(0, 90, 230), (0, 170, 0), (230, 80, 0), (160, 0, 160), (0, 170, 200), (120, 120, 0), (60, 60, 60)]
+
+
+def _legend(img: np.ndarray, names: list[str], x: int = 12, y: int = 24) -> None:
+    for i, name in enumerate(names):
+        c = _PALETTE[i % len(_PALETTE)]
+        cv2.rectangle(img, (x, y + 22 * i - 12), (x + 16, y + 22 * i + 2), c, -1)
+        cv2.putText(img, name, (x + 24, y + 22 * i), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 0, 0), 1, cv2.LINE_AA)
+
+
+def footprints_figure(cameras: list, fraction: float = 0.25, size: int = 800, max_z: float | None = None) -> np.ndarray:
+    """Paper Fig. 3: the road-plane footprint (top view, X across, Z ahead, metres) of the lower
+    ``fraction`` of each camera's image at its average pose."""
+    from .homography import apply_homography, ground_to_image
+
+    polys = []
+    for cam in cameras:
+        w, h = cam.size
+        top = (h - 0.5) - fraction * h
+        edge = np.linspace(0, 1, 40)
+        pts = np.concatenate([
+            np.column_stack([-0.5 + edge * w, np.full(40, top)]),
+            np.column_stack([np.full(40, w - 0.5), top + edge * fraction * h]),
+            np.column_stack([w - 0.5 - edge * w, np.full(40, h - 0.5)]),
+            np.column_stack([np.full(40, -0.5), h - 0.5 - edge * fraction * h]),
+        ])
+        ground = apply_homography(np.linalg.inv(ground_to_image(cam)), pts)  # (X, Z)
+        polys.append(ground)
+    allpts = np.concatenate(polys)
+    zmax = max_z or float(np.ceil(max(5.0, allpts[:, 1].max() * 1.1)))
+    xmax = float(np.ceil(max(2.0, np.abs(allpts[:, 0]).max() * 1.1)))
+    scale = (size - 80) / max(zmax, 2 * xmax)
+    img = np.full((size, size, 3), 255, np.uint8)
+    ox, oy = size // 2, size - 40
+
+    def px(p):
+        return np.round(np.column_stack([ox + p[:, 0] * scale, oy - p[:, 1] * scale])).astype(np.int32)
+
+    for z in range(0, int(zmax) + 1, 5):  # grid every 5 m
+        y = int(oy - z * scale)
+        cv2.line(img, (0, y), (size, y), (225, 225, 225), 1)
+        cv2.putText(img, f"{z} m", (size - 60, y - 3), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (120, 120, 120), 1, cv2.LINE_AA)
+    cv2.drawMarker(img, (ox, oy), (0, 0, 0), cv2.MARKER_TRIANGLE_UP, 14, 2)
+    for i, poly in enumerate(polys):
+        cv2.polylines(img, [px(poly)], True, _PALETTE[i % len(_PALETTE)], 2, cv2.LINE_AA)
+    _legend(img, [f"{c.name} (h {c.height:g} m)" for c in cameras])
+    cv2.putText(img, f"ground footprint of the lower {fraction:g} of each image (top view)", (12, size - 12),
+                cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
+    return img
+
+
+def fov_figure(cameras: list, virtual, width: int = 1100) -> np.ndarray:
+    """Paper Fig. 4: each camera's image outline (average pose) drawn in the virtual image plane."""
+    from .homography import apply_homography, check_not_folded, virt_H_src
+
+    s = width / virtual.size[0]
+    H_img = int(round(virtual.size[1] * s))
+    img = np.full((H_img + 40, width, 3), 255, np.uint8)
+    cv2.rectangle(img, (0, 0), (width - 1, H_img - 1), (0, 0, 0), 2)
+    cx, cy = virtual.cx * s, virtual.cy * s
+    cv2.line(img, (0, int(cy)), (width, int(cy)), (200, 200, 200), 1)
+    cv2.drawMarker(img, (int(cx), int(cy)), (0, 0, 255), cv2.MARKER_CROSS, 16, 2)
+    for i, cam in enumerate(cameras):
+        H = virt_H_src(cam, virtual)
+        check_not_folded(H, cam.size, cam.name)
+        w, h = cam.size
+        edge = np.linspace(0, 1, 40)
+        pts = np.concatenate([np.column_stack([-0.5 + edge * w, np.full(40, -0.5)]),
+                              np.column_stack([np.full(40, w - 0.5), -0.5 + edge * h]),
+                              np.column_stack([w - 0.5 - edge * w, np.full(40, h - 0.5)]),
+                              np.column_stack([np.full(40, -0.5), h - 0.5 - edge * h])])
+        q = np.round(apply_homography(H, pts) * s).astype(np.int32)
+        cv2.polylines(img, [q], True, _PALETTE[i % len(_PALETTE)], 2, cv2.LINE_AA)
+    _legend(img, [c.name for c in cameras])
+    hf, vf = virtual.fov_deg()
+    cv2.putText(img, f"virtual camera '{virtual.name}' {virtual.size[0]}x{virtual.size[1]}, FOV {hf:.1f} x {vf:.1f} deg",
+                (12, H_img + 28), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 0, 0), 1, cv2.LINE_AA)
+    return img

@@ -1,14 +1,30 @@
-"""``vctrain``: the command line of the trainer."""
+"""``vctrain``: the command line of the trainer. Parses, calls the library, prints; nothing else."""
 from __future__ import annotations
+
+from pathlib import Path
+from typing import List, Optional
 
 import typer
 
-from vcprep.cliutil import run_app
+from vcprep.cliutil import emit_json, err, run_app
+from vcprep.errors import InputError
 
 from . import __version__
 
 app = typer.Typer(rich_markup_mode=None, pretty_exceptions_enable=False, add_completion=False, no_args_is_help=True,
-                  help="Train, predict and evaluate road segmentation in the virtual-camera domain.")
+                  help="Train, predict and evaluate road segmentation in the virtual-camera domain.\n\n"
+                       "Add --debug to any command to see a traceback on error.")
+
+
+def _version(value: bool):
+    if value:
+        print(f"vctrain {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(version: bool = typer.Option(False, "--version", callback=_version, is_eager=True, help="Print the version.")):
+    pass
 
 
 @app.command("version")
@@ -20,6 +36,174 @@ def version_cmd():
       vctrain version
     """
     print(f"vctrain {__version__}")
+
+
+def _parse_size(text: Optional[str]) -> Optional[tuple[int, int]]:
+    if text is None:
+        return None
+    try:
+        w, h = (int(v) for v in text.lower().split("x"))
+    except ValueError:
+        raise InputError(f"cannot parse size '{text}'", None, "write WIDTHxHEIGHT, e.g. 344x176") from None
+    return w, h
+
+
+@app.command("fit")
+def fit_cmd(
+    stores: Optional[List[Path]] = typer.Argument(None, help="training stores built by 'vcprep warp' (one virtual camera and scale)"),
+    out: Path = typer.Option(..., "--out", "-o", help="best checkpoint (by validation road IoU); OUT-stem.last.pt holds the latest epoch"),
+    model: Optional[str] = typer.Option(None, "--model", "-m",
+                                        help="segnet (VGG16 SegNet, 29 M parameters) or segnet-narrow (same topology, "
+                                             "1/4 width, 1.8 M); default: segnet on a GPU, segnet-narrow on the CPU"),
+    width: Optional[int] = typer.Option(None, "--width", help="first-block width override (64 = segnet, 16 = narrow)"),
+    baseline: str = typer.Option("none", "--baseline", help="'resize': the paper's baseline, the same network on the "
+                                                            "original images simply resized (no virtual camera)"),
+    images: Optional[Path] = typer.Option(None, "--images", help="baseline only: folder of original images"),
+    labels: Optional[Path] = typer.Option(None, "--labels", help="baseline only: folder of their labels"),
+    label_format: Optional[str] = typer.Option(None, "--label-format", help="baseline only: camvid, kitti, cityscapes, "
+                                                                           "bdd or values:road=3;ignore=11"),
+    size: Optional[str] = typer.Option(None, "--size", help="working size WxH (default: the store size)"),
+    epochs: int = typer.Option(30, "--epochs", "-e", help="epochs (the paper: 600 on a GPU)"),
+    batch_size: int = typer.Option(8, "--batch-size", "-b", help="global batch size (paper: 8)"),
+    lr: float = typer.Option(0.005, "--lr", help="SGD learning rate, momentum 0.9, poly decay (paper: 0.005)"),
+    weight_decay: float = typer.Option(0.0005, "--weight-decay", help="weight decay (paper: 0.0005)"),
+    schedule: str = typer.Option("poly", "--schedule", help="'poly' (lr*(1-it/total)^0.9) or 'constant'"),
+    seed: int = typer.Option(0, "--seed", help="seeds init, validation split, order and augmentation"),
+    device: str = typer.Option("auto", "--device", help="auto (cuda if present), cpu, cuda, cuda:N"),
+    val_fraction: float = typer.Option(0.1, "--val-fraction", help="share of the training items held out for validation"),
+    val_store: Optional[List[Path]] = typer.Option(None, "--val-store", help="validation store (repeatable; replaces --val-fraction)"),
+    class_weights: str = typer.Option("none", "--class-weights", help="'none' or 'median-freq' (median frequency balancing)"),
+    hflip: bool = typer.Option(False, "--hflip", help="augment: random horizontal flip (p 0.5)"),
+    greyscale: float = typer.Option(0.0, "--greyscale", help="augment: probability of greyscale (1 = a greyscale model)"),
+    vp_channel: bool = typer.Option(False, "--vp-channel", help="extra input channel: the VP proximity map"),
+    resume: Optional[Path] = typer.Option(None, "--resume", help="continue from a checkpoint (OUT-stem.last.pt) up to --epochs"),
+    workers: int = typer.Option(0, "--workers", help="data loader processes"),
+    log: Optional[Path] = typer.Option(None, "--log", help="JSON-lines log, one row per epoch (default OUT-stem.log.jsonl)"),
+    as_json: bool = typer.Option(False, "--json", help="print the run summary as one JSON object instead of the path"),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar or epoch lines on stderr"),
+):
+    """Train a road segmentation network on virtual-camera stores (or the resize baseline).
+
+    Cross-entropy over not road / road, label 255 ignored; SGD (momentum 0.9) with the paper's
+    batch 8, lr 0.005, weight decay 0.0005 and a poly schedule. Without a GPU the default model
+    is segnet-narrow (pass --model segnet for the paper's network). The checkpoint describes
+    itself (model, training config, virtual camera, scale, completion, metrics), so predict and
+    eval need no repeated flags. Prints the checkpoint path. Launch with
+    'torchrun --nproc-per-node N' for data-parallel training.
+
+    \b
+    Example:
+      vctrain fit stores/camvid_train --val-store stores/camvid_val --epochs 20 --out runs/vc.pt
+      vctrain fit stores/camvid_train --baseline resize --size 344x176 --out runs/resize.pt
+      vctrain fit stores/camvid_train --out runs/vc.pt --resume runs/vc.last.pt --epochs 40
+    """
+    from .train import TrainConfig, fit
+
+    cfg = TrainConfig(stores=[str(s) for s in stores or []], out=str(out), baseline=baseline,
+                      images=str(images) if images else None, labels=str(labels) if labels else None,
+                      label_format=label_format, arch=model, base_width=width, size=_parse_size(size), epochs=epochs,
+                      batch_size=batch_size, lr=lr, weight_decay=weight_decay, schedule=schedule, seed=seed,
+                      device=device, val_fraction=val_fraction, val_stores=[str(s) for s in val_store or []],
+                      class_weights=class_weights, hflip=hflip, greyscale=greyscale, vp_channel=vp_channel,
+                      resume=str(resume) if resume else None, workers=workers, log=str(log) if log else None,
+                      progress=not quiet)
+    if schedule not in ("poly", "constant"):
+        raise InputError(f"unknown schedule '{schedule}'", None, "use poly or constant")
+    summary = fit(cfg)
+    if not quiet:
+        best = summary["best_val_iou"]
+        err(f"{out}: {summary['model_args']['arch']}, {summary['epochs']} epochs, "
+            f"{summary['seconds_per_epoch']:.1f} s/epoch, {summary['train_images_per_s']:.1f} img/s"
+            + (f", best val IoU {best:.4f} (epoch {summary['best_epoch']})" if best is not None else ""))
+    if as_json:
+        emit_json(summary)
+    else:
+        print(out)
+
+
+@app.command("predict")
+def predict_cmd(
+    checkpoint: Path = typer.Argument(..., help="model written by 'vctrain fit'"),
+    images: Optional[List[Path]] = typer.Argument(None, help="image files or folders"),
+    out: Path = typer.Option(..., "--out", "-o", help="output folder (created)"),
+    camera: Optional[str] = typer.Option(None, "--camera", "-c",
+                                         help="camera of the images: preset or file (.yaml, KITTI .txt, Cityscapes .json)"),
+    store: Optional[Path] = typer.Option(None, "--store", help="predict every item of this store instead of IMAGES"),
+    device: str = typer.Option("auto", "--device", help="auto, cpu, cuda, cuda:N"),
+    keep_store: Optional[Path] = typer.Option(None, "--keep-store", help="keep the warped images in this store"),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar"),
+):
+    """Predict road in original camera images with the checkpoint's own preprocessing.
+
+    A virtual-camera model warps the images into its virtual camera (same scale and completion
+    as its training store), infers, and back-projects to the original image; a resize-baseline
+    model resizes in and out. Writes OUT/<stem>_mask.png (0/255) and OUT/<stem>_prob.png
+    (0-255 road probability) at the image size; prints the mask paths.
+
+    \b
+    Example:
+      vctrain predict runs/vc.pt --camera kitti data/kitti/image_2 --out preds/kitti
+      vctrain predict runs/vc.pt --store stores/camvid_val --out preds/camvid_val
+    """
+    from vcprep.store import Store
+
+    from .predict import Predictor, collect_images, predict_images, predict_store
+
+    if store is None and not images:
+        raise InputError("nothing to predict", None, "give image files/folders, or --store STORE")
+    if store is not None and images:
+        raise InputError("give either IMAGES or --store, not both", store, "run predict twice")
+    predictor = Predictor(checkpoint, device)
+    if store is not None:
+        written = predict_store(predictor, Store.open(store), out, progress=not quiet)
+    else:
+        cam = None
+        if camera is not None:
+            from vcprep.cli import camera_for
+
+            cam = camera_for(camera, collect_images(images)[0].image)
+        elif predictor.mode == "virtual":
+            raise InputError("a virtual-camera model needs the camera of the images", checkpoint,
+                             "add --camera (preset or calibration file)")
+        if predictor.mode == "virtual" and set(predictor.data.get("vp_status", [])) - {"camera"} and not quiet:
+            err("warning: the model was trained with per-image VPs (within-camera correction); predict warps "
+                "with the camera's average pose (per-image VP detection is not wired into predict yet)")
+        written = predict_images(predictor, images, out, cam, progress=not quiet, keep_store=keep_store)
+    for p in written:
+        print(p)
+    if not quiet:
+        err(f"{out}: {len(written)} images predicted ({predictor.mode} model)")
+
+
+@app.command("eval")
+def eval_cmd(
+    pred_dir: Path = typer.Argument(..., help="folder of <stem>_mask.png / <stem>_prob.png from 'vctrain predict'"),
+    labels: Path = typer.Option(..., "--labels", "-l", help="folder of ground-truth labels"),
+    label_format: str = typer.Option(..., "--label-format", "-f", help="camvid, kitti, cityscapes, bdd or values:road=3;ignore=11"),
+    as_json: bool = typer.Option(False, "--json", help="print one JSON object (values in [0, 1])"),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar"),
+):
+    """Road IoU (ΣTP/Σ(TP+FP+FN), ignore pixels excluded), mean per-image IoU, precision, recall,
+    F1; with probability maps also the KITTI road metrics: MaxF, AP (11-point) and
+    precision/recall/FPR/FNR at the MaxF threshold (KITTI devkit definitions).
+
+    \b
+    Example:
+      vctrain eval preds/camvid_val --labels data/camvid/valannot --label-format camvid
+      vctrain eval preds/kitti --labels data/kitti/gt_image_2 --label-format kitti --json
+    """
+    from vcprep.labels import get_label_format
+
+    from .evaluate import evaluate_folder
+
+    result, n = evaluate_folder(pred_dir, labels, get_label_format(label_format), progress=not quiet)
+    if as_json:
+        emit_json(result)
+    else:
+        for k, v in result.items():
+            print(f"{k:<16} {v:.4f}")
+    if not quiet:
+        err(f"{pred_dir}: {n} images evaluated")
 
 
 def main() -> None:

@@ -1,0 +1,317 @@
+"""vctrain: metrics against hand-computed cases, model/data units, and a tiny end-to-end run on a
+synthetic store (fit -> checkpoint -> predict on another camera -> eval), plus CLI errors."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from typer.testing import CliRunner
+
+from vcprep.build import list_dataset, warp_dataset
+from vcprep.camera import PRESETS
+from vcprep.imageio import read_image, write_png
+from vcprep.labels import get_label_format
+from vcprep.synthetic import RoadScene, render_road
+from vctrain.checkpoint import load_checkpoint, model_from_checkpoint
+from vctrain.cli import app
+from vctrain.data import RoadDataset, Sample, median_frequency_weights, vp_proximity
+from vctrain.metrics import KittiMetrics, RoadMetrics, confusion, kitti_metrics, road_metrics
+from vctrain.model import ModelArgs, SegNet, model_args_for
+from vctrain.train import TrainConfig, evaluate, fit, get_lr
+
+torch.set_num_threads(1)
+FMT = "values:road=1"  # the synthetic labels: 0 not road, 1 road
+runner = CliRunner()
+
+
+# -- metrics -------------------------------------------------------------------------------------
+def test_confusion_ignores_255():
+    label = np.array([[1, 1, 0, 0], [255, 255, 1, 0]], np.uint8)
+    pred = np.array([[1, 0, 1, 0], [1, 0, 1, 1]], np.uint8)
+    assert confusion(pred, label) == (2, 2, 1, 1)  # TP, FP, FN, TN; the two ignore pixels never count
+
+
+def test_road_metrics_hand_computed():
+    # image A: TP 2 FP 2 FN 1 (IoU 2/5); image B: TP 1 FP 0 FN 1 (IoU 1/2); image C: no road anywhere
+    a_l = np.array([[1, 1, 0, 0], [255, 255, 1, 0]], np.uint8)
+    a_p = np.array([[1, 0, 1, 0], [1, 0, 1, 1]], np.uint8)
+    b_l = np.array([[1, 1]], np.uint8)
+    b_p = np.array([[1, 0]], np.uint8)
+    c_l = np.zeros((2, 2), np.uint8)
+    c_p = np.zeros((2, 2), np.uint8)
+    m = road_metrics([a_p, b_p, c_p], [a_l, b_l, c_l])
+    assert m["iou"] == pytest.approx(3 / 7)                  # ΣTP / Σ(TP+FP+FN) = 3 / (3+2+2)
+    assert m["mean_image_iou"] == pytest.approx((2 / 5 + 1 / 2) / 2)  # C (union 0) left out
+    assert m["precision"] == pytest.approx(3 / 5)            # 3 / (3+2)
+    assert m["recall"] == pytest.approx(3 / 5)               # 3 / (3+2)
+    assert m["f1"] == pytest.approx(0.6)
+
+
+def test_road_metrics_empty_and_shape_mismatch():
+    assert RoadMetrics().result()["iou"] == 0.0
+    from vcprep.errors import InputError
+
+    with pytest.raises(InputError):
+        confusion(np.zeros((2, 3)), np.zeros((3, 2), np.uint8))
+
+
+def test_kitti_metrics_hand_computed():
+    # 2 road pixels (p 200, 100), 2 not road (p 150, 50), 1 ignore (p 255)
+    prob = np.array([[200, 100, 150, 50, 255]], np.uint8)
+    label = np.array([[1, 1, 0, 0, 255]], np.uint8)
+    k = kitti_metrics([prob], [label])
+    # thresholds (road iff p >= k): k<=50: P 1/2 R 1; 51..100: P 2/3 R 1 (F 0.8);
+    # 101..150: P 1/2 R 1/2; 151..200: P 1 R 1/2 (F 2/3); > 200: P = R = 0 (dropped)
+    assert k["maxf"] == pytest.approx(0.8)
+    assert k["precision"] == pytest.approx(2 / 3)
+    assert k["recall"] == pytest.approx(1.0)
+    assert k["fpr"] == pytest.approx(1 / 2)      # FP 1 / (FP 1 + TN 1)
+    assert k["fnr"] == pytest.approx(0.0)
+    assert k["threshold"] == pytest.approx(51 / 255)  # the first threshold of the best plateau
+    # 11-point AP: recall levels 0..0.5 -> max precision 1; 0.6..1.0 -> 2/3
+    assert k["ap"] == pytest.approx((6 * 1.0 + 5 * (2 / 3)) / 11)
+
+
+def test_kitti_perfect_and_accumulation():
+    label = np.array([[1, 0], [1, 0]], np.uint8)
+    prob = np.array([[255, 0], [230, 3]], np.uint8)
+    m = KittiMetrics()
+    m.add(prob, label)
+    m.add(prob, label)
+    r = m.result()
+    assert r["maxf"] == pytest.approx(1.0) and r["ap"] == pytest.approx(1.0) and r["fpr"] == 0.0
+
+
+# -- model and data --------------------------------------------------------------------------------
+def test_segnet_shapes_any_size_and_extra_channel():
+    net = SegNet(ModelArgs(arch="segnet-narrow", base_width=4, in_channels=4)).eval()
+    with torch.no_grad():
+        assert net(torch.zeros(1, 4, 37, 70)).shape == (1, 2, 37, 70)
+    assert len([m for m in net.encoders.modules() if isinstance(m, torch.nn.Conv2d)]) == 13  # VGG16
+    assert model_args_for("segnet").base_width == 64 and model_args_for("segnet-narrow").base_width == 16
+
+
+def test_vp_proximity_definition():
+    m = vp_proximity((5, 3), (2.0, 1.0))
+    assert m[1, 2] == pytest.approx(1.0)
+    assert m[0, 0] == pytest.approx(1 - max(2 / 5, 1 / 3))
+    assert m[2, 4] == pytest.approx(1 - max(2 / 5, 1 / 3))
+
+
+def test_median_frequency_weights():
+    w = median_frequency_weights(np.array([0.8, 0.2]))
+    assert w == pytest.approx([0.5 / 0.8, 0.5 / 0.2])
+
+
+def test_poly_schedule():
+    cfg = TrainConfig(lr=0.01)
+    assert get_lr(0, 100, cfg) == pytest.approx(0.01)
+    assert get_lr(100, 100, cfg) == 0.0
+    assert get_lr(50, 100, cfg) == pytest.approx(0.01 * 0.5 ** 0.9)
+
+
+def test_hflip_moves_vp_channel(tmp_path):
+    img = np.zeros((32, 40, 3), np.uint8)
+    lab = np.zeros((32, 40), np.uint8)
+    lab[:, :10] = 1
+    write_png(tmp_path / "i.png", img)
+    write_png(tmp_path / "l.png", lab)
+    ds = RoadDataset([Sample("i", tmp_path / "i.png", tmp_path / "l.png", None, (5.0, 8.0))], (40, 32),
+                     hflip=True, vp_channel=True)
+    torch.manual_seed(0)
+    seen = set()
+    for _ in range(12):
+        x, y = ds[0]
+        assert x.shape == (4, 32, 40)
+        flipped = bool(y[0, -1] == 1)
+        seen.add(flipped)
+        col = int(x[3, 8].argmax())
+        assert col == (34 if flipped else 5)  # the VP follows the flip
+    assert seen == {True, False}
+
+
+# -- end to end on a synthetic store ----------------------------------------------------------------
+def _render_set(folder: Path, cam, n: int, seed: int = 0):
+    (folder / "images").mkdir(parents=True)
+    (folder / "labels").mkdir()
+    rng = np.random.default_rng(seed)
+    for i in range(n):
+        scene = RoadScene(offset=float(rng.uniform(-2, 2)), width=float(rng.uniform(6, 10)), texture_seed=seed * 10 + i)
+        img, lab = render_road(cam, scene, pan=float(rng.uniform(-5, 5)))
+        write_png(folder / "images" / f"s{seed}_{i}.png", img)
+        write_png(folder / "labels" / f"s{seed}_{i}.png", lab)
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    """6 synthetic CamVid-camera frames warped into the virtual camera at scale 0.02 (110x56),
+    and a narrow SegNet fitted on them (about 2 s)."""
+    root = tmp_path_factory.mktemp("vctrain")
+    cam = PRESETS["camvid"].resized(0.1)  # 96x72
+    _render_set(root / "src", cam, 6)
+    fmt = get_label_format(FMT)
+    store, _ = warp_dataset(list_dataset(root / "src/images", root / "src/labels", fmt), cam, PRESETS["virtual"],
+                            0.02, root / "store", fmt, progress=False)
+    cfg = TrainConfig(stores=[str(root / "store")], out=str(root / "model.pt"), base_width=8, epochs=20,
+                      batch_size=2, lr=0.1, val_fraction=0, progress=False)
+    summary = fit(cfg)
+    return root, store, summary
+
+
+def test_fit_learns_the_training_scenes(trained):
+    root, store, summary = trained
+    ck = load_checkpoint(root / "model.pt")
+    model = model_from_checkpoint(ck)
+    from vctrain.data import store_samples
+
+    ds = RoadDataset(store_samples(store), store.store_size)
+    m = evaluate(model, torch.utils.data.DataLoader(ds, batch_size=6), torch.device("cpu"))
+    # trivial baseline: everything road -> IoU = road share of the labelled pixels
+    labs = np.stack([ds.item(i)[1] for i in range(len(ds))])
+    trivial = (labs == 1).sum() / (labs != 255).sum()
+    assert m["iou"] > 0.85 and m["iou"] > trivial + 0.3
+    log = [json.loads(l) for l in (root / "model.log.jsonl").read_text().splitlines()]
+    assert [r["epoch"] for r in log] == list(range(1, 21)) and log[-1]["train_loss"] < log[0]["train_loss"]
+
+
+def test_checkpoint_is_self_describing(trained):
+    root, store, _ = trained
+    ck = load_checkpoint(root / "model.pt")
+    assert ck["model_args"] == {"arch": "segnet-narrow", "base_width": 8, "in_channels": 3, "num_classes": 2}
+    assert ck["data"]["mode"] == "virtual" and ck["data"]["input_size"] == [110, 56]
+    assert ck["data"]["store_params"]["scale"] == 0.02
+    assert ck["data"]["store_params"]["virtual"]["fx"] == 2262
+    assert ck["config"]["lr"] == 0.1 and ck["epoch"] == 20
+    model = model_from_checkpoint(ck)
+    for k, v in model.state_dict().items():
+        assert torch.equal(v, ck["model"][k])
+
+
+def test_predict_other_camera_lands_on_road(trained, tmp_path):
+    """Frames of another camera (Toronto, 102x58, other pose): warped in, inferred, back-projected;
+    the mask must have the source size and match the rendered road."""
+    root, _, _ = trained
+    cam = PRESETS["toronto2020"].resized(0.1)
+    _render_set(tmp_path / "new", cam, 2, seed=7)
+    yaml = tmp_path / "cam.yaml"
+    from vcprep.camera import camera_to_yaml
+
+    yaml.write_text(camera_to_yaml(cam))
+    r = runner.invoke(app, ["predict", str(root / "model.pt"), "--camera", str(yaml),
+                            str(tmp_path / "new/images"), "--out", str(tmp_path / "pred"), "--quiet"])
+    assert r.exit_code == 0, r.output
+    assert len(r.stdout.split()) == 2
+    ious = []
+    for f in sorted((tmp_path / "new/images").iterdir()):
+        mask = read_image(tmp_path / "pred" / f"{f.stem}_mask.png", label=True).array
+        prob = read_image(tmp_path / "pred" / f"{f.stem}_prob.png", label=True).array
+        lab = read_image(tmp_path / "new/labels" / f.name, label=True).array
+        assert mask.shape == prob.shape == lab.shape == (58, 102)
+        assert set(np.unique(mask)) <= {0, 255}
+        assert ((prob >= 128) == (mask == 255)).all()
+        ious.append(road_metrics([mask], [lab])["iou"])
+    assert min(ious) > 0.6, ious
+
+    # eval --json on the same predictions
+    r = runner.invoke(app, ["eval", str(tmp_path / "pred"), "--labels", str(tmp_path / "new/labels"),
+                            "--label-format", FMT, "--json", "--quiet"])
+    assert r.exit_code == 0, r.output
+    res = json.loads(r.stdout)
+    assert {"iou", "precision", "recall", "f1", "maxf", "ap"} <= set(res)
+    assert all(0.0 <= v <= 1.0 for v in res.values())
+    assert res["iou"] > 0.6
+
+
+def test_predict_store_and_resize_baseline(trained, tmp_path):
+    root, store, _ = trained
+    r = runner.invoke(app, ["predict", str(root / "model.pt"), "--store", str(root / "store"),
+                            "--out", str(tmp_path / "vs"), "--quiet"])
+    assert r.exit_code == 0, r.output
+    assert len(list((tmp_path / "vs").glob("*_mask.png"))) == 6
+    # the paper's baseline: the same network on the original images simply resized
+    r = runner.invoke(app, ["fit", str(root / "store"), "--baseline", "resize", "--size", "64x48", "--width", "4",
+                            "--epochs", "2", "--batch-size", "3", "--val-fraction", "0.34",
+                            "--out", str(tmp_path / "resize.pt"), "--quiet", "--json"])
+    assert r.exit_code == 0, r.output
+    summary = json.loads(r.stdout)
+    assert summary["data"]["mode"] == "resize" and summary["best_val_iou"] is not None
+    ck = load_checkpoint(tmp_path / "resize.pt")
+    assert ck["data"]["input_size"] == [64, 48]
+    img = sorted((root / "src/images").iterdir())[0]
+    r = runner.invoke(app, ["predict", str(tmp_path / "resize.pt"), str(img), "--out", str(tmp_path / "rp"), "--quiet"])
+    assert r.exit_code == 0, r.output
+    assert read_image(tmp_path / "rp" / f"{img.stem}_mask.png", label=True).array.shape == (72, 96)
+
+
+def test_resume_continues_exactly(trained, tmp_path):
+    root, _, _ = trained
+    # constant lr: a 1-epoch run then resumed to 2 equals a 2-epoch run (poly would decay over 1 epoch)
+    base = dict(stores=[str(root / "store")], base_width=4, batch_size=3, lr=0.05, val_fraction=0.2, progress=False,
+                schedule="constant",
+                hflip=True)
+    fit(TrainConfig(out=str(tmp_path / "full.pt"), epochs=2, **base))
+    fit(TrainConfig(out=str(tmp_path / "half.pt"), epochs=1, **base))
+    fit(TrainConfig(out=str(tmp_path / "half.pt"), epochs=2, resume=str(tmp_path / "half.last.pt"), **base))
+    a = load_checkpoint(tmp_path / "full.last.pt")
+    b = load_checkpoint(tmp_path / "half.last.pt")
+    assert b["epoch"] == 2 and len(b["history"]) == 2
+    for k in a["model"]:
+        assert torch.allclose(a["model"][k].float(), b["model"][k].float(), atol=1e-6), k
+
+
+def test_two_process_training_keeps_replicas_identical(trained, tmp_path):
+    root, _, _ = trained
+    torchrun = Path(sys.executable).with_name("torchrun")
+    if not torchrun.exists():
+        pytest.skip("torchrun not installed beside this python")
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    r = subprocess.run([str(torchrun), "--standalone", "--nproc-per-node", "2", "-m", "vctrain.cli", "fit",
+                        str(root / "store"), "--width", "4", "--epochs", "1", "--batch-size", "4",
+                        "--val-fraction", "0", "--device", "cpu", "--out", str(tmp_path / "ddp.pt"), "--quiet", "--json"],
+                       capture_output=True, text=True, env=env, timeout=120)
+    assert r.returncode == 0, r.stderr[-2000:]
+    rows = [json.loads(l) for l in r.stdout.splitlines() if l.startswith("{")]
+    assert len(rows) == 2 and all(row["world_size"] == 2 and row["replicas_identical"] for row in rows)
+    assert load_checkpoint(tmp_path / "ddp.pt")["step"] == 2  # 6 items, global batch 4
+
+
+# -- CLI -------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("cmd", ["fit", "predict", "eval", "version"])
+def test_every_command_has_an_example(cmd):
+    r = runner.invoke(app, [cmd, "--help"])
+    assert r.exit_code == 0 and "Example:" in r.stdout
+
+
+def test_fit_help_names_the_cpu_default():
+    assert "segnet-narrow" in runner.invoke(app, ["fit", "--help"]).stdout
+
+
+def _cli(*args):
+    return subprocess.run([sys.executable, "-m", "vctrain.cli", *map(str, args)], capture_output=True, text=True,
+                          timeout=60)
+
+
+def test_bad_inputs_give_one_error_line(tmp_path):
+    junk = tmp_path / "junk.pt"
+    junk.write_bytes(b"not a checkpoint")
+    foreign = tmp_path / "foreign.pt"
+    torch.save({"conv.weight": torch.zeros(2, 2)}, foreign)  # another architecture's state dict
+    cases = [
+        ("predict", junk, "--store", tmp_path, "--out", tmp_path / "o"),
+        ("predict", foreign, "--store", tmp_path, "--out", tmp_path / "o"),
+        ("predict", tmp_path / "missing.pt", "--store", tmp_path, "--out", tmp_path / "o"),
+        ("fit", tmp_path / "no_store", "--out", tmp_path / "m.pt"),
+        ("eval", tmp_path / "nothing", "--labels", tmp_path, "--label-format", "camvid"),
+    ]
+    for args in cases:
+        r = _cli(*args)
+        assert r.returncode != 0, args
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("Error:"), (args, r.stderr)
+        assert "Traceback" not in r.stderr

@@ -1,0 +1,201 @@
+"""Training data: store items (virtual camera) or original images simply resized (the baseline).
+
+Both datasets yield ``(x, y)``: ``x`` float32 (C, h, w) with C = 3 (colour, scaled to [-1, 1]) or
+4 (+ VP proximity map in [0, 1]), ``y`` int64 (h, w) with 0 not road, 1 road, 255 ignore. (h, w)
+is the working size. Images are resized bilinearly, labels by nearest neighbour.
+
+Augmentations (Bormans et al., domain-shift factors): horizontal flip with probability 0.5 (left/right
+hand traffic) and greyscale with probability ``greyscale`` (1.0 = train on greyscale only; the
+checkpoint remembers it and predict converts too).
+
+VP proximity map (VPSeg): ``1 - max(|x - x_vp| / w, |y - y_vp| / h)`` over working-size pixel
+centres, with the VP in working coordinates (flipped with the image).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Sequence
+
+import cv2
+import numpy as np
+import torch
+
+from vcprep.camera import scale_matrix
+from vcprep.errors import InputError
+from vcprep.homography import apply_homography
+from vcprep.imageio import read_image
+from vcprep.labels import IGNORE, decode_label, get_label_format
+from vcprep.store import Store
+
+__all__ = ["Sample", "store_samples", "resize_samples", "RoadDataset", "to_input", "vp_proximity",
+           "vp_in_store", "resize_pair", "class_frequencies", "median_frequency_weights"]
+
+
+@dataclass(frozen=True)
+class Sample:
+    """One training item: where its image and label are and how to decode them.
+
+    ``label_format`` None: the label is a store label (0/1/255 already). ``vp`` is the road VP in
+    the coordinates of ``image`` (None: unknown, only needed for the VP channel).
+    """
+
+    id: str
+    image: Path
+    label: Path | None
+    label_format: str | None = None
+    vp: tuple[float, float] | None = None
+
+
+def vp_in_store(record: dict[str, Any], store: Store | None = None) -> tuple[float, float]:
+    """The road VP of a store item in store pixels: the record's own ``vp_store`` if present, else
+    its source VP mapped through H (= the virtual principal point after within-camera
+    correction), else the virtual principal point."""
+    if record.get("vp_store") is not None:
+        return float(record["vp_store"][0]), float(record["vp_store"][1])
+    if record.get("vp") is not None and record.get("H") is not None:
+        H = np.asarray(record["H"], dtype=np.float64).reshape(3, 3)
+        p = apply_homography(H, [record["vp"]])[0]
+        return float(p[0]), float(p[1])
+    if store is None:
+        raise InputError("item has no VP and no store to take the virtual principal point from", record.get("id"),
+                         "rebuild the store with vcprep")
+    vs = store.virtual
+    return vs.cx, vs.cy
+
+
+def store_samples(store: Store) -> list[Sample]:
+    """Samples for every labelled item of ``store`` (items without a label are skipped)."""
+    out = []
+    for rec in store:
+        if not rec.get("label"):
+            continue
+        out.append(Sample(rec["id"], store.path(rec["image"]), store.path(rec["label"]), None, vp_in_store(rec, store)))
+    return out
+
+
+def resize_samples(store: Store) -> list[Sample]:
+    """Baseline samples: the ORIGINAL images and labels the store's items were built from."""
+    out = []
+    for rec in store:
+        if not rec.get("label_source"):
+            continue
+        out.append(Sample(rec["id"], Path(rec["source"]), Path(rec["label_source"]), rec["label_format"],
+                          tuple(rec["vp"]) if rec.get("vp") else None))
+    return out
+
+
+def to_input(image: np.ndarray, greyscale: bool = False) -> np.ndarray:
+    """Image (h, w[, 3]) uint8/uint16 -> float32 (3, h, w) in [-1, 1]; greyscale is replicated."""
+    img = image.astype(np.float32) / (65535.0 if image.dtype == np.uint16 else 255.0)
+    if img.ndim == 2:
+        img = np.repeat(img[..., None], 3, axis=2)
+    elif greyscale:
+        g = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY)
+        img = np.repeat(g[..., None], 3, axis=2)
+    return np.ascontiguousarray((img * 2.0 - 1.0).transpose(2, 0, 1))
+
+
+def vp_proximity(size: tuple[int, int], vp: tuple[float, float]) -> np.ndarray:
+    """VP proximity map (h, w) float32: ``1 - max(|x - x_vp| / w, |y - y_vp| / h)``."""
+    w, h = size
+    x = np.abs(np.arange(w, dtype=np.float32) - vp[0]) / w
+    y = np.abs(np.arange(h, dtype=np.float32) - vp[1]) / h
+    return 1.0 - np.maximum(x[None, :], y[:, None])
+
+
+def resize_pair(image: np.ndarray, label: np.ndarray | None, size: tuple[int, int]):
+    """Resize an image (bilinear) and its label (nearest) to ``size`` (w, h)."""
+    if (image.shape[1], image.shape[0]) != tuple(size):
+        image = cv2.resize(image, tuple(size), interpolation=cv2.INTER_LINEAR)
+    if label is not None and (label.shape[1], label.shape[0]) != tuple(size):
+        label = cv2.resize(label, tuple(size), interpolation=cv2.INTER_NEAREST)
+    return image, label
+
+
+def _load(sample: Sample) -> tuple[np.ndarray, np.ndarray]:
+    img = read_image(sample.image).array
+    raw = read_image(sample.label, label=True).array
+    if sample.label_format is None:
+        lab = raw if raw.ndim == 2 else raw[..., 0]
+    else:
+        lab = decode_label(raw, get_label_format(sample.label_format), sample.label)
+    if lab.shape[:2] != img.shape[:2]:
+        raise InputError(f"label is {lab.shape[1]}x{lab.shape[0]} but its image is {img.shape[1]}x{img.shape[0]}",
+                         sample.label, "labels must have the size of their images")
+    return img, lab.astype(np.uint8)
+
+
+class RoadDataset(torch.utils.data.Dataset):
+    """Samples resized to the working size ``size`` (w, h), decoded once and kept in memory."""
+
+    def __init__(self, samples: Sequence[Sample], size: tuple[int, int], hflip: bool = False,
+                 greyscale: float = 0.0, vp_channel: bool = False):
+        self.samples = list(samples)
+        self.size = (int(size[0]), int(size[1]))
+        self.hflip = hflip
+        self.greyscale = float(greyscale)
+        self.vp_channel = vp_channel
+        self._cache: dict[int, tuple[np.ndarray, np.ndarray, tuple[float, float] | None]] = {}
+
+    def __len__(self) -> int:
+        return len(self.samples)
+
+    def item(self, i: int) -> tuple[np.ndarray, np.ndarray, tuple[float, float] | None]:
+        """(image, label, vp) at the working size, un-augmented."""
+        hit = self._cache.get(i)
+        if hit is None:
+            s = self.samples[i]
+            img, lab = _load(s)
+            h0, w0 = img.shape[:2]
+            img, lab = resize_pair(img, lab, self.size)
+            vp = None
+            if s.vp is not None:
+                S = scale_matrix(self.size[0] / w0, self.size[1] / h0)
+                vp = tuple(float(v) for v in (S @ np.array([s.vp[0], s.vp[1], 1.0]))[:2])
+            if self.vp_channel and vp is None:
+                raise InputError("item has no vanishing point, needed for the VP channel", s.image,
+                                 "train without --vp-channel or rebuild the store with VPs")
+            hit = (img, lab, vp)
+            self._cache[i] = hit
+        return hit
+
+    def __getitem__(self, i: int):
+        img, lab, vp = self.item(i)
+        grey = self.greyscale >= 1.0 or (self.greyscale > 0 and float(torch.rand(())) < self.greyscale)
+        x = to_input(img, greyscale=grey)
+        y = lab
+        if self.hflip and float(torch.rand(())) < 0.5:  # torch RNG: seeded per run and per worker
+            x = np.ascontiguousarray(x[:, :, ::-1])
+            y = np.ascontiguousarray(y[:, ::-1])
+            if vp is not None:
+                vp = (self.size[0] - 1 - vp[0], vp[1])
+        if self.vp_channel:
+            x = np.concatenate([x, vp_proximity(self.size, vp)[None]], axis=0)
+        return torch.from_numpy(x), torch.from_numpy(y.astype(np.int64))
+
+
+def class_frequencies(dataset: RoadDataset, num_classes: int = 2) -> np.ndarray:
+    """Median-frequency-balancing frequencies (Eigen & Fergus; SegNet): f_c = pixels of class c /
+    pixels of the images in which c is present (ignore pixels excluded)."""
+    count = np.zeros(num_classes)
+    total = np.zeros(num_classes)
+    for i in range(len(dataset)):
+        lab = dataset.item(i)[1]
+        valid = lab != IGNORE
+        n = valid.sum()
+        for c in range(num_classes):
+            k = np.count_nonzero(lab[valid] == c)
+            if k:
+                count[c] += k
+                total[c] += n
+    return np.where(total > 0, count / np.maximum(total, 1), 0.0)
+
+
+def median_frequency_weights(freq: np.ndarray) -> np.ndarray:
+    """w_c = median(f) / f_c (classes never seen get weight 0)."""
+    seen = freq > 0
+    if not seen.any():
+        return np.ones_like(freq)
+    med = np.median(freq[seen])
+    return np.where(seen, med / np.where(seen, freq, 1.0), 0.0)

@@ -1,0 +1,86 @@
+"""Evaluating a folder of predictions against a folder of labels (file layer over metrics.py).
+
+Predictions are ``<stem>_mask.png`` (0 / nonzero = road) and optionally ``<stem>_prob.png``
+(0-255), as written by ``vctrain predict``; ``<stem>`` is the image's file stem, and its label is
+found in the label folder by the label format's naming rule (e.g. KITTI ``um_000000`` ->
+``um_road_000000.png``). A stem with only a probability map is thresholded at 128 (P >= 0.5).
+KITTI metrics are computed when every evaluated stem has a probability map.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+import numpy as np
+from tqdm import tqdm
+
+from vcprep.errors import InputError
+from vcprep.imageio import read_image
+from vcprep.labels import LabelFormat, decode_label, label_stem_for
+
+from .metrics import KittiMetrics, RoadMetrics
+
+__all__ = ["prediction_stems", "evaluate_folder"]
+
+
+def prediction_stems(pred_dir: Path) -> dict[str, dict[str, Path]]:
+    """stem -> {'mask': path, 'prob': path} (either may be absent)."""
+    out: dict[str, dict[str, Path]] = {}
+    for f in sorted(pred_dir.glob("*.png")):
+        for kind in ("mask", "prob"):
+            if f.stem.endswith("_" + kind):
+                out.setdefault(f.stem[: -len(kind) - 1], {})[kind] = f
+    return out
+
+
+def evaluate_folder(pred_dir: str | Path, labels: str | Path, fmt: LabelFormat,
+                    progress: bool = True) -> tuple[dict[str, float], int]:
+    """Road metrics (and KITTI metrics from probability maps) of ``pred_dir`` against ``labels``,
+    and the number of images. Keys: iou, mean_image_iou, precision, recall, f1; with probability
+    maps also maxf, ap, kitti_precision, kitti_recall, kitti_fpr, kitti_fnr, kitti_threshold (the
+    operating point of MaxF). Every value is in [0, 1].
+
+    Every prediction must have its label (the reverse is not required: evaluate a subset by
+    predicting a subset). Raises :class:`InputError` on a missing label or a size mismatch."""
+    pred_dir, labels = Path(pred_dir), Path(labels)
+    if not pred_dir.is_dir():
+        raise InputError("prediction folder not found", pred_dir, "give the --out folder of 'vctrain predict'")
+    if not labels.is_dir():
+        raise InputError("label folder not found", labels, "check --labels")
+    stems = prediction_stems(pred_dir)
+    if not stems:
+        raise InputError("no <stem>_mask.png or <stem>_prob.png in folder", pred_dir,
+                         "give the --out folder of 'vctrain predict'")
+    label_files = {p.stem: p for p in labels.iterdir() if p.suffix.lower() == ".png"}
+    road, kitti = RoadMetrics(), KittiMetrics()
+    with_prob = all("prob" in v for v in stems.values())
+    for stem, files in tqdm(stems.items(), desc="eval", unit="img", disable=not progress, leave=False):
+        lstem = label_stem_for(Path(stem + ".png"), fmt)
+        lf = label_files.get(lstem)
+        if lf is None:
+            raise InputError(f"no label '{lstem}.png' in {labels}", files.get("mask") or files.get("prob"),
+                             "check --labels and --label-format")
+        label = decode_label(read_image(lf, label=True).array, fmt, lf)
+        prob = None
+        if "prob" in files:
+            prob = read_image(files["prob"], label=True).array
+            if prob.ndim != 2 or prob.dtype != np.uint8:
+                raise InputError("probability map is not a single-channel 8-bit PNG", files["prob"],
+                                 "give the _prob.png written by 'vctrain predict'")
+        if "mask" in files:
+            mask = read_image(files["mask"], label=True).array
+            if mask.ndim != 2:
+                raise InputError("mask is not a single-channel PNG", files["mask"], "give 0/255 road masks")
+        else:
+            mask = prob >= 128
+        for what, arr, f in (("mask", mask, files.get("mask")), ("probability map", prob, files.get("prob"))):
+            if arr is not None and arr.shape != label.shape:
+                raise InputError(f"{what} is {arr.shape[1]}x{arr.shape[0]} but its label is "
+                                 f"{label.shape[1]}x{label.shape[0]}", f, "predict at the original image size")
+        road.add(mask, label)
+        if with_prob:
+            kitti.add(prob, label)
+    result: dict[str, float] = road.result()
+    if with_prob:
+        k = kitti.result()
+        result.update({"maxf": k["maxf"], "ap": k["ap"]})
+        result.update({f"kitti_{key}": k[key] for key in ("precision", "recall", "fpr", "fnr", "threshold")})
+    return result, len(stems)

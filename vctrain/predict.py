@@ -1,0 +1,174 @@
+"""Prediction: original images in, road mask and probability map of the original camera out.
+
+The preprocessing is the checkpoint's own (no repeated flags):
+
+- ``virtual`` models: the images are warped into the checkpoint's virtual camera at its scale with
+  the training store's completion method (:func:`vcprep.build.warp_dataset` into a temporary store,
+  so the input is bit-for-bit what training saw), resized to the working size if it differs,
+  inferred, and the road probability is back-projected to every source pixel
+  (:func:`vcprep.backproject.backproject_array`, bilinear; pixels outside the virtual image get 0).
+- ``resize`` baseline models: the image is resized to the working size, inferred, and the
+  probability resized back (bilinear).
+
+Outputs per image ``<stem>_prob.png`` (uint8, round(255 * P(road))) and ``<stem>_mask.png``
+(255 where P(road) >= 0.5, else 0), both at the source image size.
+"""
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+from typing import Any, Iterable
+
+import cv2
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from vcprep.backproject import backproject_array
+from vcprep.build import Job, warp_dataset
+from vcprep.camera import Camera, camera_from_dict, scale_matrix
+from vcprep.errors import InputError
+from vcprep.homography import vp_from_pose
+from vcprep.imageio import IMAGE_EXTENSIONS, read_image, write_png
+from vcprep.store import Store
+
+from .checkpoint import load_checkpoint, model_from_checkpoint
+from .data import resize_pair, to_input, vp_in_store, vp_proximity
+from .train import resolve_device
+
+__all__ = ["Predictor", "collect_images", "predict_images", "predict_store", "write_prediction"]
+
+
+class Predictor:
+    """A checkpoint's model plus its input conventions."""
+
+    def __init__(self, checkpoint: str | Path, device: str = "auto"):
+        self.path = Path(checkpoint)
+        self.ckpt = load_checkpoint(self.path)
+        self.data: dict[str, Any] = self.ckpt["data"]
+        self.device = resolve_device(device)
+        self.model = model_from_checkpoint(self.ckpt, self.path).to(self.device).eval()
+        self.size = tuple(self.data["input_size"])
+        self.greyscale = float(self.data.get("greyscale", 0.0)) >= 1.0
+        self.vp_channel = bool(self.data.get("vp_channel", False))
+
+    @property
+    def mode(self) -> str:
+        return self.data["mode"]
+
+    @torch.no_grad()
+    def road_probability(self, image: np.ndarray, vp: tuple[float, float] | None = None) -> np.ndarray:
+        """P(road) float32 at the size of ``image`` (any size; resized to the working size and
+        back). ``vp`` (image pixels) is needed for models with the VP channel."""
+        h0, w0 = image.shape[:2]
+        img, _ = resize_pair(image, None, self.size)
+        x = to_input(img, greyscale=self.greyscale)
+        if self.vp_channel:
+            if vp is None:
+                raise InputError("this model needs the road vanishing point of each image (VP channel)", self.path,
+                                 "give --camera so the VP follows from its pose, or predict a store")
+            S = scale_matrix(self.size[0] / w0, self.size[1] / h0)
+            v = S @ np.array([vp[0], vp[1], 1.0])
+            x = np.concatenate([x, vp_proximity(self.size, (v[0], v[1]))[None]], axis=0)
+        logits = self.model(torch.from_numpy(x)[None].to(self.device))
+        prob = torch.softmax(logits.float(), dim=1)[0, 1].cpu().numpy().astype(np.float32)
+        if (w0, h0) != self.size:
+            prob = cv2.resize(prob, (w0, h0), interpolation=cv2.INTER_LINEAR)
+        return prob
+
+    def store_item(self, store: Store, rec: dict[str, Any]) -> np.ndarray:
+        """P(road) in the item's ORIGINAL camera (source size), for either model mode."""
+        if self.mode == "resize":
+            img = read_image(rec["source"]).array
+            return self.road_probability(img, tuple(rec["vp"]) if rec.get("vp") else None)
+        img = read_image(store.path(rec["image"])).array
+        prob = self.road_probability(img, vp_in_store(rec, store))
+        return np.clip(backproject_array(prob, rec, kind="prob"), 0.0, 1.0)
+
+
+def write_prediction(out: Path, stem: str, prob: np.ndarray) -> tuple[Path, Path]:
+    """Write ``<stem>_prob.png`` (0-255) and ``<stem>_mask.png`` (0/255)."""
+    p8 = np.clip(np.rint(prob * 255.0), 0, 255).astype(np.uint8)
+    mask = np.where(prob >= 0.5, 255, 0).astype(np.uint8)
+    pp, mp = out / f"{stem}_prob.png", out / f"{stem}_mask.png"
+    write_png(pp, p8)
+    write_png(mp, mask)
+    return mp, pp
+
+
+def _out_dir(out: str | Path) -> Path:
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InputError("exists and is not a directory", out, "choose another --out")
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def collect_images(paths: Iterable[str | Path]) -> list[Job]:
+    """Jobs (id = file stem) for image files and every image inside given folders."""
+    jobs: list[Job] = []
+    seen: dict[str, Path] = {}
+    for p in map(Path, paths):
+        if p.is_dir():
+            files = sorted(f for f in p.iterdir() if f.suffix.lower() in IMAGE_EXTENSIONS and not f.name.startswith("."))
+            if not files:
+                raise InputError("no images in folder", p, f"give image files ({', '.join(IMAGE_EXTENSIONS)})")
+        elif p.is_file():
+            files = [p]
+        else:
+            raise InputError("image not found", p, "check the path")
+        for f in files:
+            if f.stem in seen:
+                raise InputError(f"two images named '{f.stem}' (also {seen[f.stem]})", f,
+                                 "outputs are named by stem; predict them into separate --out folders")
+            seen[f.stem] = f
+            jobs.append(Job(f.stem, f))
+    if not jobs:
+        raise InputError("no images given", None, "give image files or folders")
+    return jobs
+
+
+def predict_store(predictor: Predictor, store: Store, out: str | Path, progress: bool = True,
+                  ids: Iterable[str] | None = None) -> list[Path]:
+    """Predict every item of ``store`` (or those in ``ids``); writes ``<id>_mask.png`` and
+    ``<id>_prob.png`` at the source image size. Returns the mask paths."""
+    out = _out_dir(out)
+    if predictor.mode == "virtual":
+        sp = predictor.data.get("store_params") or {}
+        for k in ("virtual", "scale"):
+            if store.params.get(k) != sp.get(k):
+                raise InputError(f"store has another {k} than the model's training store", store.root,
+                                 "predict from the images with --camera (they are warped as the model expects)")
+    written = []
+    recs = list(store) if ids is None else [store.get(i) for i in ids]
+    for rec in tqdm(recs, desc="predict", unit="img", disable=not progress, leave=False):
+        written.append(write_prediction(out, rec["id"], predictor.store_item(store, rec))[0])
+    return written
+
+
+def predict_images(predictor: Predictor, images: Iterable[str | Path], out: str | Path, camera: Camera | None,
+                   progress: bool = True, keep_store: str | Path | None = None) -> list[Path]:
+    """Predict image files/folders taken with ``camera`` (needed for virtual-camera models)."""
+    jobs = collect_images(images)
+    out = _out_dir(out)
+    if predictor.mode == "resize":
+        written = []
+        for job in tqdm(jobs, desc="predict", unit="img", disable=not progress, leave=False):
+            img = read_image(job.image).array
+            vp = None
+            if camera is not None and predictor.vp_channel:
+                vp = vp_from_pose(camera.for_image_size((img.shape[1], img.shape[0]), job.image))
+            written.append(write_prediction(out, job.id, predictor.road_probability(img, vp))[0])
+        return written
+    if camera is None:
+        raise InputError("a virtual-camera model needs the camera of the images", None,
+                         "add --camera (preset or calibration file)")
+    sp = predictor.data.get("store_params")
+    virtual = camera_from_dict(sp["virtual"], predictor.path)
+    completion = predictor.data.get("completion", "none")
+    # warp exactly as the training store was built (same code, same virtual camera/scale/completion)
+    with tempfile.TemporaryDirectory(prefix="vctrain-predict-") as tmp:
+        root = Path(keep_store) if keep_store else Path(tmp) / "store"
+        store, _ = warp_dataset(jobs, camera, virtual, float(sp["scale"]), root, None, progress=progress,
+                                completion=completion)
+        return predict_store(predictor, store, out, progress, ids=[j.id for j in jobs])

@@ -1,0 +1,397 @@
+"""Training: one readable loop (nanoGPT style).
+
+Optimiser: SGD with momentum 0.9 and the paper's learning rate 0.005 and weight decay 0.0005
+(Table 2; batch 8), the usual choice for SegNet. Schedule: "poly" — lr(it) = lr * (1 - it / total)^0.9
+over all iterations (``constant`` keeps lr). Loss: cross-entropy over {not road, road}, label 255
+ignored, optionally weighted by median-frequency balancing.
+
+Validation: a seeded ``val_fraction`` of the training items, or separate ``val_stores``; the
+metric is the road IoU in the training domain (virtual camera for store training, the resized
+image for the baseline) — the honest number, in the original camera, comes from
+``vctrain predict`` + ``vctrain eval``. The checkpoint at ``out`` is the epoch with the best
+validation road IoU (the last epoch without validation); ``<out stem>.last.pt`` is the latest
+epoch, for ``resume``. Every epoch appends one JSON line to the log.
+
+Determinism: the item order and augmentations of epoch e depend only on (seed, e, rank), so a
+resumed run continues exactly where the interrupted one would have gone (on the CPU).
+
+Multi-process: launched with ``torchrun --nproc-per-node N vctrain fit ...`` the loop runs
+DistributedDataParallel (gloo on CPU, NCCL on GPUs); ``batch_size`` is the global batch, split
+across processes; rank 0 alone writes checkpoints and logs.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Optional
+
+import numpy as np
+import torch
+from torch import nn
+from torch.nn import functional as F
+from tqdm import tqdm
+
+from vcprep.build import list_dataset
+from vcprep.errors import InputError
+from vcprep.labels import get_label_format
+from vcprep.store import Store
+
+from .checkpoint import load_checkpoint, model_from_checkpoint, save_checkpoint
+from .data import RoadDataset, Sample, class_frequencies, median_frequency_weights, resize_samples, store_samples
+from .metrics import RoadMetrics
+from .model import ARCHITECTURES, build_model, model_args_for
+
+__all__ = ["TrainConfig", "fit", "evaluate", "get_lr", "resolve_device", "last_path"]
+
+MIN_SIDE = 32  # five 2x2 poolings
+
+
+@dataclass
+class TrainConfig:
+    """All settings of a training run (saved in the checkpoint)."""
+
+    stores: list[str] = field(default_factory=list)  # training stores (one virtual camera and scale)
+    out: str = "model.pt"              # best checkpoint; '<stem>.last.pt' beside it is the latest epoch
+    baseline: str = "none"             # 'none': train on the stores; 'resize': original images resized
+    images: Optional[str] = None       # baseline from folders instead of stores: image folder
+    labels: Optional[str] = None       #   ... label folder
+    label_format: Optional[str] = None  #  ... label format (camvid, kitti, values:road=..)
+    arch: Optional[str] = None         # 'segnet' | 'segnet-narrow'; None: segnet on GPU, narrow on CPU
+    base_width: Optional[int] = None   # override the architecture's first-block width
+    size: Optional[tuple[int, int]] = None  # working size (w, h); None: the store size (first image for folders)
+    epochs: int = 30                   # the paper trains 600 on a GPU
+    batch_size: int = 8                # global batch (paper Table 2)
+    lr: float = 0.005                  # SGD learning rate (paper Table 2)
+    momentum: float = 0.9              # SGD momentum
+    weight_decay: float = 0.0005       # L2 weight decay (paper Table 2)
+    schedule: str = "poly"             # 'poly' (power 0.9 over all iterations) or 'constant'
+    seed: int = 0                      # seeds init, split, order and augmentation
+    device: str = "auto"               # 'auto' (cuda if present), 'cpu', 'cuda', 'cuda:1'
+    val_fraction: float = 0.1          # held-out share of the training items (0: none)
+    val_stores: list[str] = field(default_factory=list)  # validation stores (replace val_fraction)
+    class_weights: str = "none"        # 'none' or 'median-freq' (median frequency balancing)
+    hflip: bool = False                # random horizontal flip, p = 0.5
+    greyscale: float = 0.0             # probability of a greyscale image (1.0: greyscale model)
+    vp_channel: bool = False           # 4th input channel: VP proximity map
+    resume: Optional[str] = None       # continue from this checkpoint ('.last.pt') up to `epochs`
+    workers: int = 0                   # DataLoader worker processes
+    log: Optional[str] = None          # JSON-lines log; None: '<out stem>.log.jsonl'
+    progress: bool = True              # tqdm bar on stderr
+    max_steps: Optional[int] = None    # stop each epoch after this many steps (smoke tests)
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["size"] = list(self.size) if self.size else None
+        return d
+
+
+def last_path(out: str | Path) -> Path:
+    out = Path(out)
+    return out.with_name(out.stem + ".last.pt")
+
+
+def get_lr(it: int, total: int, cfg: TrainConfig) -> float:
+    """Learning rate at iteration ``it`` of ``total``."""
+    if cfg.schedule == "constant":
+        return cfg.lr
+    return cfg.lr * (1.0 - min(it, total) / max(total, 1)) ** 0.9
+
+
+def resolve_device(spec: str, local_rank: int = 0) -> torch.device:
+    if spec == "auto":
+        spec = "cuda" if torch.cuda.is_available() else "cpu"
+    if spec.startswith("cuda"):
+        if not torch.cuda.is_available():
+            raise InputError(f"device '{spec}' asked but no CUDA GPU is available", None, "use --device cpu")
+        if spec == "cuda":
+            spec = f"cuda:{local_rank}"
+    elif spec != "cpu":
+        raise InputError(f"unknown device '{spec}'", None, "use auto, cpu, cuda or cuda:N")
+    return torch.device(spec)
+
+
+# -- data ----------------------------------------------------------------------------------------
+def _open_stores(paths: list[str]) -> list[Store]:
+    stores = [Store.open(p) for p in paths]
+    for s in stores[1:]:
+        for k in ("virtual", "scale", "store_size"):
+            if s.params.get(k) != stores[0].params.get(k):
+                raise InputError(f"store has another {k} than {stores[0].root}", s.root,
+                                 "train on stores of one virtual camera at one scale")
+    return stores
+
+
+def _samples(stores: list[Store], baseline: str) -> list[Sample]:
+    out: list[Sample] = []
+    for s in stores:
+        got = resize_samples(s) if baseline == "resize" else store_samples(s)
+        if not got:
+            raise InputError("store has no labelled items", s.root, "build it with --labels")
+        out += got
+    return out
+
+
+def _completion(stores: list[Store]) -> str:
+    kinds = {rec.get("completion", "none") for s in stores for rec in s}
+    if len(kinds) > 1:
+        raise InputError(f"stores mix completion methods ({', '.join(sorted(kinds))})", stores[0].root,
+                         "train on items built with one --complete method")
+    return kinds.pop() if kinds else "none"
+
+
+def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str, Any]]:
+    """Training and validation samples plus the checkpoint's ``data`` description."""
+    if cfg.baseline not in ("none", "resize"):
+        raise InputError(f"unknown baseline '{cfg.baseline}'", None, "use --baseline resize (or leave it out)")
+    stores = _open_stores(cfg.stores) if cfg.stores else []
+    info: dict[str, Any] = {"mode": "resize" if cfg.baseline == "resize" else "virtual",
+                            "store_params": stores[0].params if stores else None,
+                            "completion": _completion(stores) if stores else "none",
+                            "vp_channel": cfg.vp_channel, "greyscale": cfg.greyscale}
+    if cfg.images is not None:
+        if cfg.baseline != "resize":
+            raise InputError("--images is for the resize baseline", cfg.images,
+                             "add --baseline resize, or train on a store built with 'vcprep warp'")
+        if cfg.labels is None or cfg.label_format is None:
+            raise InputError("--images needs --labels and --label-format", cfg.images, "add them")
+        fmt = get_label_format(cfg.label_format)
+        train = [Sample(j.id, j.image, j.label, fmt.name) for j in list_dataset(cfg.images, cfg.labels, fmt)]
+        if stores:
+            train += _samples(stores, cfg.baseline)
+    elif stores:
+        train = _samples(stores, cfg.baseline)
+    else:
+        raise InputError("no training data", None, "give STORE... (or --baseline resize --images/--labels)")
+    if cfg.val_stores:
+        vstores = _open_stores(cfg.val_stores)
+        if cfg.baseline != "resize" and stores:
+            for k in ("virtual", "scale"):
+                if vstores[0].params.get(k) != stores[0].params.get(k):
+                    raise InputError(f"validation store has another {k} than the training store", vstores[0].root,
+                                     "validate on a store of the same virtual camera and scale")
+        val = _samples(vstores, cfg.baseline)
+    elif cfg.val_fraction > 0:
+        if not 0 < cfg.val_fraction < 1:
+            raise InputError(f"validation fraction {cfg.val_fraction} is not in [0, 1)", None, "use e.g. 0.1")
+        perm = np.random.default_rng(cfg.seed).permutation(len(train))
+        n_val = max(1, int(round(cfg.val_fraction * len(train))))
+        if n_val >= len(train):
+            raise InputError(f"{len(train)} items are too few to hold out {cfg.val_fraction:g}", None,
+                             "add items, or use --val-fraction 0 / --val-store")
+        val = [train[i] for i in sorted(perm[:n_val])]
+        train = [train[i] for i in sorted(perm[n_val:])]
+    else:
+        val = []
+    if cfg.size is not None:
+        size = (int(cfg.size[0]), int(cfg.size[1]))
+    elif stores:
+        size = stores[0].store_size
+    else:
+        from vcprep.imageio import read_image
+
+        size = read_image(train[0].image).size
+    if min(size) < MIN_SIDE:
+        raise InputError(f"working size {size[0]}x{size[1]} is below {MIN_SIDE} pixels", None,
+                         "use a larger --size or store scale")
+    info["input_size"] = list(size)
+    info["vp_status"] = sorted({rec.get("vp_status", "camera") for s in stores for rec in s})
+    info["train_items"] = len(train)
+    info["val_items"] = len(val)
+    return train, val, info
+
+
+# -- evaluation ----------------------------------------------------------------------------------
+@torch.no_grad()
+def evaluate(model: nn.Module, loader, device: torch.device, weight: torch.Tensor | None = None) -> dict[str, float]:
+    """Loss and road metrics (argmax) of ``model`` over ``loader``."""
+    model.eval()
+    m = RoadMetrics()
+    loss_sum, n = 0.0, 0
+    for x, y in loader:
+        x, y = x.to(device), y.to(device)
+        logits = model(x)
+        if (y != 255).any():
+            loss_sum += float(F.cross_entropy(logits, y, weight=weight, ignore_index=255)) * len(x)
+            n += len(x)
+        pred = logits.argmax(1).cpu().numpy()
+        for p, g in zip(pred, y.cpu().numpy().astype(np.uint8)):
+            m.add(p, g)
+    model.train()
+    return {"loss": loss_sum / max(n, 1), **m.result()}
+
+
+# -- the loop ------------------------------------------------------------------------------------
+def _dist() -> tuple[int, int, int]:
+    """(rank, world size, local rank) from torchrun's environment."""
+    return int(os.environ.get("RANK", 0)), int(os.environ.get("WORLD_SIZE", 1)), int(os.environ.get("LOCAL_RANK", 0))
+
+
+def _average_buffers(model: nn.Module, world: int) -> None:
+    """Average BatchNorm running statistics over processes (DDP syncs gradients, not these;
+    SyncBatchNorm needs GPUs), so every replica evaluates and saves the same model."""
+    for b in model.buffers():
+        if b.is_floating_point():
+            torch.distributed.all_reduce(b, op=torch.distributed.ReduceOp.SUM)
+            b.div_(world)
+
+
+def _write_log(path: Path, row: dict[str, Any]) -> None:
+    with open(path, "a") as f:
+        f.write(json.dumps(row) + "\n")
+
+
+def fit(cfg: TrainConfig) -> dict[str, Any]:
+    """Train according to ``cfg``; returns a summary (best val IoU, timings, paths)."""
+    rank, world, local_rank = _dist()
+    distributed = world > 1
+    device = resolve_device(cfg.device, local_rank)
+    if distributed and not torch.distributed.is_initialized():
+        torch.distributed.init_process_group("nccl" if device.type == "cuda" else "gloo")
+    master = rank == 0
+    out = Path(cfg.out)
+    if master and not out.parent.is_dir():
+        raise InputError("output folder does not exist", out.parent, "create it first")
+    log_path = Path(cfg.log) if cfg.log else out.with_name(out.stem + ".log.jsonl")
+
+    resume = load_checkpoint(cfg.resume) if cfg.resume else None
+    train_s, val_s, info = prepare_data(cfg)
+    if resume is not None:
+        model_args = resume["model_args"]
+        if cfg.arch and cfg.arch != model_args["arch"]:
+            raise InputError(f"checkpoint is '{model_args['arch']}' but --model {cfg.arch} was asked", cfg.resume,
+                             "leave --model out when resuming")
+        if resume["data"]["mode"] != info["mode"] or resume["data"]["input_size"] != info["input_size"]:
+            raise InputError("checkpoint was trained on other data (mode or working size)", cfg.resume,
+                             "resume with the same stores, --baseline and --size")
+    else:
+        arch = cfg.arch or ("segnet" if device.type == "cuda" else "segnet-narrow")
+        if arch not in ARCHITECTURES:
+            raise InputError(f"unknown model '{arch}'", None, f"use one of {', '.join(ARCHITECTURES)}")
+        model_args = model_args_for(arch, 4 if cfg.vp_channel else 3, cfg.base_width).to_dict()
+
+    torch.manual_seed(cfg.seed)
+    model = build_model(model_args)
+    if resume is not None:
+        model = model_from_checkpoint(resume, cfg.resume)
+    model.to(device)
+    net = model
+    if distributed:
+        net = nn.parallel.DistributedDataParallel(model, device_ids=[device.index] if device.type == "cuda" else None)
+
+    size = tuple(info["input_size"])
+    train_ds = RoadDataset(train_s, size, hflip=cfg.hflip, greyscale=cfg.greyscale, vp_channel=cfg.vp_channel)
+    val_ds = RoadDataset(val_s, size, greyscale=1.0 if cfg.greyscale >= 1 else 0.0, vp_channel=cfg.vp_channel)
+    weight = None
+    if cfg.class_weights == "median-freq":
+        w = median_frequency_weights(class_frequencies(train_ds))
+        info["class_weights"] = [float(v) for v in w]
+        weight = torch.tensor(w, dtype=torch.float32, device=device)
+    elif cfg.class_weights != "none":
+        raise InputError(f"unknown class weighting '{cfg.class_weights}'", None, "use none or median-freq")
+
+    per_rank_batch = max(1, math.ceil(cfg.batch_size / world))
+    steps_per_epoch = math.ceil(len(train_ds) / (per_rank_batch * world))
+    if cfg.max_steps:
+        steps_per_epoch = min(steps_per_epoch, cfg.max_steps)
+    total_steps = steps_per_epoch * cfg.epochs
+    opt = torch.optim.SGD(model.parameters(), lr=cfg.lr, momentum=cfg.momentum, weight_decay=cfg.weight_decay)
+    val_loader = torch.utils.data.DataLoader(val_ds, batch_size=per_rank_batch, shuffle=False,
+                                             num_workers=cfg.workers)
+
+    start_epoch, step, best_iou, best_epoch, history = 0, 0, -1.0, -1, []
+    if resume is not None:
+        opt.load_state_dict(resume["optimizer"])
+        start_epoch, step = int(resume["epoch"]), int(resume["step"])
+        best_iou, best_epoch = float(resume.get("best_iou", -1.0)), int(resume.get("best_epoch", -1))
+        history = list(resume.get("history", []))
+
+    def checkpoint(epoch: int, metrics: dict[str, Any]) -> dict[str, Any]:
+        return {"model": model.state_dict(), "model_args": model_args, "config": cfg.to_dict(), "data": info,
+                "epoch": epoch, "step": step, "metrics": metrics, "best_iou": best_iou, "best_epoch": best_epoch,
+                "history": history, "optimizer": opt.state_dict()}
+
+    seconds, images = 0.0, 0
+    for epoch in range(start_epoch, cfg.epochs):
+        # item order and augmentation depend on (seed, epoch, rank) only -> exact resume
+        gen = torch.Generator().manual_seed(cfg.seed * 1000003 + epoch)
+        order = torch.randperm(len(train_ds), generator=gen).tolist()
+        if world > 1:  # equal shares (DistributedSampler's padding) so no rank waits for another
+            order += order[: (-len(order)) % world]
+            order = order[rank::world]
+        torch.manual_seed(cfg.seed * 1000003 + epoch * 101 + rank + 1)
+        loader = torch.utils.data.DataLoader(torch.utils.data.Subset(train_ds, order), batch_size=per_rank_batch,
+                                             shuffle=False, num_workers=cfg.workers, drop_last=False)
+        net.train()
+        t0 = time.perf_counter()
+        loss_sum, n_seen = 0.0, 0
+        bar = tqdm(loader, total=steps_per_epoch, desc=f"epoch {epoch + 1}/{cfg.epochs}", unit="batch",
+                   disable=not (cfg.progress and master), leave=False, dynamic_ncols=True)
+        for i, (x, y) in enumerate(bar):
+            if i >= steps_per_epoch:
+                break
+            lr = get_lr(step, total_steps, cfg)
+            for g in opt.param_groups:
+                g["lr"] = lr
+            x, y = x.to(device, non_blocking=True), y.to(device, non_blocking=True)
+            logits = net(x)
+            loss = F.cross_entropy(logits, y, weight=weight, ignore_index=255)
+            if not torch.isfinite(loss):
+                if (y != 255).any():
+                    raise InputError(f"training diverged (loss {float(loss)}) at epoch {epoch + 1}", None,
+                                     "lower --lr")
+                loss = logits.sum() * 0.0  # batch without a single labelled pixel
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            opt.step()
+            step += 1
+            loss_sum += loss.item() * len(x)
+            n_seen += len(x)
+            dt = time.perf_counter() - t0
+            bar.set_postfix(loss=f"{loss_sum / n_seen:.4f}", img_s=f"{n_seen * world / max(dt, 1e-9):.1f}")
+        bar.close()
+        if distributed:
+            _average_buffers(model, world)
+        dt = time.perf_counter() - t0
+        seconds += dt
+        images += n_seen * world
+        row: dict[str, Any] = {"epoch": epoch + 1, "step": step, "lr": get_lr(step, total_steps, cfg),
+                               "train_loss": loss_sum / max(n_seen, 1), "seconds": dt,
+                               "images_per_s": n_seen * world / max(dt, 1e-9)}
+        if len(val_ds):
+            vm = evaluate(model, val_loader, device, weight)
+            row.update({f"val_{k}": v for k, v in vm.items()})
+            improved = vm["iou"] > best_iou
+        else:
+            improved = True
+        if improved:
+            best_iou, best_epoch = row.get("val_iou", -1.0), epoch + 1
+        history.append(row)
+        if master:
+            _write_log(log_path, row)
+            ck = checkpoint(epoch + 1, row)
+            save_checkpoint(last_path(out), ck)
+            if improved:
+                save_checkpoint(out, ck)
+            if cfg.progress:
+                from vcprep.cliutil import err
+
+                val = f", val IoU {row['val_iou']:.4f}" if "val_iou" in row else ""
+                err(f"epoch {epoch + 1}/{cfg.epochs}: loss {row['train_loss']:.4f}{val}, {dt:.1f} s "
+                    f"({row['images_per_s']:.1f} img/s){' *' if improved and val else ''}")
+    replicas_identical = None
+    if distributed:  # every process must end with the same weights (DDP keeps them in lockstep)
+        flat = torch.cat([t.detach().float().reshape(-1) for t in model.state_dict().values()])
+        copies = [torch.empty_like(flat) for _ in range(world)]
+        torch.distributed.all_gather(copies, flat)
+        replicas_identical = all(torch.equal(copies[0], c) for c in copies[1:])
+        torch.distributed.barrier()
+    return {"replicas_identical": replicas_identical, "world_size": world,
+            "out": str(out), "last": str(last_path(out)), "log": str(log_path), "epochs": cfg.epochs,
+            "best_val_iou": best_iou if best_iou >= 0 else None, "best_epoch": best_epoch,
+            "seconds_per_epoch": seconds / max(cfg.epochs - start_epoch, 1),
+            "train_images_per_s": images / max(seconds, 1e-9), "model_args": model_args,
+            "data": {k: v for k, v in info.items() if k != "store_params"}}
