@@ -23,7 +23,8 @@ def project(cam: Camera, X, Z, pan, tilt):
     Pc = R @ P + (cam.height * R2)[:, None]
     p = cam.K @ Pc
     shape = X.shape
-    return (p[0] / p[2]).reshape(shape), (p[1] / p[2]).reshape(shape), Pc[2].reshape(shape)
+    with np.errstate(divide="ignore", invalid="ignore"):  # points behind the camera: depth <= 0, masked later
+        return (p[0] / p[2]).reshape(shape), (p[1] / p[2]).reshape(shape), Pc[2].reshape(shape)
 
 
 def test_pose_axes_is_a_rotation_with_world_origin_below_camera():
