@@ -122,3 +122,8 @@ def test_cityscapes_camera_reader(tmp_path):
 def test_unknown_camera_spec():
     with pytest.raises(InputError, match="not a camera preset"):
         load_camera("camvidd")
+
+
+def test_shipped_camera_template_is_valid():
+    cam = read_camera_yaml(EXAMPLES / "camera_template.yaml")
+    assert cam.name == "mycam" and cam.size == (1280, 720) and cam.cx == 639.5

@@ -52,7 +52,7 @@ def evaluate_folder(pred_dir: str | Path, labels: str | Path, fmt: LabelFormat,
     label_files = {p.stem: p for p in labels.iterdir() if p.suffix.lower() == ".png"}
     road, kitti = RoadMetrics(), KittiMetrics()
     with_prob = all("prob" in v for v in stems.values())
-    for stem, files in tqdm(stems.items(), desc="eval", unit="img", disable=not progress, leave=False):
+    for stem, files in tqdm(stems.items(), desc="eval", unit="img", disable=None if progress else True, leave=False):
         lstem = label_stem_for(Path(stem + ".png"), fmt)
         lf = label_files.get(lstem)
         if lf is None:

@@ -141,7 +141,7 @@ def predict_store(predictor: Predictor, store: Store, out: str | Path, progress:
                                  "predict from the images with --camera (they are warped as the model expects)")
     written = []
     recs = list(store) if ids is None else [store.get(i) for i in ids]
-    for rec in tqdm(recs, desc="predict", unit="img", disable=not progress, leave=False):
+    for rec in tqdm(recs, desc="predict", unit="img", disable=None if progress else True, leave=False):
         written.append(write_prediction(out, rec["id"], predictor.store_item(store, rec))[0])
     return written
 
@@ -153,7 +153,7 @@ def predict_images(predictor: Predictor, images: Iterable[str | Path], out: str 
     out = _out_dir(out)
     if predictor.mode == "resize":
         written = []
-        for job in tqdm(jobs, desc="predict", unit="img", disable=not progress, leave=False):
+        for job in tqdm(jobs, desc="predict", unit="img", disable=None if progress else True, leave=False):
             img = read_image(job.image).array
             vp = None
             if camera is not None and predictor.vp_channel:

@@ -329,7 +329,7 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
         t0 = time.perf_counter()
         loss_sum, n_seen = 0.0, 0
         bar = tqdm(loader, total=steps_per_epoch, desc=f"epoch {epoch + 1}/{cfg.epochs}", unit="batch",
-                   disable=not (cfg.progress and master), leave=False, dynamic_ncols=True)
+                   disable=None if (cfg.progress and master) else True, leave=False, dynamic_ncols=True)
         for i, (x, y) in enumerate(bar):
             if i >= steps_per_epoch:
                 break
