@@ -315,3 +315,39 @@ def test_bad_inputs_give_one_error_line(tmp_path):
         lines = r.stderr.strip().splitlines()
         assert len(lines) == 1 and lines[0].startswith("Error:"), (args, r.stderr)
         assert "Traceback" not in r.stderr
+
+
+def test_predict_with_given_vps_and_overlay(trained, tmp_path):
+    """A re-mounted camera (pan 8, tilt -4): with its VP given, predict warps with that pose (the
+    kept store's record says so and its VP maps to the virtual principal point) and draws an overlay."""
+    import cv2
+
+    from vcprep.camera import camera_to_yaml
+    from vcprep.homography import apply_homography, vp_from_pose
+    from vcprep.store import Store
+    from vcprep.synthetic import render_road
+
+    root, _, _ = trained
+    cam = PRESETS["toronto2020"].resized(0.1)
+    (tmp_path / "imgs").mkdir()
+    img, lab = render_road(cam, pan=8.0, tilt=-4.0)
+    cv2.imwrite(str(tmp_path / "imgs" / "f0.png"), img)
+    u, v = vp_from_pose(cam, 8.0, -4.0)
+    (tmp_path / "vps.csv").write_text(f"id,u,v\nf0,{u},{v}\n")
+    (tmp_path / "cam.yaml").write_text(camera_to_yaml(cam))
+    r = runner.invoke(app, ["predict", str(root / "model.pt"), "--camera", str(tmp_path / "cam.yaml"),
+                            str(tmp_path / "imgs"), "--within", str(tmp_path / "vps.csv"), "--overlay",
+                            "--keep-store", str(tmp_path / "kept"), "--out", str(tmp_path / "pred"), "--quiet"])
+    assert r.exit_code == 0, r.output
+    st = Store.open(tmp_path / "kept")
+    rec = st.get("f0")
+    assert rec["vp_status"] == "given"
+    assert (rec["pan_deg"], rec["tilt_deg"]) == pytest.approx((8.0, -4.0), abs=1e-9)
+    H = np.array(rec["H"]).reshape(3, 3)
+    assert apply_homography(H, [rec["vp"]])[0] == pytest.approx([st.virtual.cx, st.virtual.cy], abs=1e-6)
+    mask = read_image(tmp_path / "pred" / "f0_mask.png", label=True).array
+    assert mask.shape == lab.shape
+    overlay = read_image(tmp_path / "pred" / "f0_overlay.png").array
+    assert overlay.shape == img.shape
+    assert np.array_equal(overlay[mask == 0], img[mask == 0])  # untouched where no road is predicted
+    assert (overlay[mask > 0] != img[mask > 0]).any(axis=-1).mean() > 0.9  # tinted where road is

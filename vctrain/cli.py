@@ -131,6 +131,9 @@ def predict_cmd(
     store: Optional[Path] = typer.Option(None, "--store", help="predict every item of this store instead of IMAGES"),
     device: str = typer.Option("auto", "--device", help="auto, cpu, cuda, cuda:N"),
     keep_store: Optional[Path] = typer.Option(None, "--keep-store", help="keep the warped images in this store"),
+    within: str = typer.Option("auto", "--within", help="per-image VP correction: auto (as the model was trained), "
+                                                         "estimate, a CSV id,u,v, or none"),
+    overlay: bool = typer.Option(False, "--overlay", help="also write OUT/<stem>_overlay.png (road in green)"),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar"),
 ):
     """Predict road in original camera images with the checkpoint's own preprocessing.
@@ -155,7 +158,7 @@ def predict_cmd(
         raise InputError("give either IMAGES or --store, not both", store, "run predict twice")
     predictor = Predictor(checkpoint, device)
     if store is not None:
-        written = predict_store(predictor, Store.open(store), out, progress=not quiet)
+        written = predict_store(predictor, Store.open(store), out, progress=not quiet, overlay=overlay)
     else:
         cam = None
         if camera is not None:
@@ -165,10 +168,8 @@ def predict_cmd(
         elif predictor.mode == "virtual":
             raise InputError("a virtual-camera model needs the camera of the images", checkpoint,
                              "add --camera (preset or calibration file)")
-        if predictor.mode == "virtual" and set(predictor.data.get("vp_status", [])) - {"camera"} and not quiet:
-            err("warning: the model was trained with per-image VPs (within-camera correction); predict warps "
-                "with the camera's average pose (per-image VP detection is not wired into predict yet)")
-        written = predict_images(predictor, images, out, cam, progress=not quiet, keep_store=keep_store)
+        written = predict_images(predictor, images, out, cam, progress=not quiet, keep_store=keep_store,
+                                 overlay=overlay, within=within)
     for p in written:
         print(p)
     if not quiet:

@@ -86,13 +86,19 @@ class Predictor:
         return np.clip(backproject_array(prob, rec, kind="prob"), 0.0, 1.0)
 
 
-def write_prediction(out: Path, stem: str, prob: np.ndarray) -> tuple[Path, Path]:
-    """Write ``<stem>_prob.png`` (0-255) and ``<stem>_mask.png`` (0/255)."""
+def write_prediction(out: Path, stem: str, prob: np.ndarray, overlay_on: str | Path | None = None) -> tuple[Path, Path]:
+    """Write ``<stem>_prob.png`` (0-255) and ``<stem>_mask.png`` (0/255); with ``overlay_on``
+    (the original image) also ``<stem>_overlay.png``: predicted road in green over the image."""
     p8 = np.clip(np.rint(prob * 255.0), 0, 255).astype(np.uint8)
     mask = np.where(prob >= 0.5, 255, 0).astype(np.uint8)
     pp, mp = out / f"{stem}_prob.png", out / f"{stem}_mask.png"
     write_png(pp, p8)
     write_png(mp, mask)
+    if overlay_on is not None:
+        from vcprep.figures import overlay_label
+
+        write_png(out / f"{stem}_overlay.png", overlay_label(read_image(overlay_on).array, (mask > 0).astype(np.uint8)),
+                  compression=3)
     return mp, pp
 
 
@@ -129,7 +135,7 @@ def collect_images(paths: Iterable[str | Path]) -> list[Job]:
 
 
 def predict_store(predictor: Predictor, store: Store, out: str | Path, progress: bool = True,
-                  ids: Iterable[str] | None = None) -> list[Path]:
+                  ids: Iterable[str] | None = None, overlay: bool = False) -> list[Path]:
     """Predict every item of ``store`` (or those in ``ids``); writes ``<id>_mask.png`` and
     ``<id>_prob.png`` at the source image size. Returns the mask paths."""
     out = _out_dir(out)
@@ -142,13 +148,19 @@ def predict_store(predictor: Predictor, store: Store, out: str | Path, progress:
     written = []
     recs = list(store) if ids is None else [store.get(i) for i in ids]
     for rec in tqdm(recs, desc="predict", unit="img", disable=None if progress else True, leave=False):
-        written.append(write_prediction(out, rec["id"], predictor.store_item(store, rec))[0])
+        written.append(write_prediction(out, rec["id"], predictor.store_item(store, rec),
+                                        rec["source"] if overlay else None)[0])
     return written
 
 
 def predict_images(predictor: Predictor, images: Iterable[str | Path], out: str | Path, camera: Camera | None,
-                   progress: bool = True, keep_store: str | Path | None = None) -> list[Path]:
-    """Predict image files/folders taken with ``camera`` (needed for virtual-camera models)."""
+                   progress: bool = True, keep_store: str | Path | None = None, overlay: bool = False,
+                   within: str = "auto") -> list[Path]:
+    """Predict image files/folders taken with ``camera`` (needed for virtual-camera models).
+
+    ``within``: per-image pan/tilt from the road VP, as for ``vcprep warp --within``
+    ('estimate', a CSV ``id,u,v``, 'none'); 'auto' estimates VPs when the model's training store
+    used per-image VPs and uses the camera's average pose otherwise."""
     jobs = collect_images(images)
     out = _out_dir(out)
     if predictor.mode == "resize":
@@ -158,7 +170,8 @@ def predict_images(predictor: Predictor, images: Iterable[str | Path], out: str 
             vp = None
             if camera is not None and predictor.vp_channel:
                 vp = vp_from_pose(camera.for_image_size((img.shape[1], img.shape[0]), job.image))
-            written.append(write_prediction(out, job.id, predictor.road_probability(img, vp))[0])
+            written.append(write_prediction(out, job.id, predictor.road_probability(img, vp),
+                                            job.image if overlay else None)[0])
         return written
     if camera is None:
         raise InputError("a virtual-camera model needs the camera of the images", None,
@@ -166,9 +179,18 @@ def predict_images(predictor: Predictor, images: Iterable[str | Path], out: str 
     sp = predictor.data.get("store_params")
     virtual = camera_from_dict(sp["virtual"], predictor.path)
     completion = predictor.data.get("completion", "none")
+    if within == "auto":
+        within = "estimate" if set(predictor.data.get("vp_status", [])) - {"camera"} else "none"
+    poses = None
+    if within != "none":
+        from vcprep.build import ItemPose
+        from vcprep.vanishing_point import vps_for_items
+
+        res = vps_for_items([j.image for j in jobs], [j.id for j in jobs], camera, within)
+        poses = {j.id: ItemPose((r.vp[0], r.vp[1]), r.status) for j, r in zip(jobs, res)}
     # warp exactly as the training store was built (same code, same virtual camera/scale/completion)
     with tempfile.TemporaryDirectory(prefix="vctrain-predict-") as tmp:
         root = Path(keep_store) if keep_store else Path(tmp) / "store"
         store, _ = warp_dataset(jobs, camera, virtual, float(sp["scale"]), root, None, progress=progress,
-                                completion=completion)
-        return predict_store(predictor, store, out, progress, ids=[j.id for j in jobs])
+                                completion=completion, poses=poses)
+        return predict_store(predictor, store, out, progress, ids=[j.id for j in jobs], overlay=overlay)
