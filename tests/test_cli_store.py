@@ -197,7 +197,39 @@ def _label_out_of_range(images, labels, tmp):
     return target
 
 
+def _truncated_jpeg(images, labels, tmp):
+    target = images / "seq_0001.png"
+    jpg = images / "seq_0001.jpg"
+    data = cv2.imencode(".jpg", cv2.imread(str(target)))[1].tobytes()
+    target.unlink()
+    jpg.write_bytes(data[: len(data) * 2 // 3])
+    return jpg
+
+
+def _four_channel_label(images, labels, tmp):
+    target = labels / "seq_0001.png"
+    cv2.imwrite(str(target), np.full((360, 480, 4), 3, np.uint8))
+    return target
+
+
+def _duplicate_id(images, labels, tmp):
+    dup = images / "seq_0001.jpg"
+    dup.write_bytes(cv2.imencode(".jpg", cv2.imread(str(images / "seq_0001.png")))[1].tobytes())
+    return images / "seq_0001.png"  # named in the error, with its twin
+
+
+def _colour_label_for_ids(images, labels, tmp):
+    target = labels / "seq_0002.png"
+    cv2.imwrite(str(target), np.dstack([np.zeros((360, 480), np.uint8), np.full((360, 480), 3, np.uint8),
+                                        np.zeros((360, 480), np.uint8)]))
+    return target
+
+
 @pytest.mark.parametrize("make, needle", [
+    (_truncated_jpeg, "truncated"),
+    (_four_channel_label, "4 channels"),
+    (_duplicate_id, "duplicate image id"),
+    (_colour_label_for_ids, "channels"),
     (_bad_png("truncated"), "truncated"),
     (_bad_png("corrupt"), "decode"),
     (_bad_png("empty"), "empty"),
@@ -214,6 +246,8 @@ def test_bad_input_files(dataset, tmp_path, make, needle):
     out = tmp_path / "store"
     proc = _warp(imgs, labs, out)
     assert_one_error_line(proc, str(bad), needle)
+    if not out.exists():
+        return  # refused before anything was written
     # nothing half-written: no temp files; the bad item has no record and no files
     leftovers = [p for p in out.rglob("*") if p.name.startswith(".") or p.suffix == ".tmp"]
     assert not leftovers

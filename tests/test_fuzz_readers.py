@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import os
 
+import numpy as np
 import yaml
 from hypothesis import HealthCheck, given, settings, strategies as st
 
@@ -96,3 +97,32 @@ def test_cityscapes_json_bytes(tmp_path_factory, data):
     p = tmp_path_factory.mktemp("c") / "camera.json"
     p.write_bytes(data)
     _accepts(read_cityscapes_camera, p)
+
+
+from vcprep.vanishing_point import read_vp_csv  # noqa: E402
+
+csv_cell = st.one_of(st.text(alphabet="0123456789.-eE+nai,f #\"", max_size=8), st.floats(allow_nan=True),
+                     st.integers(-10**9, 10**9))
+
+
+@given(st.lists(st.lists(csv_cell, max_size=5), max_size=6), st.booleans())
+def test_vp_csv(tmp_path_factory, rows, header):
+    text = ("id,u,v\n" if header else "") + "\n".join(",".join(map(str, r)) for r in rows)
+    p = tmp_path_factory.mktemp("v") / "vps.csv"
+    p.write_text(text)
+    try:
+        table = read_vp_csv(p)
+    except VCError:
+        return
+    for k, (u, v) in table.items():
+        assert isinstance(k, str) and np.isfinite(u) and np.isfinite(v)
+
+
+@given(st.binary(max_size=200))
+def test_vp_csv_bytes(tmp_path_factory, data):
+    p = tmp_path_factory.mktemp("v") / "vps.csv"
+    p.write_bytes(data)
+    try:
+        read_vp_csv(p)
+    except VCError:
+        pass
