@@ -2,6 +2,8 @@
 
 Three layers (style.md): :func:`list_dataset` (files -> jobs), :func:`warp_item` (one item,
 in memory), :func:`warp_dataset` (the loop: up-to-date check, atomic writes, manifest, progress).
+:func:`build_item` / :func:`complete_item` are the per-item steps of ``warp`` / ``complete``;
+both run in the one loop :func:`_build_loop` (serial or a process pool, :mod:`vcprep.parallel`).
 """
 from __future__ import annotations
 
@@ -12,20 +14,20 @@ from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
-from tqdm import tqdm
-
 from . import __version__
 from .camera import Camera
 from .errors import InputError, VCError
 from .homography import apply_homography, check_not_folded, pose_from_vp, virt_H_src, virtual_at_scale, vp_from_pose
 from .imageio import IMAGE_EXTENSIONS, image_size_from_header, read_image, write_png
 from .labels import LabelFormat, decode_label, image_id, label_stem_for
-from .store import Store
+from .parallel import ItemError, run_items
+from .store import Shard, Store, temp_files
 from .completion import border_ignore, check_method, completion_maps
 from .warp import maps_for, warp_image, warp_label
 
 __all__ = ["Job", "ItemPose", "BuildSummary", "item_maps", "warp_item", "list_dataset", "store_params", "item_geometry", "warp_dataset",
-           "WarpedItem", "warp_item_full", "complete_store", "record_key"]
+           "WarpedItem", "warp_item_full", "complete_store", "record_key", "ItemResult", "build_item",
+           "complete_item"]
 
 WARP_ALGORITHM = "warp-v1"  # bump when stored outputs of identical inputs would change
 
@@ -55,7 +57,8 @@ class BuildSummary:
     total: int = 0
     built: int = 0
     up_to_date: int = 0
-    failed: list[str] = field(default_factory=list)
+    failed: list[str] = field(default_factory=list)  # ids of items that failed (with keep_going)
+    errors: list[str] = field(default_factory=list)  # their error messages, in the same order
     notes: list[str] = field(default_factory=list)  # per-item remarks for the user (e.g. VP outside)
 
     def line(self) -> str:
@@ -178,100 +181,178 @@ def warp_item(job: Job, camera: Camera, store_size: tuple[int, int], H: np.ndarr
     return item.image, item.label, item.valid
 
 
+@dataclass(frozen=True)
+class ItemResult:
+    """What one item's build returned: 'built' (files written; ``record`` is new) or
+    'up_to_date' (``record`` is the stored one); ``note`` is a remark for the user or None."""
+
+    id: str
+    status: str
+    record: dict[str, Any]
+    note: str | None = None
+
+
+@dataclass(frozen=True)
+class _WarpContext:
+    """Everything :func:`build_item` needs besides the item (shared by all items; sent once
+    to each worker)."""
+
+    root: Path
+    camera: Camera
+    virtual_scaled: Camera
+    params: dict[str, Any]
+    fmt: LabelFormat | None
+    completion: str
+
+
+@dataclass(frozen=True)
+class _WarpTask:
+    job: Job
+    pose: ItemPose | None
+    old: dict[str, Any] | None  # the item's current record, if any
+
+
+def _files_present(root: Path, rec: dict[str, Any]) -> bool:
+    return all((root / rec[k]).is_file() for k in ("image", "label", "valid") if rec.get(k))
+
+
+def _write_item(root: Path, rec: dict[str, Any], item: WarpedItem) -> dict[str, str]:
+    """Write one item's PNGs atomically (label only if the record has one); their SHA-256."""
+    sums = {"image": write_png(root / rec["image"], item.image)}
+    if item.label is not None and rec.get("label"):
+        sums["label"] = write_png(root / rec["label"], item.label)
+    sums["valid"] = write_png(root / rec["valid"], item.valid)
+    return sums
+
+
+def build_item(ctx: _WarpContext, task: _WarpTask) -> ItemResult:
+    """One item of :func:`warp_dataset`: hash the inputs, compute H and the item key; if the
+    stored record has that key and its files, it is up to date; else warp + complete and write
+    the PNGs (atomically) and return the new record. Raises :class:`VCError` on bad input."""
+    job, old, camera, params = task.job, task.old, ctx.camera, ctx.params
+    fmt, completion = ctx.fmt, ctx.completion
+    store_size = (int(params["store_size"][0]), int(params["store_size"][1]))
+    if old is not None and old.get("source") != str(job.image):
+        raise InputError(f"store item '{job.id}' already holds another source ({old.get('source')})", job.image,
+                         "use --id-prefix to keep datasets apart, or another --out")
+    src_hash, data = _sha256_file(job.image, "image")
+    size = image_size_from_header(data)
+    if size is None:
+        size = read_image(job.image).size
+    cam = camera.for_image_size(size, job.image)
+    if task.pose is not None:
+        pan, tilt = pose_from_vp(cam, task.pose.vp)
+        vp, vp_status = (float(task.pose.vp[0]), float(task.pose.vp[1])), task.pose.status
+    else:
+        pan, tilt = cam.pan, cam.tilt
+        vp, vp_status = vp_from_pose(cam, pan, tilt), "camera"
+    cam, H = item_geometry(cam, size, ctx.virtual_scaled, job.image, pan, tilt)
+    vp_store = tuple(apply_homography(H, [vp])[0])  # = the virtual principal point (H maps VP -> pp)
+    lab_hash = _sha256_file(job.label, "label")[0] if job.label is not None else None
+    key = _item_key({"algorithm": WARP_ALGORITHM, "source_sha256": src_hash, "label_sha256": lab_hash,
+                     "label_format": fmt.name if fmt and job.label else None, "camera": cam.to_dict(),
+                     "store": {k: params[k] for k in ("virtual", "scale", "store_size")},
+                     "H": np.round(H, 12).ravel().tolist(), "vp_status": vp_status,
+                     "completion": completion_key_part(completion)})
+    if old is not None and old.get("key") == key and _files_present(ctx.root, old):
+        return ItemResult(job.id, "up_to_date", old)
+    item = warp_item_full(job, store_size=store_size, H=H, fmt=fmt, completion=completion, vp_store=vp_store)
+    rec = {
+        "id": job.id,
+        "source": str(job.image),
+        "source_sha256": src_hash,
+        "label_source": str(job.label) if job.label else None,
+        "label_sha256": lab_hash,
+        "label_format": fmt.name if fmt and job.label else None,
+        "camera": camera.name,
+        "camera_params": cam.to_dict(),
+        "size": list(cam.size),
+        "vp": [float(vp[0]), float(vp[1])],
+        "vp_status": vp_status,
+        "pan_deg": pan,
+        "tilt_deg": tilt,
+        "H": H.ravel().tolist(),
+        "image": f"images/{job.id}.png",
+        "label": f"labels/{job.id}.png" if item.label is not None else None,
+        "valid": f"valid/{job.id}.png",
+        "store_size": list(store_size),
+        "completion": completion,
+        **completion_fields(item.maps),
+        "key": key,
+        "tool_version": __version__,
+    }
+    rec["files_sha256"] = _write_item(ctx.root, rec, item)
+    return ItemResult(job.id, "built", rec, f"{job.id}: {item.maps.note}" if item.maps.note else None)
+
+
+def _build_loop(store: Store, fn, ctx: Any, tasks: list, ids: list[str], summary: BuildSummary, jobs: int,
+                progress: bool, keep_going: bool, desc: str) -> None:
+    """The loop :func:`warp_dataset` and :func:`complete_store` share: run ``fn`` over the
+    tasks (:func:`vcprep.parallel.run_items`), record each built item as it arrives, count, and
+    fold the records into the manifest at the end (also after an error or Ctrl-C).
+
+    A bad item stops the build (after the items in flight) and its error is raised, unless
+    ``keep_going``: then it is counted in ``summary.failed`` / ``summary.errors`` and skipped."""
+    if store.shard is None:
+        for tmp in temp_files(store.root):  # left by a killed build (no other writer runs now)
+            tmp.unlink(missing_ok=True)
+    id_of = dict(zip(map(id, tasks), ids))
+    first_error: list[VCError] = []
+
+    def on_result(task, res) -> bool:
+        if isinstance(res, ItemError):
+            summary.failed.append(id_of[id(task)])
+            summary.errors.append(str(res.error))
+            if keep_going:
+                return True
+            if not first_error:
+                first_error.append(res.error)
+            return False
+        if res.status == "built":
+            store.record(res.record)
+            summary.built += 1
+            if res.note:
+                summary.notes.append(res.note)
+        else:
+            summary.up_to_date += 1
+        return True
+
+    try:
+        run_items(fn, ctx, tasks, on_result, jobs=jobs, progress=progress, desc=desc)
+    finally:
+        summary.notes.sort()
+        if summary.built or (store.shard is None and store.parts):  # (folds a killed build's journal)
+            store.save()
+    if first_error:
+        raise first_error[0]
+
+
 def warp_dataset(jobs: list[Job], camera: Camera, virtual: Camera, scale: float, out: str | Path,
                  fmt: LabelFormat | None = None, progress: bool = True,
                  poses: Mapping[str, ItemPose] | None = None,
-                 completion: str = "none") -> tuple[Store, BuildSummary]:
+                 completion: str = "none", workers: int = 1, shard: Shard | None = None,
+                 keep_going: bool = False) -> tuple[Store, BuildSummary]:
     """Warp ``jobs`` from ``camera`` into ``virtual`` at ``scale`` into the store ``out``.
 
     ``poses`` maps item ids to a per-image VP pose (within-camera correction); items without
     one use the camera's average pose (``vp_status`` 'camera'). ``completion`` names the
     method that fills uncovered store pixels ('none': left 0 / label 255).
-    Items whose inputs and parameters are unchanged (same key, files present) are skipped. On a
-    bad input the manifest keeps every item finished so far and the error propagates.
+    Items whose inputs and parameters are unchanged (same key, files present) are skipped.
+
+    ``workers`` processes build items in parallel (results byte-identical to 1); ``shard``
+    builds only that shard's items and records them in its own part file. On a bad input the
+    store keeps every item finished so far and the error propagates; with ``keep_going`` bad
+    items are skipped and listed in the summary instead.
     """
     check_method(completion)
     params = store_params(virtual, scale)
-    store = Store.open_or_create(out, params)
-    vs = store.virtual
-    store_size = store.store_size
+    store = Store.open_or_create(out, params, shard=shard)
+    if shard is not None:
+        jobs = [j for j in jobs if shard.contains(j.id)]
+    ctx = _WarpContext(store.root, camera, store.virtual, store.params, fmt, completion)
+    tasks = [_WarpTask(j, poses.get(j.id) if poses else None, store.items.get(j.id)) for j in jobs]
     summary = BuildSummary(total=len(jobs))
-    dirty = 0
-    bar = tqdm(jobs, desc="warp", unit="img", disable=None if progress else True, leave=False)
-    try:
-        for job in bar:
-            old = store.items.get(job.id)
-            if old is not None and old.get("source") != str(job.image):
-                raise InputError(f"store item '{job.id}' already holds another source ({old.get('source')})", job.image,
-                                 "use --id-prefix to keep datasets apart, or another --out")
-            src_hash, data = _sha256_file(job.image, "image")
-            size = image_size_from_header(data)
-            if size is None:
-                size = read_image(job.image).size
-            cam = camera.for_image_size(size, job.image)
-            pose = poses.get(job.id) if poses else None
-            if pose is not None:
-                pan, tilt = pose_from_vp(cam, pose.vp)
-                vp, vp_status = (float(pose.vp[0]), float(pose.vp[1])), pose.status
-            else:
-                pan, tilt = cam.pan, cam.tilt
-                vp, vp_status = vp_from_pose(cam, pan, tilt), "camera"
-            cam, H = item_geometry(cam, size, vs, job.image, pan, tilt)
-            vp_store = tuple(apply_homography(H, [vp])[0])  # = the virtual principal point (H maps VP -> pp)
-            lab_hash = _sha256_file(job.label, "label")[0] if job.label is not None else None
-            key = _item_key({"algorithm": WARP_ALGORITHM, "source_sha256": src_hash, "label_sha256": lab_hash,
-                             "label_format": fmt.name if fmt and job.label else None, "camera": cam.to_dict(),
-                             "store": {k: params[k] for k in ("virtual", "scale", "store_size")},
-                             "H": np.round(H, 12).ravel().tolist(), "vp_status": vp_status,
-                             "completion": completion_key_part(completion)})
-            if old is not None and old.get("key") == key and store.is_complete(old):
-                summary.up_to_date += 1
-                continue
-            item = warp_item_full(job, store_size=store_size, H=H, fmt=fmt, completion=completion, vp_store=vp_store)
-            image, label, valid = item.image, item.label, item.valid
-            rec = {
-                "id": job.id,
-                "source": str(job.image),
-                "source_sha256": src_hash,
-                "label_source": str(job.label) if job.label else None,
-                "label_sha256": lab_hash,
-                "label_format": fmt.name if fmt and job.label else None,
-                "camera": camera.name,
-                "camera_params": cam.to_dict(),
-                "size": list(cam.size),
-                "vp": [float(vp[0]), float(vp[1])],
-                "vp_status": vp_status,
-                "pan_deg": pan,
-                "tilt_deg": tilt,
-                "H": H.ravel().tolist(),
-                "image": f"images/{job.id}.png",
-                "label": f"labels/{job.id}.png" if label is not None else None,
-                "valid": f"valid/{job.id}.png",
-                "store_size": list(store_size),
-                "completion": completion,
-                **completion_fields(item.maps),
-                "key": key,
-                "tool_version": __version__,
-            }
-            write_png(store.path(rec["image"]), image)
-            if label is not None:
-                write_png(store.path(rec["label"]), label)
-            write_png(store.path(rec["valid"]), valid)
-            store.items[job.id] = rec
-            if item.maps.note:
-                summary.notes.append(f"{job.id}: {item.maps.note}")
-            summary.built += 1
-            dirty += 1
-            if dirty >= 50:
-                store.save()
-                dirty = 0
-    except VCError:
-        summary.failed.append(job.id)
-        raise
-    finally:
-        bar.close()
-        if dirty:
-            store.save()
+    _build_loop(store, build_item, ctx, tasks, [j.id for j in jobs], summary, workers, progress, keep_going, "warp")
     return store, summary
 
 
@@ -312,58 +393,53 @@ def _check_unchanged(path: Path, sha: str | None, kind: str) -> None:
                          "re-run 'vcprep warp' with the same options to rebuild the store")
 
 
-def complete_store(store_dir: str | Path, method: str = "projective",
-                   progress: bool = True) -> tuple[Store, BuildSummary]:
+@dataclass(frozen=True)
+class _CompleteContext:
+    root: Path
+    params: dict[str, Any]
+    method: str
+
+
+def complete_item(ctx: _CompleteContext, rec: dict[str, Any]) -> ItemResult:
+    """One item of :func:`complete_store`: rebuild it from its recorded sources with ``method``
+    unless it is completed that way already."""
+    from .labels import get_label_format
+
+    key = record_key(rec, ctx.params, ctx.method)
+    if rec.get("completion") == ctx.method and rec.get("key") == key and _files_present(ctx.root, rec):
+        return ItemResult(rec["id"], "up_to_date", rec)
+    src = Path(rec["source"])
+    _check_unchanged(src, rec.get("source_sha256"), "image")
+    lab = Path(rec["label_source"]) if rec.get("label_source") else None
+    if lab is not None:
+        _check_unchanged(lab, rec.get("label_sha256"), "label")
+    fmt = get_label_format(rec["label_format"]) if rec.get("label_format") else None
+    H = np.asarray(rec["H"], dtype=np.float64).reshape(3, 3)
+    store_size = (int(ctx.params["store_size"][0]), int(ctx.params["store_size"][1]))
+    vp_store = tuple(apply_homography(H, [rec["vp"]])[0])
+    item = warp_item_full(Job(rec["id"], src, lab), store_size, H, fmt, ctx.method, vp_store)
+    new = dict(rec)
+    new.update({"completion": ctx.method, **completion_fields(item.maps), "key": key})
+    new.pop("files_sha256", None)  # keep the field order of a record built by warp
+    new["files_sha256"] = _write_item(ctx.root, new, item)
+    return ItemResult(rec["id"], "built", new, f"{rec['id']}: {item.maps.note}" if item.maps.note else None)
+
+
+def complete_store(store_dir: str | Path, method: str = "projective", progress: bool = True, workers: int = 1,
+                   shard: Shard | None = None, keep_going: bool = False) -> tuple[Store, BuildSummary]:
     """Complete every item of an already-warped store in place with ``method``.
 
     Each item is rebuilt from its recorded source image and label (their SHA-256 must still
     match), its H and VP, as one warp + completion remap: the files, record fields and key are
     identical to ``vcprep warp --complete METHOD``. Items already completed that way are skipped;
-    files and the manifest are written atomically.
+    files and records are written as by :func:`warp_dataset` (``workers``, ``shard``,
+    ``keep_going`` likewise).
     """
     check_method(method)
-    from .labels import get_label_format
-
-    store = Store.open(store_dir)
-    summary = BuildSummary(total=len(store))
-    dirty = 0
-    recs = list(store)
-    bar = tqdm(recs, desc="complete", unit="img", disable=None if progress else True, leave=False)
-    rec: dict[str, Any] = {}
-    try:
-        for rec in bar:
-            key = record_key(rec, store.params, method)
-            if rec.get("completion") == method and rec.get("key") == key and store.is_complete(rec):
-                summary.up_to_date += 1
-                continue
-            src = Path(rec["source"])
-            _check_unchanged(src, rec.get("source_sha256"), "image")
-            lab = Path(rec["label_source"]) if rec.get("label_source") else None
-            if lab is not None:
-                _check_unchanged(lab, rec.get("label_sha256"), "label")
-            fmt = get_label_format(rec["label_format"]) if rec.get("label_format") else None
-            H = np.asarray(rec["H"], dtype=np.float64).reshape(3, 3)
-            vp_store = tuple(apply_homography(H, [rec["vp"]])[0])
-            item = warp_item_full(Job(rec["id"], src, lab), store.store_size, H, fmt, method, vp_store)
-            new = dict(rec)
-            new.update({"completion": method, **completion_fields(item.maps), "key": key})
-            write_png(store.path(new["image"]), item.image)
-            if item.label is not None and new.get("label"):
-                write_png(store.path(new["label"]), item.label)
-            write_png(store.path(new["valid"]), item.valid)
-            store.items[new["id"]] = new
-            if item.maps.note:
-                summary.notes.append(f"{new['id']}: {item.maps.note}")
-            summary.built += 1
-            dirty += 1
-            if dirty >= 50:
-                store.save()
-                dirty = 0
-    except VCError:
-        summary.failed.append(rec.get("id", "?"))
-        raise
-    finally:
-        bar.close()
-        if dirty:
-            store.save()
+    store = Store.open(store_dir, shard=shard)
+    recs = [r for r in store if shard is None or shard.contains(r["id"])]
+    summary = BuildSummary(total=len(recs))
+    ctx = _CompleteContext(store.root, store.params, method)
+    _build_loop(store, complete_item, ctx, recs, [r["id"] for r in recs], summary, workers, progress, keep_going,
+                "complete")
     return store, summary

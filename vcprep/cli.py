@@ -12,12 +12,13 @@ from .cliutil import emit_json, err, run_app
 from .errors import InputError
 from .imageio import image_size_from_header
 from .labels import LABEL_FORMATS, get_label_format
+from .parallel import default_jobs
 
 app = typer.Typer(rich_markup_mode=None, pretty_exceptions_enable=False, add_completion=False, no_args_is_help=True,
                   help="Reproject road images from any camera into one standard virtual camera (VCSeg).\n\n"
                        "Add --debug to any command to see a traceback on error.")
 camera_app = typer.Typer(rich_markup_mode=None, no_args_is_help=True, help="Camera models: show and design.")
-store_app = typer.Typer(rich_markup_mode=None, no_args_is_help=True, help="Inspect virtual-camera image stores.")
+store_app = typer.Typer(rich_markup_mode=None, no_args_is_help=True, help="Inspect, verify, describe and merge virtual-camera image stores.")
 figure_app = typer.Typer(rich_markup_mode=None, no_args_is_help=True, help="Figures (PNG) a person can look at.")
 app.add_typer(camera_app, name="camera")
 app.add_typer(store_app, name="store")
@@ -28,6 +29,11 @@ COMPLETE_HELP = ("fill uncovered virtual pixels: projective (paper §4.3: rays f
 CAMERA_HELP = f"camera preset ({', '.join(PRESETS)}) or file (.yaml camera, .txt KITTI calib, .json Cityscapes)"
 WITHIN_HELP = ("within-camera correction: 'none' (camera's average pose), 'estimate' (detect each image's road "
                "VP) or a CSV file 'id,u,v' of known VPs in source pixels")
+JOBS_HELP = "worker processes (default: one per core); results are identical for any number"
+SHARD_HELP = ("build only shard K of N (K = 1..N; items split by a hash of their id), recording into the store's "
+              "shard part file: N machines can build one store on a shared file system; see 'vcprep store merge'")
+KEEP_GOING_HELP = ("skip bad items instead of stopping at the first: each is reported, the rest is built, "
+                   "and the exit status is 1 at the end")
 SMOOTH_HELP = ("temporal smoothing of estimated VPs: median over N frames either side within a sequence "
                "(sequence = file name up to the first '_', frames in name order); 0 = off")
 
@@ -147,6 +153,9 @@ def warp_cmd(
     complete: str = typer.Option("projective", "--complete", help=COMPLETE_HELP),
     within: str = typer.Option("none", "--within", help=WITHIN_HELP),
     vp_smooth: int = typer.Option(0, "--vp-smooth", min=0, help=SMOOTH_HELP),
+    jobs: Optional[int] = typer.Option(None, "--jobs", "-j", min=1, help=JOBS_HELP),
+    shard: Optional[str] = typer.Option(None, "--shard", help=SHARD_HELP),
+    keep_going: bool = typer.Option(False, "--keep-going", "-k", help=KEEP_GOING_HELP),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar or summary on stderr"),
 ):
     """Warp a folder of images (and labels) from CAMERA into the virtual camera store OUT.
@@ -161,28 +170,35 @@ def warp_cmd(
     (within-camera correction): 'estimate' detects it (see 'vcprep vp'), FILE reads a CSV
     'id,u,v' of known VPs (source pixels); the record gets vp, vp_status, pan_deg, tilt_deg.
 
+    Items are built by --jobs worker processes; a bad item stops the build (items finished
+    so far are kept) unless --keep-going. Ctrl-C stops after the items in flight; a killed
+    build loses only those: run the same command again to resume.
+
     \b
     Example:
       vcprep warp --camera camvid --images data/camvid/train \\
           --labels data/camvid/trainannot --label-format camvid --out stores/camvid
+      vcprep warp --camera camvid --images data/camvid/train --out stores/camvid --shard 2/8
+      (with --shard, give --within a CSV from 'vcprep vp', or every shard estimates every VP)
       vcprep warp --camera camvid --images data/camvid/val --out stores/val --within estimate
       vcprep warp --camera camvid --images data/camvid/val --out stores/val --within vps.csv
     """
     from .build import list_dataset, warp_dataset
+    from .store import Shard
 
+    part = Shard.parse(shard) if shard else None
     if labels is not None and label_format is None:
         raise InputError("--labels given without --label-format", labels, f"add --label-format ({', '.join(LABEL_FORMATS)})")
     fmt = get_label_format(label_format) if label_format else None
-    jobs = list_dataset(images, labels, fmt, id_prefix)
-    cam = camera_for(camera, jobs[0].image)
+    items = list_dataset(images, labels, fmt, id_prefix)
+    cam = camera_for(camera, items[0].image)
     virt = load_camera(virtual)
-    poses = _within_poses(jobs, cam, within, vp_smooth, id_prefix, quiet)
-    store, summary = warp_dataset(jobs, cam, virt, scale, out, fmt, progress=not quiet, completion=complete,
-                                  poses=poses)
-    if not quiet:
-        err(f"{out}: {summary.line()} (store {store.store_size[0]}x{store.store_size[1]})")
-        _notes(summary)
-    print(out)
+    # VPs over all frames even for one shard: the fallback VP and smoothing depend on the whole run
+    poses = _within_poses(items, cam, within, vp_smooth, id_prefix, quiet)
+    store, summary = warp_dataset(items, cam, virt, scale, out, fmt, progress=not quiet, completion=complete,
+                                  poses=poses, workers=jobs or default_jobs(), shard=part, keep_going=keep_going)
+    _finish(out, summary, quiet, f" (store {store.store_size[0]}x{store.store_size[1]}"
+                                 f"{f', shard {part}' if part else ''})")
 
 
 def _vp_counts(results) -> str:
@@ -216,6 +232,22 @@ def _within_poses(jobs, cam: Camera, within: str, smooth: int, id_prefix: str, q
     return {j.id: ItemPose((r.vp[0], r.vp[1]), r.status) for j, r in zip(jobs, results)}
 
 
+def _finish(out: Path, summary, quiet: bool, extra: str = "", verb: str = "built") -> None:
+    """End of a store build: failures (always), summary and notes (unless quiet), the path on
+    stdout; exit 1 via StoreError if items failed (--keep-going)."""
+    from .errors import StoreError
+
+    for msg in summary.errors:
+        err(f"failed: {msg}")
+    if not quiet:
+        err(f"{out}: {summary.line().replace('built', verb)}{extra}")
+        _notes(summary)
+    print(out)
+    if summary.failed:
+        raise StoreError(f"{len(summary.failed)} of {summary.total} items failed (listed above)", out,
+                         "fix or remove those files and run the same command again; finished items are kept")
+
+
 def _notes(summary, limit: int = 10) -> None:
     """Per-item remarks (e.g. VP outside the covered region) on stderr, the first ``limit``."""
     for n in summary.notes[:limit]:
@@ -227,6 +259,9 @@ def _notes(summary, limit: int = 10) -> None:
 @app.command("complete")
 def complete_cmd(store: Path = typer.Argument(..., help="store directory built by 'vcprep warp'"),
                  method: str = typer.Option("projective", "--method", "-m", help=COMPLETE_HELP),
+                 jobs: Optional[int] = typer.Option(None, "--jobs", "-j", min=1, help=JOBS_HELP),
+                 shard: Optional[str] = typer.Option(None, "--shard", help=SHARD_HELP),
+                 keep_going: bool = typer.Option(False, "--keep-going", "-k", help=KEEP_GOING_HELP),
                  quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar or summary on stderr")):
     """Complete an already-warped store in place: fill the pixels no source pixel covers.
 
@@ -240,12 +275,12 @@ def complete_cmd(store: Path = typer.Argument(..., help="store directory built b
       vcprep complete stores/camvid --method projective
     """
     from .build import complete_store
+    from .store import Shard
 
-    st, summary = complete_store(store, method, progress=not quiet)
-    if not quiet:
-        err(f"{store}: {summary.line().replace('built', 'completed')} ({method})")
-        _notes(summary)
-    print(store)
+    part = Shard.parse(shard) if shard else None
+    st, summary = complete_store(store, method, progress=not quiet, workers=jobs or default_jobs(), shard=part,
+                                 keep_going=keep_going)
+    _finish(store, summary, quiet, f" ({method}{f', shard {part}' if part else ''})", verb="completed")
 
 
 @store_app.command("show")
@@ -267,6 +302,104 @@ def store_show(store: Path = typer.Argument(..., help="store directory"),
             print(f"{rec['id']}\t{rec['camera']}\t{rec['source']}")
     if not as_json:
         err(f"{store}: {len(st)} items, {st.store_size[0]}x{st.store_size[1]} at scale {st.scale:g}")
+
+
+@store_app.command("verify")
+def store_verify(store: Path = typer.Argument(..., help="store directory"),
+                 sources: bool = typer.Option(True, "--sources/--no-sources",
+                                              help="also check that source images and labels still match their hashes"),
+                 as_json: bool = typer.Option(False, "--json", help="one JSON object per problem"),
+                 repair: bool = typer.Option(False, "--repair", help="drop the records and files of items with bad "
+                                             "stored files and delete orphans, so that re-running the build redoes "
+                                             "them (run it when no build writes the store)"),
+                 jobs: Optional[int] = typer.Option(None, "--jobs", "-j", min=1, help=JOBS_HELP),
+                 quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar or summary on stderr")):
+    """Check a store: every recorded PNG exists, decodes, has the store size, allowed values
+    and its recorded SHA-256; sources still hash as recorded; no orphan (unrecorded) PNGs or
+    temp files. Prints one line per problem (id, kind, file, detail; --json: objects) and
+    exits 1 if there is any. A build skips items whose files exist, so to redo items with bad
+    files run --repair first, then the build.
+
+    \b
+    Example:
+      vcprep store verify stores/camvid
+      vcprep store verify stores/camvid --no-sources --json | jq -r .id | sort -u
+      vcprep store verify stores/camvid --repair; vcprep warp ... --out stores/camvid
+    """
+    from .errors import StoreError
+    from .store_check import repair_store, verify_store
+
+    report = verify_store(store, check_sources=sources, workers=jobs or default_jobs(), progress=not quiet)
+    for p in report.problems:
+        if as_json:
+            from dataclasses import asdict
+
+            emit_json(asdict(p))
+        else:
+            print(p.line())
+    if not quiet:
+        err(f"{store}: {report.summary()}")
+    if report.problems:
+        bad = report.bad_items
+        named = ", ".join(bad[:10]) + (f" and {len(bad) - 10} more" if len(bad) > 10 else "")
+        if repair:
+            dropped, removed = repair_store(store, report)
+            fix = (f"repaired: dropped {len(dropped)} items, deleted {removed} files; re-run the build command to "
+                   "redo them")
+        else:
+            fix = "run 'vcprep store verify --repair STORE', then the build command again, to redo them"
+        raise StoreError(f"{len(bad)} bad items{': ' + named if bad else ''}; {len(report.orphans)} orphan or temp "
+                         f"files", store, fix)
+
+
+@store_app.command("info")
+def store_info_cmd(store: Path = typer.Argument(..., help="store directory"),
+                   as_json: bool = typer.Option(False, "--json", help="one JSON object")):
+    """Counts, parameters and disk use of a store.
+
+    \b
+    Example:
+      vcprep store info stores/camvid
+      vcprep store info stores/camvid --json | jq .disk_bytes
+    """
+    from .store_check import store_info
+
+    info = store_info(store)
+    if as_json:
+        emit_json(info)
+        return
+    mb = lambda b: f"{b / 1e6:.1f} MB"
+    print(f"store\t{info['store']}")
+    print(f"parameters\tvirtual {info['virtual']} at scale {info['scale']:g} -> "
+          f"{info['store_size'][0]}x{info['store_size'][1]} ({info['created_by']}, format v{info['version']})")
+    print(f"items\t{info['items']} ({info['with_labels']} with labels)")
+    for key in ("cameras", "completion", "vp_status", "label_format", "tool_version"):
+        print(f"{key}\t" + ", ".join(f"{k} {v}" for k, v in info[key].items()))
+    print("disk\t" + ", ".join(f"{k} {v['files']} files {mb(v['bytes'])}" for k, v in info["disk"].items())
+          + f"; total {mb(info['disk_bytes'])}")
+    if info["pending_parts"]:
+        print(f"pending\t{', '.join(info['pending_parts'])} (fold with 'vcprep store merge')")
+
+
+@store_app.command("merge")
+def store_merge(store: Path = typer.Argument(..., help="store directory"),
+                quiet: bool = typer.Option(False, "--quiet", "-q", help="no summary on stderr")):
+    """Fold the shard part files of a store (built with 'warp --shard K/N') into its
+    manifest.jsonl and remove temp files of interrupted writes. Run it once every shard has
+    finished. The store is readable before (parts are read too); merging makes it one file.
+
+    \b
+    Example:
+      vcprep warp -c camvid -i data/camvid/train -o stores/camvid --shard 1/2 &
+      vcprep warp -c camvid -i data/camvid/train -o stores/camvid --shard 2/2; wait
+      vcprep store merge stores/camvid
+    """
+    from .store_check import merge_store
+
+    st, n = merge_store(store)
+    if not quiet:
+        err(f"{store}: merged {n} part files; {len(st)} items")
+    print(store)
 
 
 @app.command("backproject")

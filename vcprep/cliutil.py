@@ -44,5 +44,14 @@ def run_app(app, prog_name: str) -> None:
         err(f"Error: {where}{e.strerror or e} (check the path, permissions and free disk space)")
         sys.exit(1)
     except KeyboardInterrupt:
-        err("Interrupted: finished items are saved; run the same command again to resume.")
-        sys.exit(130)
+        _interrupted()
+    except SystemExit as e:
+        # Typer turns Ctrl-C into a silent exit 130 (SystemExit <- Exit(130) <- KeyboardInterrupt)
+        if e.code == 130 and isinstance(getattr(e.__context__, "__cause__", None), KeyboardInterrupt):
+            _interrupted()
+        raise
+
+
+def _interrupted() -> None:
+    err("Interrupted: finished items are saved; run the same command again to resume.")
+    sys.exit(130)

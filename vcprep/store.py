@@ -20,11 +20,29 @@ Item record (``vcprep store show --json``)::
     store_size [w, h], completion ('none' for v1), key (hash of everything the outputs depend on),
     tool_version.
 
-Every file is written atomically (temp + rename); the manifest is rewritten atomically.
+    files_sha256 {image, label, valid}: SHA-256 of the stored PNG bytes (what ``store verify``
+    checks the files against; absent in stores built before it existed).
+
+Every file is written atomically (temp + rename). Records reach disk in two steps:
+
+* while a build runs, each finished item's record is *appended* to the writer's part file
+  (``manifest.journal.jsonl``, or ``manifest.shard-K-of-N.jsonl`` for ``--shard K/N``) right
+  after its PNGs were renamed into place, so a killed build loses at most the items in flight
+  (their files are orphans until the build is re-run);
+* at the end (or on Ctrl-C) an unsharded build folds everything into ``manifest.jsonl``
+  (rewritten atomically) and deletes the part files; a shard build rewrites only its own part
+  file (compacted), so N machines never write the same file.
+
+:meth:`Store.open` reads ``manifest.jsonl`` and then every ``manifest.*.jsonl`` part (later
+records of an id win; a torn last line of a part, from a crash, is ignored): a sharded store is
+complete and usable before ``vcprep store merge`` folds the parts.
 """
 from __future__ import annotations
 
+import hashlib
 import json
+import os
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterator
 
@@ -33,19 +51,92 @@ from .camera import Camera, camera_from_dict
 from .errors import StoreError
 from .imageio import write_bytes_atomic
 
-__all__ = ["Store", "STORE_FORMAT", "STORE_VERSION"]
+__all__ = ["Store", "Shard", "STORE_FORMAT", "STORE_VERSION", "LAYOUT_DIRS", "temp_files"]
 
 STORE_FORMAT = "vcseg-store"
 STORE_VERSION = 1
+LAYOUT_DIRS = ("images", "labels", "valid")
+MANIFEST = "manifest.jsonl"
+JOURNAL = "manifest.journal.jsonl"  # the part file of an unsharded build
+
+
+@dataclass(frozen=True)
+class Shard:
+    """Shard ``k`` of ``n`` (1 <= k <= n): the items whose id hashes to ``k - 1`` modulo ``n``.
+
+    The hash is SHA-256 of the id, so the split is the same on every machine and Python version
+    and does not depend on the order or number of the files listed."""
+
+    k: int
+    n: int
+
+    @classmethod
+    def parse(cls, text: str) -> "Shard":
+        """'K/N' (e.g. '3/8'; K counts from 1, as in SLURM_ARRAY_TASK_ID=1..N)."""
+        try:
+            k, n = (int(x) for x in str(text).split("/"))
+        except ValueError:
+            raise StoreError(f"--shard '{text}' is not K/N", None, "give e.g. --shard 1/4 (K from 1 to N)") from None
+        if not (n >= 1 and 1 <= k <= n):
+            raise StoreError(f"--shard {text}: K must be between 1 and N", None, "give e.g. --shard 1/4 (K from 1 to N)")
+        return cls(k, n)
+
+    def contains(self, item_id: str) -> bool:
+        h = int.from_bytes(hashlib.sha256(item_id.encode()).digest()[:8], "big")
+        return h % self.n == self.k - 1
+
+    @property
+    def part_name(self) -> str:
+        return f"manifest.shard-{self.k}-of-{self.n}.jsonl"
+
+    def __str__(self) -> str:
+        return f"{self.k}/{self.n}"
+
+
+def temp_files(root: Path) -> list[Path]:
+    """Temp files an interrupted atomic write left in a store (``.NAME.XXXX.tmp``)."""
+    out: list[Path] = []
+    for d in (root, *(root / sub for sub in LAYOUT_DIRS)):
+        if d.is_dir():
+            out += sorted(p for p in d.iterdir() if p.name.startswith(".") and p.name.endswith(".tmp"))
+    return out
+
+
+def _read_records(path: Path, items: dict[str, dict[str, Any]], torn_ok: bool) -> dict[str, dict[str, Any]]:
+    """Add the records of one manifest file to ``items`` (later lines win); returns them too."""
+    mine: dict[str, dict[str, Any]] = {}
+    try:
+        text = path.read_text()
+    except FileNotFoundError:  # a part folded by a concurrent merge
+        return mine
+    lines = text.split("\n")
+    for n, line in enumerate(lines, 1):
+        if not line.strip():
+            continue
+        try:
+            rec = json.loads(line)
+            rid = rec["id"]
+        except (ValueError, KeyError, TypeError):
+            if torn_ok and n == len(lines):  # the last line, without its newline: a torn append
+                continue
+            raise StoreError(f"manifest line {n} is corrupt", path, "rebuild the store") from None
+        mine[rid] = rec
+    items.update(mine)
+    return mine
 
 
 class Store:
     """A store directory: parameters plus item records; files are addressed relative to ``root``."""
 
-    def __init__(self, root: Path, params: dict[str, Any], items: dict[str, dict[str, Any]]):
+    def __init__(self, root: Path, params: dict[str, Any], items: dict[str, dict[str, Any]],
+                 parts: list[Path] | None = None, shard: Shard | None = None):
         self.root = Path(root)
         self.params = params
         self.items = items
+        self.parts = list(parts or [])  # part files read at open (folded by an unsharded save)
+        self.shard = shard  # this writer's shard (None: unsharded)
+        self._part_items: dict[str, dict[str, Any]] = {}  # records in this writer's own part file
+        self._journal = None
 
     # -- parameters ---------------------------------------------------------------------------
     @property
@@ -64,7 +155,9 @@ class Store:
 
     # -- open / create ------------------------------------------------------------------------
     @classmethod
-    def open(cls, root: str | Path) -> "Store":
+    def open(cls, root: str | Path, shard: Shard | None = None) -> "Store":
+        """Open a store: parameters plus the union of its manifest and part files. ``shard``:
+        this process will write as that shard (see the module docstring)."""
         root = Path(root)
         meta = root / "store.json"
         if not root.is_dir():
@@ -81,23 +174,31 @@ class Store:
             raise StoreError(f"store format version {params.get('version')} is not supported (this tool reads "
                              f"{STORE_VERSION})", meta, "rebuild the store with this version of vcprep")
         items: dict[str, dict[str, Any]] = {}
-        manifest = root / "manifest.jsonl"
-        if manifest.exists():
-            for n, line in enumerate(manifest.read_text().splitlines(), 1):
-                if not line.strip():
-                    continue
-                try:
-                    rec = json.loads(line)
-                    items[rec["id"]] = rec
-                except (ValueError, KeyError, TypeError):
-                    raise StoreError(f"manifest line {n} is corrupt", manifest, "rebuild the store") from None
-        return cls(root, params, items)
+        _read_records(root / MANIFEST, items, torn_ok=False)
+        parts = sorted(p for p in root.glob("manifest.*.jsonl") if p.name != MANIFEST)
+        store = cls(root, params, items, parts=parts)
+        for part in parts:
+            _read_records(part, items, torn_ok=True)
+        return store._attach(shard)
 
     @classmethod
-    def open_or_create(cls, root: str | Path, params: dict[str, Any]) -> "Store":
+    def open_or_create(cls, root: str | Path, params: dict[str, Any], shard: Shard | None = None) -> "Store":
         """Open ``root`` if it is a store with the same parameters, create it if it does not
-        exist (or is an empty directory); refuse a store built with other parameters."""
-        root = Path(root)
+        exist (or is an empty directory); refuse a store built with other parameters.
+
+        ``shard``: this process writes only its shard's part file (see the module docstring).
+        Shards may create the same store at the same moment: they write identical store.json."""
+        return cls._open_or_create(Path(root), params)._attach(shard)
+
+    def _attach(self, shard: Shard | None) -> "Store":
+        """Make this process the writer of ``shard`` (None: unsharded)."""
+        self.shard = shard
+        own = self.root / shard.part_name if shard else None
+        self._part_items = _read_records(own, {}, torn_ok=True) if own is not None and own.exists() else {}
+        return self
+
+    @classmethod
+    def _open_or_create(cls, root: Path, params: dict[str, Any]) -> "Store":
         if root.exists() and not root.is_dir():
             raise StoreError("exists and is not a directory", root, "choose another --out")
         if root.is_dir() and (root / "store.json").exists():
@@ -110,18 +211,20 @@ class Store:
                                  f"(store: {', '.join(f'{k}={mine[k]}' for k in diff if k != 'virtual') or 'other virtual camera'})",
                                  root, "write to a new --out directory; one store holds one virtual camera at one scale")
             return store
-        if root.is_dir() and any(p for p in root.iterdir() if not p.name.startswith(".")):
+        ours = lambda p: p.name.startswith(".") or p.name in LAYOUT_DIRS or p.name.startswith("manifest.")
+        if root.is_dir() and any(not ours(p) for p in root.iterdir()):  # (a shard may be creating it too)
             raise StoreError("directory exists, is not empty and is not a vcprep store", root,
                              "choose a new or empty --out directory")
         try:
-            for sub in ("images", "labels", "valid"):
+            for sub in LAYOUT_DIRS:
                 (root / sub).mkdir(parents=True, exist_ok=True)
         except OSError as e:
             raise StoreError(f"cannot create store: {e.strerror or e}", root, "check permissions or choose another --out") from None
         full = dict(format=STORE_FORMAT, version=STORE_VERSION, created_by=f"vcprep {__version__}", **params)
         store = cls(root, full, {})
         store._write_params()
-        store.save()
+        if not (root / MANIFEST).exists():
+            store._write_manifest()
         return store
 
     def _write_params(self) -> None:
@@ -132,15 +235,58 @@ class Store:
                              "check permissions or choose another --out") from None
 
     # -- items ---------------------------------------------------------------------------------
+    def record(self, rec: dict[str, Any]) -> None:
+        """Add or replace one item record, durably: one appended line in this writer's part file
+        (call it after the item's files are in place)."""
+        self.items[rec["id"]] = rec
+        self._part_items[rec["id"]] = rec
+        path = self.root / (self.shard.part_name if self.shard else JOURNAL)
+        line = (json.dumps(rec, separators=(",", ":")) + "\n").encode()
+        try:
+            if self._journal is None:
+                self._journal = os.open(path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+            os.write(self._journal, line)  # one write per record: a crash tears at most the last line
+        except OSError as e:
+            raise StoreError(f"cannot write: {e.strerror or e}", path, "check permissions and free disk space") from None
+
     def save(self) -> None:
-        """Rewrite the manifest atomically (sorted by id)."""
-        lines = [json.dumps(self.items[k], separators=(",", ":")) for k in sorted(self.items)]
+        """Make the records compact and permanent. Unsharded: rewrite ``manifest.jsonl`` with
+        every record (sorted by id, atomically), then delete the part files it now contains.
+        Shard: rewrite only this shard's part file, compacted."""
+        self._close_journal()
+        if self.shard is not None:
+            self._write_lines(self.root / self.shard.part_name, self._part_items)
+            return
+        self._write_manifest()
+        for part in {*self.parts, self.root / JOURNAL}:
+            try:
+                part.unlink()
+            except FileNotFoundError:
+                pass
+        self.parts = []
+        self._part_items = {}
+
+    def _write_manifest(self) -> None:
+        self._write_lines(self.root / MANIFEST, self.items)
+
+    @staticmethod
+    def _write_lines(path: Path, items: dict[str, dict[str, Any]]) -> None:
+        lines = [json.dumps(items[k], separators=(",", ":")) for k in sorted(items)]
         data = ("\n".join(lines) + "\n").encode() if lines else b""
         try:
-            write_bytes_atomic(self.root / "manifest.jsonl", data)
+            write_bytes_atomic(path, data)
         except OSError as e:
-            raise StoreError(f"cannot write: {e.strerror or e}", self.root / "manifest.jsonl",
-                             "check permissions and free disk space") from None
+            raise StoreError(f"cannot write: {e.strerror or e}", path, "check permissions and free disk space") from None
+
+    def _close_journal(self) -> None:
+        if self._journal is not None:
+            os.close(self._journal)
+            self._journal = None
+
+    @property
+    def pending_parts(self) -> list[Path]:
+        """Part files not yet folded into manifest.jsonl (a running, killed or sharded build)."""
+        return sorted(p for p in self.root.glob("manifest.*.jsonl") if p.name != MANIFEST)
 
     def __iter__(self) -> Iterator[dict[str, Any]]:
         return (self.items[k] for k in sorted(self.items))

@@ -1,0 +1,210 @@
+"""Throughput of the store stage (``vcprep warp`` into a fresh store) with 1 and 2 worker
+processes, against plain PNG decode + encode of the same frames, in the same run.
+
+Run:
+
+    .venv/bin/python benchmarks/store.py                      # 120 CamVid frames, 3 repeats
+    .venv/bin/python benchmarks/store.py --frames 367 --repeats 5
+
+Data: the first ``--frames`` images of ``../shared/data/camvid/train`` (SegNet release, 480x360,
+camvid camera) with their ``trainannot`` labels (camvid format), warped at scale 1/8 of the
+``virtual`` preset (688x350) with projective completion (the ``vcprep warp`` default). When that
+folder is absent the script says so and uses synthetic ``render_road`` frames of the same size.
+
+Timed per repeat (wall clock, fresh store each time, order of the three stages rotated):
+
+* ``jobs1`` / ``jobs2``: :func:`vcprep.build.warp_dataset` with ``workers=1`` / ``2`` - the
+  code of ``vcprep warp --jobs N`` (hash the sources, H, up-to-date check, warp + completion,
+  three atomic PNG writes and a journalled record per item, the manifest at the end); the pool
+  start-up is included;
+* ``png_io``: for each frame, read + decode image and label, encode both as PNG (OpenCV's
+  default settings) and write them atomically - the least any store stage over these frames
+  costs. (The store writes zlib level 1 + 'sub' filter, see ``vcprep.imageio``: about as fast
+  as OpenCV's default, files ~10% smaller.)
+
+A pure-Python CPU loop run in 1 process and in a pool of 2 (``control_cpu_speedup``) measures,
+interleaved with the stages, the speedup the machine allowed a second process during the run.
+The table also gives the cores each stage kept busy (CPU seconds of this process and its workers
+/ wall seconds) and the load average: on a shared machine other processes' load caps what a
+second worker can add, and these say how much.
+
+Threads: ``cv2.setNumThreads(1)`` in this process and in every worker (the pool is the
+parallelism). Targets (issue 5): ``jobs2_speedup`` = jobs1 time / jobs2 time >= 1.7 on a 2-core
+machine; ``ratio_vs_png_io`` = jobs1 time / png_io time <= 1.25. Results (median, 10th-90th
+percentile and min-max over repeats): ``benchmarks/results/store.json``; the last stdout line is
+one JSON object with ``jobs1_items_s``, ``jobs2_items_s``, ``jobs2_speedup``, ``ratio_vs_png_io``.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import resource
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from vcprep.build import Job, list_dataset, warp_dataset  # noqa: E402
+from vcprep.camera import PRESETS  # noqa: E402
+from vcprep.imageio import write_bytes_atomic  # noqa: E402
+from vcprep.labels import LABEL_FORMATS  # noqa: E402
+from vcprep.parallel import default_jobs  # noqa: E402
+
+CAMVID = ROOT.parent / "shared" / "data" / "camvid"
+
+
+def frames(n: int, tmp: Path) -> tuple[list[Job], str]:
+    """Jobs for the benchmark frames and a sentence about where they came from."""
+    fmt = LABEL_FORMATS["camvid"]
+    if (CAMVID / "train").is_dir() and (CAMVID / "trainannot").is_dir():
+        jobs = list_dataset(CAMVID / "train", CAMVID / "trainannot", fmt)[:n]
+        return jobs, f"first {len(jobs)} CamVid train frames from {CAMVID} (480x360) with trainannot labels"
+    sys.path.insert(0, str(ROOT / "tests"))
+    from conftest import write_synthetic_dataset  # noqa: E402
+
+    images, labels = write_synthetic_dataset(tmp / "synthetic", PRESETS["camvid"].for_image_size((480, 360)), n=n,
+                                             bonnet_rows=20)
+    jobs = list_dataset(images, labels, fmt)
+    return jobs, f"{CAMVID} ABSENT: {n} synthetic render_road frames (480x360) instead"
+
+
+def png_io(jobs: list[Job], out: Path) -> None:
+    """The baseline: decode + encode + atomic write of every image and label."""
+    out.mkdir(parents=True, exist_ok=True)
+    for j in jobs:
+        for src, tag in ((j.image, "i"), (j.label, "l")):
+            arr = cv2.imdecode(np.frombuffer(src.read_bytes(), np.uint8), cv2.IMREAD_UNCHANGED)
+            ok, buf = cv2.imencode(".png", arr)  # OpenCV's default PNG settings
+            write_bytes_atomic(out / f"{j.id}.{tag}.png", buf.tobytes())
+
+
+def _burn(n: int) -> int:
+    x = 0
+    for i in range(n):
+        x += i * i
+    return x
+
+
+def control(workers: int, tasks: int = 4, n: int = 2_000_000) -> float:
+    """Seconds for ``tasks`` pure-Python CPU loops in 1 process or a pool of ``workers``: the
+    speedup the machine allows right now, whatever our code does."""
+    t = time.perf_counter()
+    if workers == 1:
+        [_burn(n) for _ in range(tasks)]
+    else:
+        import concurrent.futures as cf
+
+        with cf.ProcessPoolExecutor(workers) as pool:
+            list(pool.map(_burn, [n] * tasks))
+    return time.perf_counter() - t
+
+
+def cpu_s() -> float:
+    """CPU seconds (user + system) of this process and its finished children (pool workers)."""
+    a, b = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return a.ru_utime + a.ru_stime + b.ru_utime + b.ru_stime
+
+
+def stats(ts: list[float]) -> dict:
+    a = np.array(ts)
+    return {"median_s": float(np.median(a)), "p10_s": float(np.percentile(a, 10)), "p90_s": float(np.percentile(a, 90)),
+            "min_s": float(a.min()), "max_s": float(a.max()), "runs": len(ts)}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--frames", type=int, default=120, help="number of frames (default 120)")
+    ap.add_argument("--repeats", type=int, default=3, help="timed repeats of each stage (default 3)")
+    ap.add_argument("--scale", type=float, default=0.125, help="store scale (default 1/8 -> 688x350)")
+    ap.add_argument("--out", type=Path, default=ROOT / "benchmarks" / "results" / "store.json")
+    args = ap.parse_args()
+    cv2.setNumThreads(1)
+    tmp = Path(tempfile.mkdtemp(prefix="bench-store-"))
+    try:
+        jobs, source = frames(args.frames, tmp)
+        print(f"data: {source}; cores available: {default_jobs()}; threads: cv2.setNumThreads(1) per process",
+              file=sys.stderr)
+        cam, virtual, fmt = PRESETS["camvid"], PRESETS["virtual"], LABEL_FORMATS["camvid"]
+
+        def build(workers: int, run: int) -> float:
+            out = tmp / f"store-{workers}-{run}"
+            t = time.perf_counter()
+            store, summary = warp_dataset(jobs, cam, virtual, args.scale, out, fmt, progress=False,
+                                          completion="projective", workers=workers)
+            dt = time.perf_counter() - t
+            assert summary.built == len(jobs), summary.line()
+            shutil.rmtree(out)
+            return dt
+
+        def baseline(_: int, run: int) -> float:
+            out = tmp / f"png-{run}"
+            t = time.perf_counter()
+            png_io(jobs, out)
+            dt = time.perf_counter() - t
+            shutil.rmtree(out)
+            return dt
+
+        stages = {"jobs1": lambda r: build(1, r), "jobs2": lambda r: build(2, r), "png_io": lambda r: baseline(0, r),
+                  "cpu1": lambda r: control(1), "cpu2": lambda r: control(2)}
+        stages["jobs1"](-1)  # warm-up: imports, page cache of the frames
+        times: dict[str, list[float]] = {k: [] for k in stages}
+        cpu: dict[str, list[float]] = {k: [] for k in stages}
+        names = list(stages)
+        load_before = os.getloadavg()[0]
+        for r in range(args.repeats):
+            for k in names[r % len(names):] + names[:r % len(names)]:
+                c = cpu_s()
+                times[k].append(stages[k](r))
+                cpu[k].append(cpu_s() - c)
+        load_after = os.getloadavg()[0]
+        st = {k: stats(v) for k, v in times.items()}
+        n = len(jobs)
+        med = {k: v["median_s"] for k, v in st.items()}
+        speedup = med["jobs1"] / med["jobs2"]
+        machine = med["cpu1"] / med["cpu2"]
+        ratio = med["jobs1"] / med["png_io"]
+        store_size = [round(virtual.size[0] * args.scale), round(virtual.size[1] * args.scale)]
+        cores_used = {k: float(np.median(np.array(cpu[k]) / np.array(times[k]))) for k in names}
+        print(f"{'stage':<8} {'items/s':>8} {'ms/item':>8} {'median s':>9} {'p10..p90 s':>14} {'min..max s':>14} "
+              f"{'cores busy':>10}")
+        for k in names[:3]:
+            s = st[k]
+            print(f"{k:<8} {n / s['median_s']:>8.1f} {1000 * s['median_s'] / n:>8.2f} {s['median_s']:>9.3f} "
+                  f"{s['p10_s']:>6.3f}..{s['p90_s']:<6.3f} {s['min_s']:>6.3f}..{s['max_s']:<6.3f} {cores_used[k]:>10.2f}")
+        print(f"load average (1 min) before/after: {load_before:.2f}/{load_after:.2f} on {os.cpu_count()} cores "
+              "(other processes' load leaves the pool fewer cores)")
+        print(f"jobs2 speedup {speedup:.2f}x (target >= 1.7); a pure-CPU control got {machine:.2f}x from 2 processes "
+              f"in the same run (what the machine allowed)")
+        print(f"store stage / PNG decode+encode {ratio:.2f}x (target <= 1.25)")
+        result = {"benchmark": "store", "data": source, "frames": n, "source_size": [480, 360],
+                  "store_size": store_size, "scale": args.scale, "completion": "projective",
+                  "threads": "cv2.setNumThreads(1) per process", "cores": default_jobs(),
+                  "machine": platform.machine(), "python": platform.python_version(), "cv2": cv2.__version__,
+                  "repeats": args.repeats, "stages": st, "cores_busy": cores_used,
+                  "cpu_ms_per_item": {k: 1000 * float(np.median(cpu[k])) / n for k in names},
+                  "loadavg_1min": [load_before, load_after],
+                  "items_s": {k: n / med[k] for k in names[:3]},
+                  "jobs2_speedup": speedup, "ratio_vs_png_io": ratio, "control_cpu_speedup": machine,
+                  "targets": {"jobs2_speedup": ">= 1.7", "ratio_vs_png_io": "<= 1.25"}}
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(json.dumps(result, indent=1) + "\n")
+        print(f"wrote {args.out}", file=sys.stderr)
+        print(json.dumps({"jobs1_items_s": round(n / med["jobs1"], 2), "jobs2_items_s": round(n / med["jobs2"], 2),
+                          "png_io_items_s": round(n / med["png_io"], 2), "jobs2_speedup": round(speedup, 3), "control_cpu_speedup": round(machine, 3),
+                          "ratio_vs_png_io": round(ratio, 3), "frames": n,
+                          "jobs2_cores_busy": round(cores_used["jobs2"], 2), "loadavg": round(load_before, 2), "camvid": "ABSENT" not in source}))
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    main()
