@@ -121,6 +121,14 @@ def run_items(fn: Callable[[Any, Any], Any], ctx: Any, tasks: Iterable[Any],
         bar.close()
 
 
+def _context():
+    """A forkserver whose server has imported the heavy modules once: workers start fast and
+    never inherit a parent's OpenCV thread pool (forking after OpenCV ran threads can deadlock)."""
+    ctx = mp.get_context("forkserver")
+    ctx.set_forkserver_preload(["numpy", "cv2", "vcprep.build", "vcprep.completion"])
+    return ctx
+
+
 def _run_pool(fn, ctx, tasks, on_result, jobs, bar, interrupted) -> None:
     pending = iter(tasks)
     running: dict[cf.Future, Any] = {}
@@ -129,7 +137,7 @@ def _run_pool(fn, ctx, tasks, on_result, jobs, bar, interrupted) -> None:
     try:
         # forkserver, not fork: forking a parent whose OpenCV thread pool has run (e.g. VP
         # detection before the warp) can deadlock the children
-        with cf.ProcessPoolExecutor(jobs, mp_context=mp.get_context("forkserver"), initializer=_init_worker,
+        with cf.ProcessPoolExecutor(jobs, mp_context=_context(), initializer=_init_worker,
                                     initargs=(fn, ctx)) as pool:
             try:
                 while True:
