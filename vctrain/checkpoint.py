@@ -15,14 +15,14 @@ A checkpoint is a ``torch.save`` dict (loadable with ``weights_only=True``)::
 """
 from __future__ import annotations
 
-import os
-import tempfile
+import io
 from pathlib import Path
 from typing import Any
 
 import torch
 
 from vcprep.errors import InputError
+from vcprep.imageio import write_bytes_atomic
 
 from . import __version__
 from .model import ARCHITECTURES, SegNet, build_model
@@ -38,21 +38,13 @@ def save_checkpoint(path: str | Path, ckpt: dict[str, Any]) -> None:
     path = Path(path)
     full = {"format": CKPT_FORMAT, "version": CKPT_VERSION, "tool_version": __version__,
             "torch_version": str(torch.__version__), **ckpt}
+    buf = io.BytesIO()
+    torch.save(full, buf)
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        write_bytes_atomic(path, buf.getvalue())
     except (FileNotFoundError, NotADirectoryError):
         raise InputError("cannot write the checkpoint here (parent folder missing)", path,
                          "create the folder first") from None
-    try:
-        with os.fdopen(fd, "wb") as f:
-            torch.save(full, f)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
 
 
 def load_checkpoint(path: str | Path) -> dict[str, Any]:
