@@ -389,6 +389,9 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
         torch.distributed.all_gather(copies, flat)
         replicas_identical = all(torch.equal(copies[0], c) for c in copies[1:])
         torch.distributed.barrier()
+        # tear the process group down here, not at interpreter exit, where gloo's threads can
+        # abort the process ("terminate called without an active exception")
+        torch.distributed.destroy_process_group()
     return {"replicas_identical": replicas_identical, "world_size": world,
             "out": str(out), "last": str(last_path(out)), "log": str(log_path), "epochs": cfg.epochs,
             "best_val_iou": best_iou if best_iou >= 0 else None, "best_epoch": best_epoch,
