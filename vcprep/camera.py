@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from .errors import InputError
+from .imageio import read_text
 
 __all__ = [
     "Camera",
@@ -204,23 +205,12 @@ def camera_from_dict(d: Any, file: str | Path | None = None, default_name: str =
     return Camera(name=name, size=(int(w), int(h)), fx=fx, fy=fy, cx=cx, cy=cy, height=height, tilt=tilt, pan=pan)
 
 
-def _read_text(path: Path) -> str:
-    try:
-        return path.read_text()
-    except FileNotFoundError:
-        raise InputError("file not found", path, "check the path") from None
-    except IsADirectoryError:
-        raise InputError("is a directory, expected a file", path, "give the camera file itself") from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise InputError(f"cannot read: {e.__class__.__name__}", path, "check the file and its permissions") from None
-
-
 def read_camera_yaml(path: str | Path) -> Camera:
     """Read a camera YAML file (schema in README); every problem raises :class:`InputError`."""
     import yaml
 
     path = Path(path)
-    text = _read_text(path)
+    text = read_text(path, "camera file", "give the camera file itself")
     try:
         d = yaml.safe_load(text)
     except yaml.YAMLError as e:
@@ -254,7 +244,7 @@ def read_kitti_calib(path: str | Path, image_size: tuple[int, int] = (1242, 375)
     frame's camera height and tilt. Without ``Tr_cam_to_road`` the kitti preset's height and
     zero tilt are used. KITTI files carry no image size: ``image_size`` is that of the frames."""
     path = Path(path)
-    text = _read_text(path)
+    text = read_text(path, "camera file", "give the camera file itself")
     entries: dict[str, np.ndarray] = {}
     for n, line in enumerate(text.splitlines(), 1):
         if not line.strip():
@@ -299,7 +289,7 @@ def read_cityscapes_camera(path: str | Path, image_size: tuple[int, int] = (2048
     (radians, metres). Cityscapes pitch > 0 is pitched down = our tilt; yaw > 0 (turned left)
     puts the road VP right of the principal point = our pan > 0."""
     path = Path(path)
-    text = _read_text(path)
+    text = read_text(path, "camera file", "give the camera file itself")
     try:
         d = json.loads(text)
     except (json.JSONDecodeError, RecursionError):

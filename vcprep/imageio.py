@@ -15,7 +15,7 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["LoadedImage", "read_image", "write_png", "write_bytes_atomic", "IMAGE_EXTENSIONS", "MAX_PIXELS",
+__all__ = ["LoadedImage", "read_image", "read_text", "write_png", "write_bytes_atomic", "IMAGE_EXTENSIONS", "MAX_PIXELS",
            "image_size_from_header"]
 
 # we report every decoding problem ourselves, as one Error: line; OpenCV's own log would add noise
@@ -96,6 +96,19 @@ def read_image(path: str | Path, *, label: bool = False) -> LoadedImage:
     if arr.dtype not in (np.uint8, np.uint16):
         raise InputError(f"{kind} has unsupported pixel type {arr.dtype}", path, "convert to 8- or 16-bit PNG")
     return LoadedImage(path, arr, hashlib.sha256(data).hexdigest())
+
+
+def read_text(path: str | Path, kind: str = "file", fix: str = "check the path") -> str:
+    """A text file's contents; every failure raises :class:`InputError` naming the file."""
+    path = Path(path)
+    try:
+        return path.read_text()
+    except FileNotFoundError:
+        raise InputError(f"{kind} not found", path, fix) from None
+    except IsADirectoryError:
+        raise InputError(f"is a directory, expected a {kind}", path, fix) from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise InputError(f"cannot read {kind}: {e.__class__.__name__}", path, "check the file and its permissions") from None
 
 
 def write_bytes_atomic(path: str | Path, data: bytes) -> None:

@@ -48,6 +48,7 @@ import numpy as np
 from .camera import Camera
 from .errors import InputError
 from .homography import pose_from_vp, vp_from_pose
+from .imageio import read_text
 
 __all__ = [
     "VPConfig",
@@ -474,14 +475,7 @@ def read_vp_csv(path: str | Path) -> dict[str, tuple[float, float]]:
     is not finite, or an id seen before raises :class:`InputError` naming the line.
     """
     path = Path(path)
-    try:
-        text = path.read_text()
-    except FileNotFoundError:
-        raise InputError("VP file not found", path, "give a CSV with columns id,u,v") from None
-    except IsADirectoryError:
-        raise InputError("is a directory, expected a VP CSV file", path, "give a CSV with columns id,u,v") from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise InputError(f"cannot read VP file: {e.__class__.__name__}", path, "check the file") from None
+    text = read_text(path, "VP file", "give a CSV with columns id,u,v")
     vps: dict[str, tuple[float, float]] = {}
     lines: dict[str, int] = {}
     first = True
