@@ -1,0 +1,167 @@
+"""vctrain crossval: leave-one-dataset-out over synthetic datasets from three different cameras."""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import yaml
+
+from vcprep.camera import PRESETS, camera_to_yaml
+from vcprep.homography import vp_from_pose
+from vcprep.store import Store
+
+from conftest import assert_one_error_line, run_cli, write_synthetic_dataset
+
+CONDS = ["resize", "between", "within", "within-gt", "zero"]
+CAMS = {
+    "camvid": PRESETS["camvid"].for_image_size((240, 180)),
+    "kitti": PRESETS["kitti"].for_image_size((414, 125)),
+    "cityscapes": PRESETS["cityscapes"].for_image_size((256, 128)),
+}
+# per-image poses (pan, tilt) relative to each camera's average pose: the given VPs follow exactly
+OFFSETS = [(0.0, 0.0), (4.0, -2.0), (-3.0, 1.5), (2.0, 2.5)]
+
+
+def _dataset(root: Path, name: str, cam, n: int, first: int, vps: bool) -> dict:
+    poses = [(cam.pan + dp, cam.tilt + dt) for dp, dt in (OFFSETS * 3)[first:first + n]]
+    images, labels = write_synthetic_dataset(root / name, cam, n=n, poses=poses, bonnet_rows=3)
+    split = {"images": str(images.relative_to(root)), "labels": str(labels.relative_to(root))}
+    if vps:
+        rows = ["id,u,v"] + [f"{p.stem},{u:.6f},{v:.6f}" for p, (u, v) in
+                             zip(sorted(images.iterdir()), (vp_from_pose(cam, pa, ti) for pa, ti in poses))]
+        (root / name / "vps.csv").write_text("\n".join(rows) + "\n")
+        split["vps"] = f"{name}/vps.csv"
+    return split
+
+
+def _study(root: Path, vps_for=("camvid", "kitti", "cityscapes")) -> Path:
+    root.mkdir(parents=True, exist_ok=True)
+    datasets = []
+    for name, cam in CAMS.items():
+        (root / f"{name}.yaml").write_text(camera_to_yaml(cam))
+        datasets.append({"name": name, "camera": f"{name}.yaml", "label_format": "camvid",
+                         "train": _dataset(root, f"{name}_train", cam, 4, 0, name in vps_for),
+                         "test": _dataset(root, f"{name}_test", cam, 2, 4, name in vps_for)})
+    study = {"datasets": datasets, "store_width": 128, "pan_range": 5, "tilt_range": 3,
+             "train": {"epochs": 1, "max_steps": 2, "batch_size": 2, "arch": "segnet-narrow", "base_width": 4,
+                       "val_fraction": 0, "seed": 0}}
+    path = root / "study.yaml"
+    path.write_text(yaml.safe_dump(study, sort_keys=False))
+    return path
+
+
+@pytest.fixture(scope="module")
+def study_run(tmp_path_factory):
+    root = tmp_path_factory.mktemp("crossval")
+    study = _study(root / "data")
+    out = root / "out"
+    proc = run_cli("crossval", study, "--out", out, "--json", prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    return study, out, proc
+
+
+def test_table_has_every_heldout_and_condition(study_run):
+    _, out, proc = study_run
+    summary = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert list(summary) == CONDS
+    assert all(0.0 <= v <= 1.0 for v in summary.values())
+    rows = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
+    assert {(r["heldout"], r["condition"]) for r in rows} == {(h, c) for h in CAMS for c in CONDS}
+    for r in rows:
+        assert r["test_items"] == 2                       # the held-out TEST split, nothing else
+        assert r["heldout"] not in r["train_datasets"] and len(r["train_datasets"]) == 2
+        assert r["train_items"] == 8
+    table = (out / "table.md").read_text().splitlines()
+    assert table[2] == "| held out | " + " | ".join(CONDS) + " |"
+    assert [ln.split("|")[1].strip() for ln in table[4:]] == list(CAMS) + ["mean"]
+    csv = (out / "table.csv").read_text().splitlines()
+    assert csv[0] == "held out," + ",".join(CONDS) and len(csv) == len(CAMS) + 2
+    # the mean row is the mean of the column
+    for j, c in enumerate(CONDS, 1):
+        col = [float(line.split(",")[j]) for line in csv[1:-1]]
+        assert float(csv[-1].split(",")[j]) == pytest.approx(sum(col) / len(col), abs=0.051)
+        assert summary[c] * 100 == pytest.approx(float(csv[-1].split(",")[j]), abs=0.051)
+
+
+def test_each_condition_trains_in_its_own_domain(study_run):
+    import torch
+
+    _, out, _ = study_run
+    ck = {c: torch.load(out / "runs" / "kitti" / c / "model.pt", map_location="cpu", weights_only=False) for c in CONDS}
+    assert ck["resize"]["data"]["mode"] == "resize"
+    stored = {c: ck[c]["config"]["stores"] for c in CONDS}
+    for c in ("between", "within", "within-gt", "zero"):
+        assert ck[c]["data"]["mode"] == "virtual"
+        assert all("/kitti/" not in s for s in stored[c])   # never the held-out camera
+    assert ck["between"]["data"]["vp_status"] == ["camera"]
+    assert set(ck["within"]["data"]["vp_status"]) <= {"accepted", "fallback"}
+    assert ck["within-gt"]["data"]["vp_status"] == ["given"]
+    assert ck["within"]["data"]["completion"] == "projective" and ck["zero"]["data"]["completion"] == "zero"
+    # the given VPs reach the records exactly
+    s = Store.open(out / "stores" / "camvid" / "train" / "within-gt")
+    cam = CAMS["camvid"]
+    for rec, (dp, dt) in zip(sorted(s, key=lambda r: r["id"]), OFFSETS):
+        assert rec["vp"] == pytest.approx(vp_from_pose(cam, cam.pan + dp, cam.tilt + dt), abs=1e-5)
+    # one virtual camera (designed from the three) for every store, at the study's width
+    sizes = {tuple(Store.open(p).store_size) for p in (out / "stores").glob("*/*/*")}
+    assert len(sizes) == 1 and next(iter(sizes))[0] == 128
+
+
+def test_heldout_score_matches_predict_and_eval(study_run, tmp_path):
+    """The study's held-out figure equals what the public predict + eval commands give."""
+    _, out, _ = study_run
+    for cond, geom in (("within", "within"), ("resize", "between")):
+        preds = tmp_path / cond
+        p = run_cli("predict", out / "runs" / "cityscapes" / cond / "model.pt", "--store",
+                    out / "stores" / "cityscapes" / "test" / geom, "--out", preds, "-q", "--device", "cpu",
+                    prog="vctrain")
+        assert p.returncode == 0, p.stderr
+        e = run_cli("eval", preds, "--labels", out.parent / "data" / "cityscapes_test" / "labels", "-f", "camvid",
+                    "--json", "-q", prog="vctrain")
+        assert e.returncode == 0, e.stderr
+        got = json.loads((out / "runs" / "cityscapes" / cond / "result.json").read_text())
+        assert got["iou"] == pytest.approx(json.loads(e.stdout)["iou"], abs=2e-3)
+
+
+def test_rerun_resumes_without_training(study_run):
+    study, out, proc = study_run
+    models = sorted((out / "runs").glob("*/*/model.pt"))
+    before = {p: p.stat().st_mtime_ns for p in models}
+    again = run_cli("crossval", study, "--out", out, "--json", prog="vctrain")
+    assert again.returncode == 0, again.stderr
+    assert "done earlier" in again.stderr
+    assert again.stdout.strip().splitlines()[-1] == proc.stdout.strip().splitlines()[-1]
+    assert {p: p.stat().st_mtime_ns for p in models} == before
+
+
+def test_within_gt_is_skipped_without_given_vps(tmp_path):
+    study = _study(tmp_path / "data", vps_for=("camvid", "kitti"))
+    proc = run_cli("crossval", study, "--out", tmp_path / "out", "--conditions", "within-gt", "--heldout", "camvid",
+                   prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    assert "skipped (no given VPs for cityscapes)" in proc.stderr
+    assert "| camvid | - |" in proc.stdout
+
+
+@pytest.mark.parametrize("edit, needle", [
+    (lambda d: d.pop("datasets"), "missing key 'datasets'"),
+    (lambda d: d.update(datasets=d["datasets"][:1]), "at least two datasets"),
+    (lambda d: d.update(conditions=["within", "magic"]), "unknown condition 'magic'"),
+    (lambda d: d["datasets"][1].update(name=d["datasets"][0]["name"]), "two datasets named"),
+    (lambda d: d["datasets"][0]["train"].update(images="nowhere"), "not found"),
+    (lambda d: d["datasets"][0].update(label_format="nope"), "nope"),
+    (lambda d: d.update(store_width=10), "store_width"),
+    (lambda d: d["train"].update(learning_rate=1), "unknown key 'learning_rate'"),
+    (lambda d: d.update(extra=1), "unknown key 'extra'"),
+])
+def test_bad_study_files_give_one_error_line(tmp_path, edit, needle):
+    study = _study(tmp_path / "data")
+    d = yaml.safe_load(study.read_text())
+    edit(d)
+    study.write_text(yaml.safe_dump(d))
+    out = tmp_path / "out"
+    proc = run_cli("crossval", study, "--out", out, prog="vctrain")
+    assert_one_error_line(proc, needle)
+    assert str(study) in proc.stderr
+    assert not out.exists()
