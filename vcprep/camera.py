@@ -228,13 +228,13 @@ def camera_to_yaml(cam: Camera) -> str:
         "# vcprep camera (pixels: origin at the centre of the top-left pixel)",
         f"name: {d['name']}",
         f"image_size: [{d['image_size'][0]}, {d['image_size'][1]}]   # width, height in pixels",
-        f"fx: {d['fx']:.6g}   # focal lengths in pixels",
-        f"fy: {d['fy']:.6g}",
-        f"cx: {d['cx']:.6g}   # principal point in pixels",
-        f"cy: {d['cy']:.6g}",
-        f"height: {d['height']:.6g}   # mounting height above the road, metres",
-        f"tilt: {d['tilt']:.6g}   # degrees, positive = pitched down",
-        f"pan: {d['pan']:.6g}   # degrees",
+        f"fx: {d['fx']:.10g}   # focal lengths in pixels",
+        f"fy: {d['fy']:.10g}",
+        f"cx: {d['cx']:.10g}   # principal point in pixels",
+        f"cy: {d['cy']:.10g}",
+        f"height: {d['height']:.10g}   # mounting height above the road, metres",
+        f"tilt: {d['tilt']:.10g}   # degrees, positive = pitched down",
+        f"pan: {d['pan']:.10g}   # degrees",
     ]
     return "\n".join(lines) + "\n"
 
