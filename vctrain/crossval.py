@@ -17,6 +17,10 @@ and the held-out test images are predicted in the model's own domain and scored 
 camera (back-projected probabilities, threshold 0.5) against their original labels: road IoU =
 ΣTP / Σ(TP+FP+FN) over the held-out test images, ignore pixels excluded.
 
+Estimated VPs (``within``, ``zero``) are searched for and accepted only inside the pose range the
+virtual camera is designed to hold (``pan_range``, ``tilt_range`` of the study; rejected images fall
+back to the mean accepted VP, see :mod:`vcprep.vanishing_point`).
+
 Nothing is tuned on the held-out camera: the checkpoint kept is the best on a validation share of
 the TRAINING datasets. The virtual camera is designed from all the study's cameras (as in the
 paper, whose virtual camera covers all five), which uses the held-out camera's calibration but
@@ -25,7 +29,8 @@ none of its images.
 Layout under OUT: ``stores/<dataset>/<split>/<geometry>/`` (vcprep stores), ``vps/<dataset>-<split>.csv``
 (the estimated VPs), ``runs/<heldout>/<condition>/`` (checkpoint, training log, ``result.json``),
 ``results.jsonl``, ``table.md``, ``table.csv``, ``summary.json``. A run whose ``result.json`` exists
-is not redone, so an interrupted study resumes where it stopped.
+is not redone, so an interrupted study resumes where it stopped (after changing the study's
+settings, use a new OUT).
 """
 from __future__ import annotations
 
@@ -40,7 +45,7 @@ import numpy as np
 
 from vcprep.build import ItemPose, Job, list_dataset, warp_dataset
 from vcprep.camera import Camera, load_camera
-from vcprep.errors import InputError, VCError
+from vcprep.errors import InputError
 from vcprep.imageio import image_size_from_header, read_image, read_text, write_bytes_atomic
 from vcprep.labels import decode_label, get_label_format
 from vcprep.store import Store
@@ -274,8 +279,13 @@ class _Builder:
                                      "add 'vps:' to the split, or drop the within-gt condition")
                 res = vps_for_items(images, ids, self.camera(ds), str(vps))
             else:
+                from vcprep.vanishing_point import VPConfig
+
+                # search and accept VPs only within the pose range the virtual camera is designed
+                # to hold: a pose outside it would push the image out of the virtual frame
+                cfg = VPConfig(pan_range=self.study.pan_range, tilt_range=self.study.tilt_range)
                 self.say(f"estimating road VPs of {ds.name}/{split} ({len(jobs)} images)")
-                res = vps_for_items(images, ids, self.camera(ds), "estimate")
+                res = vps_for_items(images, ids, self.camera(ds), "estimate", cfg=cfg)
                 (self.out / "vps").mkdir(parents=True, exist_ok=True)
                 write_vp_csv(self.out / "vps" / f"{ds.name}-{split}.csv", ids, res)
             self._vps[key] = {i: ItemPose((r.vp[0], r.vp[1]), r.status) for i, r in zip(ids, res)}
@@ -286,16 +296,6 @@ class _Builder:
         source, completion = GEOMETRIES[geometry]
         root = self.out / "stores" / ds.name / split / geometry
         jobs = self.items(ds, split)
-        if (root / "store.json").exists():  # quick path: complete stores of the same items are reused
-            try:
-                s = Store.open(root)
-                same = (s.params.get("virtual") == self.virtual().to_dict() and s.params.get("scale") == self.scale()
-                        and len(s) == len(jobs) and all(s.items.get(j.id, {}).get("source") == str(j.image)
-                                                        for j in jobs))
-                if same:
-                    return root
-            except VCError:
-                pass
         poses = self.poses(ds, split, source)
         warp_dataset(jobs, self.camera(ds), self.virtual(), self.scale(), root, get_label_format(ds.label_format),
                      progress=self.progress, poses=poses, completion=completion, workers=self.jobs)
