@@ -135,6 +135,19 @@ def test_rerun_resumes_without_training(study_run):
     assert {p: p.stat().st_mtime_ns for p in models} == before
 
 
+def test_changed_settings_redo_the_runs(study_run, tmp_path):
+    study, out, _ = study_run
+    import shutil
+
+    copy = tmp_path / "out"
+    shutil.copytree(out, copy)
+    proc = run_cli("crossval", study, "--out", copy, "--heldout", "kitti", "--conditions", "between", "--epochs", "2",
+                   "--json", prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    assert "settings changed" in proc.stderr and "done earlier" not in proc.stderr
+    assert json.loads((copy / "runs" / "kitti" / "between" / "result.json").read_text())["epochs"] == 2
+
+
 def test_within_gt_is_skipped_without_given_vps(tmp_path):
     study = _study(tmp_path / "data", vps_for=("camvid", "kitti"))
     proc = run_cli("crossval", study, "--out", tmp_path / "out", "--conditions", "within-gt", "--heldout", "camvid",

@@ -29,15 +29,16 @@ none of its images.
 Layout under OUT: ``stores/<dataset>/<split>/<geometry>/`` (vcprep stores), ``vps/<dataset>-<split>.csv``
 (the estimated VPs), ``runs/<heldout>/<condition>/`` (checkpoint, training log, ``result.json``),
 ``results.jsonl``, ``table.md``, ``table.csv``, ``summary.json``. A run whose ``result.json`` exists
-is not redone, so an interrupted study resumes where it stopped (after changing the study's
-settings, use a new OUT).
+is not redone, so an interrupted study resumes where it stopped; a run finished with other
+settings (training, virtual camera, datasets) is redone.
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import re
 import time
-from dataclasses import dataclass, field, fields
+from dataclasses import astuple, dataclass, field, fields
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
@@ -361,15 +362,27 @@ def run_study(study: Study, out: str | Path, conditions: Sequence[str] | None = 
     _atomic_json(out / "study.json", {"study": str(study.path), "virtual": virt.to_dict(), "scale": b.scale(),
                                       "conditions": conditions, "datasets": [d.name for d in study.datasets],
                                       "train": {**study.train, **overrides}})
+    # what a run's result depends on (besides its held-out dataset and condition): a finished run
+    # with other settings is redone, never silently reused
+    settings = {"virtual": virt.to_dict(), "scale": b.scale(), "pan_range": study.pan_range,
+                "tilt_range": study.tilt_range, "train": {**study.train, **overrides},
+                "datasets": [[d.name, d.camera, d.label_format, *(str(x) for x in (*astuple(d.train), *astuple(d.test)))]
+                             for d in study.datasets]}
+    settings_sha = hashlib.sha256(json.dumps(settings, sort_keys=True, default=str).encode()).hexdigest()[:16]
     plan = [(h, c) for h in held for c in conditions]
     rows: list[dict[str, Any]] = []
     for k, (h, c) in enumerate(plan, 1):
         run_dir = out / "runs" / h / c
         done = run_dir / "result.json"
         if done.exists():
-            rows.append(json.loads(done.read_text()))
-            say(f"[{k}/{len(plan)}] held out {h}, {c}: done earlier (IoU {rows[-1]['iou']:.3f})")
-            continue
+            prev = json.loads(done.read_text())
+            if prev.get("settings_sha") == settings_sha:
+                rows.append(prev)
+                say(f"[{k}/{len(plan)}] held out {h}, {c}: done earlier (IoU {prev['iou']:.3f})")
+                continue
+            say(f"[{k}/{len(plan)}] held out {h}, {c}: the study's settings changed since it ran; redoing it")
+            for old in (done, run_dir / "model.pt", run_dir / "model.last.pt", run_dir / "model.log.jsonl"):
+                old.unlink(missing_ok=True)
         geometry, baseline = CONDITIONS[c]
         train_sets = [d for d in study.datasets if d.name != h]
         test_set = study.dataset(h)
@@ -396,7 +409,7 @@ def run_study(study: Study, out: str | Path, conditions: Sequence[str] | None = 
                "train_items": summary["data"]["train_items"], "val_items": summary["data"]["val_items"],
                "best_epoch": summary["best_epoch"], "best_val_iou": summary["best_val_iou"], "epochs": cfg.epochs,
                "input_size": list(size), "train_seconds": round(t_train, 1),
-               "total_seconds": round(time.perf_counter() - t0, 1)}
+               "total_seconds": round(time.perf_counter() - t0, 1), "settings_sha": settings_sha}
         _atomic_json(done, row)
         rows.append(row)
         say(f"[{k}/{len(plan)}] held out {h}, {c}: road IoU {row['iou']:.3f} ({row['total_seconds']:.0f} s)")
