@@ -654,7 +654,8 @@ def simulate_cmd(
           --pan-jitter 10 --tilt-jitter 5 --seed 1
     """
     from .build import list_dataset
-    from .simulate import SimulateParams, parse_size, simulate_dataset
+    from .cliutil import parse_size
+    from .simulate import SimulateParams, simulate_dataset
 
     if labels is not None and label_format is None:
         raise InputError("--labels given without --label-format", labels, f"add --label-format ({', '.join(LABEL_FORMATS)})")

@@ -11,7 +11,7 @@ import sys
 import traceback
 from typing import Any
 
-from .errors import VCError
+from .errors import InputError, VCError
 
 __all__ = ["run_app", "emit_json", "err"]
 
@@ -55,3 +55,16 @@ def run_app(app, prog_name: str) -> None:
 def _interrupted() -> None:
     err("Interrupted: finished items are saved; run the same command again to resume.")
     sys.exit(130)
+
+
+def parse_size(text: str, what: str = "--size") -> tuple[int, int]:
+    """A 'WIDTHxHEIGHT' option -> (w, h) in whole pixels (the one parser of every command)."""
+    from .imageio import MAX_PIXELS
+
+    parts = str(text).lower().replace(" ", "").split("x")
+    if len(parts) != 2 or not all(p.isdigit() for p in parts):
+        raise InputError(f"'{text}' is not WIDTHxHEIGHT", what, "write e.g. --size 480x360")
+    w, h = int(parts[0]), int(parts[1])
+    if w < 2 or h < 2 or w * h > MAX_PIXELS:
+        raise InputError(f"'{text}' is out of range", what, f"width and height >= 2, at most {MAX_PIXELS} pixels")
+    return w, h

@@ -15,7 +15,7 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["LoadedImage", "read_image", "read_text", "write_png", "write_bytes_atomic", "IMAGE_EXTENSIONS", "MAX_PIXELS",
+__all__ = ["LoadedImage", "read_image", "image_size", "read_text", "write_png", "write_bytes_atomic", "IMAGE_EXTENSIONS", "MAX_PIXELS",
            "image_size_from_header"]
 
 # we report every decoding problem ourselves, as one Error: line; OpenCV's own log would add noise
@@ -96,6 +96,20 @@ def read_image(path: str | Path, *, label: bool = False) -> LoadedImage:
     if arr.dtype not in (np.uint8, np.uint16):
         raise InputError(f"{kind} has unsupported pixel type {arr.dtype}", path, "convert to 8- or 16-bit PNG")
     return LoadedImage(path, arr, hashlib.sha256(data).hexdigest())
+
+
+def image_size(path: str | Path, kind: str = "image") -> tuple[int, int]:
+    """(w, h) of an image file from its header, decoding it only when the header is not enough;
+    a missing or unreadable file raises :class:`InputError`."""
+    path = Path(path)
+    try:
+        with open(path, "rb") as f:
+            size = image_size_from_header(f.read(262144))
+    except FileNotFoundError:
+        raise InputError(f"{kind} file not found", path, "check the path") from None
+    except OSError as e:
+        raise InputError(f"cannot read {kind}: {e.strerror or e}", path, "check the file") from None
+    return size if size is not None else read_image(path, label=kind == "label").size
 
 
 def read_text(path: str | Path, kind: str = "file", fix: str = "check the path") -> str:

@@ -52,7 +52,7 @@ from .build import Job
 from .camera import Camera, camera_from_dict, camera_to_yaml
 from .errors import GeometryError, InputError
 from .homography import pose_axes, pose_from_vp, vp_from_pose
-from .imageio import MAX_PIXELS, image_size_from_header, read_image, write_bytes_atomic, write_png
+from .imageio import image_size, read_image, write_bytes_atomic, write_png
 from .labels import LabelFormat, decode_label
 
 __all__ = [
@@ -70,7 +70,6 @@ __all__ = [
     "covered",
     "widest_zoom",
     "draw_offsets",
-    "parse_size",
     "plan_simulation",
     "simulate_arrays",
     "simulate_dataset",
@@ -294,29 +293,7 @@ def draw_offsets(seed: int, item_id: str, pan_jitter: float = 0.0, tilt_jitter: 
     return float(pan_jitter * a[0]), float(tilt_jitter * a[1]), float(roll_jitter * a[2])
 
 
-def parse_size(text: str, what: str = "--size") -> tuple[int, int]:
-    """'WxH' -> (W, H) in whole pixels."""
-    parts = str(text).lower().replace(" ", "").split("x")
-    if len(parts) != 2 or not all(p.isdigit() for p in parts):
-        raise InputError(f"'{text}' is not WIDTHxHEIGHT", what, "write e.g. --size 480x360")
-    w, h = int(parts[0]), int(parts[1])
-    if w < 2 or h < 2 or w * h > MAX_PIXELS:
-        raise InputError(f"'{text}' is out of range", what, f"width and height >= 2, at most {MAX_PIXELS} pixels")
-    return w, h
-
-
 # --- planning: every image's geometry, all inputs checked, nothing written ----------------------
-
-def _file_size(path: Path, kind: str) -> tuple[int, int]:
-    try:
-        with open(path, "rb") as f:
-            size = image_size_from_header(f.read(262144))
-    except FileNotFoundError:
-        raise InputError(f"{kind} file not found", path, "check the path") from None
-    except OSError as e:
-        raise InputError(f"cannot read {kind}: {e.strerror or e}", path, "check the file") from None
-    return size if size is not None else read_image(path, label=kind == "label").size
-
 
 def _check_params(p: SimulateParams) -> None:
     def finite(name: str, v: float) -> None:
@@ -348,10 +325,10 @@ def plan_simulation(jobs: Sequence[Job], camera: Camera, params: SimulateParams,
     _check_params(params)
     if not jobs:
         raise InputError("no images to simulate", None, "check --images")
-    sizes = [_file_size(j.image, "image") for j in jobs]
+    sizes = [image_size(j.image, "image") for j in jobs]
     for j, s in zip(jobs, sizes):
         if j.label is not None:
-            ls = _file_size(j.label, "label")
+            ls = image_size(j.label, "label")
             if ls != s:
                 raise InputError(f"label is {ls[0]}x{ls[1]} but its image is {s[0]}x{s[1]}", j.label,
                                  "give the label that belongs to this image")

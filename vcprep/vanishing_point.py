@@ -542,17 +542,6 @@ def given_results(vps: Mapping[str, tuple[float, float]], ids: Sequence[str], ca
     return [_result(c, vps[i], 1.0, 0, "given", detected=vps[i]) for i, c in zip(ids, cams)]
 
 
-def _image_size(path: Path) -> tuple[int, int]:
-    from .imageio import image_size_from_header, read_image
-
-    try:
-        with open(path, "rb") as f:
-            size = image_size_from_header(f.read(65536))
-    except OSError:
-        size = None
-    return size if size is not None else read_image(path).size
-
-
 def vps_for_items(images: Sequence[str | Path], ids: Sequence[str], camera: Camera, within: str,
                   smooth: int = 0, cfg: VPConfig = VPConfig(), id_prefix: str = "",
                   on_image: Callable[[int], None] | None = None) -> list[VPResult]:
@@ -564,7 +553,9 @@ def vps_for_items(images: Sequence[str | Path], ids: Sequence[str], camera: Came
     path = Path(within)
     table = read_vp_csv(path)
     keys = [i if i in table or not (id_prefix and i.startswith(id_prefix)) else i[len(id_prefix):] for i in ids]
-    cams = [camera.for_image_size(_image_size(Path(p)), p) for p in images]
+    from .imageio import image_size
+
+    cams = [camera.for_image_size(image_size(p), p) for p in images]
     res = given_results(table, keys, cams, path)
     for (u, v), c, k in zip((r.vp for r in res), cams, keys):
         w, h = c.size

@@ -39,13 +39,9 @@ def version_cmd():
 
 
 def _parse_size(text: Optional[str]) -> Optional[tuple[int, int]]:
-    if text is None:
-        return None
-    try:
-        w, h = (int(v) for v in text.lower().split("x"))
-    except ValueError:
-        raise InputError(f"cannot parse size '{text}'", None, "write WIDTHxHEIGHT, e.g. 344x176") from None
-    return w, h
+    from vcprep.cliutil import parse_size
+
+    return None if text is None else parse_size(text)
 
 
 @app.command("fit")
