@@ -13,8 +13,10 @@ folder is absent, a synthetic ``render_road`` frame through the same camera (the
 Timed, per frame, median over repeats (spread = 10th..90th percentile and min..max):
 
 * ``bare``: ``cv2.warpPerspective(img, H, store_size, INTER_LINEAR, BORDER_CONSTANT)``;
-* ``ours``: ``cv2.remap`` with the cached warp + projective-completion maps (what every image of
-  a camera costs in between-camera mode, where H and the VP are shared);
+* ``ours``: ``vcprep.warp.warp_image`` with the cached warp + projective-completion maps (what
+  every image of a camera costs in between-camera mode, where H and the VP are shared): one
+  pass, covered pixels remapped from the source, uncovered ones looked up in the per-image
+  angle table (see ``vcprep.completion.CompletionMaps``);
 * ``ours_cold``: building those maps from scratch + the remap (one-off per camera; per image in
   within-camera mode, where H differs per image), reported, not a target;
 * ``back``: ``vcprep.backproject.backproject_array`` of a store-sized probability map to the
@@ -105,7 +107,7 @@ def bench_scale(scale: float, data, repeats: int, cold_repeats: int) -> dict:
         # back-projection of a store-sized probability map to the source camera
         prob = cv2.GaussianBlur(warp_image(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), maps), (5, 5), 0)
         rec = {"H": H.ravel().tolist(), "store_size": list(size), "size": list(cam.size), "id": name}
-        backproject_array(prob, rec, "prob")  # builds and caches the back maps
+        backproject_array(prob, rec, "prob")  # warm-up
         back = timeit(lambda: backproject_array(prob, rec, "prob"), repeats)
         bare_back = timeit(lambda: cv2.warpPerspective(prob, H, cam.size, flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
                                                        borderMode=cv2.BORDER_CONSTANT, borderValue=0), repeats)

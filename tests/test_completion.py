@@ -16,7 +16,7 @@ import pytest
 
 from vcprep.build import Job, ItemPose, list_dataset, warp_dataset, warp_item_full
 from vcprep.camera import PRESETS
-from vcprep.completion import (METHODS, CompletionMaps, border_ignore, check_method, complete_maps, completion_maps,
+from vcprep.completion import (METHODS, TABLE_ARC, CompletionMaps, border_ignore, check_method, complete_maps, completion_maps,
                                exit_points_rectangle, store_vp)
 from vcprep.errors import InputError
 from vcprep.homography import apply_homography, virt_H_src, virtual_at_scale, vp_from_pose
@@ -92,7 +92,9 @@ def test_methods_shapes_and_borders(camvid_half):
 
 def test_projective_rays_are_exact(camvid_half):
     """Every uncovered pixel samples a source-boundary point whose image lies on the segment from
-    the VP to that pixel (H maps rays from the VP to rays from the VP)."""
+    the VP to that pixel (H maps rays from the VP to rays from the VP), up to the fill table's
+    angular step: at most TABLE_ARC / 2 px of arc at the farthest store pixel, so a boundary point
+    at distance d is at most d * TABLE_ARC / (2 far) off the ray."""
     _, _, H, vp = _setup(camvid_half, pan=5.0, tilt=-2.0)
     w, h = camvid_half.size
     maps = completion_maps(H, (w, h), V8.size, "projective", vp)
@@ -105,7 +107,10 @@ def test_projective_rays_are_exact(camvid_half):
     a = np.column_stack([us - vp[0], vs - vp[1]])
     b = q - np.array(vp)
     cross = (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]) / np.linalg.norm(a, axis=1)
-    assert np.abs(cross).max() < 0.05  # px off the ray (float32 maps)
+    far = max(np.hypot(cx - vp[0], cy - vp[1]) for cx in (0, V8.size[0] - 1) for cy in (0, V8.size[1] - 1))
+    bound = np.linalg.norm(b, axis=1) * TABLE_ARC / (2 * far) + 0.01  # + float32 maps
+    assert (np.abs(cross) <= bound).all()
+    assert np.abs(cross).max() > 0.02  # (the table's quantisation is visible: the bound is not vacuous)
     t = (a * b).sum(1) / (a * a).sum(1)
     assert (t > 0).all() and (t < 1 + 1e-6).all()  # between the VP and the pixel
 
@@ -300,3 +305,28 @@ def test_complete_cli_errors(dataset, tmp_path):
     for cmd in (["complete", "--help"], ["figure", "completion", "--help"], ["warp", "--help"]):
         proc = run_cli(*cmd)
         assert proc.returncode == 0 and ("Example" in proc.stdout or "--complete" in proc.stdout)
+
+
+@pytest.mark.parametrize("kind", ["bgr8", "grey8", "bgr16", "float32"])
+@pytest.mark.parametrize("cut", [False, True])
+def test_fused_pass_equals_the_one_remap_reference(camvid_half, kind, cut):
+    """The fast path (covered pixels remapped, uncovered ones looked up in the angle table) gives
+    exactly what one remap of every pixel through the completed float maps gives, on uncovered
+    pixels; covered pixels are the bare warp's. Labels: identical to one nearest remap."""
+    img, lab, H, vp = _setup(camvid_half, pan=3.0, tilt=2.0)
+    lab = lab.copy()
+    if cut:
+        lab[-40:, 100:380] = 255
+        lab[:, :12] = 255
+    src = {"bgr8": img, "grey8": cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), "bgr16": img.astype(np.uint16) * 257,
+           "float32": img.astype(np.float32) / 255}[kind]
+    maps = completion_maps(H, camvid_half.size, V8.size, "projective", vp, border_ignore(lab))
+    assert maps.fill is not None and (maps.angles.index[maps.valid == 1] == -1).all()
+    fast, ref = warp_image(src, maps), warp_image(src, maps, exact=True)
+    unc = maps.valid == 0
+    assert fast.dtype == src.dtype and np.array_equal(fast[unc], ref[unc])
+    bare = warp_image(src, maps_for(H, camvid_half.size, V8.size))
+    assert np.array_equal(fast[~unc], bare[~unc])
+    wl = warp_label(lab, maps, maps.label_border)
+    one = cv2.remap(lab, maps.nearest, None, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=255)
+    assert np.array_equal(wl, one)

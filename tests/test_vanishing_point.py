@@ -14,8 +14,8 @@ from vcprep.camera import PRESETS
 from vcprep.errors import InputError
 from vcprep.homography import apply_homography, pose_from_vp, virtual_at_scale, vp_from_pose
 from vcprep.synthetic import RoadScene, render_road
-from vcprep.vanishing_point import (VPConfig, VPResult, apply_reliability, estimate_vp, read_vp_csv,
-                                    sequence_key, smooth_sequences, write_vp_csv)
+from vcprep.vanishing_point import (VPConfig, VPResult, apply_reliability, detect_segments, estimate_vp,
+                                    read_vp_csv, refine_segments, sequence_key, smooth_sequences, write_vp_csv)
 
 from conftest import EXAMPLES, assert_one_error_line, run_cli
 
@@ -45,6 +45,53 @@ def renders(camvid_half):
         pan, tilt = float(rng.uniform(-20, 20)), float(rng.uniform(-15, 15))
         out.append((_cluttered_render(camvid_half, pan, tilt, rng), pan, tilt))
     return out
+
+
+# ---------------------------------------------------------------------------------- segments
+
+def _edge_image(angle_deg, point=(240.3, 180.7), size=(480, 360), ss=8):
+    """Anti-aliased straight step edge through ``point`` (pixel-centre coordinates) at
+    ``angle_deg`` to the horizontal; returns (uint8 image, unit normal, point)."""
+    t = math.radians(angle_deg)
+    n = np.array([-math.sin(t), math.cos(t)])
+    w, h = size
+    offs = (np.arange(ss) + 0.5) / ss - 0.5
+    u = (np.arange(w)[:, None] + offs).ravel()
+    v = (np.arange(h)[:, None] + offs).ravel()
+    side = (u[None, :] - point[0]) * n[0] + (v[:, None] - point[1]) * n[1]
+    img = np.where(side > 0, 190.0, 70.0).reshape(h, ss, w, ss).mean(axis=(1, 3))
+    return np.clip(np.rint(img), 0, 255).astype(np.uint8), n, np.array(point)
+
+
+def _offsets(seg, n, p):
+    """Signed distances of both endpoints of ``seg`` (4,) from the line through ``p`` with normal ``n``."""
+    return [float((seg[0] - p[0]) * n[0] + (seg[1] - p[1]) * n[1]), float((seg[2] - p[0]) * n[0] + (seg[3] - p[1]) * n[1])]
+
+
+@pytest.mark.parametrize("lsd_scale", [0.5, 0.8, 1.0])
+@pytest.mark.parametrize("angle", [30.0, 65.0, 120.0, 160.0])
+def test_detect_segments_follows_pixel_centre_rule(lsd_scale, angle):
+    """A straight edge at a known sub-pixel position is reported on it at every LSD scale
+    (OpenCV's LSD is off by 0.5 / scale - 0.5 px when it subsamples; detect_segments corrects it)."""
+    img, n, p = _edge_image(angle)
+    seg = detect_segments(img, work_width=480, lsd_scale=lsd_scale)
+    longest = seg[np.argmax(np.hypot(seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1]))]
+    assert _offsets(longest, n, p) == pytest.approx([0.0, 0.0], abs=0.15)
+
+
+@pytest.mark.parametrize("angle", [25.0, 70.0, 135.0])
+def test_refine_segments_moves_a_misplaced_segment_onto_its_edge(angle):
+    """Known analytic case: a segment shifted and rotated off its edge by ~1 px is re-fitted onto it;
+    a segment with no edge under it is left as it is."""
+    img, n, p = _edge_image(angle)
+    t = np.array([n[1], -n[0]])
+    a, b = p - 80 * t, p + 80 * t
+    off = np.r_[a + 1.2 * n, b - 0.8 * n]                     # endpoints 1.2 px and 0.8 px off
+    out = refine_segments(img, off[None, :])[0]
+    assert _offsets(out, n, p) == pytest.approx([0.0, 0.0], abs=0.1)
+    flat = np.full_like(img, 90)
+    assert refine_segments(flat, off[None, :])[0] == pytest.approx(off)
+    assert refine_segments(img, np.zeros((0, 4))).shape == (0, 4)
 
 
 # ---------------------------------------------------------------------------------- detector

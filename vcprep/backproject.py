@@ -1,21 +1,24 @@
 """Back-projection: virtual-domain masks / probability maps -> the item's original camera.
 
-For a store item with ``H = virt_H_src`` (source pixel -> store pixel), the map back is the
-remap that samples the store image at ``H @ (u, v, 1)`` for every source pixel centre (u, v):
-the exact inverse of the forward warp. Labels/masks use nearest neighbour, probabilities
-bilinear; source pixels that fall outside the store image get ``fill`` (0: not road).
+For a store item with ``H = virt_H_src`` (source pixel -> store pixel), the way back samples the
+store image at ``H @ (u, v, 1)`` for every source pixel centre (u, v): the exact inverse of the
+forward warp. That is one ``cv2.warpPerspective(..., WARP_INVERSE_MAP)`` with the record's ``H``
+(no maps to build or cache: a source image lies inside the store, so every pixel is
+interpolated and computing the coordinates on the fly is cheaper than reading them). Labels/
+masks use nearest neighbour, probabilities bilinear; source pixels that fall outside the store
+image get ``fill`` (0: not road; bilinear blends toward it over the store's last half pixel).
 """
 from __future__ import annotations
 
 from pathlib import Path
 
+import cv2
 import numpy as np
 from tqdm import tqdm
 
 from .errors import InputError
 from .imageio import read_image, write_png
 from .store import Store
-from .warp import maps_for, warp_image, warp_label
 
 __all__ = ["src_H_virt", "backproject_array", "backproject_folder"]
 
@@ -33,17 +36,13 @@ def backproject_array(arr: np.ndarray, record: dict, kind: str = "mask", fill: i
     if arr.shape[:2] != (sh, sw):
         raise InputError(f"map is {arr.shape[1]}x{arr.shape[0]} but the store is {sw}x{sh}", record.get("id"),
                          "back-project maps predicted on this store")
+    if kind not in ("mask", "prob"):
+        raise InputError(f"unknown kind '{kind}'", None, "use --kind mask or --kind prob")
     w, h = record["size"]
-    # the back map is the forward map of src_H_virt: source pixels are the destination
-    maps = maps_for(src_H_virt(record), (sw, sh), (w, h))
-    if kind == "mask":
-        return warp_label(arr, maps, border_value=fill)
-    if kind == "prob":
-        out = warp_image(arr, maps)
-        if fill:
-            out[maps.valid == 0] = fill
-        return out
-    raise InputError(f"unknown kind '{kind}'", None, "use --kind mask or --kind prob")
+    H = np.asarray(record["H"], dtype=np.float64).reshape(3, 3)
+    interp = cv2.INTER_NEAREST if kind == "mask" else cv2.INTER_LINEAR
+    return cv2.warpPerspective(arr, H, (int(w), int(h)), flags=interp | cv2.WARP_INVERSE_MAP,
+                               borderMode=cv2.BORDER_CONSTANT, borderValue=fill)
 
 
 def backproject_folder(store: str | Path, masks: str | Path, out: str | Path, kind: str = "mask",

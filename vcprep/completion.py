@@ -43,6 +43,7 @@ import hashlib
 import math
 from collections import OrderedDict
 from dataclasses import dataclass
+from functools import cached_property
 
 import cv2
 import numpy as np
@@ -58,22 +59,87 @@ METHODS = ("projective", "zero", "replicate", "none")
 COMPLETION_VERSION = "completion-v1"  # bump when completed outputs of identical inputs would change
 INSET = 1.0            # px the image map steps inward from a cut (ignore) boundary
 FALLBACK_TOWARD = 0.1  # VP outside: move the nearest covered pixel this far toward the centroid
-TABLE_MAX = 32000      # angles in the lookup table (remap coordinates must fit in int16)
+TABLE_ARC = 0.5        # px: angular step of the fill table, as arc length at the farthest store pixel
+TABLE_COLS = 4096      # the fill table's row length (remap coordinates must fit in int16)
+BANDS = 24             # row bands the fused pass splits the store into (see _bands)
 
 
 @dataclass(frozen=True)
-class CompletionMaps(RemapMaps):
-    """:class:`RemapMaps` whose uncovered pixels are filled by ``method``.
+class AngleIndex:
+    """Which fill-table angle every uncovered store pixel takes, for one (homography, sizes,
+    centre); shared by every item with that geometry (all images of a camera in between-camera
+    mode), whatever their labels.
 
-    ``valid`` is still 1 only where a source pixel landed. ``label_border``: label value for
-    pixels the maps leave outside (255 for 'none', 0 for 'zero'). ``centre``: the store point
-    the projective rays start from (the VP, or the fallback when ``vp_inside`` is False).
+    ``n`` angles ``phi_k = 2 pi k / n`` (arc step <= ``TABLE_ARC`` px at the farthest store
+    pixel), laid out in a (rows, ``TABLE_COLS``) table; ``index`` (int16, (H, W, 2)) is the nearest
+    remap map into it: ``(k % TABLE_COLS, k // TABLE_COLS)`` for uncovered pixels, (-1, -1) for
+    covered ones (left alone by ``BORDER_TRANSPARENT``). ``covered_rects`` / ``fill_rects``:
+    (y0, y1, x0, x1) bands that hold every covered / uncovered pixel, so each pass skips most of
+    the other's pixels."""
+
+    n: int
+    index: np.ndarray
+    covered_rects: tuple[tuple[int, int, int, int], ...]
+    fill_rects: tuple[tuple[int, int, int, int], ...]
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (self.n + TABLE_COLS - 1) // TABLE_COLS, min(self.n, TABLE_COLS)
+
+    def table(self, values: np.ndarray, dtype=np.float32) -> np.ndarray:
+        """``values`` (one per angle) laid out as the (rows, cols) table (tail padded)."""
+        r, c = self.shape
+        out = np.empty(r * c, dtype=dtype)
+        out[:self.n] = values
+        out[self.n:] = values[-1] if self.n else 0
+        return out.reshape(r, c)
+
+    def k(self, uncovered: np.ndarray) -> np.ndarray:
+        """The table angle index of every pixel of the boolean mask ``uncovered``."""
+        ix = self.index[uncovered]
+        return ix[:, 0].astype(np.int64) + ix[:, 1].astype(np.int64) * TABLE_COLS
+
+
+@dataclass(frozen=True)
+class AngleFill:
+    """Source points of the fill table (from :func:`_exit_table`), (rows, cols) float32 each:
+    where the image samples (bilinear) and where the label samples (nearest) for every angle."""
+
+    image_x: np.ndarray
+    image_y: np.ndarray
+    label_x: np.ndarray
+    label_y: np.ndarray
+
+
+class CompletionMaps:
+    """Warp + completion of one item, built once per (homography, sizes, method, VP, border-ignore
+    mask) and applied to its image and label.
+
+    ``valid`` is 1 only where a source pixel landed. ``label_border``: label value for pixels left
+    uncovered (255 for 'none', 0 for 'zero'). ``centre``: the store point the projective rays
+    start from (the VP, or the fallback when ``vp_inside`` is False).
+
+    Applying them (``warp_image`` / ``warp_label``): 'none' and 'zero' are the bare warp; 'replicate'
+    is one remap of completed maps; 'projective' is one pass over the pixels in two parts that never
+    overlap: the covered pixels are remapped from the source (bilinear), the uncovered ones are
+    looked up (nearest in angle) in a table of the source sampled (bilinear) at the exit point of
+    each of ``n`` angles; the table is so fine (<= ``TABLE_ARC`` px of arc at the farthest pixel)
+    that this is the continuous definition sampled below pixel resolution. ``map_x``/``map_y``
+    (computed on first use) are the same source points per pixel, so ``warp_image(exact=True)``
+    -- one remap of every pixel -- is the reference the fast path is tested against.
     """
 
-    method: str
-    label_border: int
-    centre: tuple[float, float] | None
-    vp_inside: bool
+    def __init__(self, base: RemapMaps, method: str, label_border: int, centre: tuple[float, float] | None = None,
+                 vp_inside: bool = True, full: RemapMaps | None = None, angles: AngleIndex | None = None,
+                 fill: AngleFill | None = None):
+        self.base, self.method, self.label_border = base, method, label_border
+        self.centre, self.vp_inside = centre, vp_inside
+        self.valid = base.valid
+        self._full, self.angles, self.fill = full, angles, fill
+
+    @property
+    def size(self) -> tuple[int, int]:
+        return self.base.size
 
     @property
     def note(self) -> str | None:
@@ -82,6 +148,76 @@ class CompletionMaps(RemapMaps):
             return (f"VP outside the covered region; completion rays start at the nearest covered point "
                     f"({self.centre[0]:.1f}, {self.centre[1]:.1f}) instead")
         return None
+
+    @cached_property
+    def exact_maps(self) -> RemapMaps:
+        """Float source coordinates of every store pixel (image: bilinear; ``nearest``: label)."""
+        if self._full is not None:
+            return self._full
+        if self.fill is None:
+            return self.base
+        unc = self.valid == 0
+        k = self.angles.k(unc)
+        coords = []
+        for tx, ty in ((self.fill.image_x, self.fill.image_y), (self.fill.label_x, self.fill.label_y)):
+            mx, my = self.base.map_x.copy(), self.base.map_y.copy()
+            mx[unc] = tx.ravel()[k]
+            my[unc] = ty.ravel()[k]
+            coords.append((mx, my))
+        return _finish(*coords[0], *coords[1], self.valid)
+
+    @property
+    def map_x(self) -> np.ndarray:
+        return self.exact_maps.map_x
+
+    @property
+    def map_y(self) -> np.ndarray:
+        return self.exact_maps.map_y
+
+    @property
+    def linear(self):
+        return self.exact_maps.linear
+
+    @property
+    def nearest(self) -> np.ndarray:
+        return self.exact_maps.nearest
+
+    @property
+    def roi(self):
+        return self.exact_maps.roi
+
+    def remap_image(self, img: np.ndarray) -> np.ndarray:
+        if self.fill is None:
+            return (self._full or self.base).remap_image(img)
+        return self._fused(img, self.base.linear, cv2.INTER_LINEAR, 0, self.fill.image_x, self.fill.image_y)
+
+    def remap_label(self, label: np.ndarray, border_value: int) -> np.ndarray:
+        if self.fill is None:
+            return (self._full or self.base).remap_label(label, border_value)
+        return self._fused(label, (self.base.nearest, None), cv2.INTER_NEAREST, border_value,
+                           self.fill.label_x, self.fill.label_y)
+
+    def _fused(self, src, maps, interp, border_value, table_x, table_y) -> np.ndarray:
+        # 8-bit BGR goes through BGRA so that the fill copies one 32-bit word per pixel (~1.5x
+        # faster than 3 bytes); the conversions cost less than that saves
+        packed = src.dtype == np.uint8 and src.ndim == 3 and src.shape[2] == 3
+        if packed:
+            src = cv2.cvtColor(src, cv2.COLOR_BGR2BGRA)
+        W, H = self.size
+        out = np.empty((H, W) + src.shape[2:], dtype=src.dtype)
+        m1, m2 = maps
+        for y0, y1, x0, x1 in self.angles.covered_rects:
+            cv2.remap(src, m1[y0:y1, x0:x1], None if m2 is None else m2[y0:y1, x0:x1], interp,
+                      dst=out[y0:y1, x0:x1], borderMode=cv2.BORDER_CONSTANT, borderValue=border_value)
+        table = cv2.remap(src, table_x, table_y, interp, borderMode=cv2.BORDER_REPLICATE)
+        dst = out
+        if packed:
+            dst, table = out.view(np.int32)[..., 0], table.view(np.int32)[..., 0]
+        index = self.angles.index
+        for y0, y1, x0, x1 in self.angles.fill_rects:
+            cv2.remap(table, index[y0:y1, x0:x1], None, cv2.INTER_NEAREST, dst=dst[y0:y1, x0:x1],
+                      borderMode=cv2.BORDER_TRANSPARENT)
+        return cv2.cvtColor(out, cv2.COLOR_BGRA2BGR) if packed else out
 
 
 def check_method(method: str) -> str:
@@ -214,16 +350,18 @@ def _exit_table(cx_: np.ndarray, cy_: np.ndarray, J: np.ndarray, c_src: np.ndarr
     return np.where(ok, x, x_k[near]), np.where(ok, y, y_k[near]), x_k[near], y_k[near]
 
 
-def _centre(vp: tuple[float, float], M: np.ndarray, src_size, region_src: np.ndarray | None,
-            region_dst: np.ndarray) -> tuple[tuple[float, float], bool]:
-    """The ray centre in store coordinates and whether it is the VP itself (see module doc)."""
+def _centre(vp: tuple[float, float], M: np.ndarray, src_size, dst_shape, region_src: np.ndarray | None,
+            region_dst) -> tuple[tuple[float, float], bool]:
+    """The ray centre in store coordinates and whether it is the VP itself (see module doc);
+    ``region_dst()`` gives the covered store region (computed only when the VP is not in it)."""
     w, h = src_size
     c_src, _ = _to_source(M, vp)
-    mid = M @ np.array([region_dst.shape[1] / 2, region_dst.shape[0] / 2, 1.0])
+    mid = M @ np.array([dst_shape[1] / 2, dst_shape[0] / 2, 1.0])
     front = c_src is not None and np.sign((M @ np.array([vp[0], vp[1], 1.0]))[2]) == np.sign(mid[2])
     if front and 0 <= c_src[0] <= w - 1 and 0 <= c_src[1] <= h - 1:
         if region_src is None or region_src[int(round(c_src[1])), int(round(c_src[0]))]:
             return (float(vp[0]), float(vp[1])), True
+    region_dst = region_dst()
     ys, xs = np.nonzero(region_dst)
     if len(xs) == 0:
         raise GeometryError("no source pixel lands in the virtual image, nothing to complete from", None,
@@ -240,13 +378,82 @@ def _centre(vp: tuple[float, float], M: np.ndarray, src_size, region_src: np.nda
 
 # -- maps ------------------------------------------------------------------------------------------
 
-def _finish(map_x, map_y, lab_x, lab_y, valid, method, label_border, centre, vp_inside) -> CompletionMaps:
+def _finish(map_x, map_y, lab_x, lab_y, valid) -> RemapMaps:
     map_x = np.ascontiguousarray(map_x, dtype=np.float32)
     map_y = np.ascontiguousarray(map_y, dtype=np.float32)
     linear = cv2.convertMaps(map_x, map_y, cv2.CV_16SC2)
     nearest = cv2.convertMaps(np.ascontiguousarray(lab_x, dtype=np.float32),
                               np.ascontiguousarray(lab_y, dtype=np.float32), cv2.CV_16SC2, nninterpolation=True)[0]
-    return CompletionMaps(map_x, map_y, linear, nearest, valid, method, label_border, centre, vp_inside)
+    return RemapMaps(map_x, map_y, linear, nearest, valid)
+
+
+def _bands(valid: np.ndarray) -> tuple[tuple, tuple]:
+    """Row bands covering every covered pixel (covered_rects) and every uncovered one (fill_rects).
+
+    Per band of ``BAND_ROWS``-ish rows: the covered pixels lie in [first covered column, last + 1)
+    and, as the covered region meets every row in one run (the image of a rectangle is convex),
+    the uncovered ones left of the largest first column or right of the smallest last column.
+    Checked, not assumed: if a band's fill rectangles miss an uncovered pixel the band is filled
+    whole."""
+    H, W = valid.shape
+    cov = valid.astype(bool)
+    any_ = cov.any(axis=1)
+    first = np.where(any_, cov.argmax(axis=1), W)
+    last = np.where(any_, W - 1 - cov[:, ::-1].argmax(axis=1), -1)
+    rows = max(8, -(-H // BANDS))
+    covered, fill = [], []
+    for y0 in range(0, H, rows):
+        y1 = min(H, y0 + rows)
+        a = any_[y0:y1]
+        if not a.any():
+            fill.append((y0, y1, 0, W))
+            continue
+        f, l_ = first[y0:y1][a], last[y0:y1][a]
+        covered.append((y0, y1, int(f.min()), int(l_.max()) + 1))
+        if not a.all():
+            fill.append((y0, y1, 0, W))
+            continue
+        parts = [(y0, y1, 0, int(f.max())), (y0, y1, int(l_.min()) + 1, W)]
+        parts = [r for r in parts if r[3] > r[2]]
+        reach = np.zeros((y1 - y0, W), dtype=bool)
+        for _, _, x0, x1 in parts:
+            reach[:, x0:x1] = True
+        fill.extend(parts if (reach | cov[y0:y1]).all() else [(y0, y1, 0, W)])
+    merged: list[tuple[int, int, int, int]] = []
+    for r in fill:  # join vertically adjacent rectangles with the same columns
+        if merged and merged[-1][1] == r[0] and merged[-1][2:] == r[2:]:
+            merged[-1] = (merged[-1][0], r[1], r[2], r[3])
+        else:
+            merged.append(r)
+    return tuple(covered), tuple(merged)
+
+
+_ANGLES: "OrderedDict[tuple, AngleIndex]" = OrderedDict()
+
+
+def _angle_index(valid: np.ndarray, centre: tuple[float, float], key: tuple) -> AngleIndex:
+    """The :class:`AngleIndex` of ``valid`` seen from ``centre`` (LRU-cached under ``key``)."""
+    hit = _ANGLES.get(key)
+    if hit is not None:
+        _ANGLES.move_to_end(key)
+        return hit
+    H_, W_ = valid.shape
+    far = max(math.hypot(cx - centre[0], cy - centre[1]) for cx in (0, W_ - 1) for cy in (0, H_ - 1))
+    n = int(max(1024, math.ceil(2 * math.pi * far / TABLE_ARC)))
+    du = np.arange(W_, dtype=np.float32)[None, :] - np.float32(centre[0])
+    dv = np.arange(H_, dtype=np.float32)[:, None] - np.float32(centre[1])
+    angle = np.arctan2(dv, du)  # float32 numpy: ~3e-7 rad (cv2.phase: ~2e-4, too coarse far out)
+    k = np.rint(angle * np.float32(n / (2 * math.pi))).astype(np.int32) % n
+    index = np.empty((H_, W_, 2), dtype=np.int16)
+    index[..., 0] = k % TABLE_COLS
+    index[..., 1] = k // TABLE_COLS
+    index[valid == 1] = -1
+    covered, fill = _bands(valid)
+    out = AngleIndex(n, index, covered, fill)
+    _ANGLES[key] = out
+    if len(_ANGLES) > _CACHE_MAX:
+        _ANGLES.popitem(last=False)
+    return out
 
 
 def complete_maps(base: RemapMaps, dst_H_src: np.ndarray, src_size: tuple[int, int], method: str,
@@ -260,81 +467,62 @@ def complete_maps(base: RemapMaps, dst_H_src: np.ndarray, src_size: tuple[int, i
     check_method(method)
     valid = base.valid
     if method == "none":
-        return CompletionMaps(base.map_x, base.map_y, base.linear, base.nearest, valid, method, IGNORE, None, True)
+        return CompletionMaps(base, method, IGNORE)
     if method == "zero":
-        return CompletionMaps(base.map_x, base.map_y, base.linear, base.nearest, valid, method, 0, None, True)
+        return CompletionMaps(base, method, 0)
     w, h = src_size
     unc = valid == 0
     if not unc.any():  # nothing to fill (also makes completion idempotent)
-        return CompletionMaps(base.map_x, base.map_y, base.linear, base.nearest, valid, method,
-                              IGNORE, None if vp is None else tuple(map(float, vp)), True)
+        return CompletionMaps(base, method, IGNORE, None if vp is None else tuple(map(float, vp)))
     region_src = None
-    region_dst = valid.astype(bool)
     if src_ignore is not None and src_ignore.any():
         region_src = (~src_ignore).astype(np.uint8)
-        inside = cv2.remap(region_src, base.nearest, None, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT,
-                           borderValue=0)
-        region_dst = region_dst & (inside == 1)
         if not region_src.any():
             raise InputError("the whole label is ignore at the border, nothing to complete from", None,
                              "check the label, or use --complete none")
-    if not region_dst.any():
-        raise GeometryError("no source pixel lands in the virtual image, nothing to complete from", None,
-                            "check the camera, pose and scale")
-    map_x, map_y = base.map_x.copy(), base.map_y.copy()
+
+    def region_dst() -> np.ndarray:
+        r = valid.astype(bool)
+        if region_src is not None:
+            r &= cv2.remap(region_src, base.nearest, None, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT,
+                           borderValue=0) == 1
+        if not r.any():
+            raise GeometryError("no source pixel lands in the virtual image, nothing to complete from", None,
+                                "check the camera, pose and scale")
+        return r
 
     if method == "replicate":
+        rdst = region_dst()
+        map_x, map_y = base.map_x.copy(), base.map_y.copy()
         vs, us = np.nonzero(unc)
         # nearest region pixel of every store pixel (labels of the zero pixels of 1 - region)
-        _, lab = cv2.distanceTransformWithLabels((~region_dst).astype(np.uint8), cv2.DIST_L2, 5,
+        _, lab = cv2.distanceTransformWithLabels((~rdst).astype(np.uint8), cv2.DIST_L2, 5,
                                                  labelType=cv2.DIST_LABEL_PIXEL)
-        ry, rx = np.nonzero(region_dst)
+        ry, rx = np.nonzero(rdst)
         lut = np.zeros(int(lab.max()) + 1, dtype=np.int64)
         lut[lab[ry, rx]] = np.arange(len(rx))
         k = lut[lab[vs, us]]
         map_x[vs, us] = base.map_x[ry[k], rx[k]]
         map_y[vs, us] = base.map_y[ry[k], rx[k]]
-        lab_x, lab_y = map_x, map_y
-        return _finish(map_x, map_y, lab_x, lab_y, valid, method, IGNORE, None, True)
+        return CompletionMaps(base, method, IGNORE, full=_finish(map_x, map_y, map_x, map_y, valid))
 
     # projective
     if vp is None:
         vp = ((valid.shape[1] - 1) / 2, (valid.shape[0] - 1) / 2)
     M = _src_H_dst(dst_H_src)
-    centre, vp_inside = _centre(vp, M, src_size, region_src, region_dst)
+    centre, vp_inside = _centre(vp, M, src_size, valid.shape, region_src, region_dst)
     c_src, J = _to_source(M, centre)
     if c_src is None:  # cannot happen for a covered centre
         raise GeometryError("the completion centre has no source point", None, "check the VP")
     c_src = np.clip(c_src, [0, 0], [w - 1, h - 1])
-    # The source point depends only on the ray's store angle: tabulate it for N angles (arc step
-    # <= 2/3 px at the farthest store pixel), then look every uncovered pixel up by its angle with
-    # a remap of the 1 x (N + 1) table (linear in angle; nearest when labels cut the region, as
-    # interpolating across an occlusion jump would land in the ignore area).
-    H_, W_ = valid.shape
-    far = max(np.hypot(cx - centre[0], cy - centre[1]) for cx in (0, W_ - 1) for cy in (0, H_ - 1))
-    n = int(np.clip(np.ceil(2 * math.pi * far * 1.5), 1024, TABLE_MAX))
-    phi = np.arange(n + 1) * (2 * math.pi / n)
+    H = np.ascontiguousarray(dst_H_src, dtype=np.float64)
+    angles = _angle_index(valid, centre, (H.tobytes(), tuple(src_size), base.size, centre))
+    phi = np.arange(angles.n) * (2 * math.pi / angles.n)
     tx, ty, lx, ly = _exit_table(np.cos(phi), np.sin(phi), J, c_src, src_size, region_src)
-    grid_u = np.arange(W_, dtype=np.float32)[None, :] - np.float32(centre[0])
-    grid_v = np.arange(H_, dtype=np.float32)[:, None] - np.float32(centre[1])
-    angle = cv2.phase(np.broadcast_to(grid_u, (H_, W_)).copy(), np.broadcast_to(grid_v, (H_, W_)).copy())
-    idx = angle * np.float32(n / (2 * math.pi))
-    zero = np.zeros_like(idx)
-    table = np.dstack([tx, ty]).astype(np.float32).reshape(1, n + 1, 2)
-    interp = cv2.INTER_LINEAR if region_src is None else cv2.INTER_NEAREST
-    look = cv2.remap(table, idx, zero, interp, borderMode=cv2.BORDER_REPLICATE)
-    mask = unc.astype(np.uint8)
-    cv2.copyTo(look[..., 0], mask, map_x)
-    cv2.copyTo(look[..., 1], mask, map_y)
-    if region_src is None:
-        lab_x, lab_y = map_x, map_y  # rounding a point of the pixel-centre rectangle stays inside
-    else:
-        ltable = np.dstack([lx, ly]).astype(np.float32).reshape(1, n + 1, 2)
-        llook = cv2.remap(ltable, idx, zero, cv2.INTER_NEAREST, borderMode=cv2.BORDER_REPLICATE)
-        lab_x, lab_y = base.map_x.copy(), base.map_y.copy()
-        cv2.copyTo(llook[..., 0], mask, lab_x)
-        cv2.copyTo(llook[..., 1], mask, lab_y)
-    return _finish(map_x, map_y, lab_x, lab_y, valid, method, IGNORE, centre, vp_inside)
+    if region_src is None:  # the label takes the pixel the image point rounds to (inside the rectangle)
+        lx, ly = np.rint(tx), np.rint(ty)
+    fill = AngleFill(angles.table(tx), angles.table(ty), angles.table(lx), angles.table(ly))
+    return CompletionMaps(base, method, IGNORE, centre, vp_inside, angles=angles, fill=fill)
 
 
 _CACHE: "OrderedDict[tuple, CompletionMaps]" = OrderedDict()

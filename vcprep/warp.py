@@ -52,6 +52,19 @@ class RemapMaps:
             return (0, 0, 0, 0)
         return int(cols[0]), int(rows[0]), int(cols[-1]) + 1, int(rows[-1]) + 1
 
+    @property
+    def exact_maps(self) -> "RemapMaps":
+        """The maps with float source coordinates for every pixel (these maps themselves)."""
+        return self
+
+    def remap_image(self, img: np.ndarray) -> np.ndarray:
+        """Bilinear warp with the fixed-point maps (see :func:`warp_image`)."""
+        return _remap(img, self, self.linear[0], self.linear[1], cv2.INTER_LINEAR, 0)
+
+    def remap_label(self, label: np.ndarray, border_value: int) -> np.ndarray:
+        """Nearest-neighbour warp (see :func:`warp_label`)."""
+        return _remap(label, self, self.nearest, None, cv2.INTER_NEAREST, border_value)
+
 
 def source_coordinates(src_H_dst: np.ndarray, dst_size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Exact (float64) source coordinates of every destination pixel centre, and the sign mask
@@ -120,12 +133,15 @@ def _remap(img: np.ndarray, maps: RemapMaps, m1, m2, interp: int, border_value) 
 def warp_image(img: np.ndarray, maps: RemapMaps, exact: bool = False) -> np.ndarray:
     """Bilinear warp of an image (any channels/depth, up to 4 channels); uncovered pixels are 0.
 
-    ``exact=True`` uses the float maps (no 1/32-pixel fixed-point quantisation)."""
+    ``exact=True`` uses one remap with the float maps of every pixel (no fixed-point maps, no
+    fast path): the reference the fast paths (e.g. :class:`vcprep.completion.CompletionMaps`)
+    are tested against."""
     if exact:
-        return _remap(img, maps, maps.map_x, maps.map_y, cv2.INTER_LINEAR, 0)
-    return _remap(img, maps, maps.linear[0], maps.linear[1], cv2.INTER_LINEAR, 0)
+        ref = maps.exact_maps
+        return _remap(img, ref, ref.map_x, ref.map_y, cv2.INTER_LINEAR, 0)
+    return maps.remap_image(img)
 
 
 def warp_label(label: np.ndarray, maps: RemapMaps, border_value: int = 255) -> np.ndarray:
     """Nearest-neighbour warp of a label (values are never mixed); uncovered -> ``border_value``."""
-    return _remap(label, maps, maps.nearest, None, cv2.INTER_NEAREST, border_value)
+    return maps.remap_label(label, border_value)
