@@ -29,9 +29,26 @@ Data
      point and inside the camera's prior window (pan +/-20, tilt +/-15): keep the frame with
      that intersection as the reference VP; otherwise the frame is skipped (counted).
 
-  The reference itself is uncertain by roughly a pixel or two (hand-drawn polygons), i.e. a
-  few tenths of a percent of the width: errors near that level are at the reference's noise.
-  No parameter of the detector was tuned on ``val``; ``train`` was used during development.
+  The reference itself is uncertain (hand-drawn polygons, real kerbs): errors near its spread
+  are at the reference's noise, not the detector's. Measured, not guessed (``train``, 42 frames):
+
+  * *parameter spread*: recomputing it with rule 3's inlier band at 1.5 px instead of 3 px moves
+    the reference VP by median 0.22 %, p90 0.54 % of the width. The run prints this spread per
+    split and writes it as ``reference_spread`` (headline: ``reference_spread_*`` for ``val``);
+  * *straight-kerb assumption*: the rule assumes both mask boundaries are straight lines parallel
+    to the lane. Fitting the near half and the far half of each boundary separately gives VPs
+    that differ by median 1.6 % of the width; where a kerb bends (bus lay-by, widening, side
+    road) the reference is wrong by several percent while the lane markings are unambiguous -
+    e.g. train 0016E5_00780 (9 %) and 0016E5_00870 (7 %), checked by eye on the drawings
+    (``vcprep figure vp`` plus the fitted boundary lines). The rule was NOT changed to drop such
+    frames: any straightness threshold strict enough to catch them also drops most good frames
+    (measured), and a rule chosen by looking at the detector's errors would not be independent.
+
+  So the targets (median 0.5 %, p90 1 %) are within about 2x of the reference's own parameter
+  spread, and a bent kerb in 1 frame of 20 puts that frame's error above any p90 target; the
+  synthetic set (exact ground truth) is where the detector's own precision shows.
+  No parameter of the detector was tuned on ``val``; ``train`` (and synthetic) was used during
+  development; ``val`` was run once at the end.
 
 Metrics: error = |VP - reference| in pixels / image width * 100 (median, 90th percentile),
 time = wall ms per image for detection from the decoded image (grey conversion, downscale,
@@ -74,7 +91,7 @@ def baseline_vp(image: np.ndarray, work_width: int = 480, iters: int = 500, inli
     segments with an unweighted inlier count (angular residual < ``inlier_deg``), then an
     unweighted least-squares intersection of the inliers. No prior, no weights."""
     h, w = image.shape[:2]
-    seg = detect_segments(to_gray(image), work_width)
+    seg = detect_segments(to_gray(image), work_width, lsd_scale=0.6, lsd_refine=1)  # pinned: the baseline stays as it was
     s = min(1.0, work_width / w)
     d = seg[:, 2:4] - seg[:, 0:2]
     L = np.hypot(d[:, 0], d[:, 1])
@@ -113,8 +130,10 @@ def baseline_vp(image: np.ndarray, work_width: int = 480, iters: int = 500, inli
 
 # ------------------------------------------------------------------------------- references
 
-def _fit_side(ys: np.ndarray, xs: np.ndarray):
-    """RANSAC + LSQ line x = a*y + b; returns (a, b) or None if the fit is not good (rule 3)."""
+def _fit_side(ys: np.ndarray, xs: np.ndarray, band: float = 2.0, gate: bool = True):
+    """RANSAC + LSQ line x = a*y + b; returns (a, b) or None if the fit is not good (rule 3).
+    ``band``: RANSAC inlier band in px (the rule uses 2); ``gate=False`` skips the goodness
+    tests. Both only serve to measure the reference's own sensitivity (camvid_set)."""
     n = len(ys)
     if n < 25:
         return None
@@ -130,20 +149,22 @@ def _fit_side(ys: np.ndarray, xs: np.ndarray):
     a = (xs[j] - xs[i]) / dy
     b = xs[i] - a * ys[i]
     res = np.abs(xs[None, :] - (a[:, None] * ys[None, :] + b[:, None]))
-    cnt = (res < 2.0).sum(1)
+    cnt = (res < band).sum(1)
     k = int(np.argmax(cnt))
-    inl = res[k] < 2.0
+    inl = res[k] < band
     A = np.c_[ys[inl], np.ones(inl.sum())]
     a, b = np.linalg.lstsq(A, xs[inl], rcond=None)[0]
     r = xs[inl] - (a * ys[inl] + b)
     span = ys[inl].max() - ys[inl].min()
-    if inl.sum() < 25 or inl.mean() < 0.6 or span < 40 or math.sqrt(np.mean(r ** 2)) > 1.2:
+    if gate and (inl.sum() < 25 or inl.mean() < 0.6 or span < 40 or math.sqrt(np.mean(r ** 2)) > 1.2):
         return None
     return float(a), float(b), float(ys[inl].min())
 
 
-def reference_vp(label: np.ndarray, cam) -> tuple[float, float] | None:
-    """Reference road VP of a CamVid label image (rule in the module docstring), or None."""
+def reference_vp(label: np.ndarray, cam, band: float = 2.0, gate: bool = True) -> tuple[float, float] | None:
+    """Reference road VP of a CamVid label image (rule in the module docstring), or None.
+    ``band`` (rule 3's inlier band, 2 px) and ``gate`` (rule 3's goodness tests) are changed
+    only to measure the reference's spread on frames the rule accepted."""
     road = (label == 3).astype(np.uint8)
     n, comp, stats, _ = cv2.connectedComponentsWithStats(road, connectivity=8)
     if n < 2:
@@ -165,7 +186,7 @@ def reference_vp(label: np.ndarray, cam) -> tuple[float, float] | None:
             pts["l"][0].append(y), pts["l"][1].append(xl - 0.5)
         if xr <= w - 4 and np.isin(label[y, xr + 1], STATIC):
             pts["r"][0].append(y), pts["r"][1].append(xr + 0.5)
-    fits = [_fit_side(np.array(pts[s][0], float), np.array(pts[s][1], float)) for s in ("l", "r")]
+    fits = [_fit_side(np.array(pts[s][0], float), np.array(pts[s][1], float), band, gate) for s in ("l", "r")]
     if fits[0] is None or fits[1] is None:
         return None
     (al, bl, yl), (ar, br, yr) = fits
@@ -205,8 +226,13 @@ def synthetic_set(n: int, cam, seed: int = 0):
 
 
 def camvid_set(split: str, cam):
+    """(id, image, reference VP) of the frames the rule accepts, the number skipped, and the
+    reference's own spread per kept frame: |VP(band 1.5 px) - VP(band 3 px)| in % of the width,
+    both fitted to the same boundary points without rule 3's goodness tests (the frame already
+    passed them; nan if either intersection is invalid) - how far the reference moves under an
+    equally reasonable choice of its own parameter: a floor under any detector's measured error."""
     img_dir, lab_dir = DATA / split, DATA / f"{split}annot"
-    out, skipped = [], 0
+    out, skipped, spread = [], 0, []
     for p in sorted(img_dir.glob("*.png")):
         lab = cv2.imread(str(lab_dir / p.name), cv2.IMREAD_UNCHANGED)
         ref = reference_vp(lab, cam) if lab is not None else None
@@ -214,7 +240,9 @@ def camvid_set(split: str, cam):
             skipped += 1
             continue
         out.append((p.stem, cv2.imread(str(p), cv2.IMREAD_COLOR), ref))
-    return out, skipped
+        a, b = reference_vp(lab, cam, 1.5, gate=False), reference_vp(lab, cam, 3.0, gate=False)
+        spread.append(math.hypot(a[0] - b[0], a[1] - b[1]) / cam.size[0] * 100 if a and b else float("nan"))
+    return out, skipped, spread
 
 
 # ------------------------------------------------------------------------------- evaluation
@@ -271,9 +299,15 @@ def main(argv=None) -> int:
         sets.append(("synthetic", "960x720", synthetic_set(args.n_synthetic_960, cam960, seed=1), cam960))
     if DATA.is_dir():
         for split in args.splits.split(","):
-            items, skipped = camvid_set(split, cam480)
-            print(f"camvid/{split}: {len(items)} frames with a good reference VP, {skipped} skipped by the rule",
-                  file=sys.stderr)
+            items, skipped, spread = camvid_set(split, cam480)
+            sp = np.array(spread)
+            sp = sp[np.isfinite(sp)]
+            ref_noise = {"n": int(len(sp)), "median_pct_width": round(float(np.median(sp)), 3) if len(sp) else None,
+                         "p90_pct_width": round(float(np.percentile(sp, 90)), 3) if len(sp) else None}
+            print(f"camvid/{split}: {len(items)} frames with a good reference VP, {skipped} skipped by the rule; "
+                  f"reference spread (band 1.5 vs 3 px) median {ref_noise['median_pct_width']} % "
+                  f"p90 {ref_noise['p90_pct_width']} % of the width", file=sys.stderr)
+            results.setdefault("reference_spread", {})[f"camvid/{split}"] = ref_noise
             sets.append((f"camvid/{split}", "480x360", items, cam480))
             results.setdefault("skipped", {})[f"camvid/{split}"] = skipped
     else:
@@ -293,6 +327,8 @@ def main(argv=None) -> int:
         "p90_pct_width": head_src["ours"]["p90_pct_width"],
         "ms_per_image_480": S["synthetic@480x360"]["ours"]["ms_per_image"] if not real else real["ours"]["ms_per_image"],
         "ms_per_image_960": S.get("synthetic@960x720", {}).get("ours", {}).get("ms_per_image"),
+        "reference_spread_median_pct_width": results.get("reference_spread", {}).get("camvid/val", {}).get("median_pct_width"),
+        "reference_spread_p90_pct_width": results.get("reference_spread", {}).get("camvid/val", {}).get("p90_pct_width"),
         "baseline_median_pct_width": head_src["baseline"]["median_pct_width"],
         "baseline_p90_pct_width": head_src["baseline"]["p90_pct_width"],
         "baseline_ms_per_image_480": head_src["baseline"]["ms_per_image"],

@@ -77,10 +77,11 @@ def test_table_has_every_heldout_and_condition(study_run):
     assert [ln.split("|")[1].strip() for ln in table[4:]] == list(CAMS) + ["mean"]
     csv = (out / "table.csv").read_text().splitlines()
     assert csv[0] == "held out," + ",".join(CONDS) and len(csv) == len(CAMS) + 2
-    # the mean row is the mean of the column
+    # the mean row is the mean of the column (cells are rounded to 0.1: the mean of the rounded
+    # cells and the rounded mean can each be 0.05 off the true mean)
     for j, c in enumerate(CONDS, 1):
         col = [float(line.split(",")[j]) for line in csv[1:-1]]
-        assert float(csv[-1].split(",")[j]) == pytest.approx(sum(col) / len(col), abs=0.051)
+        assert float(csv[-1].split(",")[j]) == pytest.approx(sum(col) / len(col), abs=0.1001)
         assert summary[c] * 100 == pytest.approx(float(csv[-1].split(",")[j]), abs=0.051)
 
 

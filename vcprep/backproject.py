@@ -60,5 +60,5 @@ def backproject_folder(store: str | Path, masks: str | Path, out: str | Path, ki
     out.mkdir(parents=True, exist_ok=True)
     for f in tqdm(files, desc="backproject", unit="img", disable=None if progress else True, leave=False):
         arr = read_image(f, label=(kind == "mask")).array
-        write_png(out / f.name, backproject_array(arr, st.items[f.stem], kind))
+        write_png(out / f.name, backproject_array(arr, st.items[f.stem], kind), kind="mask" if kind == "mask" else "photo")
     return len(files)

@@ -218,10 +218,10 @@ def _files_present(root: Path, rec: dict[str, Any]) -> bool:
 
 def _write_item(root: Path, rec: dict[str, Any], item: WarpedItem) -> dict[str, str]:
     """Write one item's PNGs atomically (label only if the record has one); their SHA-256."""
-    sums = {"image": write_png(root / rec["image"], item.image)}
+    sums = {"image": write_png(root / rec["image"], item.image, kind="store")}
     if item.label is not None and rec.get("label"):
-        sums["label"] = write_png(root / rec["label"], item.label)
-    sums["valid"] = write_png(root / rec["valid"], item.valid)
+        sums["label"] = write_png(root / rec["label"], item.label, kind="mask")
+    sums["valid"] = write_png(root / rec["valid"], item.valid, kind="mask")
     return sums
 
 

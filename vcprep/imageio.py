@@ -142,16 +142,27 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> None:
         raise
 
 
-# zlib level 1 with the PNG 'sub' filter on every row: on CamVid frames and store images about
-# twice as fast as level 1 with OpenCV's adaptive filters, files within a few % (smaller on
-# store images); benchmarks/store.py measures the store stage with it
-_PNG_FILTER = [cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_SUB] if hasattr(cv2, "IMWRITE_PNG_FILTER") else []
+# PNG encoder settings per kind of content (zlib level 1 everywhere: fast, still lossless), chosen
+# by measurement (benchmarks/store.py; CamVid, 1/8 store):
+# - 'photo': the 'sub' filter on every row - on camera frames about twice as fast as OpenCV's
+#   adaptive filters, files within a few %;
+# - 'store': no filter - virtual-camera images are mostly completion, constant along rays, whose
+#   repeated pixels deflate finds unfiltered: 15 % faster than 'sub' and 8 % smaller there;
+# - 'mask': no filter + run-length strategy for labels, valid masks and predictions (few values).
+_F, _S = getattr(cv2, "IMWRITE_PNG_FILTER", None), getattr(cv2, "IMWRITE_PNG_STRATEGY", None)
+PNG_KINDS = {
+    "photo": [_F, cv2.IMWRITE_PNG_FILTER_SUB] if _F is not None else [],
+    "store": [_F, cv2.IMWRITE_PNG_FILTER_NONE] if _F is not None else [],
+    "mask": ([_F, cv2.IMWRITE_PNG_FILTER_NONE] if _F is not None else [])
+            + ([_S, cv2.IMWRITE_PNG_STRATEGY_RLE] if _S is not None else []),
+}
 
 
-def write_png(path: str | Path, array: np.ndarray, compression: int = 1) -> str:
-    """Encode ``array`` as PNG and write it atomically. Compression 1: fast, still lossless.
-    Returns the SHA-256 (hex) of the bytes written."""
-    ok, buf = cv2.imencode(".png", array, [cv2.IMWRITE_PNG_COMPRESSION, int(compression)] + _PNG_FILTER)
+def write_png(path: str | Path, array: np.ndarray, compression: int = 1, kind: str = "photo") -> str:
+    """Encode ``array`` as PNG and write it atomically. Compression 1: fast, still lossless;
+    ``kind`` picks the filter/strategy (:data:`PNG_KINDS`). Returns the SHA-256 (hex) of the bytes
+    written."""
+    ok, buf = cv2.imencode(".png", array, [cv2.IMWRITE_PNG_COMPRESSION, int(compression)] + PNG_KINDS[kind])
     if not ok:
         raise InputError("cannot encode PNG", path, "unsupported array shape or type")
     data = buf.tobytes()

@@ -9,6 +9,7 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import cv2
 import numpy as np
 
 from .errors import InputError
@@ -131,6 +132,12 @@ def decode_label(raw: np.ndarray, fmt: LabelFormat, file: str | Path | None = No
         if mx > fmt.max_value:
             raise InputError(f"label value {mx} is outside format '{fmt.name}' (ids 0..{fmt.max_value})", file,
                              "check --label-format")
+    if raw.dtype == np.uint8:  # one table lookup per pixel (ids 0..255)
+        lut = np.zeros(256, dtype=np.uint8)
+        lut[[v for v in fmt.road if 0 <= v < 256]] = ROAD
+        if fmt.ignore:
+            lut[[v for v in fmt.ignore if 0 <= v < 256]] = IGNORE
+        return cv2.LUT(raw, lut)
     out = np.zeros(raw.shape, dtype=np.uint8)
     out[np.isin(raw, fmt.road)] = ROAD
     if fmt.ignore:

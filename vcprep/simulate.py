@@ -596,7 +596,7 @@ def _simulate_item(it: SimItem, plan: SimPlan, fmt: LabelFormat | None, img_dir:
         decode_label(lab, fmt, job.label)  # refuse labels the format cannot read (the output keeps raw values)
     wimg, wlab = simulate_arrays(img, lab, it.out_H_src, plan.camera.size, plan.params.greyscale)
     img_out_sha = write_png(out_img, wimg)
-    lab_out_sha = write_png(out_lab, wlab) if wlab is not None else None
+    lab_out_sha = write_png(out_lab, wlab, kind="mask") if wlab is not None else None
     summary.written += 1
     return {"id": job.id, "image": str(job.image), "image_sha256": img_sha,
             "label": str(job.label) if job.label is not None else None, "label_sha256": lab_sha,

@@ -93,7 +93,7 @@ def write_prediction(out: Path, stem: str, prob: np.ndarray, overlay_on: str | P
     mask = np.where(prob >= 0.5, 255, 0).astype(np.uint8)
     pp, mp = out / f"{stem}_prob.png", out / f"{stem}_mask.png"
     write_png(pp, p8)
-    write_png(mp, mask)
+    write_png(mp, mask, kind="mask")
     if overlay_on is not None:
         from vcprep.figures import overlay_label
 
