@@ -158,12 +158,14 @@ class WarpedItem:
 
 
 def warp_item_full(job: Job, store_size: tuple[int, int], H: np.ndarray, fmt: LabelFormat | None,
-                   completion: str = "none", vp_store: tuple[float, float] | None = None) -> WarpedItem:
-    """Warp + complete one item in memory with one remap per image/label."""
-    img = read_image(job.image)
+                   completion: str = "none", vp_store: tuple[float, float] | None = None,
+                   data: tuple[bytes | None, bytes | None] = (None, None)) -> WarpedItem:
+    """Warp + complete one item in memory (one pass per image/label, :mod:`vcprep.completion`).
+    ``data``: the image's and label's file bytes if already read (hashing reads them)."""
+    img = read_image(job.image, data=data[0])
     lab = None
     if job.label is not None:
-        raw = read_image(job.label, label=True)
+        raw = read_image(job.label, label=True, data=data[1])
         if raw.size != img.size:
             raise InputError(f"label is {raw.size[0]}x{raw.size[1]} but its image is {img.size[0]}x{img.size[1]}",
                              job.label, "labels must have the size of their images")
@@ -248,7 +250,7 @@ def build_item(ctx: _WarpContext, task: _WarpTask) -> ItemResult:
         vp, vp_status = vp_from_pose(cam, pan, tilt), "camera"
     cam, H = item_geometry(cam, size, ctx.virtual_scaled, job.image, pan, tilt)
     vp_store = tuple(apply_homography(H, [vp])[0])  # = the virtual principal point (H maps VP -> pp)
-    lab_hash = _sha256_file(job.label, "label")[0] if job.label is not None else None
+    lab_hash, lab_data = _sha256_file(job.label, "label") if job.label is not None else (None, None)
     key = _item_key({"algorithm": WARP_ALGORITHM, "source_sha256": src_hash, "label_sha256": lab_hash,
                      "label_format": fmt.name if fmt and job.label else None, "camera": cam.to_dict(),
                      "store": {k: params[k] for k in ("virtual", "scale", "store_size")},
@@ -256,7 +258,8 @@ def build_item(ctx: _WarpContext, task: _WarpTask) -> ItemResult:
                      "completion": completion_key_part(completion)})
     if old is not None and old.get("key") == key and _files_present(ctx.root, old):
         return ItemResult(job.id, "up_to_date", old)
-    item = warp_item_full(job, store_size=store_size, H=H, fmt=fmt, completion=completion, vp_store=vp_store)
+    item = warp_item_full(job, store_size=store_size, H=H, fmt=fmt, completion=completion, vp_store=vp_store,
+                          data=(data, lab_data))
     rec = {
         "id": job.id,
         "source": str(job.image),

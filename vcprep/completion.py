@@ -1,5 +1,5 @@
 """Completion of the virtual image (paper §4.3): fill every store pixel that no source pixel
-covers, fused with the warp into one inverse map and one ``cv2.remap``.
+covers, fused with the warp: one inverse map (store pixel -> source point), applied in one pass.
 
 Methods (:data:`METHODS`):
 
@@ -17,16 +17,18 @@ so the ray from the VP ``c`` through an uncovered store pixel ``p`` is the image
 Jacobian of ``src_H_virt`` at ``c`` (exact: a homography maps a ray from ``c`` onto a ray from
 ``c_src``), and the point where the store ray leaves the covered region is the image of the
 point where the source ray leaves the source region. So every uncovered store pixel gets a
-*source* coordinate, written into the same ``map_x``/``map_y`` as the warp.
+*source* coordinate, like the covered ones (``map_x``/``map_y``). As that coordinate depends only
+on the ray's angle, it is kept as a 1-D table of angles, and applying the maps remaps the covered
+pixels and looks the uncovered ones up in the table sampled once per image
+(:class:`CompletionMaps`): each pixel is computed once, and only the covered ones interpolate.
 
 The covered region is the source rectangle (pixel centres ``[0, w-1] x [0, h-1]``) minus the
 label's ignore pixels that touch the image border (an ego-vehicle bonnet, a rectification
-border). Without such pixels the exit point is the exact ray/rectangle intersection (which is
-what linear interpolation in angle between boundary pixels converges to on straight edges);
-with them, it is looked up in a table of the region's boundary pixels sorted by angle: the
-image map interpolates the boundary point linearly in angle and steps 1 px inward (so bilinear
-sampling never reaches into the ignore pixels); the label map takes the boundary pixel nearest
-in angle (values are never mixed). Ignore pixels inside the covered region keep their warped
+border). A ray's exit point is the exact ray/rectangle intersection, unless the ray meets such
+pixels first: then it is looked up in a table of the region's boundary pixels next to them,
+sorted by angle; the image point interpolates linearly in angle between boundary pixels and
+steps 1 px inward (so bilinear sampling never reaches into the ignore pixels); the label takes
+the boundary pixel nearest in angle (values are never mixed). Ignore pixels inside the covered region keep their warped
 value (the bonnet stays ignore). Ignore holes that do not touch the border are not boundary.
 
 VP outside the covered region (a bad estimate, or a VP above the source image): rays from an
@@ -282,18 +284,17 @@ def exit_points_rectangle(c_src: np.ndarray, dx: np.ndarray, dy: np.ndarray, src
     return x, y
 
 
-def _boundary_table(region: np.ndarray, c_src: np.ndarray):
-    """The first-exit boundary of ``region`` (uint8 0/1, source pixels) seen from ``c_src``.
+def _boundary_table(boundary: np.ndarray, c_src: np.ndarray):
+    """The first-exit boundary seen from ``c_src`` among the pixels of ``boundary`` (uint8 0/1).
 
-    Boundary pixels are region pixels with a 4-neighbour outside it (or on the image edge). Each
-    covers the angular interval it subtends from ``c_src`` (half-width 0.71/r); in every angular
-    bin the nearest covering pixel wins (a ray leaves the region there first; pixels hidden
-    behind a nearer boundary, e.g. the side walls of a bonnet notch, never win). Returns the
-    winners (theta, x, y) sorted by theta."""
-    inner = cv2.erode(region, cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3)),
-                      borderType=cv2.BORDER_CONSTANT, borderValue=0)
-    pts = cv2.findNonZero(region - inner)  # row-major order, as np.nonzero
-    pts = np.zeros((0, 2), np.int32) if pts is None else pts.reshape(-1, 2)
+    Each pixel covers the angular interval it subtends from ``c_src`` (half-width 0.71/r); in
+    every angular bin the nearest covering pixel wins (a ray leaves the region there first; pixels
+    hidden behind a nearer boundary, e.g. the side walls of a bonnet notch, never win). Returns
+    the winners (theta, x, y) sorted by theta, and which bins any pixel covers (bool, ``nbins``)."""
+    pts = cv2.findNonZero(boundary)  # row-major order, as np.nonzero
+    if pts is None:
+        return np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(1, dtype=bool)
+    pts = pts.reshape(-1, 2)
     x = pts[:, 0].astype(np.float64)
     y = pts[:, 1].astype(np.float64)
     th = np.arctan2(y - c_src[1], x - c_src[0])
@@ -313,41 +314,61 @@ def _boundary_table(region: np.ndarray, c_src: np.ndarray):
     np.minimum.at(best, b, rank[owner])  # per bin, the nearest covering pixel
     win = np.unique(by_r[best[best < len(r)]])
     win = win[np.argsort(th[win], kind="stable")]
-    return th[win], x[win], y[win]
+    return th[win], x[win], y[win], best < len(r)
+
+
+_CROSS = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
 
 
 def _exit_table(cx_: np.ndarray, cy_: np.ndarray, J: np.ndarray, c_src: np.ndarray, src_size, region_src):
-    """Source points for store directions (cx_, cy_) from the centre: (image x, y, label x, y)."""
+    """Source points for store directions (cx_, cy_) from the centre: (image x, y, label x, y).
+
+    Without a cut (``region_src`` None) the exit is the exact ray/rectangle intersection. With
+    one, a ray leaves either through the rectangle (exact, as without) or, if nearer, through the
+    cut: the region pixels 4-adjacent to it, found by :func:`_boundary_table`. There the image
+    point is interpolated linearly in angle between neighbouring boundary pixels (the nearest
+    one across an occlusion jump) and stepped ``INSET`` px inward; the label takes the boundary
+    pixel nearest in angle. A point whose bilinear taps would touch the cut samples its label
+    pixel instead, so no value ever comes from the cut."""
     w, h = src_size
     dx = J[0, 0] * cx_ + J[0, 1] * cy_
     dy = J[1, 0] * cx_ + J[1, 1] * cy_
+    xr, yr = exit_points_rectangle(c_src, dx, dy, src_size)
     if region_src is None:
-        x, y = exit_points_rectangle(c_src, dx, dy, src_size)
-        return x, y, x, y
-    th_k, x_k, y_k = _boundary_table(region_src, c_src)
-    th = np.arctan2(dy, dx)
-    n = len(th_k)
-    hi = np.searchsorted(th_k, th) % n
-    lo = (hi - 1) % n
-    span = np.mod(th_k[hi] - th_k[lo], 2 * math.pi)
-    a = np.where(span > 0, np.mod(th - th_k[lo], 2 * math.pi) / np.where(span > 0, span, 1.0), 0.0)
-    a = np.clip(a, 0.0, 1.0)
-    near = np.where(a <= 0.5, lo, hi)  # label: the boundary pixel nearest in angle
-    # image: linear in angle between neighbouring boundary pixels, unless they are not
-    # neighbours on the boundary (an occlusion jump): then the nearest one
-    jump = np.hypot(x_k[hi] - x_k[lo], y_k[hi] - y_k[lo]) > 1.5
-    x = np.where(jump, x_k[near], (1 - a) * x_k[lo] + a * x_k[hi])
-    y = np.where(jump, y_k[near], (1 - a) * y_k[lo] + a * y_k[hi])
-    ox, oy = x - c_src[0], y - c_src[1]
-    r = np.hypot(ox, oy)
-    f = np.where(r > INSET, (r - INSET) / np.maximum(r, 1e-9), 0.0)
-    x = np.clip(c_src[0] + f * ox, 0, w - 1)
-    y = np.clip(c_src[1] + f * oy, 0, h - 1)
-    # bilinear must not reach a pixel outside the region: else sample the boundary pixel itself
-    x0, y0 = np.floor(x).astype(np.int64), np.floor(y).astype(np.int64)
+        return xr, yr, xr, yr
+    cut = 1 - region_src
+    near_cut = cv2.dilate(cut, _CROSS, borderType=cv2.BORDER_CONSTANT, borderValue=0) & region_src
+    th_k, x_k, y_k, covered = _boundary_table(near_cut, c_src)
+    lx, ly = np.rint(xr), np.rint(yr)
+    if len(th_k):
+        th = np.arctan2(dy, dx)
+        n = len(th_k)
+        hi = np.searchsorted(th_k, th) % n
+        lo = (hi - 1) % n
+        span = np.mod(th_k[hi] - th_k[lo], 2 * math.pi)
+        a = np.where(span > 0, np.mod(th - th_k[lo], 2 * math.pi) / np.where(span > 0, span, 1.0), 0.0)
+        a = np.clip(a, 0.0, 1.0)
+        near = np.where(a <= 0.5, lo, hi)
+        jump = np.hypot(x_k[hi] - x_k[lo], y_k[hi] - y_k[lo]) > 1.5
+        xc = np.where(jump, x_k[near], (1 - a) * x_k[lo] + a * x_k[hi])
+        yc = np.where(jump, y_k[near], (1 - a) * y_k[lo] + a * y_k[hi])
+        ox, oy = xc - c_src[0], yc - c_src[1]
+        r = np.hypot(ox, oy)
+        nb = len(covered)
+        hit = covered[np.floor((th + math.pi) * (nb / (2 * math.pi))).astype(np.int64) % nb]
+        hit &= r < np.hypot(xr - c_src[0], yr - c_src[1])  # the cut comes before the rectangle edge
+        f = np.where(r > INSET, (r - INSET) / np.maximum(r, 1e-9), 0.0)
+        xr = np.where(hit, np.clip(c_src[0] + f * ox, 0, w - 1), xr)
+        yr = np.where(hit, np.clip(c_src[1] + f * oy, 0, h - 1), yr)
+        # label: the nearest boundary pixel for cut exits and for rectangle exits that round into the cut
+        lxi, lyi = lx.astype(np.int64), ly.astype(np.int64)
+        into_cut = hit | (region_src[lyi, lxi] == 0)
+        lx = np.where(into_cut, x_k[near], lx)
+        ly = np.where(into_cut, y_k[near], ly)
+    x0, y0 = np.floor(xr).astype(np.int64), np.floor(yr).astype(np.int64)
     x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
     ok = (region_src[y0, x0] & region_src[y0, x1] & region_src[y1, x0] & region_src[y1, x1]).astype(bool)
-    return np.where(ok, x, x_k[near]), np.where(ok, y, y_k[near]), x_k[near], y_k[near]
+    return np.where(ok, xr, lx), np.where(ok, yr, ly), lx, ly
 
 
 def _centre(vp: tuple[float, float], M: np.ndarray, src_size, dst_shape, region_src: np.ndarray | None,

@@ -60,13 +60,15 @@ def image_size_from_header(data: bytes) -> tuple[int, int] | None:
     return None
 
 
-def read_image(path: str | Path, *, label: bool = False) -> LoadedImage:
+def read_image(path: str | Path, *, label: bool = False, data: bytes | None = None) -> LoadedImage:
     """Read an image (or a label image with ``label=True``) exactly as stored (bit depth and
-    channels kept; a 4th alpha channel of a photo is dropped). Raises :class:`InputError`."""
+    channels kept; a 4th alpha channel of a photo is dropped). ``data``: the file's bytes when
+    the caller has already read them (``path`` then only names it). Raises :class:`InputError`."""
     path = Path(path)
     kind = "label" if label else "image"
     try:
-        data = path.read_bytes()
+        if data is None:
+            data = path.read_bytes()
     except FileNotFoundError:
         raise InputError(f"{kind} file not found", path, "check the path") from None
     except IsADirectoryError:
