@@ -59,7 +59,7 @@ __all__ = ["METHODS", "COMPLETION_VERSION", "CompletionMaps", "check_method", "b
            "complete_maps", "exit_points_rectangle", "store_vp"]
 
 METHODS = ("projective", "zero", "replicate", "none")
-COMPLETION_VERSION = "completion-v1"  # bump when completed outputs of identical inputs would change
+COMPLETION_VERSION = "completion-v2"  # bump when completed outputs of identical inputs would change
 INSET = 1.0            # px the image map steps inward from a cut (ignore) boundary
 FALLBACK_TOWARD = 0.1  # VP outside: move the nearest covered pixel this far toward the centroid
 TABLE_ARC = 0.5        # px: angular step of the fill table, as arc length at the farthest store pixel
