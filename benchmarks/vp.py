@@ -32,9 +32,10 @@ Data
   The reference itself is uncertain (hand-drawn polygons, real kerbs): errors near its spread
   are at the reference's noise, not the detector's. Measured, not guessed (``train``, 42 frames):
 
-  * *parameter spread*: recomputing it with rule 3's inlier band at 1.5 px instead of 3 px moves
-    the reference VP by median 0.22 %, p90 0.54 % of the width. The run prints this spread per
-    split and writes it as ``reference_spread`` (headline: ``reference_spread_*`` for ``val``);
+  * *parameter spread*: recomputing it with rule 3's inlier band at 1.5 px and at 3 px (the rule
+    uses 2 px) moves the reference VP by median 0.22 %, p90 0.54 % of the width (``val``: 0.16 %,
+    0.35 %). The run prints this spread per split and writes it as ``reference_spread``
+    (headline: ``reference_spread_*`` for ``val``);
   * *straight-kerb assumption*: the rule assumes both mask boundaries are straight lines parallel
     to the lane. Fitting the near half and the far half of each boundary separately gives VPs
     that differ by median 1.6 % of the width; where a kerb bends (bus lay-by, widening, side
@@ -43,6 +44,17 @@ Data
     (``vcprep figure vp`` plus the fitted boundary lines). The rule was NOT changed to drop such
     frames: any straightness threshold strict enough to catch them also drops most good frames
     (measured), and a rule chosen by looking at the detector's errors would not be independent.
+
+  * *what the image lines say*: an oracle measured on ``train`` (development only, not part of
+    the run) keeps only the detector's segments that have ground-truth road (label 3) on at
+    least one side - lane markings and road edges, no facades - and refines the VP on them: the
+    median error is 0.81 % (vs 0.80 % with all segments); refining from the reference VP itself
+    instead of from the detection gives median 0.46 %, p90 1.0 %. So on most frames the road's
+    own lines (markings, kerb tops, kerb faces) meet about 0.5-1 % of the width away from the
+    mask-boundary intersection: the disagreement is between two definitions of the road VP,
+    not clutter the detector could learn to ignore; 7 of 42 ``train`` frames (00780, 00870,
+    07500, 07530, 01170, 01050, 00750) have two modes (e.g. lane markings vs kerbs of a
+    slightly curving road) and the detector takes the better-supported one.
 
   So the targets (median 0.5 %, p90 1 %) are within about 2x of the reference's own parameter
   spread, and a bent kerb in 1 frame of 20 puts that frame's error above any p90 target; the

@@ -169,25 +169,12 @@ class CompletionMaps:
             coords.append((mx, my))
         return _finish(*coords[0], *coords[1], self.valid)
 
-    @property
-    def map_x(self) -> np.ndarray:
-        return self.exact_maps.map_x
-
-    @property
-    def map_y(self) -> np.ndarray:
-        return self.exact_maps.map_y
-
-    @property
-    def linear(self):
-        return self.exact_maps.linear
-
-    @property
-    def nearest(self) -> np.ndarray:
-        return self.exact_maps.nearest
-
-    @property
-    def roi(self):
-        return self.exact_maps.roi
+    # the per-pixel maps of :class:`RemapMaps`, from the exact maps (built on first use)
+    map_x = property(lambda self: self.exact_maps.map_x)
+    map_y = property(lambda self: self.exact_maps.map_y)
+    linear = property(lambda self: self.exact_maps.linear)
+    nearest = property(lambda self: self.exact_maps.nearest)
+    roi = property(lambda self: self.exact_maps.roi)
 
     def remap_image(self, img: np.ndarray) -> np.ndarray:
         if self.fill is None:
