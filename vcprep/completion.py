@@ -64,7 +64,7 @@ INSET = 1.0            # px the image map steps inward from a cut (ignore) bound
 FALLBACK_TOWARD = 0.1  # VP outside: move the nearest covered pixel this far toward the centroid
 TABLE_ARC = 0.5        # px: angular step of the fill table, as arc length at the farthest store pixel
 TABLE_COLS = 4096      # the fill table's row length (remap coordinates must fit in int16)
-BANDS = 24             # row bands the fused pass splits the store into (see _bands)
+BAND_ROWS = 48         # rows per band of the fused pass (see _bands): fewer calls on small stores, tight bands on large
 
 
 @dataclass(frozen=True)
@@ -408,7 +408,7 @@ def _bands(valid: np.ndarray) -> tuple[tuple, tuple]:
     any_ = cov.any(axis=1)
     first = np.where(any_, cov.argmax(axis=1), W)
     last = np.where(any_, W - 1 - cov[:, ::-1].argmax(axis=1), -1)
-    rows = max(8, -(-H // BANDS))
+    rows = BAND_ROWS
     covered, fill = [], []
     for y0 in range(0, H, rows):
         y1 = min(H, y0 + rows)
