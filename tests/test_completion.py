@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 import pytest
 
-from vcprep.build import Job, ItemPose, list_dataset, warp_dataset, warp_item_full
+from vcprep.build import ItemPose, list_dataset, warp_dataset
 from vcprep.camera import PRESETS
 from vcprep.completion import (METHODS, TABLE_ARC, CompletionMaps, border_ignore, check_method, complete_maps, completion_maps,
                                exit_points_rectangle, store_vp)

@@ -23,7 +23,7 @@ from .labels import LabelFormat, decode_label, image_id, label_stem_for
 from .parallel import ItemError, run_items
 from .store import Shard, Store, temp_files
 from .completion import border_ignore, check_method, completion_maps
-from .warp import maps_for, warp_image, warp_label
+from .warp import warp_image, warp_label
 
 __all__ = ["Job", "ItemPose", "BuildSummary", "item_maps", "warp_item", "list_dataset", "store_params", "item_geometry", "warp_dataset",
            "WarpedItem", "warp_item_full", "complete_store", "record_key", "ItemResult", "build_item",

@@ -53,7 +53,7 @@ import numpy as np
 
 from .errors import GeometryError, InputError
 from .labels import IGNORE
-from .warp import OUTSIDE, RemapMaps, maps_for
+from .warp import RemapMaps, maps_for
 
 __all__ = ["METHODS", "COMPLETION_VERSION", "CompletionMaps", "check_method", "border_ignore", "completion_maps",
            "complete_maps", "exit_points_rectangle", "store_vp"]

@@ -390,7 +390,6 @@ def estimate_vp(image: np.ndarray, cam: Camera, cfg: VPConfig = VPConfig(),
         keep &= _line_crosses_box(seg, box)
     idx = np.flatnonzero(keep)
     # vote weight = length (the road-below-VP factor is applied per candidate in _votes)
-    mid_all = 0.5 * (seg[:, 0:2] + seg[:, 2:4])
     wts_all = length ** cfg.length_power
     idx = idx[np.argsort(-wts_all[idx], kind="stable")][: cfg.max_segments]
     support_all = np.zeros(len(all_seg), bool)
