@@ -271,19 +271,20 @@ def exit_points_rectangle(c_src: np.ndarray, dx: np.ndarray, dy: np.ndarray, src
     return x, y
 
 
-def _boundary_table(boundary: np.ndarray, c_src: np.ndarray):
+def _boundary_table(boundary: np.ndarray, c_src: np.ndarray, offset: tuple[int, int] = (0, 0)):
     """The first-exit boundary seen from ``c_src`` among the pixels of ``boundary`` (uint8 0/1).
 
     Each pixel covers the angular interval it subtends from ``c_src`` (half-width 0.71/r); in
     every angular bin the nearest covering pixel wins (a ray leaves the region there first; pixels
     hidden behind a nearer boundary, e.g. the side walls of a bonnet notch, never win). Returns
-    the winners (theta, x, y) sorted by theta, and which bins any pixel covers (bool, ``nbins``)."""
+    the winners (theta, x, y) sorted by theta, and which bins any pixel covers (bool, ``nbins``).
+    ``offset``: (x, y) of ``boundary``'s top-left pixel when it is a window of the image."""
     pts = cv2.findNonZero(boundary)  # row-major order, as np.nonzero
     if pts is None:
         return np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(1, dtype=bool)
     pts = pts.reshape(-1, 2)
-    x = pts[:, 0].astype(np.float64)
-    y = pts[:, 1].astype(np.float64)
+    x = pts[:, 0].astype(np.float64) + offset[0]
+    y = pts[:, 1].astype(np.float64) + offset[1]
     th = np.arctan2(y - c_src[1], x - c_src[0])
     r = np.hypot(x - c_src[0], y - c_src[1])
     nbins = int(np.clip(2 * math.pi * r.max(), 2048, 1 << 16))  # ~1 px at the farthest boundary
@@ -307,8 +308,60 @@ def _boundary_table(boundary: np.ndarray, c_src: np.ndarray):
 _CROSS = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
 
 
-def _exit_table(cx_: np.ndarray, cy_: np.ndarray, J: np.ndarray, c_src: np.ndarray, src_size, region_src):
-    """Source points for store directions (cx_, cy_) from the centre: (image x, y, label x, y).
+@dataclass(frozen=True)
+class _Rays:
+    """The fill table's rays in the source, for one geometry (shared by every label): per table
+    angle the source direction (dx, dy) from ``c_src`` and its angle ``th``, the exact exit
+    through the image rectangle (xr, yr), its distance ``rr``, the pixel it rounds to (lx, ly),
+    and the flat source indices of that pixel (``lflat``) and of the exit's bilinear taps
+    (``taps``, 4 x n)."""
+
+    c_src: np.ndarray
+    dx: np.ndarray
+    dy: np.ndarray
+    th: np.ndarray
+    xr: np.ndarray
+    yr: np.ndarray
+    rr: np.ndarray
+    lx: np.ndarray
+    ly: np.ndarray
+    lflat: np.ndarray
+    taps: np.ndarray
+
+
+def _bilinear_taps(x: np.ndarray, y: np.ndarray, src_size) -> np.ndarray:
+    """Flat source indices (4 x n) of the pixels bilinear sampling at (x, y) reads."""
+    w, h = src_size
+    x0, y0 = np.floor(x).astype(np.int64), np.floor(y).astype(np.int64)
+    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
+    return np.stack([y0 * w + x0, y0 * w + x1, y1 * w + x0, y1 * w + x1])
+
+
+_RAYS: "OrderedDict[tuple, _Rays]" = OrderedDict()
+
+
+def _rays(n: int, J: np.ndarray, c_src: np.ndarray, src_size, key: tuple) -> _Rays:
+    """The :class:`_Rays` of the ``n`` table angles (LRU-cached under ``key``)."""
+    hit = _RAYS.get(key)
+    if hit is not None:
+        _RAYS.move_to_end(key)
+        return hit
+    phi = np.arange(n) * (2 * math.pi / n)
+    cx_, cy_ = np.cos(phi), np.sin(phi)
+    dx = J[0, 0] * cx_ + J[0, 1] * cy_
+    dy = J[1, 0] * cx_ + J[1, 1] * cy_
+    xr, yr = exit_points_rectangle(c_src, dx, dy, src_size)
+    lx, ly = np.rint(xr), np.rint(yr)
+    out = _Rays(c_src, dx, dy, np.arctan2(dy, dx), xr, yr, np.hypot(xr - c_src[0], yr - c_src[1]), lx, ly,
+                ly.astype(np.int64) * src_size[0] + lx.astype(np.int64), _bilinear_taps(xr, yr, src_size))
+    _RAYS[key] = out
+    if len(_RAYS) > _CACHE_MAX:
+        _RAYS.popitem(last=False)
+    return out
+
+
+def _exit_table(rays: _Rays, src_size, region_src):
+    """Source points for the table angles of ``rays``: (image x, y, label x, y).
 
     Without a cut (``region_src`` None) the exit is the exact ray/rectangle intersection. With
     one, a ray leaves either through the rectangle (exact, as without) or, if nearer, through the
@@ -316,19 +369,28 @@ def _exit_table(cx_: np.ndarray, cy_: np.ndarray, J: np.ndarray, c_src: np.ndarr
     point is interpolated linearly in angle between neighbouring boundary pixels (the nearest
     one across an occlusion jump) and stepped ``INSET`` px inward; the label takes the boundary
     pixel nearest in angle. A point whose bilinear taps would touch the cut samples its label
-    pixel instead, so no value ever comes from the cut."""
+    pixel instead, so no value ever comes from the cut. Only the angles a cut can change (those
+    its boundary covers, or whose rectangle exit rounds into it) are computed per label."""
     w, h = src_size
-    dx = J[0, 0] * cx_ + J[0, 1] * cy_
-    dy = J[1, 0] * cx_ + J[1, 1] * cy_
-    xr, yr = exit_points_rectangle(c_src, dx, dy, src_size)
+    xr, yr, lx, ly = rays.xr, rays.yr, rays.lx, rays.ly
     if region_src is None:
-        return xr, yr, xr, yr
+        return xr, yr, lx, ly
+    c_src = rays.c_src
+    region = region_src.ravel()
     cut = 1 - region_src
-    near_cut = cv2.dilate(cut, _CROSS, borderType=cv2.BORDER_CONSTANT, borderValue=0) & region_src
-    th_k, x_k, y_k, covered = _boundary_table(near_cut, c_src)
-    lx, ly = np.rint(xr), np.rint(yr)
+    bx, by, bw, bh = cv2.boundingRect(cut)  # the cut's pixels and their 4-neighbours lie in this window
+    x0, y0, x1, y1 = max(bx - 1, 0), max(by - 1, 0), min(bx + bw + 1, w), min(by + bh + 1, h)
+    near_cut = cv2.dilate(cut[y0:y1, x0:x1], _CROSS, borderType=cv2.BORDER_CONSTANT, borderValue=0) \
+        & region_src[y0:y1, x0:x1]
+    th_k, x_k, y_k, covered = _boundary_table(near_cut, c_src, (x0, y0))
+    tx, ty = xr, yr
+    ok = region[rays.taps[0]] & region[rays.taps[1]] & region[rays.taps[2]] & region[rays.taps[3]]
     if len(th_k):
-        th = np.arctan2(dy, dx)
+        nb = len(covered)
+        cov = covered[np.floor((rays.th + math.pi) * (nb / (2 * math.pi))).astype(np.int64) % nb]
+        rint_cut = region[rays.lflat] == 0
+        s = np.flatnonzero(cov | rint_cut)  # the angles this cut can change
+        th = rays.th[s]
         n = len(th_k)
         hi = np.searchsorted(th_k, th) % n
         lo = (hi - 1) % n
@@ -341,21 +403,20 @@ def _exit_table(cx_: np.ndarray, cy_: np.ndarray, J: np.ndarray, c_src: np.ndarr
         yc = np.where(jump, y_k[near], (1 - a) * y_k[lo] + a * y_k[hi])
         ox, oy = xc - c_src[0], yc - c_src[1]
         r = np.hypot(ox, oy)
-        nb = len(covered)
-        hit = covered[np.floor((th + math.pi) * (nb / (2 * math.pi))).astype(np.int64) % nb]
-        hit &= r < np.hypot(xr - c_src[0], yr - c_src[1])  # the cut comes before the rectangle edge
+        hit = cov[s] & (r < rays.rr[s])  # the cut comes before the rectangle edge
         f = np.where(r > INSET, (r - INSET) / np.maximum(r, 1e-9), 0.0)
-        xr = np.where(hit, np.clip(c_src[0] + f * ox, 0, w - 1), xr)
-        yr = np.where(hit, np.clip(c_src[1] + f * oy, 0, h - 1), yr)
+        tx, ty, lx, ly = xr.copy(), yr.copy(), lx.copy(), ly.copy()
+        tx[s] = np.where(hit, np.clip(c_src[0] + f * ox, 0, w - 1), xr[s])
+        ty[s] = np.where(hit, np.clip(c_src[1] + f * oy, 0, h - 1), yr[s])
         # label: the nearest boundary pixel for cut exits and for rectangle exits that round into the cut
-        lxi, lyi = lx.astype(np.int64), ly.astype(np.int64)
-        into_cut = hit | (region_src[lyi, lxi] == 0)
-        lx = np.where(into_cut, x_k[near], lx)
-        ly = np.where(into_cut, y_k[near], ly)
-    x0, y0 = np.floor(xr).astype(np.int64), np.floor(yr).astype(np.int64)
-    x1, y1 = np.minimum(x0 + 1, w - 1), np.minimum(y0 + 1, h - 1)
-    ok = (region_src[y0, x0] & region_src[y0, x1] & region_src[y1, x0] & region_src[y1, x1]).astype(bool)
-    return np.where(ok, xr, lx), np.where(ok, yr, ly), lx, ly
+        into_cut = hit | rint_cut[s]
+        lx[s] = np.where(into_cut, x_k[near], lx[s])
+        ly[s] = np.where(into_cut, y_k[near], ly[s])
+        t = _bilinear_taps(tx[s], ty[s], src_size)
+        ok[s] = region[t[0]] & region[t[1]] & region[t[2]] & region[t[3]]
+    ok = ok.astype(bool)
+    return np.where(ok, tx, lx), np.where(ok, ty, ly), lx, ly
+
 
 
 def _centre(vp: tuple[float, float], M: np.ndarray, src_size, dst_shape, region_src: np.ndarray | None,
@@ -525,10 +586,8 @@ def complete_maps(base: RemapMaps, dst_H_src: np.ndarray, src_size: tuple[int, i
     c_src = np.clip(c_src, [0, 0], [w - 1, h - 1])
     H = np.ascontiguousarray(dst_H_src, dtype=np.float64)
     angles = _angle_index(valid, centre, (H.tobytes(), tuple(src_size), base.size, centre))
-    phi = np.arange(angles.n) * (2 * math.pi / angles.n)
-    tx, ty, lx, ly = _exit_table(np.cos(phi), np.sin(phi), J, c_src, src_size, region_src)
-    if region_src is None:  # the label takes the pixel the image point rounds to (inside the rectangle)
-        lx, ly = np.rint(tx), np.rint(ty)
+    rays = _rays(angles.n, J, c_src, src_size, (H.tobytes(), tuple(src_size), base.size, centre))
+    tx, ty, lx, ly = _exit_table(rays, src_size, region_src)
     fill = AngleFill(angles.table(tx), angles.table(ty), angles.table(lx), angles.table(ly))
     return CompletionMaps(base, method, IGNORE, centre, vp_inside, angles=angles, fill=fill)
 
