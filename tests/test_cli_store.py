@@ -253,9 +253,11 @@ def test_bad_input_files(dataset, tmp_path, make, needle):
     assert not leftovers
     ids = [r["id"] for r in _records(out)]
     assert bad.stem not in ids
-    for sub in ("images", "labels", "valid"):
+    for sub in ("images", "labels"):
         assert not (out / sub / f"{bad.stem}.png").exists()
     assert all((out / "images" / f"{i}.png").exists() for i in ids)
+    # valid/ holds only the shared masks the records use
+    assert {p.name for p in (out / "valid").glob("*.png")} <= {r["valid"].split("/")[-1] for r in _records(out)}
 
 
 @pytest.mark.parametrize("args, needle", [

@@ -273,7 +273,8 @@ def test_complete_command_equals_warp_complete_and_is_idempotent(dataset, tmp_pa
                    "--out", b)
     assert "0 built, 2 up to date" in proc.stderr
     lab = cv2.imread(str(a / "labels" / "seq_0000.png"), cv2.IMREAD_UNCHANGED)
-    valid = cv2.imread(str(a / "valid" / "seq_0000.png"), cv2.IMREAD_UNCHANGED)
+    rec0 = json.loads((a / "manifest.jsonl").read_text().splitlines()[0])
+    valid = cv2.imread(str(a / rec0["valid"]), cv2.IMREAD_UNCHANGED)
     assert (lab[valid == 0] != 255).all() and ((lab == 255) & (valid == 1)).any()  # bonnet kept, rest filled
     fig = tmp_path / "fig.png"
     proc = run_cli("figure", "completion", a, "seq_0000", "-o", fig)

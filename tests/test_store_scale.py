@@ -111,7 +111,7 @@ def test_verify_finds_each_kind_of_problem(ds, reference, tmp_path):
     assert _warp(imgs, labels, out, "-q").returncode == 0
     proc, problems = _verify(out)
     assert proc.returncode == 0 and problems == [], proc.stderr
-    (out / "valid" / "seq_0001.png").unlink()                                    # missing
+    (out / "labels" / "seq_0001.png").unlink()                                   # missing
     (out / "images" / "seq_0002.png").write_bytes(b"\x89PNG\r\n\x1a\nbroken")   # corrupt
     cv2.imwrite(str(out / "labels" / "seq_0003.png"), np.full((350, 688), 7, np.uint8))  # bad values + checksum
     cv2.imwrite(str(out / "images" / "seq_0004.png"), np.zeros((10, 10, 3), np.uint8))  # wrong size
@@ -159,6 +159,50 @@ def test_new_commands_have_help_with_an_example():
         assert proc.returncode == 0 and "Example" in proc.stdout, cmd
     for opt in ("--jobs", "--shard", "--keep-going"):
         assert opt in run_cli("warp", "--help").stdout
+
+
+# -- shared valid masks ------------------------------------------------------------------------------
+
+def test_valid_masks_are_shared_per_geometry_and_pruned(ds, reference, tmp_path, camvid_half):
+    """One valid mask per geometry (H, sizes): between-camera, all items share one file, equal to
+    the coverage of the source rectangle; per-image VPs give one per pose; a rebuild that changes
+    the geometry leaves no unused mask; repairing one item keeps the mask the others use."""
+    from vcprep.homography import vp_from_pose
+
+    images, labels = ds
+    out, files = reference
+    recs = list(Store.open(out))
+    assert len({r["valid"] for r in recs}) == 1 and recs[0]["valid"].startswith("valid/H-")
+    assert [k for k in files if k.startswith("valid/")] == [recs[0]["valid"]]
+    valid = cv2.imread(str(out / recs[0]["valid"]), cv2.IMREAD_UNCHANGED)
+    H = np.asarray(recs[0]["H"]).reshape(3, 3)
+    cover = cv2.warpPerspective(np.ones((360, 480), np.uint8), H, (688, 350), flags=cv2.INTER_NEAREST,
+                                borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+    assert set(np.unique(valid)) == {0, 1} and np.mean(valid != cover) < 0.005  # differs on the edge at most
+    # two poses: two masks, the items of each pose share theirs
+    vps = tmp_path / "vps.csv"
+    a, b = vp_from_pose(camvid_half, 2.0, 0.0), vp_from_pose(camvid_half, -2.0, 1.0)
+    vps.write_text("id,u,v\n" + "".join(f"seq_{i:04d},{(a if i % 2 else b)[0]},{(a if i % 2 else b)[1]}\n"
+                                        for i in range(N_ITEMS)))
+    store = tmp_path / "store"
+    assert _warp(images, labels, store, "--within", vps, "-q").returncode == 0
+    recs = list(Store.open(store))
+    assert len({r["valid"] for r in recs}) == 2
+    assert len({r["valid"] for r in recs if int(r["id"][-4:]) % 2}) == 1
+    # back to the average pose: every item rebuilt, the two masks are no longer used and are gone
+    proc = _warp(images, labels, store, "-q")
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(p.name for p in (store / "valid").iterdir()) == [recs_name.split("/")[1] for recs_name in
+                                                                   {r["valid"] for r in Store.open(store)}]
+    assert _files(store) == files
+    # a bad image: repair drops that item only; the shared mask stays for the others
+    (store / "images" / "seq_0007.png").write_bytes(b"\x89PNG\r\n\x1a\nbroken")
+    proc = run_cli("store", "verify", store, "--repair", "-q")
+    assert proc.returncode == 1 and "dropped 1 item" in proc.stderr, proc.stderr
+    proc, problems = _verify(store)
+    assert proc.returncode == 0 and problems == [], problems
+    assert _warp(images, labels, store, "-q").returncode == 0
+    assert _files(store) == files
 
 
 # -- shards ------------------------------------------------------------------------------------------

@@ -7,6 +7,7 @@ both run in the one loop :func:`_build_loop` (serial or a process pool, :mod:`vc
 """
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 from dataclasses import dataclass, field
@@ -21,7 +22,7 @@ from .homography import apply_homography, check_not_folded, pose_from_vp, virt_H
 from .imageio import IMAGE_EXTENSIONS, image_size_from_header, read_image, write_png
 from .labels import LabelFormat, decode_label, image_id, label_stem_for
 from .parallel import ItemError, run_items
-from .store import Shard, Store, temp_files
+from .store import VALID_PREFIX, Shard, Store, temp_files
 from .completion import border_ignore, check_method, completion_maps
 from .warp import warp_image, warp_label
 
@@ -120,10 +121,25 @@ def store_params(virtual: Camera, scale: float) -> dict[str, Any]:
 def item_geometry(camera: Camera, size: tuple[int, int], virtual_scaled: Camera, file: Path | None = None,
                   pan: float | None = None, tilt: float | None = None) -> tuple[Camera, np.ndarray]:
     """The camera at this image's size and ``virt_H_src`` to the scaled virtual camera, checked
-    not to fold the image."""
+    not to fold the image. ``H`` is read-only: it is shared by every image with the same camera,
+    size and pose (cached; a failure is not, and raises naming ``file``)."""
+    try:
+        return _geometry(camera, (int(size[0]), int(size[1])), virtual_scaled, pan, tilt)
+    except VCError:
+        pass
     cam = camera.for_image_size(size, file)
     H = virt_H_src(cam, virtual_scaled, pan, tilt)
     check_not_folded(H, cam.size, str(file) if file else cam.name)
+    return cam, H
+
+
+@functools.lru_cache(maxsize=64)
+def _geometry(camera: Camera, size: tuple[int, int], virtual_scaled: Camera, pan: float | None,
+              tilt: float | None) -> tuple[Camera, np.ndarray]:
+    cam = camera.for_image_size(size)
+    H = virt_H_src(cam, virtual_scaled, pan, tilt)
+    check_not_folded(H, cam.size, cam.name)
+    H.setflags(write=False)
     return cam, H
 
 
@@ -205,6 +221,7 @@ class _WarpContext:
     params: dict[str, Any]
     fmt: LabelFormat | None
     completion: str
+    written: dict[str, str] = field(default_factory=dict, compare=False, repr=False)  # see _write_item
 
 
 @dataclass(frozen=True)
@@ -218,12 +235,26 @@ def _files_present(root: Path, rec: dict[str, Any]) -> bool:
     return all((root / rec[k]).is_file() for k in ("image", "label", "valid") if rec.get(k))
 
 
-def _write_item(root: Path, rec: dict[str, Any], item: WarpedItem) -> dict[str, str]:
-    """Write one item's PNGs atomically (label only if the record has one); their SHA-256."""
+def valid_path(H: np.ndarray, src_size: tuple[int, int], store_size: tuple[int, int]) -> str:
+    """The store path of the valid mask of one geometry: it depends only on H and the sizes, so
+    every item with that geometry (all images of a camera in between-camera mode) shares one
+    file, named by a hash of them (``valid/H-<16 hex>.png``)."""
+    parts = {"algorithm": WARP_ALGORITHM, "H": np.round(np.asarray(H, dtype=np.float64), 12).ravel().tolist(),
+             "size": [int(src_size[0]), int(src_size[1])], "store_size": [int(store_size[0]), int(store_size[1])]}
+    return f"valid/{VALID_PREFIX}{_item_key(parts)[:16]}.png"
+
+
+def _write_item(root: Path, rec: dict[str, Any], item: WarpedItem, written: dict[str, str]) -> dict[str, str]:
+    """Write the item's PNGs (atomically); returns their SHA-256. The valid mask is shared by
+    path (:func:`valid_path`): ``written`` (path -> SHA-256, one per build and process) holds the
+    ones this process wrote in this build, which are not encoded again."""
     sums = {"image": write_png(root / rec["image"], item.image, kind="store")}
     if item.label is not None and rec.get("label"):
         sums["label"] = write_png(root / rec["label"], item.label, kind="mask")
-    sums["valid"] = write_png(root / rec["valid"], item.valid, kind="mask")
+    sha = written.get(rec["valid"])
+    if sha is None:
+        sha = written[rec["valid"]] = write_png(root / rec["valid"], item.valid, kind="mask")
+    sums["valid"] = sha
     return sums
 
 
@@ -277,14 +308,14 @@ def build_item(ctx: _WarpContext, task: _WarpTask) -> ItemResult:
         "H": H.ravel().tolist(),
         "image": f"images/{job.id}.png",
         "label": f"labels/{job.id}.png" if item.label is not None else None,
-        "valid": f"valid/{job.id}.png",
+        "valid": valid_path(H, size, store_size),
         "store_size": list(store_size),
         "completion": completion,
         **completion_fields(item.maps),
         "key": key,
         "tool_version": __version__,
     }
-    rec["files_sha256"] = _write_item(ctx.root, rec, item)
+    rec["files_sha256"] = _write_item(ctx.root, rec, item, ctx.written)
     return ItemResult(job.id, "built", rec, f"{job.id}: {item.maps.note}" if item.maps.note else None)
 
 
@@ -326,6 +357,8 @@ def _build_loop(store: Store, fn, ctx: Any, tasks: list, ids: list[str], summary
         summary.notes.sort()
         if summary.built or (store.shard is None and store.parts):  # (folds a killed build's journal)
             store.save()
+        if store.shard is None:
+            store.prune_valid()
     if first_error:
         raise first_error[0]
 
@@ -401,6 +434,7 @@ class _CompleteContext:
     root: Path
     params: dict[str, Any]
     method: str
+    written: dict[str, str] = field(default_factory=dict, compare=False, repr=False)  # see _write_item
 
 
 def complete_item(ctx: _CompleteContext, rec: dict[str, Any]) -> ItemResult:
@@ -424,7 +458,7 @@ def complete_item(ctx: _CompleteContext, rec: dict[str, Any]) -> ItemResult:
     new = dict(rec)
     new.update({"completion": ctx.method, **completion_fields(item.maps), "key": key})
     new.pop("files_sha256", None)  # keep the field order of a record built by warp
-    new["files_sha256"] = _write_item(ctx.root, new, item)
+    new["files_sha256"] = _write_item(ctx.root, new, item, ctx.written)
     return ItemResult(rec["id"], "built", new, f"{rec['id']}: {item.maps.note}" if item.maps.note else None)
 
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -120,9 +120,8 @@ class Camera:
         return replace(self, pan=self.pan if pan is None else float(pan), tilt=self.tilt if tilt is None else float(tilt))
 
     def to_dict(self) -> dict[str, Any]:
-        d = asdict(self)
-        d["image_size"] = list(d.pop("size"))
-        return {k: d[k] for k in ("name", "image_size", "fx", "fy", "cx", "cy", "height", "tilt", "pan")}
+        return {"name": self.name, "image_size": list(self.size), "fx": self.fx, "fy": self.fy, "cx": self.cx,
+                "cy": self.cy, "height": self.height, "tilt": self.tilt, "pan": self.pan}
 
 
 # --- presets: the one table of built-in cameras (paper Table 1; virtual fx = 2262, see method.md)

@@ -6,7 +6,9 @@ Layout::
     STORE/manifest.jsonl   one JSON item record per line, sorted by id
     STORE/images/ID.png    warped image (source depth/channels kept)
     STORE/labels/ID.png    warped label: 0 not road, 1 road, 255 ignore (absent without labels)
-    STORE/valid/ID.png     1 where a source pixel landed, 0 elsewhere
+    STORE/valid/H-HASH.png 1 where a source pixel landed, 0 elsewhere: one file per geometry (H and
+                           sizes), shared by the items that have it (all of a camera's images in
+                           between-camera mode); older stores' records name valid/ID.png
 
 Item record (``vcprep store show --json``)::
 
@@ -16,7 +18,7 @@ Item record (``vcprep store show --json``)::
     vp [u, v] (source pixels), vp_status ('camera' = the camera's average pose; later 'accepted',
     'fallback', 'given'), pan_deg, tilt_deg (the pose used for H),
     H (9 floats, row-major, source pixel -> store pixel, pixel centres at integers),
-    image, label, valid (paths relative to the store; label null without labels),
+    image, label, valid (paths relative to the store; label null without labels; valid shared),
     store_size [w, h], completion ('none' for v1), key (hash of everything the outputs depend on),
     tool_version.
 
@@ -30,8 +32,10 @@ Every file is written atomically (temp + rename). Records reach disk in two step
   after its PNGs were renamed into place, so a killed build loses at most the items in flight
   (their files are orphans until the build is re-run);
 * at the end (or on Ctrl-C) an unsharded build folds everything into ``manifest.jsonl``
-  (rewritten atomically) and deletes the part files; a shard build rewrites only its own part
-  file (compacted), so N machines never write the same file.
+  (rewritten atomically), deletes the part files and the shared valid masks no record uses any
+  more (:meth:`Store.prune_valid`); a shard build rewrites only its own part file (compacted), so
+  N machines never write the same file (shards may write the same shared valid mask: same bytes,
+  atomic rename), and ``vcprep store merge`` prunes.
 
 :meth:`Store.open` reads ``manifest.jsonl`` and then every ``manifest.*.jsonl`` part (later
 records of an id win; a torn last line of a part, from a crash, is ignored): a sharded store is
@@ -51,8 +55,9 @@ from .camera import Camera, camera_from_dict
 from .errors import StoreError
 from .imageio import write_bytes_atomic
 
-__all__ = ["Store", "Shard", "STORE_FORMAT", "STORE_VERSION", "LAYOUT_DIRS", "temp_files"]
+__all__ = ["Store", "Shard", "STORE_FORMAT", "STORE_VERSION", "LAYOUT_DIRS", "VALID_PREFIX", "temp_files"]
 
+VALID_PREFIX = "H-"  # shared valid masks: valid/H-<hash of H and sizes>.png
 STORE_FORMAT = "vcseg-store"
 STORE_VERSION = 1
 LAYOUT_DIRS = ("images", "labels", "valid")
@@ -302,6 +307,21 @@ class Store:
 
     def path(self, rel: str) -> Path:
         return self.root / rel
+
+    def prune_valid(self) -> int:
+        """Delete the shared valid masks (``valid/H-*.png``) that no record uses (left by items
+        rebuilt with another geometry, or in flight when a build was killed). Only when no build
+        writes the store. Returns how many were deleted."""
+        d = self.root / "valid"
+        if not d.is_dir():
+            return 0
+        used = {r.get("valid") for r in self.items.values()}
+        n = 0
+        for p in d.iterdir():
+            if p.name.startswith(VALID_PREFIX) and p.suffix == ".png" and f"valid/{p.name}" not in used:
+                p.unlink(missing_ok=True)
+                n += 1
+        return n
 
     def is_complete(self, rec: dict[str, Any]) -> bool:
         """All files of ``rec`` exist."""

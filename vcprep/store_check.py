@@ -169,6 +169,8 @@ def repair_store(root: str | Path, report: VerifyReport) -> tuple[list[str], int
     for rid in drop:
         rec = store.items.pop(rid, None) or {}
         files += [store.path(rec[k]) for k in ("image", "label", "valid") if rec.get(k)]
+    kept = {store.path(r[k]) for r in store for k in ("image", "label", "valid") if r.get(k)}
+    files = list(dict.fromkeys(f for f in files if f not in kept))  # a shared valid mask other items still use stays
     store.save()  # the records first: a crash in between leaves orphans, never a record without files
     removed = 0
     for f in files:
@@ -216,11 +218,13 @@ def store_info(root: str | Path) -> dict[str, Any]:
 
 def merge_store(root: str | Path) -> tuple[Store, int]:
     """Fold every part file (shard manifests, the journal of a killed build) into
-    ``manifest.jsonl`` and remove leftover temp files. Run it when no build writes the store.
+    ``manifest.jsonl``, remove leftover temp files and unused shared valid masks. Run it when no
+    build writes the store.
     Returns the store and the number of part files folded."""
     store = Store.open(root)
     n = len(store.parts)
     store.save()
     for tmp in temp_files(store.root):
         tmp.unlink(missing_ok=True)
+    store.prune_valid()
     return store, n
