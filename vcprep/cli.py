@@ -54,7 +54,7 @@ def save_figure(out: Path, fig) -> None:
     from .imageio import write_png
 
     try:
-        write_png(out, fig, compression=3)
+        write_png(out, fig, level=3)
     except (FileNotFoundError, NotADirectoryError):
         raise InputError("cannot write here (parent folder missing)", out, "create the folder first") from None
     print(out)
@@ -589,7 +589,7 @@ def figure_vp(image: Path = typer.Argument(..., help="image file"),
     res = apply_reliability([estimate_vp(img, cam, cfg)], [cam])[0]
     fig = vp_figure(img, res, cam, prior_window(cam, cfg.pan_range, cfg.tilt_range))
     try:
-        write_png(out, fig, compression=3)
+        write_png(out, fig, level=3)
     except (FileNotFoundError, NotADirectoryError):
         raise InputError("cannot write here (parent folder missing)", out, "create the folder first") from None
     print(out)

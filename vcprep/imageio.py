@@ -13,6 +13,7 @@ import cv2
 import numpy as np
 
 from .errors import InputError
+from .png import encode_png
 
 __all__ = ["LoadedImage", "read_image", "image_size", "read_text", "write_png", "write_bytes_atomic", "IMAGE_EXTENSIONS", "MAX_PIXELS",
            "image_size_from_header"]
@@ -147,32 +148,25 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> None:
         raise
 
 
-# PNG encoder settings per kind of content (zlib level 1 everywhere: fast, still lossless), chosen
-# by measurement (CamVid frames and their 1/8 virtual-camera images, one thread):
-# - 'photo': the 'sub' filter on every row + OpenCV's default run-length strategy - on camera
-#   frames about as fast as OpenCV's adaptive filters (5.5 vs 5.8 ms at 480x360), same size;
-# - 'store': no filter + zlib's default strategy - virtual-camera images are mostly completion,
-#   pixels repeated along rays at varying distances, which only full LZ77 matching finds:
-#   5.6 ms and 232 KB at 688x350, against 6.0 ms / 503 KB with the run-length strategy and
-#   6.7 ms / 287 KB with 'sub' + run-length;
-# - 'mask': no filter + run-length strategy for labels, valid masks and predictions (few values).
-_F, _S = getattr(cv2, "IMWRITE_PNG_FILTER", None), getattr(cv2, "IMWRITE_PNG_STRATEGY", None)
-PNG_KINDS = {
-    "photo": [_F, cv2.IMWRITE_PNG_FILTER_SUB] if _F is not None else [],
-    "store": ([_F, cv2.IMWRITE_PNG_FILTER_NONE] if _F is not None else [])
-             + ([_S, cv2.IMWRITE_PNG_STRATEGY_DEFAULT] if _S is not None else []),
-    "mask": ([_F, cv2.IMWRITE_PNG_FILTER_NONE] if _F is not None else [])
-            + ([_S, cv2.IMWRITE_PNG_STRATEGY_RLE] if _S is not None else []),
-}
+# PNG settings per kind of content, (row filter, deflate level), chosen by measurement (CamVid
+# frames and their 1/8 virtual-camera images, one thread; encoder: vcprep.png, ISA-L deflate):
+# - 'photo': 'sub' filter - camera frames, 1.7 ms and 267 KB at 480x360 (OpenCV's encoder:
+#   5.5 ms, 264 KB);
+# - 'store': no filter - virtual-camera images are mostly completion, pixels repeated along rays,
+#   which LZ77 matching finds unfiltered: 1.5 ms and 238 KB at 688x350 (OpenCV, zlib level 1:
+#   5.7 ms, 232 KB);
+# - 'mask': no filter - labels, valid masks and predictions (few values): 0.08 ms, 3.4 KB.
+PNG_KINDS = {"photo": ("sub", 2), "store": ("none", 2), "mask": ("none", 2)}
 
 
-def write_png(path: str | Path, array: np.ndarray, compression: int = 1, kind: str = "photo") -> str:
-    """Encode ``array`` as PNG and write it atomically. Compression 1: fast, still lossless;
-    ``kind`` picks the filter/strategy (:data:`PNG_KINDS`). Returns the SHA-256 (hex) of the bytes
-    written."""
-    ok, buf = cv2.imencode(".png", array, [cv2.IMWRITE_PNG_COMPRESSION, int(compression)] + PNG_KINDS[kind])
-    if not ok:
-        raise InputError("cannot encode PNG", path, "unsupported array shape or type")
-    data = buf.tobytes()
+def write_png(path: str | Path, array: np.ndarray, kind: str = "photo", level: int | None = None) -> str:
+    """Encode ``array`` as PNG (:func:`vcprep.png.encode_png`, settings of ``kind`` from
+    :data:`PNG_KINDS`; ``level`` overrides its deflate level, e.g. 3 for figures) and write it
+    atomically. Returns the SHA-256 (hex) of the bytes written."""
+    filt, default_level = PNG_KINDS[kind]
+    try:
+        data = encode_png(array, filt, default_level if level is None else level)
+    except ValueError as e:
+        raise InputError(f"cannot encode PNG: {e}", path, "write 8- or 16-bit grey, BGR or BGRA images") from None
     write_bytes_atomic(path, data)
     return hashlib.sha256(data).hexdigest()

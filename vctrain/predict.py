@@ -98,7 +98,7 @@ def write_prediction(out: Path, stem: str, prob: np.ndarray, overlay_on: str | P
         from vcprep.figures import overlay_label
 
         write_png(out / f"{stem}_overlay.png", overlay_label(read_image(overlay_on).array, (mask > 0).astype(np.uint8)),
-                  compression=3)
+                  level=3)
     return mp, pp
 
 

@@ -1,0 +1,76 @@
+"""PNG encoding with a fast deflate.
+
+Building a store spends most of its time compressing PNGs. OpenCV's encoder deflates with zlib,
+which manages ~130 MB/s at level 1 on our 2-core machine (5.4 ms for one 688x350 virtual-camera
+image). Here the PNG container is written directly (signature, IHDR, one IDAT, IEND; PNG
+specification, ISO/IEC 15948) and deflated with ISA-L (``python-isal``), which is 3-4x faster
+at the same size: 1.4 ms and 238 KB for that image (zlib level 1: 232 KB). Without ``isal`` the
+standard library's zlib is used: the same format, slower. Any PNG reader (OpenCV, Pillow, browsers)
+reads the files; they are deterministic for a given deflate library and version.
+
+Supported: uint8 and uint16, grey (H, W) or (H, W, 1), BGR and BGRA (OpenCV order, stored as RGB
+and RGBA), per-row filter 'none' or 'sub' (the same filter on every row). ``level`` is the
+deflate level: 0-3 for ISA-L (higher levels are clamped to 3), 0-9 for zlib.
+"""
+from __future__ import annotations
+
+import struct
+import zlib
+
+import cv2
+import numpy as np
+
+try:  # ISA-L: same zlib stream format, 3-4x faster
+    from isal import isal_zlib as _deflate
+
+    DEFLATE = "isal"
+    MAX_LEVEL = 3
+except ImportError:  # pragma: no cover - isal is a dependency; kept for platforms without its wheel
+    _deflate = zlib
+    DEFLATE = "zlib"
+    MAX_LEVEL = 9
+
+__all__ = ["encode_png", "DEFLATE", "FILTERS"]
+
+SIGNATURE = b"\x89PNG\r\n\x1a\n"
+FILTERS = {"none": 0, "sub": 1}  # PNG filter type byte of each row
+_COLOUR_TYPE = {1: 0, 3: 2, 4: 6}  # channels -> grey, RGB, RGBA
+
+
+def _chunk(kind: bytes, data) -> list:
+    """The parts of one chunk: length, type, data, CRC-32 of type + data."""
+    return [struct.pack(">I", len(data)), kind, data, struct.pack(">I", zlib.crc32(data, zlib.crc32(kind)))]
+
+
+def encode_png(array: np.ndarray, filter: str = "none", level: int = 1) -> bytes:
+    """The PNG file bytes of ``array`` (see the module doc). Raises ValueError for an array PNG
+    cannot hold (dtype, shape, empty) or an unknown filter."""
+    a = np.asarray(array)
+    if a.dtype not in (np.uint8, np.uint16):
+        raise ValueError(f"PNG holds 8- or 16-bit integers, not {a.dtype}")
+    ch = 1 if a.ndim == 2 else (a.shape[2] if a.ndim == 3 else 0)
+    if ch not in _COLOUR_TYPE:
+        raise ValueError(f"PNG holds grey, BGR or BGRA images, not shape {a.shape}")
+    h, w = a.shape[:2]
+    if not (0 < w < 2 ** 31 and 0 < h < 2 ** 31):
+        raise ValueError(f"PNG cannot hold an image of shape {a.shape}")
+    if filter not in FILTERS:
+        raise ValueError(f"unknown PNG filter {filter!r}; use one of {', '.join(FILTERS)}")
+    if ch == 3:
+        a = cv2.cvtColor(a, cv2.COLOR_BGR2RGB)  # (a strided numpy copy is ~25x slower)
+    elif ch == 4:
+        a = cv2.cvtColor(a, cv2.COLOR_BGRA2RGBA)
+    depth = a.dtype.itemsize * 8
+    bpp = ch * a.dtype.itemsize  # bytes per pixel
+    raw = np.empty((h, 1 + w * bpp), dtype=np.uint8)
+    raw[:, 0] = FILTERS[filter]
+    px = raw[:, 1:]
+    if depth == 16:  # network byte order
+        a = a.astype(">u2")
+    px[...] = np.ascontiguousarray(a).view(np.uint8).reshape(h, w * bpp)
+    if filter == "sub":  # each byte minus the same byte of the pixel to its left (mod 256)
+        left = px[:, :-bpp].copy()
+        px[:, bpp:] -= left
+    data = _deflate.compress(raw, min(int(level), MAX_LEVEL))
+    ihdr = struct.pack(">IIBBBBB", w, h, depth, _COLOUR_TYPE[ch], 0, 0, 0)
+    return b"".join([SIGNATURE, *_chunk(b"IHDR", ihdr), *_chunk(b"IDAT", data), *_chunk(b"IEND", b"")])
