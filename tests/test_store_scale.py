@@ -205,6 +205,38 @@ def test_valid_masks_are_shared_per_geometry_and_pruned(ds, reference, tmp_path,
     assert _files(store) == files
 
 
+def test_stores_with_per_item_valid_masks_still_verify_and_migrate(ds, reference, tmp_path):
+    """A store of the older layout (valid/ID.png per item) verifies; rebuilding an item or
+    completing the store moves items to the shared mask and leaves no orphan."""
+    images, labels = ds
+    labs = tmp_path / "labels"
+    shutil.copytree(labels, labs)
+    out = tmp_path / "store"
+    shutil.copytree(reference[0], out)
+    store = Store.open(out)
+    shared = store.path(next(iter(store))["valid"])
+    for rec in store:
+        shutil.copyfile(shared, out / "valid" / f"{rec['id']}.png")
+        rec["valid"] = f"valid/{rec['id']}.png"
+    shared.unlink()
+    store.save()
+    proc, problems = _verify(out)
+    assert proc.returncode == 0 and problems == [], problems
+    lab = cv2.imread(str(labs / "seq_0005.png"), cv2.IMREAD_UNCHANGED)
+    lab[200:210] = 3
+    cv2.imwrite(str(labs / "seq_0005.png"), lab)
+    proc = _warp(images, labs, out, "-q")
+    assert proc.returncode == 0, proc.stderr
+    assert Store.open(out).get("seq_0005")["valid"] == shared.relative_to(out).as_posix()
+    assert not (out / "valid" / "seq_0005.png").exists()
+    proc, problems = _verify(out)
+    assert proc.returncode == 0 and problems == [], problems
+    assert run_cli("complete", out, "--method", "zero", "-q").returncode == 0
+    assert sorted(p.name for p in (out / "valid").iterdir()) == [shared.name]
+    proc, problems = _verify(out)
+    assert proc.returncode == 0 and problems == [], problems
+
+
 # -- shards ------------------------------------------------------------------------------------------
 
 def test_shards_partition_the_ids():

@@ -456,7 +456,8 @@ def complete_item(ctx: _CompleteContext, rec: dict[str, Any]) -> ItemResult:
     vp_store = tuple(apply_homography(H, [rec["vp"]])[0])
     item = warp_item_full(Job(rec["id"], src, lab), store_size, H, fmt, ctx.method, vp_store)
     new = dict(rec)
-    new.update({"completion": ctx.method, **completion_fields(item.maps), "key": key})
+    new.update({"completion": ctx.method, **completion_fields(item.maps), "key": key,
+                "valid": valid_path(H, (int(rec["size"][0]), int(rec["size"][1])), store_size)})
     new.pop("files_sha256", None)  # keep the field order of a record built by warp
     new["files_sha256"] = _write_item(ctx.root, new, item, ctx.written)
     return ItemResult(rec["id"], "built", new, f"{rec['id']}: {item.maps.note}" if item.maps.note else None)

@@ -309,16 +309,17 @@ class Store:
         return self.root / rel
 
     def prune_valid(self) -> int:
-        """Delete the shared valid masks (``valid/H-*.png``) that no record uses (left by items
-        rebuilt with another geometry, or in flight when a build was killed). Only when no build
-        writes the store. Returns how many were deleted."""
+        """Delete the valid masks no record uses: shared ones (``valid/H-*.png``) left by items
+        rebuilt with another geometry or in flight when a build was killed, and the per-item
+        ``valid/ID.png`` of older stores once their items were rebuilt. Only when no build writes
+        the store. Returns how many were deleted."""
         d = self.root / "valid"
         if not d.is_dir():
             return 0
         used = {r.get("valid") for r in self.items.values()}
         n = 0
         for p in d.iterdir():
-            if p.name.startswith(VALID_PREFIX) and p.suffix == ".png" and f"valid/{p.name}" not in used:
+            if not p.name.startswith(".") and p.suffix == ".png" and f"valid/{p.name}" not in used:
                 p.unlink(missing_ok=True)
                 n += 1
         return n
