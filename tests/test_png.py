@@ -46,6 +46,12 @@ def test_round_trip_property(h, w, ch, sixteen, filt, seed):
     assert np.array_equal(out.reshape(h, w, ch), a)
 
 
+def test_views_are_encoded_as_their_values():
+    a = np.random.default_rng(1).integers(0, 256, (30, 40, 4), dtype=np.uint8)
+    for view in (a[::2, 1::3, :3], a[5:20, ::-1, 1], a[..., :3].transpose(1, 0, 2)):
+        assert np.array_equal(_decode(encode_png(view)).reshape(view.shape), view)
+
+
 def test_colour_order_is_opencvs(tmp_path):
     """BGR in, BGR out of cv2.imread; and the file really stores RGB (a pure-blue BGR pixel is
     (0, 0, 255) in the PNG's first row)."""

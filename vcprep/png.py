@@ -56,6 +56,7 @@ def encode_png(array: np.ndarray, filter: str = "none", level: int = 1) -> bytes
         raise ValueError(f"PNG cannot hold an image of shape {a.shape}")
     if filter not in FILTERS:
         raise ValueError(f"unknown PNG filter {filter!r}; use one of {', '.join(FILTERS)}")
+    a = np.ascontiguousarray(a)  # (views, e.g. crops, are copied once)
     if ch == 3:
         a = cv2.cvtColor(a, cv2.COLOR_BGR2RGB)  # (a strided numpy copy is ~25x slower)
     elif ch == 4:
@@ -67,7 +68,7 @@ def encode_png(array: np.ndarray, filter: str = "none", level: int = 1) -> bytes
     px = raw[:, 1:]
     if depth == 16:  # network byte order
         a = a.astype(">u2")
-    px[...] = np.ascontiguousarray(a).view(np.uint8).reshape(h, w * bpp)
+    px[...] = a.view(np.uint8).reshape(h, w * bpp)
     if filter == "sub":  # each byte minus the same byte of the pixel to its left (mod 256)
         left = px[:, :-bpp].copy()
         px[:, bpp:] -= left
