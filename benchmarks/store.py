@@ -83,23 +83,23 @@ def frames(n: int, tmp: Path) -> tuple[list[Job], str]:
     return jobs, f"{CAMVID} ABSENT: {n} synthetic render_road frames (480x360) instead"
 
 
-def png_io(jobs: list[Job], out: Path) -> None:
-    """The baseline: decode + encode + atomic write of every image and label."""
-    out.mkdir(parents=True, exist_ok=True)
-    for j in jobs:
-        for src, tag in ((j.image, "i"), (j.label, "l")):
-            arr = cv2.imdecode(np.frombuffer(src.read_bytes(), np.uint8), cv2.IMREAD_UNCHANGED)
-            ok, buf = cv2.imencode(".png", arr)  # OpenCV's default PNG settings
-            write_bytes_atomic(out / f"{j.id}.{tag}.png", buf.tobytes())
+def _opencv_png(path: Path, arr: np.ndarray, kind: str) -> None:
+    ok, buf = cv2.imencode(".png", arr)  # OpenCV's default PNG settings
+    write_bytes_atomic(path, buf.tobytes())
 
 
-def png_io_same_encoder(jobs: list[Job], out: Path) -> None:
-    """``png_io`` with the store's PNG writer instead of OpenCV's encoder."""
+def _our_png(path: Path, arr: np.ndarray, kind: str) -> None:
+    write_png(path, arr, kind=kind)
+
+
+def png_io(jobs: list[Job], out: Path, write=_opencv_png) -> None:
+    """The baseline: decode + encode + atomic write of every image and label (``write``:
+    OpenCV's encoder, or the store's own PNG writer for ``png_io_same_encoder``)."""
     out.mkdir(parents=True, exist_ok=True)
     for j in jobs:
         for src, tag, kind in ((j.image, "i", "photo"), (j.label, "l", "mask")):
             arr = cv2.imdecode(np.frombuffer(src.read_bytes(), np.uint8), cv2.IMREAD_UNCHANGED)
-            write_png(out / f"{j.id}.{tag}.png", arr, kind=kind)
+            write(out / f"{j.id}.{tag}.png", arr, kind)
 
 
 def _burn(n: int) -> int:
@@ -174,7 +174,7 @@ def main() -> None:
             return dt
 
         stages = {"jobs1": lambda r: build(1, r), "jobs2": lambda r: build(2, r), "png_io": lambda r: baseline(png_io, r),
-                  "png_io_same_encoder": lambda r: baseline(png_io_same_encoder, r),
+                  "png_io_same_encoder": lambda r: baseline(lambda j, o: png_io(j, o, _our_png), r),
                   "cpu1": lambda r: control(1), "cpu2": lambda r: control(2)}
         stages["jobs1"](-1)  # warm-up: imports, page cache of the frames
         times: dict[str, list[float]] = {k: [] for k in stages}

@@ -311,14 +311,12 @@ _CROSS = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
 @dataclass(frozen=True)
 class _Rays:
     """The fill table's rays in the source, for one geometry (shared by every label): per table
-    angle the source direction (dx, dy) from ``c_src`` and its angle ``th``, the exact exit
+    angle the angle ``th`` of the source direction from ``c_src``, the exact exit
     through the image rectangle (xr, yr), its distance ``rr``, the pixel it rounds to (lx, ly),
     and the flat source indices of that pixel (``lflat``) and of the exit's bilinear taps
     (``taps``, 4 x n)."""
 
     c_src: np.ndarray
-    dx: np.ndarray
-    dy: np.ndarray
     th: np.ndarray
     xr: np.ndarray
     yr: np.ndarray
@@ -337,27 +335,35 @@ def _bilinear_taps(x: np.ndarray, y: np.ndarray, src_size) -> np.ndarray:
     return np.stack([y0 * w + x0, y0 * w + x1, y1 * w + x0, y1 * w + x1])
 
 
+def _lru(cache: OrderedDict, key: tuple, build):
+    """``cache[key]``, built by ``build()`` on a miss; keeps the ``_CACHE_MAX`` most recent."""
+    hit = cache.get(key)
+    if hit is not None:
+        cache.move_to_end(key)
+        return hit
+    out = cache[key] = build()
+    if len(cache) > _CACHE_MAX:
+        cache.popitem(last=False)
+    return out
+
+
 _RAYS: "OrderedDict[tuple, _Rays]" = OrderedDict()
 
 
 def _rays(n: int, J: np.ndarray, c_src: np.ndarray, src_size, key: tuple) -> _Rays:
     """The :class:`_Rays` of the ``n`` table angles (LRU-cached under ``key``)."""
-    hit = _RAYS.get(key)
-    if hit is not None:
-        _RAYS.move_to_end(key)
-        return hit
+    return _lru(_RAYS, key, lambda: _build_rays(n, J, c_src, src_size))
+
+
+def _build_rays(n: int, J: np.ndarray, c_src: np.ndarray, src_size) -> _Rays:
     phi = np.arange(n) * (2 * math.pi / n)
     cx_, cy_ = np.cos(phi), np.sin(phi)
     dx = J[0, 0] * cx_ + J[0, 1] * cy_
     dy = J[1, 0] * cx_ + J[1, 1] * cy_
     xr, yr = exit_points_rectangle(c_src, dx, dy, src_size)
     lx, ly = np.rint(xr), np.rint(yr)
-    out = _Rays(c_src, dx, dy, np.arctan2(dy, dx), xr, yr, np.hypot(xr - c_src[0], yr - c_src[1]), lx, ly,
-                ly.astype(np.int64) * src_size[0] + lx.astype(np.int64), _bilinear_taps(xr, yr, src_size))
-    _RAYS[key] = out
-    if len(_RAYS) > _CACHE_MAX:
-        _RAYS.popitem(last=False)
-    return out
+    return _Rays(c_src, np.arctan2(dy, dx), xr, yr, np.hypot(xr - c_src[0], yr - c_src[1]), lx, ly,
+                 ly.astype(np.int64) * src_size[0] + lx.astype(np.int64), _bilinear_taps(xr, yr, src_size))
 
 
 def _exit_table(rays: _Rays, src_size, region_src):
@@ -416,7 +422,6 @@ def _exit_table(rays: _Rays, src_size, region_src):
         ok[s] = region[t[0]] & region[t[1]] & region[t[2]] & region[t[3]]
     ok = ok.astype(bool)
     return np.where(ok, tx, lx), np.where(ok, ty, ly), lx, ly
-
 
 
 def _centre(vp: tuple[float, float], M: np.ndarray, src_size, dst_shape, region_src: np.ndarray | None,
@@ -502,10 +507,10 @@ _ANGLES: "OrderedDict[tuple, AngleIndex]" = OrderedDict()
 
 def _angle_index(valid: np.ndarray, centre: tuple[float, float], key: tuple) -> AngleIndex:
     """The :class:`AngleIndex` of ``valid`` seen from ``centre`` (LRU-cached under ``key``)."""
-    hit = _ANGLES.get(key)
-    if hit is not None:
-        _ANGLES.move_to_end(key)
-        return hit
+    return _lru(_ANGLES, key, lambda: _build_angle_index(valid, centre))
+
+
+def _build_angle_index(valid: np.ndarray, centre: tuple[float, float]) -> AngleIndex:
     H_, W_ = valid.shape
     far = max(math.hypot(cx - centre[0], cy - centre[1]) for cx in (0, W_ - 1) for cy in (0, H_ - 1))
     n = int(max(1024, math.ceil(2 * math.pi * far / TABLE_ARC)))
@@ -518,11 +523,7 @@ def _angle_index(valid: np.ndarray, centre: tuple[float, float], key: tuple) -> 
     index[..., 1] = k // TABLE_COLS
     index[valid == 1] = -1
     covered, fill = _bands(valid)
-    out = AngleIndex(n, index, covered, fill)
-    _ANGLES[key] = out
-    if len(_ANGLES) > _CACHE_MAX:
-        _ANGLES.popitem(last=False)
-    return out
+    return AngleIndex(n, index, covered, fill)
 
 
 def complete_maps(base: RemapMaps, dst_H_src: np.ndarray, src_size: tuple[int, int], method: str,
@@ -624,13 +625,5 @@ def completion_maps(dst_H_src: np.ndarray, src_size: tuple[int, int], dst_size: 
     vp_key = None if (vp is None or method != "projective") else (round(float(vp[0]), 9), round(float(vp[1]), 9))
     key = (H.tobytes(), tuple(src_size), tuple(dst_size), method, vp_key,
            mask_key if method in ("projective", "replicate") else None)
-    hit = _CACHE.get(key)
-    if hit is not None:
-        _CACHE.move_to_end(key)
-        return hit
-    base = maps_for(H, src_size, dst_size)
-    maps = complete_maps(base, H, src_size, method, vp, src_ignore if method in ("projective", "replicate") else None)
-    _CACHE[key] = maps
-    if len(_CACHE) > _CACHE_MAX:
-        _CACHE.popitem(last=False)
-    return maps
+    return _lru(_CACHE, key, lambda: complete_maps(maps_for(H, src_size, dst_size), H, src_size, method, vp,
+                                                   src_ignore if method in ("projective", "replicate") else None))
