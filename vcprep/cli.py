@@ -424,6 +424,58 @@ def backproject_cmd(store: Path = typer.Argument(..., help="store the masks belo
     print(out)
 
 
+@app.command("prior")
+def prior_cmd(stores: List[Path] = typer.Argument(..., help="labelled stores of one virtual camera and scale"),
+              out: Path = typer.Option(..., "--out", "-o", help="prior.npy (float32 p_g) or prior.png (uint8 round(255 p_g))"),
+              quiet: bool = typer.Option(False, "--quiet", "-q", help="no summary on stderr")):
+    """Geometric road prior (paper §4.5): p_g(x, y) = the mean road label over the stores'
+    labelled items in the virtual camera; ignore pixels (255) count in neither the numerator nor
+    the denominator; a pixel no item labels gets 0. Writes OUT and OUT.json beside it (virtual
+    camera, scale, item counts); prints OUT. Stores of another virtual camera or scale are refused.
+
+    \b
+    Example:
+      vcprep prior stores/camvid stores/kitti -o prior.npy
+      vcprep prior stores/camvid -o prior.png
+    """
+    from .prior import compute_prior, open_stores, prior_meta, write_prior
+
+    opened = open_stores(stores)
+    prior, n_unlabelled = compute_prior(opened)
+    meta = prior_meta(opened, n_unlabelled)
+    write_prior(out, prior, meta)
+    if not quiet:
+        w, h = opened[0].store_size
+        err(f"{out}: p_g over {meta['items']} labelled items of {len(opened)} stores ({w}x{h}); "
+            f"{n_unlabelled} pixels with no labelled item (set to 0)")
+    print(out)
+
+
+@figure_app.command("prior")
+def figure_prior(stores: List[Path] = typer.Argument(..., help="labelled stores of one virtual camera and scale"),
+                 out: Path = typer.Option(..., "-o", "--out", help="PNG to write"),
+                 lo: float = typer.Option(0.25, "--lo", help="lower contour (surrogate 'not road' below it)"),
+                 hi: float = typer.Option(0.75, "--hi", help="upper contour (surrogate 'road' above it)"),
+                 width: int = typer.Option(1100, help="figure width in pixels")):
+    """The geometric road prior of the stores as a heat map over their mean image, with the
+    --lo/--hi contours that bound the surrogate labels of 'vctrain adapt'; pixels no item labels
+    show the mean image only.
+
+    \b
+    Example:
+      vcprep figure prior stores/camvid stores/kitti -o prior.png
+    """
+    from .figures import prior_figure
+    from .prior import check_thresholds, mean_image, open_stores, prior_counts, prior_from_counts
+
+    check_thresholds(lo, hi)
+    opened = open_stores(stores)
+    road, known, n = prior_counts(opened)
+    prior = prior_from_counts(road, known)
+    caption = f"{n} labelled items, {int((known == 0).sum())} pixels unlabelled"
+    save_figure(out, prior_figure(prior, mean_image(opened), known == 0, (lo, hi), caption, width=width))
+
+
 @figure_app.command("warp")
 def figure_warp(store: Path = typer.Argument(..., help="store directory"),
                 out: Path = typer.Option(..., "-o", "--out", help="PNG to write"),

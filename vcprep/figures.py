@@ -8,7 +8,8 @@ from .imageio import read_image
 from .labels import IGNORE, ROAD, decode_label, get_label_format
 from .store import Store
 
-__all__ = ["to_bgr8", "overlay_label", "warp_figure", "vp_figure", "completion_figure", "footprints_figure", "fov_figure"]
+__all__ = ["to_bgr8", "overlay_label", "warp_figure", "vp_figure", "completion_figure", "footprints_figure", "fov_figure",
+           "prior_figure"]
 
 
 def to_bgr8(img: np.ndarray) -> np.ndarray:
@@ -257,3 +258,36 @@ def fov_figure(cameras: list, virtual, width: int = 1100) -> np.ndarray:
     cv2.putText(img, f"virtual camera '{virtual.name}' {virtual.size[0]}x{virtual.size[1]}, FOV {hf:.1f} x {vf:.1f} deg",
                 (12, H_img + 28), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 0, 0), 1, cv2.LINE_AA)
     return img
+
+
+def prior_figure(prior: np.ndarray, mean: np.ndarray, unknown: np.ndarray | None = None,
+                 levels: tuple[float, float] = (0.25, 0.75), caption: str = "", width: int = 1100) -> np.ndarray:
+    """The geometric road prior (:mod:`vcprep.prior`) as a heat map (turbo colour map, 0 blue ->
+    1 red) over the stores' mean image, with the ``levels`` contours (the surrogate-label
+    thresholds: lower dark, upper white); pixels no item labels (``unknown``) show the mean image
+    only. A colour bar and ``caption`` below."""
+    h0, w0 = prior.shape
+    s = width / w0
+    size = (width, max(1, int(round(h0 * s))))
+    p = cv2.resize(np.asarray(prior, np.float32), size, interpolation=cv2.INTER_LINEAR)
+    base = cv2.resize(to_bgr8(mean), size, interpolation=cv2.INTER_LINEAR)
+    heat = cv2.applyColorMap(np.clip(np.rint(p * 255), 0, 255).astype(np.uint8), cv2.COLORMAP_TURBO)
+    out = cv2.addWeighted(heat, 0.6, base, 0.4, 0.0)
+    if unknown is not None:
+        unk = cv2.resize(unknown.astype(np.uint8), size, interpolation=cv2.INTER_NEAREST) > 0
+        out[unk] = base[unk]
+    lw = max(1, width // 400)
+    for level, colour in zip(levels, ((40, 40, 40), (255, 255, 255))):
+        contours, _ = cv2.findContours((p > level).astype(np.uint8), cv2.RETR_LIST, cv2.CHAIN_APPROX_SIMPLE)
+        cv2.drawContours(out, contours, -1, colour, lw, cv2.LINE_AA)
+    bar = np.full((48, size[0], 3), 255, np.uint8)
+    x0, x1 = 12, min(size[0] - 12, 312)
+    ramp = np.linspace(0, 255, x1 - x0).astype(np.uint8)[None, :].repeat(12, axis=0)
+    bar[6:18, x0:x1] = cv2.applyColorMap(ramp, cv2.COLORMAP_TURBO)
+    for t in (0.0, *levels, 1.0):
+        x = int(round(x0 + t * (x1 - x0 - 1)))
+        cv2.line(bar, (x, 18), (x, 22), (0, 0, 0), 1)
+        cv2.putText(bar, f"{t:g}", (max(0, x - 8), 36), cv2.FONT_HERSHEY_SIMPLEX, 0.4, (0, 0, 0), 1, cv2.LINE_AA)
+    text = f"road prior p_g; contours {levels[0]:g} (dark), {levels[1]:g} (white)" + (f"; {caption}" if caption else "")
+    cv2.putText(bar, text, (x1 + 16, 28), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
+    return np.vstack([out, bar])
