@@ -179,3 +179,193 @@ def test_bad_study_files_give_one_error_line(tmp_path, edit, needle):
     assert_one_error_line(proc, needle)
     assert str(study) in proc.stderr
     assert not out.exists()
+
+
+# -- test-only datasets ('role') and split selection ('include' / 'exclude') ----------------------
+MIXED_CONDS = ["resize", "within"]
+
+
+def _mixed_study(root: Path) -> Path:
+    """camvid: role train (one frame excluded); kitti: role both; cityscapes and camvid2 (another
+    camvid-camera set): role test, never trained on. cityscapes is scored on one selected frame."""
+    root.mkdir(parents=True, exist_ok=True)
+    for name, cam in CAMS.items():
+        (root / f"{name}.yaml").write_text(camera_to_yaml(cam))
+    camvid_train = {**_dataset(root, "camvid_train", CAMS["camvid"], 4, 0, False), "exclude": "seq_0003"}
+    city_test = {**_dataset(root, "cityscapes_test", CAMS["cityscapes"], 2, 4, False), "include": ["seq_0001"]}
+    datasets = [
+        {"name": "camvid", "role": "train", "camera": "camvid.yaml", "label_format": "camvid", "train": camvid_train},
+        {"name": "kitti", "camera": "kitti.yaml", "label_format": "camvid",
+         "train": _dataset(root, "kitti_train", CAMS["kitti"], 4, 0, False),
+         "test": _dataset(root, "kitti_test", CAMS["kitti"], 2, 4, False)},
+        {"name": "cityscapes", "role": "test", "camera": "cityscapes.yaml", "label_format": "camvid",
+         "test": city_test},
+        {"name": "camvid2", "role": "test", "camera": "camvid.yaml", "label_format": "camvid",
+         "test": _dataset(root, "camvid2_test", CAMS["camvid"], 3, 1, False)},
+    ]
+    study = {"datasets": datasets, "conditions": MIXED_CONDS, "store_width": 128, "pan_range": 5, "tilt_range": 3,
+             "train": {"epochs": 1, "max_steps": 2, "batch_size": 2, "arch": "segnet-narrow", "base_width": 4,
+                       "val_fraction": 0}}
+    path = root / "study.yaml"
+    path.write_text(yaml.safe_dump(study, sort_keys=False))
+    return path
+
+
+@pytest.fixture(scope="module")
+def mixed_run(tmp_path_factory):
+    root = tmp_path_factory.mktemp("crossval_mixed")
+    study = _mixed_study(root / "data")
+    out = root / "out"
+    proc = run_cli("crossval", study, "--out", out, "--json", "--seed", "3", prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    return study, out, proc
+
+
+def _rows(out: Path) -> list[dict]:
+    return [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
+
+
+def test_test_role_datasets_are_scored_never_trained_on(mixed_run):
+    _, out, proc = mixed_run
+    rows = _rows(out)
+    # one row per (evaluated dataset, condition), in table order; camvid (role train) is never evaluated
+    assert [(r["heldout"], r["condition"]) for r in rows] == [
+        (h, c) for h in ("kitti", "cityscapes", "camvid2") for c in MIXED_CONDS]
+    by = {(r["heldout"], r["condition"]): r for r in rows}
+    for c in MIXED_CONDS:
+        # kitti (role both) is held out: trained on the other trainable dataset only
+        assert by["kitti", c]["train_datasets"] == ["camvid"] and by["kitti", c]["run"] == "kitti"
+        assert by["kitti", c]["train_items"] == 3             # camvid's 4 frames minus the excluded one
+        # the test-role datasets share ONE model, trained on every trainable dataset
+        for h in ("cityscapes", "camvid2"):
+            assert by[h, c]["train_datasets"] == ["camvid", "kitti"] and by[h, c]["run"] == "_all"
+            assert by[h, c]["train_items"] == 3 + 4 and by[h, c]["role"] == "test"
+        assert by["cityscapes", c]["test_items"] == 1          # 'include' picks one of its two frames
+        assert by["camvid2", c]["test_items"] == 3
+        assert by["kitti", c]["test_items"] == 2
+        run_dir = out / "runs" / "_all" / c
+        assert sorted(p.name for p in run_dir.glob("*.json")) == ["result-camvid2.json", "result-cityscapes.json",
+                                                                   "train.json"]
+        assert len(list(run_dir.glob("model.pt"))) == 1
+    assert sorted(p.name for p in (out / "runs").iterdir()) == ["_all", "kitti"]
+    # no store of a test-role dataset's images is ever trained on: none is even built for training
+    assert not (out / "stores" / "cityscapes" / "train").exists()
+    assert not (out / "stores" / "camvid2" / "train").exists()
+    assert not (out / "stores" / "camvid" / "test").exists()
+    assert len(Store.open(out / "stores" / "camvid" / "train" / "between")) == 3
+    # --json: {condition: mean IoU over the three evaluated datasets}
+    summary = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert list(summary) == MIXED_CONDS
+    for c in MIXED_CONDS:
+        assert summary[c] == pytest.approx(sum(by[h, c]["iou"] for h in ("kitti", "cityscapes", "camvid2")) / 3)
+    table = (out / "table.md").read_text().splitlines()
+    assert [ln.split("|")[1].strip() for ln in table[4:]] == ["kitti", "cityscapes", "camvid2", "mean"]
+
+
+def test_test_role_models_never_see_test_data_and_use_the_overrides(mixed_run):
+    import torch
+
+    from vctrain.train import TrainConfig
+
+    _, out, _ = mixed_run
+    for c in MIXED_CONDS:
+        ck = torch.load(out / "runs" / "_all" / c / "model.pt", map_location="cpu", weights_only=False)
+        stores = ck["config"]["stores"]
+        assert len(stores) == 2 and all("/train/" in s for s in stores)
+        assert not any("/cityscapes/" in s or "/camvid2/" in s for s in stores)
+        assert ck["config"]["seed"] == 3                       # --seed
+        assert ck["config"]["lr"] == TrainConfig().lr          # not in the study: vctrain fit's default
+    study = json.loads((out / "study.json").read_text())
+    assert study["roles"] == {"camvid": "train", "kitti": "both", "cityscapes": "test", "camvid2": "test"}
+    assert study["train"]["seed"] == 3 and study["train"]["momentum"] == TrainConfig().momentum
+    # the designed virtual camera covers every camera of the study, test-role ones included
+    assert len({tuple(Store.open(p).store_size) for p in (out / "stores").glob("*/*/*")}) == 1
+
+
+def test_mixed_study_resumes_and_reuses_a_trained_model(mixed_run, tmp_path):
+    import shutil
+
+    study, out, proc = mixed_run
+    copy = tmp_path / "out"
+    shutil.copytree(out, copy)
+    models = sorted((copy / "runs").glob("*/*/model.pt"))
+    before = {p: p.stat().st_mtime_ns for p in models}
+    lost = copy / "runs" / "_all" / "within" / "result-camvid2.json"
+    iou = json.loads(lost.read_text())["iou"]
+    lost.unlink()
+    again = run_cli("crossval", study, "--out", copy, "--json", "--seed", "3", prog="vctrain")
+    assert again.returncode == 0, again.stderr
+    assert "model trained earlier" in again.stderr and "training on" not in again.stderr
+    assert again.stderr.count("done earlier") == 5
+    assert {p: p.stat().st_mtime_ns for p in models} == before
+    assert json.loads(lost.read_text())["iou"] == pytest.approx(iou)
+    assert again.stdout.strip().splitlines()[-1] == proc.stdout.strip().splitlines()[-1]
+    # another seed is another study: everything is retrained
+    other = run_cli("crossval", study, "--out", copy, "--heldout", "camvid2", "--conditions", "resize", "--json",
+                    "--seed", "4", prog="vctrain")
+    assert other.returncode == 0, other.stderr
+    assert "settings changed" in other.stderr and "training on camvid, kitti" in other.stderr
+    assert json.loads(other.stdout.strip().splitlines()[-1]).keys() == {"resize"}
+
+
+def test_split_selection_globs():
+    from vctrain.crossval import Split
+
+    s = Split(Path("i"), Path("l"), include=("0016E5_*", "0006R0_*"), exclude=("0016E5_0800*",))
+    assert s.selects("0016E5_07959") and s.selects("0006R0_f01000")
+    assert not s.selects("0001TP_006690") and not s.selects("0016E5_08001")
+    assert Split(Path("i"), Path("l")).selects("anything")
+    assert not Split(Path("i"), Path("l"), exclude=("*",)).selects("x")
+
+
+def test_study_train_section_takes_any_trainconfig_field(tmp_path):
+    from vctrain.crossval import load_study
+
+    study = _mixed_study(tmp_path / "data")
+    d = yaml.safe_load(study.read_text())
+    d["train"]["vp_channel"] = False        # a TrainConfig field outside the usual list
+    study.write_text(yaml.safe_dump(d))
+    assert load_study(study).train["vp_channel"] is False
+
+
+def test_a_split_that_selects_nothing_is_one_error_line(tmp_path):
+    study = _mixed_study(tmp_path / "data")
+    d = yaml.safe_load(study.read_text())
+    d["datasets"][2]["test"]["include"] = "nothing_*"
+    study.write_text(yaml.safe_dump(d))
+    proc = run_cli("crossval", study, "--out", tmp_path / "out", prog="vctrain")
+    assert_one_error_line(proc, "dataset 'cityscapes' test: no image of", "include/exclude")
+
+
+@pytest.mark.parametrize("edit, needle", [
+    (lambda d: d["datasets"][0].update(role="magic"), "unknown role 'magic'"),
+    (lambda d: d["datasets"][2].update(train=d["datasets"][1]["train"]), "'train' split would never be used"),
+    (lambda d: d["datasets"][0].update(test=d["datasets"][1]["test"]), "'test' split would never be used"),
+    (lambda d: d["datasets"][2].pop("test"), "missing key 'test' in dataset 'cityscapes' (role test)"),
+    (lambda d: d["datasets"][0].pop("train"), "missing key 'train' in dataset 'camvid' (role train)"),
+    (lambda d: d.update(datasets=d["datasets"][2:]), "no dataset may be trained on"),
+    (lambda d: d.update(datasets=[d["datasets"][0], {**d["datasets"][1], "role": "train", "test": None}]),
+     "no dataset is tested on"),
+    (lambda d: d.update(datasets=d["datasets"][1:3]), "only one that may be trained on"),
+    (lambda d: d["datasets"][0]["train"].update(include=3), "'include' in dataset 'camvid' train must be a glob"),
+    (lambda d: d["datasets"][0]["train"].update(exclude=[]), "'exclude' in dataset 'camvid' train must be a glob"),
+    (lambda d: d["train"].update(stores=["x"]), "unknown key 'stores' in 'train'"),
+])
+def test_bad_roles_and_selections_give_one_error_line(tmp_path, edit, needle):
+    study = _mixed_study(tmp_path / "data")
+    d = yaml.safe_load(study.read_text())
+    edit(d)
+    study.write_text(yaml.safe_dump(d))
+    out = tmp_path / "out"
+    proc = run_cli("crossval", study, "--out", out, prog="vctrain")
+    assert_one_error_line(proc, needle)
+    assert str(study) in proc.stderr
+    assert not out.exists()
+
+
+def test_heldout_must_name_an_evaluated_dataset(tmp_path):
+    study = _mixed_study(tmp_path / "data")
+    out = tmp_path / "out"
+    proc = run_cli("crossval", study, "--out", out, "--heldout", "camvid", prog="vctrain")
+    assert_one_error_line(proc, "dataset 'camvid' has role train: it is never tested")
+    assert not out.exists()

@@ -205,47 +205,53 @@ def eval_cmd(
 
 @app.command("crossval")
 def crossval_cmd(
-    study: Path = typer.Argument(..., help="study YAML: datasets (camera, images, labels, label format, optional VPs) "
-                                           "and settings; schema in the README"),
+    study: Path = typer.Argument(..., help="study YAML: datasets (camera, label format, role, train/test images and "
+                                           "labels, optional VPs) and settings; schema in the README"),
     out: Path = typer.Option(..., "--out", "-o", help="study folder (created; an existing one is resumed)"),
     conditions: Optional[str] = typer.Option(None, "--conditions",
                                              help="comma-separated subset of resize,between,within,within-gt,zero "
                                                   "(default: the study file's, else all)"),
-    heldout: Optional[str] = typer.Option(None, "--heldout", help="comma-separated held-out datasets (default: each)"),
+    heldout: Optional[str] = typer.Option(None, "--heldout", help="comma-separated datasets to evaluate (default: "
+                                                                   "every dataset of role both or test)"),
     epochs: Optional[int] = typer.Option(None, "--epochs", "-e", min=1, help="override the study's training epochs"),
+    seed: Optional[int] = typer.Option(None, "--seed", help="override the study's training seed (one study folder "
+                                                            "per seed)"),
     jobs: int = typer.Option(1, "--jobs", "-j", min=1, help="worker processes for building stores"),
-    as_json: bool = typer.Option(False, "--json", help="print {condition: mean road IoU} as one JSON object "
-                                                        "instead of the table"),
+    as_json: bool = typer.Option(False, "--json", help="print {condition: mean road IoU over the evaluated datasets} "
+                                                        "as one JSON object instead of the table"),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bars or run lines on stderr"),
 ):
-    """Leave-one-dataset-out study: for each held-out dataset and condition, train on the other
-    datasets and score road IoU on the held-out dataset's test images in its own camera.
+    """Cross-camera study: for each condition, hold out each dataset of role 'both' in turn (train
+    on the other trainable datasets) and, if there are datasets of role 'test', train once on every
+    trainable dataset and test on each of them; road IoU on the evaluated dataset's test images in
+    its own camera ("will my model work on camera X?": give camera X's labelled frames role test).
 
     Conditions: resize (baseline: images resized), between (virtual camera, average pose),
     within (plus each image's estimated VP), within-gt (the study's given VPs), zero (within with
-    zero padding instead of projective completion). Prints the table (rows: held-out dataset and
+    zero padding instead of projective completion). Prints the table (rows: evaluated dataset and
     mean; columns: conditions; road IoU in %) and writes OUT/table.md, table.csv, results.jsonl,
-    summary.json and per-run logs under OUT/runs. Finished runs are not redone: run the same
-    command again to resume.
+    summary.json and per-run logs under OUT/runs. Training settings the study does not give are
+    vctrain fit's defaults. Finished runs are not redone: run the same command again to resume.
 
     \b
     Example:
       vctrain crossval study.yaml --out studies/cams
       vctrain crossval study.yaml --out studies/cams --conditions resize,within --epochs 5
       vctrain crossval study.yaml --out studies/cams --json | tail -n 1
+      vctrain crossval study.yaml --out studies/seed1 --seed 1
     """
-    from .crossval import check_conditions, format_table, load_study, run_study, summary_of
+    from .crossval import check_conditions, evaluated_datasets, format_table, load_study, run_study, summary_of
 
     st = load_study(study)
     conds = check_conditions([c.strip() for c in conditions.split(",") if c.strip()]) if conditions else st.conditions
-    held = [h.strip() for h in heldout.split(",") if h.strip()] if heldout else None
-    rows = run_study(st, out, conds, held, progress=not quiet, jobs=jobs,
-                     train_overrides={"epochs": epochs} if epochs else None, say=(lambda s: None) if quiet else err)
+    held = evaluated_datasets(st, [h.strip() for h in heldout.split(",") if h.strip()] if heldout else None)
+    overrides = {k: v for k, v in (("epochs", epochs), ("seed", seed)) if v is not None}
+    rows = run_study(st, out, conds, held, progress=not quiet, jobs=jobs, train_overrides=overrides,
+                     say=(lambda s: None) if quiet else err)
     if as_json:
         emit_json(summary_of(rows, conds))
     else:
-        names = held or [d.name for d in st.datasets]
-        print(format_table(rows, [st.dataset(h).name for h in names], conds), end="")
+        print(format_table(rows, held, conds), end="")
 
 
 def main() -> None:

@@ -1,7 +1,12 @@
-"""Leave-one-dataset-out cross-camera study (paper Tables 4 and 7).
+"""Cross-camera study: leave one dataset out (paper Tables 4 and 7), and test-only datasets.
 
-Given N named datasets, each taken with its own camera, train on N-1 and test on the held-out
-one, for every held-out dataset and every *condition*:
+Given named datasets, each taken with its own camera, and for every *condition*:
+
+* each dataset of role ``both`` (the default) is held out in turn: train on every other dataset
+  that may be trained on (role ``train`` or ``both``), test on the held-out one;
+* when there are datasets of role ``test`` (never trained on, e.g. a new camera's labelled frames:
+  "will my model work on camera X?"), one more model per condition is trained on ALL trainable
+  datasets and tested on every test-role dataset.
 
 ==========  ==========================================================================
 resize      the baseline: original images simply resized to the working size
@@ -21,16 +26,20 @@ Estimated VPs (``within``, ``zero``) are searched for and accepted only inside t
 virtual camera is designed to hold (``pan_range``, ``tilt_range`` of the study; rejected images fall
 back to the mean accepted VP, see :mod:`vcprep.vanishing_point`).
 
-Nothing is tuned on the held-out camera: the checkpoint kept is the best on a validation share of
+Nothing is tuned on an evaluated camera: the checkpoint kept is the best on a validation share of
 the TRAINING datasets. The virtual camera is designed from all the study's cameras (as in the
-paper, whose virtual camera covers all five), which uses the held-out camera's calibration but
-none of its images.
+paper, whose virtual camera covers all five), which uses the evaluated cameras' calibration but
+none of their images. Training settings not given in the study are :class:`vctrain.train.TrainConfig`'s
+defaults (the project's current recipe).
 
 Layout under OUT: ``stores/<dataset>/<split>/<geometry>/`` (vcprep stores), ``vps/<dataset>-<split>.csv``
-(the estimated VPs), ``runs/<heldout>/<condition>/`` (checkpoint, training log, ``result.json``),
-``results.jsonl``, ``table.md``, ``table.csv``, ``summary.json``. A run whose ``result.json`` exists
-is not redone, so an interrupted study resumes where it stopped; a run finished with other
-settings (training, virtual camera, datasets) is redone.
+(the estimated VPs), ``runs/<heldout>/<condition>/`` (checkpoint, training log, ``train.json``,
+``result.json``) and, with test-role datasets, ``runs/_all/<condition>/`` (one model,
+``result-<dataset>.json`` per test-role dataset), ``results.jsonl`` (one row per evaluated dataset and
+condition), ``table.md``, ``table.csv``, ``summary.json``. A finished result is not redone, and a
+finished training is not repeated for a missing evaluation, so an interrupted study resumes where it
+stopped; a run finished with other settings (effective training config, virtual camera, datasets)
+is redone.
 """
 from __future__ import annotations
 
@@ -38,7 +47,8 @@ import hashlib
 import json
 import re
 import time
-from dataclasses import astuple, dataclass, field, fields
+from fnmatch import fnmatchcase
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
@@ -51,8 +61,8 @@ from vcprep.imageio import image_size_from_header, read_image, read_text, write_
 from vcprep.labels import decode_label, get_label_format
 from vcprep.store import Store
 
-__all__ = ["CONDITIONS", "GEOMETRIES", "Split", "Dataset", "Study", "load_study", "run_study", "format_table",
-           "summary_of"]
+__all__ = ["CONDITIONS", "GEOMETRIES", "ROLES", "Split", "Dataset", "Study", "load_study", "evaluated_datasets",
+           "plan_runs", "training_settings", "run_study", "format_table", "summary_of"]
 
 # geometry name -> (VP source, completion); one store per dataset, split and geometry
 GEOMETRIES: dict[str, tuple[str, str]] = {
@@ -69,9 +79,15 @@ CONDITIONS: dict[str, tuple[str, str]] = {
     "within-gt": ("within-gt", "none"),
     "zero": ("zero", "none"),
 }
-# the study file's `train:` section may set these TrainConfig fields
+# the study file's `train:` section may set any TrainConfig field except these, which the study sets per run
+# (TRAIN_KEYS are checked without importing torch; another key is checked against TrainConfig itself)
+RUN_KEYS = ("stores", "out", "baseline", "images", "labels", "label_format", "size", "val_stores", "resume", "log",
+            "progress")
 TRAIN_KEYS = ("epochs", "arch", "base_width", "batch_size", "lr", "momentum", "weight_decay", "schedule", "seed",
               "val_fraction", "class_weights", "hflip", "greyscale", "device", "workers", "max_steps")
+# role -> (trained on, evaluated); 'both' = held out in turn (leave one out)
+ROLES: dict[str, tuple[bool, bool]] = {"both": (True, True), "train": (True, False), "test": (False, True)}
+ALL_RUN = "_all"  # runs/_all/<condition>/: trained on every trainable dataset, scored on the test-role ones
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 
 
@@ -80,6 +96,13 @@ class Split:
     images: Path
     labels: Path
     vps: Path | None = None
+    include: tuple[str, ...] = ()  # keep only items whose id (file stem) matches one of these globs (empty: all)
+    exclude: tuple[str, ...] = ()  # then drop items whose id matches one of these globs
+
+    def selects(self, item_id: str) -> bool:
+        """Whether the item ``item_id`` belongs to this split (globs are case-sensitive, fnmatch)."""
+        return ((not self.include or any(fnmatchcase(item_id, g) for g in self.include))
+                and not any(fnmatchcase(item_id, g) for g in self.exclude))
 
 
 @dataclass(frozen=True)
@@ -87,8 +110,22 @@ class Dataset:
     name: str
     camera: str
     label_format: str
-    train: Split
-    test: Split
+    train: Split | None      # None for role 'test'
+    test: Split | None       # None for role 'train'
+    role: str = "both"
+
+    @property
+    def trained(self) -> bool:
+        return ROLES[self.role][0]
+
+    @property
+    def evaluated(self) -> bool:
+        return ROLES[self.role][1]
+
+    @property
+    def first_split(self) -> str:
+        """The split whose first image stands for the camera's image size."""
+        return "train" if self.train is not None else "test"
 
 
 @dataclass
@@ -127,9 +164,19 @@ def _keys(d: dict, allowed: Sequence[str], required: Sequence[str], what: str, p
             raise InputError(f"missing key '{k}' in {what}", path, "see the study schema in the README")
 
 
+def _globs(v: Any, key: str, what: str, path: Path) -> tuple[str, ...]:
+    if v is None:
+        return ()
+    globs = [v] if isinstance(v, str) else v
+    if not isinstance(globs, list) or not globs or not all(isinstance(g, str) and g for g in globs):
+        raise InputError(f"'{key}' in {what} must be a glob or a list of globs on file stems", path,
+                         f"e.g. {key}: ['0016E5_*', '0006R0_*']")
+    return tuple(globs)
+
+
 def _split(d: Any, what: str, path: Path) -> Split:
     d = _mapping(d, what, path)
-    _keys(d, ("images", "labels", "vps"), ("images", "labels"), what, path)
+    _keys(d, ("images", "labels", "vps", "include", "exclude"), ("images", "labels"), what, path)
     base = path.parent
 
     def p(key: str) -> Path:
@@ -141,7 +188,21 @@ def _split(d: Any, what: str, path: Path) -> Split:
             raise InputError(f"'{key}' of {what} not found: {q}", path, "check the path (relative to the study file)")
         return q
 
-    return Split(p("images"), p("labels"), p("vps") if d.get("vps") is not None else None)
+    return Split(p("images"), p("labels"), p("vps") if d.get("vps") is not None else None,
+                 _globs(d.get("include"), "include", what, path), _globs(d.get("exclude"), "exclude", what, path))
+
+
+def _check_train_keys(t: dict, path: Path) -> None:
+    """Keys of the study's ``train:`` section: TrainConfig fields the study does not set per run."""
+    unknown = sorted(set(map(str, t)) - set(TRAIN_KEYS))
+    if not unknown:
+        return
+    from .train import TrainConfig  # imports torch: only when a key is not one of the usual ones
+
+    allowed = [f.name for f in fields(TrainConfig) if f.name not in RUN_KEYS]
+    bad = [k for k in unknown if k not in allowed]
+    if bad:
+        raise InputError(f"unknown key '{bad[0]}' in 'train'", path, f"allowed keys: {', '.join(allowed)}")
 
 
 def load_study(path: str | Path) -> Study:
@@ -159,15 +220,27 @@ def load_study(path: str | Path) -> Study:
           "the study file", path)
     raw = d["datasets"]
     if not isinstance(raw, list) or len(raw) < 2:
-        raise InputError("'datasets' must list at least two datasets", path, "leave-one-out needs N >= 2 datasets")
+        raise InputError("'datasets' must list at least two datasets", path,
+                         "a study trains on some datasets and tests on others")
     datasets: list[Dataset] = []
     for i, r in enumerate(raw):
         r = _mapping(r, f"dataset #{i + 1}", path)
-        _keys(r, ("name", "camera", "label_format", "train", "test"), ("name", "camera", "label_format", "train"),
+        _keys(r, ("name", "camera", "label_format", "role", "train", "test"), ("name", "camera", "label_format"),
               f"dataset #{i + 1}", path)
         name = r["name"]
         if not isinstance(name, str) or not _NAME.match(name):
             raise InputError(f"dataset #{i + 1} has a bad name {name!r}", path, "use letters, digits, '_', '-', '.'")
+        role = r.get("role", "both")
+        if role not in ROLES:
+            raise InputError(f"dataset '{name}' has an unknown role {role!r}", path, f"use one of {', '.join(ROLES)}")
+        # a test-role dataset is never trained on (only 'test:'); a train-role one never tested ('train:')
+        need, unused = {"both": ("train", None), "train": ("train", "test"), "test": ("test", "train")}[role]
+        if r.get(need) is None:
+            raise InputError(f"missing key '{need}' in dataset '{name}' (role {role})", path,
+                             f"add '{need}: {{images: ..., labels: ...}}'")
+        if unused is not None and r.get(unused) is not None:
+            raise InputError(f"dataset '{name}' has role {role}, so its '{unused}' split would never be used", path,
+                             f"remove '{unused}:', or use role: both")
         if any(x.name == name for x in datasets):
             raise InputError(f"two datasets named '{name}'", path, "give each dataset its own name")
         try:
@@ -177,9 +250,19 @@ def load_study(path: str | Path) -> Study:
         cam = str(r["camera"])
         if not cam.isidentifier() or (path.parent / cam).exists():
             cam = str(path.parent / cam)
-        train = _split(r["train"], f"dataset '{name}' train", path)
+        train = _split(r["train"], f"dataset '{name}' train", path) if role != "test" else None
         test = _split(r["test"], f"dataset '{name}' test", path) if r.get("test") is not None else train
-        datasets.append(Dataset(name, cam, str(r["label_format"]), train, test))
+        datasets.append(Dataset(name, cam, str(r["label_format"]), train, test if role != "train" else None, role))
+    trainable = [x for x in datasets if x.trained]
+    if not trainable:
+        raise InputError("no dataset may be trained on (every role is 'test')", path,
+                         "give at least one dataset role: train or both")
+    if not any(x.evaluated for x in datasets):
+        raise InputError("no dataset is tested on (every role is 'train')", path,
+                         "give at least one dataset role: test or both")
+    if len(trainable) == 1 and trainable[0].role == "both":
+        raise InputError(f"dataset '{trainable[0].name}' is the only one that may be trained on, so it cannot be held "
+                         "out", path, "give it role: train (trained on, never tested), or add a training dataset")
     study = Study(path, datasets)
     if "conditions" in d:
         conds = d["conditions"]
@@ -204,7 +287,7 @@ def load_study(path: str | Path) -> Study:
         study.store_width = v
     if "train" in d:
         t = _mapping(d["train"], "'train'", path)
-        _keys(t, TRAIN_KEYS, (), "'train'", path)
+        _check_train_keys(t, path)
         study.train = dict(t)
     return study
 
@@ -231,16 +314,21 @@ class _Builder:
         return ds.train if split == "train" else ds.test
 
     def items(self, ds: Dataset, split: str) -> list[Job]:
+        """The split's items: every image of its folder that its include/exclude globs select."""
         key = (ds.name, split)
         if key not in self._items:
             s = self.split(ds, split)
-            self._items[key] = list_dataset(s.images, s.labels, get_label_format(ds.label_format))
+            jobs = [j for j in list_dataset(s.images, s.labels, get_label_format(ds.label_format)) if s.selects(j.id)]
+            if not jobs:
+                raise InputError(f"dataset '{ds.name}' {split}: no image of {s.images} is selected", self.study.path,
+                                 "check the folder and the split's include/exclude globs (on file stems)")
+            self._items[key] = jobs
         return self._items[key]
 
     def camera(self, ds: Dataset) -> Camera:
         if ds.name not in self._cams:
             size = None
-            first = self.items(ds, "train")[0].image
+            first = self.items(ds, ds.first_split)[0].image
             if Path(ds.camera).suffix.lower() in (".txt", ".json"):
                 size = image_size_from_header(first.read_bytes()[:65536])
             self._cams[ds.name] = load_camera(ds.camera, image_size=size)
@@ -304,8 +392,9 @@ class _Builder:
 
 
 # -- one run -------------------------------------------------------------------------------------
-def _train_config(study: Study, stores: list[Path], out: Path, baseline: str, size: tuple[int, int],
+def _train_config(study: Study, stores: list[Path], out: Path, baseline: str, size: tuple[int, int] | None,
                   progress: bool, overrides: dict[str, Any]):
+    """TrainConfig's defaults (the project's recipe), then the study's ``train:``, then ``overrides``."""
     from .train import TrainConfig
 
     cfg = TrainConfig(stores=[str(s) for s in stores], out=str(out / "model.pt"), baseline=baseline, size=size,
@@ -315,6 +404,12 @@ def _train_config(study: Study, stores: list[Path], out: Path, baseline: str, si
         if k in names and v is not None:
             setattr(cfg, k, v)
     return cfg
+
+
+def training_settings(study: Study, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The training settings every run of ``study`` shares (the effective config, defaults included)."""
+    cfg = _train_config(study, [], Path("."), "none", None, False, dict(overrides or {}))
+    return {k: v for k, v in cfg.to_dict().items() if k not in RUN_KEYS and k != "workers"}
 
 
 def evaluate_heldout(checkpoint: Path, store_dir: Path, progress: bool = False) -> dict[str, Any]:
@@ -344,82 +439,151 @@ def _atomic_json(path: Path, obj: Any) -> None:
     write_bytes_atomic(path, (json.dumps(obj, indent=1, sort_keys=True) + "\n").encode())
 
 
+@dataclass(frozen=True)
+class _Run:
+    """One model: ``condition`` trained on ``train``, scored on each dataset of ``tests``."""
+
+    name: str                   # runs/<name>/<condition>/: the held-out dataset, or ALL_RUN
+    condition: str
+    train: tuple[Dataset, ...]
+    tests: tuple[Dataset, ...]
+
+    def result_file(self, run_dir: Path, ds: Dataset) -> Path:
+        return run_dir / ("result.json" if ds.name == self.name else f"result-{ds.name}.json")
+
+
+def evaluated_datasets(study: Study, names: Sequence[str] | None = None) -> list[str]:
+    """The datasets a study scores (role both or test; ``names`` picks some of them), in file order."""
+    if not names:
+        return [d.name for d in study.datasets if d.evaluated]
+    chosen = [study.dataset(n) for n in names]
+    for d in chosen:
+        if not d.evaluated:
+            raise InputError(f"dataset '{d.name}' has role train: it is never tested", study.path,
+                             "pick datasets of role both or test")
+    return [d.name for d in study.datasets if d in chosen]
+
+
+def plan_runs(study: Study, conditions: Sequence[str], evaluated: Sequence[str]) -> list[_Run]:
+    """Leave-one-out runs for the evaluated 'both' datasets, then (with test-role datasets) one run
+    per condition on every trainable dataset, scored on each evaluated test-role dataset."""
+    trainable = tuple(d for d in study.datasets if d.trained)
+    chosen = [study.dataset(n) for n in evaluated]
+    runs = [_Run(d.name, c, tuple(t for t in trainable if t.name != d.name), (d,))
+            for d in chosen if d.role == "both" for c in conditions]
+    tests = tuple(d for d in chosen if d.role == "test")
+    return runs + [_Run(ALL_RUN, c, trainable, tests) for c in conditions] if tests else runs
+
+
+def _execute(run: _Run, b: _Builder, sha: str, overrides: dict[str, Any], tag: str) -> list[dict[str, Any]]:
+    """Train (unless trained earlier with these settings) and score the results still missing."""
+    from .train import fit
+
+    say, c = b.say, run.condition
+    run_dir = b.out / "runs" / run.name / c
+
+    def what(ds: Dataset) -> str:
+        return f"{tag} {'held out' if ds.role == 'both' else 'tested on'} {ds.name}, {c}"
+
+    rows, todo = [], []
+    for ds in run.tests:
+        f = run.result_file(run_dir, ds)
+        prev = json.loads(f.read_text()) if f.exists() else None
+        if prev is not None and prev.get("settings_sha") == sha:
+            rows.append(prev)
+            say(f"{what(ds)}: done earlier (IoU {prev['iou']:.3f})")
+            continue
+        if prev is not None:
+            say(f"{what(ds)}: the study's settings changed since it ran; redoing it")
+            f.unlink()
+        todo.append(ds)
+    if not todo:
+        return rows
+    geometry, baseline = CONDITIONS[c]
+    if GEOMETRIES[geometry][0] == "given":
+        no_train = [d.name for d in run.train if not b.has_given_vps(d, "train")]
+        for ds in list(todo):
+            missing = no_train + ([ds.name] if not b.has_given_vps(ds, "test") else [])
+            if missing:
+                say(f"{what(ds)}: skipped (no given VPs for {', '.join(missing)})")
+                todo.remove(ds)
+        if not todo:
+            return rows
+    say(f"{tag} {run.name}, {c}: stores")
+    stores = [b.store(d, "train", geometry) for d in run.train]
+    test_stores = {ds.name: b.store(ds, "test", geometry) for ds in todo}
+    size = Store.open(stores[0]).store_size
+    run_dir.mkdir(parents=True, exist_ok=True)
+    cfg = _train_config(b.study, stores, run_dir, baseline, size, b.progress, overrides)
+    trained = run_dir / "train.json"
+    info = json.loads(trained.read_text()) if trained.exists() else None
+    if info is not None and info.get("settings_sha") == sha and Path(cfg.out).exists():
+        say(f"{tag} {run.name}, {c}: model trained earlier")
+    else:  # a training of other settings, or one that was interrupted: start afresh
+        for old in (trained, Path(cfg.out), run_dir / "model.last.pt", run_dir / "model.log.jsonl"):
+            old.unlink(missing_ok=True)
+        say(f"{tag} {run.name}, {c}: training on {', '.join(d.name for d in run.train)} "
+            f"({cfg.epochs} epochs at {size[0]}x{size[1]})")
+        t0 = time.perf_counter()
+        summary = fit(cfg)
+        info = {"train_datasets": [d.name for d in run.train], "train_items": summary["data"]["train_items"],
+                "val_items": summary["data"]["val_items"], "best_epoch": summary["best_epoch"],
+                "best_val_iou": summary["best_val_iou"], "epochs": cfg.epochs, "input_size": list(size),
+                "train_seconds": round(time.perf_counter() - t0, 1),
+                "train_images_per_s": summary["train_images_per_s"], "model_args": summary["model_args"],
+                "settings_sha": sha}
+        _atomic_json(trained, info)
+    for ds in todo:
+        t0 = time.perf_counter()
+        metrics = evaluate_heldout(Path(cfg.out), test_stores[ds.name], b.progress)
+        row = {"heldout": ds.name, "condition": c, "role": ds.role, "run": run.name, **metrics,
+               **{k: info[k] for k in ("train_datasets", "train_items", "val_items", "best_epoch", "best_val_iou",
+                                       "epochs", "input_size", "train_seconds", "train_images_per_s")},
+               "total_seconds": round(info["train_seconds"] + time.perf_counter() - t0, 1), "settings_sha": sha}
+        _atomic_json(run.result_file(run_dir, ds), row)
+        rows.append(row)
+        say(f"{what(ds)}: road IoU {row['iou']:.3f} ({row['total_seconds']:.0f} s)")
+    return rows
+
+
 def run_study(study: Study, out: str | Path, conditions: Sequence[str] | None = None,
               heldout: Sequence[str] | None = None, progress: bool = True, jobs: int = 1,
               train_overrides: dict[str, Any] | None = None,
               say: Callable[[str], None] = lambda s: None) -> list[dict[str, Any]]:
-    """Run (or resume) every (held-out dataset, condition) of ``study`` into ``out``; returns all
-    result rows (finished earlier or now), in table order. Writes the tables (:func:`write_tables`)."""
-    from .train import fit
-
+    """Run (or resume) every (evaluated dataset, condition) of ``study`` into ``out`` (``heldout``:
+    only these evaluated datasets); returns all result rows (finished earlier or now), in table
+    order. Writes the tables (:func:`write_tables`)."""
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     conditions = check_conditions(conditions or study.conditions)
-    held = [study.dataset(h).name for h in heldout] if heldout else [d.name for d in study.datasets]
+    evaluated = evaluated_datasets(study, heldout)
     overrides = dict(train_overrides or {})
+    out.mkdir(parents=True, exist_ok=True)
     b = _Builder(study, out, progress, jobs, say)
     virt = b.virtual()
+    training = training_settings(study, overrides)
     _atomic_json(out / "study.json", {"study": str(study.path), "virtual": virt.to_dict(), "scale": b.scale(),
                                       "conditions": conditions, "datasets": [d.name for d in study.datasets],
-                                      "train": {**study.train, **overrides}})
-    # what a run's result depends on (besides its held-out dataset and condition): a finished run
-    # with other settings is redone, never silently reused
+                                      "roles": {d.name: d.role for d in study.datasets}, "train": training})
+    # what a run's result depends on (besides its datasets and condition): a finished run with
+    # other settings is redone, never silently reused
     settings = {"virtual": virt.to_dict(), "scale": b.scale(), "pan_range": study.pan_range,
-                "tilt_range": study.tilt_range, "train": {**study.train, **overrides},
-                "datasets": [[d.name, d.camera, d.label_format, *(str(x) for x in (*astuple(d.train), *astuple(d.test)))]
+                "tilt_range": study.tilt_range, "train": training,
+                "datasets": [[d.name, d.role, d.camera, d.label_format, repr(d.train), repr(d.test)]
                              for d in study.datasets]}
     settings_sha = hashlib.sha256(json.dumps(settings, sort_keys=True, default=str).encode()).hexdigest()[:16]
-    plan = [(h, c) for h in held for c in conditions]
+    runs = plan_runs(study, conditions, evaluated)
     rows: list[dict[str, Any]] = []
-    for k, (h, c) in enumerate(plan, 1):
-        run_dir = out / "runs" / h / c
-        done = run_dir / "result.json"
-        if done.exists():
-            prev = json.loads(done.read_text())
-            if prev.get("settings_sha") == settings_sha:
-                rows.append(prev)
-                say(f"[{k}/{len(plan)}] held out {h}, {c}: done earlier (IoU {prev['iou']:.3f})")
-                continue
-            say(f"[{k}/{len(plan)}] held out {h}, {c}: the study's settings changed since it ran; redoing it")
-            for old in (done, run_dir / "model.pt", run_dir / "model.last.pt", run_dir / "model.log.jsonl"):
-                old.unlink(missing_ok=True)
-        geometry, baseline = CONDITIONS[c]
-        train_sets = [d for d in study.datasets if d.name != h]
-        test_set = study.dataset(h)
-        if GEOMETRIES[geometry][0] == "given":
-            missing = [d.name for d in train_sets if not b.has_given_vps(d, "train")]
-            if not b.has_given_vps(test_set, "test"):
-                missing.append(test_set.name)
-            if missing:
-                say(f"[{k}/{len(plan)}] held out {h}, {c}: skipped (no given VPs for {', '.join(missing)})")
-                continue
-        say(f"[{k}/{len(plan)}] held out {h}, {c}: stores")
-        stores = [b.store(d, "train", geometry) for d in train_sets]
-        test_store = b.store(test_set, "test", geometry)
-        size = Store.open(stores[0]).store_size
-        run_dir.mkdir(parents=True, exist_ok=True)
-        cfg = _train_config(study, stores, run_dir, baseline, size, progress, overrides)
-        say(f"[{k}/{len(plan)}] held out {h}, {c}: training on {', '.join(d.name for d in train_sets)} "
-            f"({cfg.epochs} epochs at {size[0]}x{size[1]})")
-        t0 = time.perf_counter()
-        summary = fit(cfg)
-        t_train = time.perf_counter() - t0
-        metrics = evaluate_heldout(Path(cfg.out), test_store, progress)
-        row = {"heldout": h, "condition": c, **metrics, "train_datasets": [d.name for d in train_sets],
-               "train_items": summary["data"]["train_items"], "val_items": summary["data"]["val_items"],
-               "best_epoch": summary["best_epoch"], "best_val_iou": summary["best_val_iou"], "epochs": cfg.epochs,
-               "input_size": list(size), "train_seconds": round(t_train, 1),
-               "total_seconds": round(time.perf_counter() - t0, 1), "settings_sha": settings_sha}
-        _atomic_json(done, row)
-        rows.append(row)
-        say(f"[{k}/{len(plan)}] held out {h}, {c}: road IoU {row['iou']:.3f} ({row['total_seconds']:.0f} s)")
-    write_tables(out, rows, held, conditions)
+    for k, run in enumerate(runs, 1):
+        rows += _execute(run, b, settings_sha, overrides, f"[{k}/{len(runs)}]")
+    order = {(h, c): i for i, (h, c) in enumerate((h, c) for h in evaluated for c in conditions)}
+    rows.sort(key=lambda r: order[r["heldout"], r["condition"]])
+    write_tables(out, rows, evaluated, conditions)
     return rows
 
 
 # -- tables --------------------------------------------------------------------------------------
 def summary_of(rows: Sequence[dict[str, Any]], conditions: Sequence[str]) -> dict[str, float]:
-    """Condition -> mean road IoU over the held-out datasets that have a result for it."""
+    """Condition -> mean road IoU over the evaluated datasets that have a result for it."""
     out = {}
     for c in conditions:
         v = [r["iou"] for r in rows if r["condition"] == c]
@@ -430,7 +594,8 @@ def summary_of(rows: Sequence[dict[str, Any]], conditions: Sequence[str]) -> dic
 
 def format_table(rows: Sequence[dict[str, Any]], heldout: Sequence[str], conditions: Sequence[str],
                  fmt: str = "md") -> str:
-    """Rows: held-out dataset + mean; columns: conditions; cells: road IoU x 100 ('-' = no run)."""
+    """Rows: evaluated (held-out or test-role) dataset + mean; columns: conditions; cells: road IoU x 100
+    ('-' = no run)."""
     cell = {(r["heldout"], r["condition"]): r["iou"] for r in rows}
     mean = summary_of(rows, conditions)
     body = [[h] + [f"{100 * cell[h, c]:.1f}" if (h, c) in cell else "-" for c in conditions] for h in heldout]
@@ -445,7 +610,7 @@ def format_table(rows: Sequence[dict[str, Any]], heldout: Sequence[str], conditi
 
 def write_tables(out: Path, rows: Sequence[dict[str, Any]], heldout: Sequence[str], conditions: Sequence[str]) -> None:
     write_bytes_atomic(out / "results.jsonl", "".join(json.dumps(r, sort_keys=True) + "\n" for r in rows).encode())
-    write_bytes_atomic(out / "table.md", ("Road IoU (%) on the held-out dataset's test images, scored in its own "
-                                          "camera.\n\n" + format_table(rows, heldout, conditions)).encode())
+    write_bytes_atomic(out / "table.md", ("Road IoU (%) on each evaluated dataset's test images (never "
+                                          "trained on), scored in its own camera.\n\n" + format_table(rows, heldout, conditions)).encode())
     write_bytes_atomic(out / "table.csv", format_table(rows, heldout, conditions, "csv").encode())
     _atomic_json(out / "summary.json", summary_of(rows, conditions))
