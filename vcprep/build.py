@@ -10,6 +10,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping
@@ -17,12 +18,12 @@ from typing import Any, Mapping
 import numpy as np
 from . import __version__
 from .camera import Camera
-from .errors import InputError, VCError
+from .errors import InputError, StoreError, VCError
 from .homography import apply_homography, check_not_folded, pose_from_vp, virt_H_src, virtual_at_scale, vp_from_pose
 from .imageio import IMAGE_EXTENSIONS, image_size_from_header, read_image, write_png
 from .labels import LabelFormat, decode_label, image_id, label_stem_for
 from .parallel import ItemError, run_items
-from .store import VALID_PREFIX, Shard, Store, temp_files
+from .store import VALID_PREFIX, Shard, Store, store_lock, temp_files
 from .completion import border_ignore, check_method, completion_maps
 from .warp import warp_image, warp_label
 
@@ -247,13 +248,19 @@ def valid_path(H: np.ndarray, src_size: tuple[int, int], store_size: tuple[int, 
 def _write_item(root: Path, rec: dict[str, Any], item: WarpedItem, written: dict[str, str]) -> dict[str, str]:
     """Write the item's PNGs (atomically); returns their SHA-256. The valid mask is shared by
     path (:func:`valid_path`): ``written`` (path -> SHA-256, one per build and process) holds the
-    ones this process wrote in this build, which are not encoded again."""
-    sums = {"image": write_png(root / rec["image"], item.image, kind="store")}
-    if item.label is not None and rec.get("label"):
-        sums["label"] = write_png(root / rec["label"], item.label, kind="mask")
-    sha = written.get(rec["valid"])
-    if sha is None:
-        sha = written[rec["valid"]] = write_png(root / rec["valid"], item.valid, kind="mask")
+    ones this process wrote in this build, which are not encoded again. A failed write (a full
+    disk) raises :class:`StoreError` naming the file."""
+    try:
+        sums = {"image": write_png(root / rec["image"], item.image, kind="store")}
+        if item.label is not None and rec.get("label"):
+            sums["label"] = write_png(root / rec["label"], item.label, kind="mask")
+        sha = written.get(rec["valid"])
+        if sha is None:
+            sha = written[rec["valid"]] = write_png(root / rec["valid"], item.valid, kind="mask")
+    except OSError as e:
+        raise StoreError(f"cannot write: {e.strerror or e}", e.filename,
+                         "free disk space (or check permissions) and run the same command again; finished items "
+                         "are kept") from None
     sums["valid"] = sha
     return sums
 
@@ -382,14 +389,22 @@ def warp_dataset(jobs: list[Job], camera: Camera, virtual: Camera, scale: float,
     """
     check_method(completion)
     params = store_params(virtual, scale)
-    store = Store.open_or_create(out, params, shard=shard)
     if shard is not None:
         jobs = [j for j in jobs if shard.contains(j.id)]
-    ctx = _WarpContext(store.root, camera, store.virtual, store.params, fmt, completion)
-    tasks = [_WarpTask(j, poses.get(j.id) if poses else None, store.items.get(j.id)) for j in jobs]
     summary = BuildSummary(total=len(jobs))
-    _build_loop(store, build_item, ctx, tasks, [j.id for j in jobs], summary, workers, progress, keep_going, "warp")
+    # the store is read after the lock is held: a writer that finished meanwhile is seen
+    with store_lock(out, shared=shard is not None, on_wait=say_on_stderr if progress else None):
+        store = Store.open_or_create(out, params, shard=shard)
+        ctx = _WarpContext(store.root, camera, store.virtual, store.params, fmt, completion)
+        tasks = [_WarpTask(j, poses.get(j.id) if poses else None, store.items.get(j.id)) for j in jobs]
+        _build_loop(store, build_item, ctx, tasks, [j.id for j in jobs], summary, workers, progress, keep_going,
+                    "warp")
     return store, summary
+
+
+def say_on_stderr(msg: str) -> None:
+    """Chatter of a library step for the person at the terminal (a store lock wait)."""
+    print(msg, file=sys.stderr, flush=True)
 
 
 # -- completion of an existing store ---------------------------------------------------------------
@@ -474,10 +489,12 @@ def complete_store(store_dir: str | Path, method: str = "projective", progress: 
     ``keep_going`` likewise).
     """
     check_method(method)
-    store = Store.open(store_dir, shard=shard)
-    recs = [r for r in store if shard is None or shard.contains(r["id"])]
-    summary = BuildSummary(total=len(recs))
-    ctx = _CompleteContext(store.root, store.params, method)
-    _build_loop(store, complete_item, ctx, recs, [r["id"] for r in recs], summary, workers, progress, keep_going,
-                "complete")
+    Store.open(store_dir)  # a clear error for a missing or foreign directory, before any lock file
+    with store_lock(store_dir, shared=shard is not None, on_wait=say_on_stderr if progress else None):
+        store = Store.open(store_dir, shard=shard)
+        recs = [r for r in store if shard is None or shard.contains(r["id"])]
+        summary = BuildSummary(total=len(recs))
+        ctx = _CompleteContext(store.root, store.params, method)
+        _build_loop(store, complete_item, ctx, recs, [r["id"] for r in recs], summary, workers, progress, keep_going,
+                    "complete")
     return store, summary

@@ -311,7 +311,7 @@ def store_verify(store: Path = typer.Argument(..., help="store directory"),
                  as_json: bool = typer.Option(False, "--json", help="one JSON object per problem"),
                  repair: bool = typer.Option(False, "--repair", help="drop the records and files of items with bad "
                                              "stored files and delete orphans, so that re-running the build redoes "
-                                             "them (run it when no build writes the store)"),
+                                             "them (waits for a running build: it holds the store lock)"),
                  jobs: Optional[int] = typer.Option(None, "--jobs", "-j", min=1, help=JOBS_HELP),
                  quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar or summary on stderr")):
     """Check a store: every recorded PNG exists, decodes, has the store size, allowed values
@@ -326,10 +326,15 @@ def store_verify(store: Path = typer.Argument(..., help="store directory"),
       vcprep store verify stores/camvid --no-sources --json | jq -r .id | sort -u
       vcprep store verify stores/camvid --repair; vcprep warp ... --out stores/camvid
     """
+    from .build import say_on_stderr
     from .errors import StoreError
-    from .store_check import repair_store, verify_store
+    from .store_check import verify_and_repair, verify_store
 
-    report = verify_store(store, check_sources=sources, workers=jobs or default_jobs(), progress=not quiet)
+    if repair:  # under the store lock: waits for a running build, whose files in flight are no orphans
+        report, dropped, removed = verify_and_repair(store, sources, jobs or default_jobs(), not quiet,
+                                                     on_wait=None if quiet else say_on_stderr)
+    else:
+        report = verify_store(store, check_sources=sources, workers=jobs or default_jobs(), progress=not quiet)
     for p in report.problems:
         if as_json:
             from dataclasses import asdict
@@ -343,7 +348,6 @@ def store_verify(store: Path = typer.Argument(..., help="store directory"),
         bad = report.bad_items
         named = ", ".join(bad[:10]) + (f" and {len(bad) - 10} more" if len(bad) > 10 else "")
         if repair:
-            dropped, removed = repair_store(store, report)
             fix = (f"repaired: dropped {len(dropped)} items, deleted {removed} files; re-run the build command to "
                    "redo them")
         else:
@@ -386,7 +390,8 @@ def store_merge(store: Path = typer.Argument(..., help="store directory"),
                 quiet: bool = typer.Option(False, "--quiet", "-q", help="no summary on stderr")):
     """Fold the shard part files of a store (built with 'warp --shard K/N') into its
     manifest.jsonl and remove temp files of interrupted writes. Run it once every shard has
-    finished. The store is readable before (parts are read too); merging makes it one file.
+    finished (it waits for running builds: it holds the store lock). The store is readable
+    before (parts are read too); merging makes it one file.
 
     \b
     Example:
@@ -394,9 +399,10 @@ def store_merge(store: Path = typer.Argument(..., help="store directory"),
       vcprep warp -c camvid -i data/camvid/train -o stores/camvid --shard 2/2; wait
       vcprep store merge stores/camvid
     """
+    from .build import say_on_stderr
     from .store_check import merge_store
 
-    st, n = merge_store(store)
+    st, n = merge_store(store, on_wait=None if quiet else say_on_stderr)
     if not quiet:
         err(f"{store}: merged {n} part files; {len(st)} items")
     print(store)

@@ -135,17 +135,29 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> None:
     # default permissions (umask), unlike mkstemp's 0600: a store on a shared file system stays
     # readable by its group
     tmp = path.parent / f".{path.name}.{os.urandom(6).hex()}.tmp"
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o666)
+    try:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o666)
+    except OSError as e:
+        raise _naming(e, path) from None
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data)
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as e:
         try:
             os.unlink(tmp)
         except OSError:
             pass
+        if isinstance(e, OSError):
+            raise _naming(e, path) from None
         raise
+
+
+def _naming(e: OSError, path: Path) -> OSError:
+    """The same error (same errno, so the same OSError subclass) naming ``path``, the file the
+    user asked for: a failed write (ENOSPC, EDQUOT, EIO) names no file, and the temp file's
+    name would mean nothing to the user."""
+    return OSError(e.errno, e.strerror or str(e), str(path))
 
 
 # PNG settings per kind of content, (row filter, deflate level), chosen by measurement (CamVid

@@ -40,22 +40,35 @@ Every file is written atomically (temp + rename). Records reach disk in two step
 :meth:`Store.open` reads ``manifest.jsonl`` and then every ``manifest.*.jsonl`` part (later
 records of an id win; a torn last line of a part, from a crash, is ignored): a sharded store is
 complete and usable before ``vcprep store merge`` folds the parts.
+
+Concurrent writers: every command that writes a store holds its lock file ``STORE/store.lock``
+(:func:`store_lock`, an ``flock``, released by the kernel when the process ends, however it ends)
+from before it reads the manifest until its records are saved. An unsharded writer (``warp``,
+``complete``, ``store merge``, ``store verify --repair``) holds it exclusively; shard builds hold
+it shared, so shards run together but never beside an unsharded writer, which would fold and
+delete their part files. A second writer waits for the first (saying so on stderr), then reads
+the manifest the first one saved: two writers never lose each other's records.
 """
 from __future__ import annotations
 
+import errno
 import hashlib
 import json
 import os
+import sys
+import time
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any, Callable, Iterator
 
 from . import __version__
 from .camera import Camera, camera_from_dict
 from .errors import StoreError
 from .imageio import write_bytes_atomic
 
-__all__ = ["Store", "Shard", "STORE_FORMAT", "STORE_VERSION", "LAYOUT_DIRS", "VALID_PREFIX", "temp_files"]
+__all__ = ["Store", "Shard", "STORE_FORMAT", "STORE_VERSION", "LAYOUT_DIRS", "VALID_PREFIX", "LOCK", "temp_files",
+           "store_lock"]
 
 VALID_PREFIX = "H-"  # shared valid masks: valid/H-<hash of H and sizes>.png
 STORE_FORMAT = "vcseg-store"
@@ -63,6 +76,8 @@ STORE_VERSION = 1
 LAYOUT_DIRS = ("images", "labels", "valid")
 MANIFEST = "manifest.jsonl"
 JOURNAL = "manifest.journal.jsonl"  # the part file of an unsharded build
+LOCK = "store.lock"  # the writers' lock file (see store_lock)
+LOCK_POLL_S = 0.1
 
 
 @dataclass(frozen=True)
@@ -105,6 +120,96 @@ def temp_files(root: Path) -> list[Path]:
         if d.is_dir():
             out += sorted(p for p in d.iterdir() if p.name.startswith(".") and p.name.endswith(".tmp"))
     return out
+
+
+def _our_name(p: Path) -> bool:
+    """A name a store (or a build creating one) may hold."""
+    return p.name.startswith(".") or p.name in LAYOUT_DIRS or p.name.startswith("manifest.") or p.name == LOCK
+
+
+def _lock_dir(root: Path) -> None:
+    """Make ``root`` ready to hold the lock file: an existing store, an empty directory (created
+    if missing), or a directory only a store build has written to; anything else is refused
+    before a lock file is put into it."""
+    if root.exists() and not root.is_dir():
+        raise StoreError("exists and is not a directory", root, "choose another --out")
+    if root.is_dir():
+        if (root / "store.json").exists() or all(_our_name(p) for p in root.iterdir()):
+            return
+        raise StoreError("directory exists, is not empty and is not a vcprep store", root,
+                         "choose a new or empty --out directory")
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise StoreError(f"cannot create store: {e.strerror or e}", root, "check permissions or choose another --out") from None
+
+
+def _holder(fd: int) -> str:
+    try:
+        text = os.pread(fd, 512, 0).decode(errors="replace").strip()
+    except OSError:
+        text = ""
+    return text or "another vcprep writer"
+
+
+@contextmanager
+def store_lock(root: str | Path, shared: bool = False, on_wait: Callable[[str], None] | None = None) -> Iterator[Path]:
+    """Hold the writers' lock of the store ``root`` (created as an empty directory if missing).
+
+    ``shared``: for shard builds (any number at once); otherwise exclusive. If another writer
+    holds it, wait for it, telling ``on_wait`` once who holds it (an exclusive holder writes its
+    pid and command into the lock file, and empties it again on release). The lock is an
+    ``flock`` on ``STORE/store.lock``: the kernel releases it when its process ends, so a
+    killed writer never leaves a stale lock. On a file system without ``flock`` support the
+    writers are not serialised (``on_wait`` is told)."""
+    root = Path(root)
+    _lock_dir(root)
+    path = root / LOCK
+    try:
+        import fcntl
+    except ImportError:  # not POSIX: no lock
+        yield path
+        return
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+    except OSError as e:
+        raise StoreError(f"cannot open the store lock: {e.strerror or e}", path,
+                         "check the store directory's permissions") from None
+    try:
+        mode = fcntl.LOCK_SH if shared else fcntl.LOCK_EX
+        t0, told, locked = time.monotonic(), False, True
+        while True:
+            try:
+                fcntl.flock(fd, mode | fcntl.LOCK_NB)
+                break
+            except OSError as e:
+                if e.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                    locked = False  # e.g. ENOLCK on a file system without flock
+                    if on_wait:
+                        on_wait(f"{path}: cannot lock ({e.strerror}); concurrent writers to this store are not "
+                                "serialised on this file system")
+                    break
+            if not told and on_wait:
+                on_wait(f"{root}: waiting for the store lock {path}, held by {_holder(fd)} ...")
+                told = True
+            time.sleep(LOCK_POLL_S)
+        if told and on_wait:
+            on_wait(f"{root}: got the store lock after {time.monotonic() - t0:.1f} s")
+        if locked and not shared:
+            cmd = " ".join(Path(a).name if i == 0 else a for i, a in enumerate(sys.argv))
+            info = f"pid {os.getpid()} ({cmd})"[:500].encode()
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, info, 0)
+        try:
+            yield path
+        finally:
+            if locked and not shared:
+                try:
+                    os.ftruncate(fd, 0)
+                except OSError:
+                    pass
+    finally:
+        os.close(fd)  # releases the flock
 
 
 def _read_records(path: Path, items: dict[str, dict[str, Any]], torn_ok: bool) -> dict[str, dict[str, Any]]:
@@ -216,8 +321,7 @@ class Store:
                                  f"(store: {', '.join(f'{k}={mine[k]}' for k in diff if k != 'virtual') or 'other virtual camera'})",
                                  root, "write to a new --out directory; one store holds one virtual camera at one scale")
             return store
-        ours = lambda p: p.name.startswith(".") or p.name in LAYOUT_DIRS or p.name.startswith("manifest.")
-        if root.is_dir() and any(not ours(p) for p in root.iterdir()):  # (a shard may be creating it too)
+        if root.is_dir() and any(not _our_name(p) for p in root.iterdir()):  # (a shard may be creating it too)
             raise StoreError("directory exists, is not empty and is not a vcprep store", root,
                              "choose a new or empty --out directory")
         try:

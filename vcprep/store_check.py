@@ -13,15 +13,16 @@ import hashlib
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import cv2
 import numpy as np
 
 from .parallel import ItemError, run_items
-from .store import LAYOUT_DIRS, Store, temp_files
+from .store import LAYOUT_DIRS, Store, store_lock, temp_files
 
-__all__ = ["Problem", "VerifyReport", "verify_store", "check_item", "repair_store", "store_info", "merge_store"]
+__all__ = ["Problem", "VerifyReport", "verify_store", "check_item", "repair_store", "verify_and_repair", "store_info",
+           "merge_store"]
 
 # problems of the stored files (a rebuild fixes them) vs of the sources (the user must)
 FILE_PROBLEMS = ("missing", "corrupt", "size", "values", "checksum", "record")
@@ -162,7 +163,8 @@ def repair_store(root: str | Path, report: VerifyReport) -> tuple[list[str], int
     """Drop the records of items whose stored files are bad (and delete those files), delete
     orphan and temp files, so that re-running the build redoes exactly those items. Items whose
     *sources* changed or are missing are kept (the build redoes a changed source by itself).
-    Run it when no build writes the store. Returns (dropped ids, files deleted)."""
+    Run it when no build writes the store (:func:`verify_and_repair` makes sure of that).
+    Returns (dropped ids, files deleted)."""
     store = Store.open(root)
     drop = sorted({p.id for p in report.problems if p.id is not None and p.kind in FILE_PROBLEMS})
     files = [store.path(p.path) for p in report.problems if p.id is None]
@@ -216,15 +218,30 @@ def store_info(root: str | Path) -> dict[str, Any]:
     }
 
 
-def merge_store(root: str | Path) -> tuple[Store, int]:
+def verify_and_repair(root: str | Path, check_sources: bool = True, workers: int = 1, progress: bool = False,
+                      on_wait: Callable[[str], None] | None = None) -> tuple[VerifyReport, list[str], int]:
+    """:func:`verify_store`, then :func:`repair_store` if there are problems, both under the
+    store's exclusive writer lock (waiting for a running build first: files it has in flight
+    would otherwise look like orphans and be deleted). Returns (report, dropped ids, files
+    deleted)."""
+    Store.open(root)  # a clear error for a missing or foreign directory, before any lock file
+    with store_lock(root, on_wait=on_wait):
+        report = verify_store(root, check_sources, workers, progress)
+        dropped, removed = repair_store(root, report) if report.problems else ([], 0)
+    return report, dropped, removed
+
+
+def merge_store(root: str | Path, on_wait: Callable[[str], None] | None = None) -> tuple[Store, int]:
     """Fold every part file (shard manifests, the journal of a killed build) into
-    ``manifest.jsonl``, remove leftover temp files and unused shared valid masks. Run it when no
-    build writes the store.
+    ``manifest.jsonl``, remove leftover temp files and unused shared valid masks. Holds the
+    store's exclusive writer lock, so it waits for running builds (shards included) to finish.
     Returns the store and the number of part files folded."""
-    store = Store.open(root)
-    n = len(store.parts)
-    store.save()
-    for tmp in temp_files(store.root):
-        tmp.unlink(missing_ok=True)
-    store.prune_valid()
+    Store.open(root)
+    with store_lock(root, on_wait=on_wait):
+        store = Store.open(root)
+        n = len(store.parts)
+        store.save()
+        for tmp in temp_files(store.root):
+            tmp.unlink(missing_ok=True)
+        store.prune_valid()
     return store, n
