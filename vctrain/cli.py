@@ -119,11 +119,13 @@ def fit_cmd(
 
 @app.command("predict")
 def predict_cmd(
-    checkpoint: Path = typer.Argument(..., help="model written by 'vctrain fit'"),
+    checkpoint: Optional[Path] = typer.Argument(None, help="model written by 'vctrain fit' (left out with --prior)"),
     images: Optional[List[Path]] = typer.Argument(None, help="image files or folders"),
     out: Path = typer.Option(..., "--out", "-o", help="output folder (created)"),
     camera: Optional[str] = typer.Option(None, "--camera", "-c",
                                          help="camera of the images: preset or file (.yaml, KITTI .txt, Cityscapes .json)"),
+    prior: Optional[Path] = typer.Option(None, "--prior", help="no model: segment with the geometric prior written by "
+                                                                "'vcprep prior' (p_g >= 0.5, back-projected)"),
     store: Optional[Path] = typer.Option(None, "--store", help="predict every item of this store instead of IMAGES"),
     device: str = typer.Option("auto", "--device", help="auto, cpu, cuda, cuda:N"),
     keep_store: Optional[Path] = typer.Option(None, "--keep-store", help="keep the warped images in this store"),
@@ -136,23 +138,35 @@ def predict_cmd(
 
     A virtual-camera model warps the images into its virtual camera (same scale and completion
     as its training store), infers, and back-projects to the original image; a resize-baseline
-    model resizes in and out. Writes OUT/<stem>_mask.png (0/255) and OUT/<stem>_prob.png
-    (0-255 road probability) at the image size; prints the mask paths.
+    model resizes in and out. With --prior instead of a model, the geometric prior is the
+    segmentation (the paper's Table 5 "Geo-Prior" baseline): the images are warped into the
+    prior's virtual camera (from its description, e.g. prior.npy.json) and p_g is back-projected.
+    Writes OUT/<stem>_mask.png (0/255) and OUT/<stem>_prob.png (0-255 road probability) at the
+    image size; prints the mask paths.
 
     \b
     Example:
       vctrain predict runs/vc.pt --camera kitti data/kitti/image_2 --out preds/kitti
       vctrain predict runs/vc.pt --store stores/camvid_val --out preds/camvid_val
+      vctrain predict --prior prior.npy --camera kitti data/kitti/image_2 --out preds/geoprior
     """
     from vcprep.store import Store
 
     from .predict import Predictor, collect_images, predict_images, predict_store
 
+    if prior is not None:
+        from .adapt import PriorPredictor
+
+        if checkpoint is not None and checkpoint.suffix.lower() == ".pt":
+            raise InputError("give either a model or --prior, not both", checkpoint, "drop one of them")
+        images = [checkpoint, *(images or [])] if checkpoint is not None else images  # all positionals are images
+    elif checkpoint is None:
+        raise InputError("no model given", None, "give MODEL.pt, or --prior prior.npy to segment with the prior")
     if store is None and not images:
         raise InputError("nothing to predict", None, "give image files/folders, or --store STORE")
     if store is not None and images:
         raise InputError("give either IMAGES or --store, not both", store, "run predict twice")
-    predictor = Predictor(checkpoint, device)
+    predictor = PriorPredictor(prior) if prior is not None else Predictor(checkpoint, device)
     if store is not None:
         written = predict_store(predictor, Store.open(store), out, progress=not quiet, overlay=overlay)
     else:
@@ -162,14 +176,73 @@ def predict_cmd(
 
             cam = camera_for(camera, collect_images(images)[0].image)
         elif predictor.mode == "virtual":
-            raise InputError("a virtual-camera model needs the camera of the images", checkpoint,
+            raise InputError("a virtual-camera model needs the camera of the images", predictor.path,
                              "add --camera (preset or calibration file)")
         written = predict_images(predictor, images, out, cam, progress=not quiet, keep_store=keep_store,
                                  overlay=overlay, within=within)
     for p in written:
         print(p)
     if not quiet:
-        err(f"{out}: {len(written)} images predicted ({predictor.mode} model)")
+        err(f"{out}: {len(written)} images predicted ({'geometric prior' if prior else predictor.mode + ' model'})")
+
+
+@app.command("adapt")
+def adapt_cmd(
+    checkpoint: Path = typer.Argument(..., help="virtual-camera model written by 'vctrain fit'"),
+    images: Path = typer.Option(..., "--images", "-i", help="folder (or file) of UNLABELLED target images"),
+    camera: str = typer.Option(..., "--camera", "-c", help="camera of the target images: preset or file (.yaml, "
+                                                           "KITTI .txt, Cityscapes .json)"),
+    prior: Path = typer.Option(..., "--prior", help="geometric prior written by 'vcprep prior' (.npy or .png) in the "
+                                                    "model's virtual camera and scale"),
+    out: Path = typer.Option(..., "--out", "-o", help="adapted checkpoint; OUT-stem.last.pt and OUT-stem.log.jsonl "
+                                                      "beside it"),
+    lo: float = typer.Option(0.25, "--lo", help="surrogate 'not road' where the (fused) probability is below this"),
+    hi: float = typer.Option(0.75, "--hi", help="surrogate 'road' where the (fused) probability is above this"),
+    combine: str = typer.Option("prior", "--combine", help="'prior': the prior's tri-mask alone (paper §4.5); 'fuse': "
+                                                           "prior and the model's own prediction fused per image "
+                                                           "(p_g p_n / (p_g p_n + (1-p_g)(1-p_n))) before the thresholds"),
+    epochs: int = typer.Option(5, "--epochs", "-e", help="fine-tuning epochs"),
+    lr: Optional[float] = typer.Option(None, "--lr", help="learning rate (default: a tenth of the model's own)"),
+    store: Optional[Path] = typer.Option(None, "--store", help="store for the warped target images and their surrogate "
+                                                               "labels (default OUT-stem.store; reused)"),
+    within: str = typer.Option("auto", "--within", help="per-image VP correction: auto (as the model was trained), "
+                                                         "estimate, a CSV id,u,v, or none"),
+    seed: Optional[int] = typer.Option(None, "--seed", help="seed (default: the model's)"),
+    device: str = typer.Option("auto", "--device", help="auto, cpu, cuda, cuda:N"),
+    as_json: bool = typer.Option(False, "--json", help="print the run summary as one JSON object instead of the path"),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar or epoch lines on stderr"),
+):
+    """Fine-tune a virtual-camera model on unlabelled target images with surrogate labels from
+    the geometric prior (paper §4.5, after GeoSeg). The images are warped exactly as the model's
+    training store was built (virtual camera, scale, completion, within mode); surrogate labels
+    are road where p_g > --hi, not road where p_g < --lo, ignore elsewhere (--combine fuse: the
+    model's own prediction fused in first). Training settings are the model's own, for --epochs
+    at --lr, without validation. The checkpoint records that it was adapted, from which model,
+    with which prior and thresholds. Prints the checkpoint path.
+
+    \b
+    Example:
+      vcprep prior stores/camvid stores/kitti -o prior.npy
+      vctrain adapt runs/vc.pt --images data/qian/train --camera qian --prior prior.npy --out runs/vc_qian.pt
+      vctrain adapt runs/vc.pt -i data/qian/train -c qian --prior prior.npy --combine fuse -o runs/fused.pt
+    """
+    from vcprep.cli import camera_for
+
+    from .adapt import adapt
+    from .predict import collect_images
+
+    cam = camera_for(camera, collect_images([images])[0].image)
+    summary = adapt(checkpoint, images, cam, prior, out, lo=lo, hi=hi, combine=combine, epochs=epochs, lr=lr,
+                    store=store, within=within, device=device, seed=seed, progress=not quiet)
+    if not quiet:
+        sh = summary["adapted"]["label_shares"]
+        err(f"{out}: adapted {checkpoint} on {len(summary['adapted']['images'])} images, {summary['epochs']} epochs at "
+            f"lr {summary['adapted']['lr']:g}; surrogate labels {sh['road']:.1%} road, {sh['not_road']:.1%} not road, "
+            f"{sh['ignore']:.1%} ignore")
+    if as_json:
+        emit_json(summary)
+    else:
+        print(out)
 
 
 @app.command("eval")

@@ -36,7 +36,7 @@ from .checkpoint import load_checkpoint, model_from_checkpoint
 from .data import resize_pair, to_input, vp_in_store, vp_proximity
 from .train import resolve_device
 
-__all__ = ["Predictor", "collect_images", "predict_images", "predict_store", "write_prediction"]
+__all__ = ["Predictor", "collect_images", "predict_images", "predict_store", "write_prediction", "warp_like_training"]
 
 
 class Predictor:
@@ -176,11 +176,27 @@ def predict_images(predictor: Predictor, images: Iterable[str | Path], out: str 
     if camera is None:
         raise InputError("a virtual-camera model needs the camera of the images", None,
                          "add --camera (preset or calibration file)")
-    sp = predictor.data.get("store_params")
-    virtual = camera_from_dict(sp["virtual"], predictor.path)
-    completion = predictor.data.get("completion", "none")
+    with tempfile.TemporaryDirectory(prefix="vctrain-predict-") as tmp:
+        root = Path(keep_store) if keep_store else Path(tmp) / "store"
+        store = warp_like_training(predictor.data, predictor.path, jobs, camera, root, within, progress)
+        return predict_store(predictor, store, out, progress, ids=[j.id for j in jobs], overlay=overlay)
+
+
+def warp_like_training(data: dict[str, Any], path: str | Path, jobs: list[Job], camera: Camera, root: str | Path,
+                       within: str = "auto", progress: bool = True) -> Store:
+    """Warp image ``jobs`` of ``camera`` into the store ``root`` exactly as the training store of
+    a checkpoint (its ``data``; ``path`` names it in errors) was built: same code, virtual
+    camera, scale and completion. ``within``: per-image pan/tilt from the road VP ('estimate',
+    a CSV ``id,u,v``, 'none'); 'auto' estimates VPs when the training store used per-image VPs
+    and takes the camera's average pose otherwise."""
+    sp = data.get("store_params")
+    if data.get("mode") != "virtual" or not sp:
+        raise InputError("model was not trained in a virtual camera (a resize baseline)", path,
+                         "use a model trained on a store built by 'vcprep warp'")
+    virtual = camera_from_dict(sp["virtual"], path)
+    completion = data.get("completion", "none")
     if within == "auto":
-        within = "estimate" if set(predictor.data.get("vp_status", [])) - {"camera"} else "none"
+        within = "estimate" if set(data.get("vp_status", [])) - {"camera"} else "none"
     poses = None
     if within != "none":
         from vcprep.build import ItemPose
@@ -188,9 +204,6 @@ def predict_images(predictor: Predictor, images: Iterable[str | Path], out: str 
 
         res = vps_for_items([j.image for j in jobs], [j.id for j in jobs], camera, within)
         poses = {j.id: ItemPose((r.vp[0], r.vp[1]), r.status) for j, r in zip(jobs, res)}
-    # warp exactly as the training store was built (same code, same virtual camera/scale/completion)
-    with tempfile.TemporaryDirectory(prefix="vctrain-predict-") as tmp:
-        root = Path(keep_store) if keep_store else Path(tmp) / "store"
-        store, _ = warp_dataset(jobs, camera, virtual, float(sp["scale"]), root, None, progress=progress,
-                                completion=completion, poses=poses)
-        return predict_store(predictor, store, out, progress, ids=[j.id for j in jobs], overlay=overlay)
+    store, _ = warp_dataset(jobs, camera, virtual, float(sp["scale"]), root, None, progress=progress,
+                            completion=completion, poses=poses)
+    return store

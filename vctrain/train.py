@@ -78,6 +78,7 @@ class TrainConfig:
     greyscale: float = 0.0             # probability of a greyscale image (1.0: greyscale model)
     vp_channel: bool = False           # 4th input channel: VP proximity map
     resume: Optional[str] = None       # continue from this checkpoint ('.last.pt') up to `epochs`
+    init: Optional[str] = None         # start from this checkpoint's network and weights (fine-tuning, vctrain adapt)
     workers: int = 0                   # DataLoader worker processes
     log: Optional[str] = None          # JSON-lines log; None: '<out stem>.log.jsonl'
     progress: bool = True              # tqdm bar on stderr
@@ -258,6 +259,7 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
     log_path = Path(cfg.log) if cfg.log else out.with_name(out.stem + ".log.jsonl")
 
     resume = load_checkpoint(cfg.resume) if cfg.resume else None
+    init = load_checkpoint(cfg.init) if cfg.init and resume is None else None
     train_s, val_s, info = prepare_data(cfg)
     if resume is not None:
         model_args = resume["model_args"]
@@ -274,9 +276,17 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
         model_args = model_args_for(arch, 4 if cfg.vp_channel else 3, cfg.base_width).to_dict()
 
     torch.manual_seed(cfg.seed)
+    if init is not None:  # fine-tuning: the checkpoint's network (weights loaded below), a fresh optimiser
+        model_args = init["model_args"]
+        if model_args["in_channels"] != (4 if cfg.vp_channel else 3):
+            raise InputError(f"checkpoint takes {model_args['in_channels']} input channels, the data "
+                             f"{4 if cfg.vp_channel else 3}", cfg.init,
+                             "fine-tune with the model's own --vp-channel setting")
     model = build_model(model_args)
     if resume is not None:
         model = model_from_checkpoint(resume, cfg.resume)
+    elif init is not None:
+        model = model_from_checkpoint(init, cfg.init)
     model.to(device)
     net = model
     if distributed:

@@ -1,0 +1,228 @@
+"""Geometry-driven adaptation in the virtual camera (paper §4.5, after GeoSeg) and the prior as a
+predictor (Table 5's "Geo-Prior").
+
+:func:`adapt` fine-tunes a virtual-camera model on UNLABELLED target images:
+
+1. the target images are warped into a store exactly as the model's training store was built
+   (:func:`vctrain.predict.warp_like_training`: same virtual camera, scale, completion and
+   within-camera mode; the store is kept, so a second run warps nothing);
+2. each item gets surrogate labels (:func:`surrogate_for_item`), written as the item's store label:
+   ``combine='prior'`` (default, the paper's §4.5): road where ``p_g > hi``, not road where
+   ``p_g < lo``, ignore elsewhere — the same for every image; ``combine='fuse'``: the prior fused
+   with the model's own prediction on that image before thresholding, ``p = p_g p_n / (p_g p_n +
+   (1 - p_g)(1 - p_n))`` (the prior and the network as independent evidence, log-odds added), so a
+   confident network decides where the prior is unsure, a confident prior where the network is,
+   and a confident disagreement cancels to ignore — our reading of GeoSeg's combination of the
+   geometric prior with the network's confident predictions, not a reproduction of its code.
+   Pixels no source pixel reaches are ignored when the model was trained without completion
+   (its training labels were ignore there too);
+3. :func:`vctrain.train.fit` runs with ``init`` = the model (its network and weights, a fresh
+   optimiser) and the model's own training settings, a short schedule (``epochs`` 5, ``lr`` a
+   tenth of the model's), no validation (there are no target labels); the output checkpoint
+   records ``adapted``: the source model, the prior (path, SHA-256 of its values, description),
+   thresholds, combination, target images and camera, and the surrogate label shares.
+
+:class:`PriorPredictor` stands in for a model in :mod:`vctrain.predict`: P(road) of a source
+pixel is ``p_g`` back-projected (bilinear) from the virtual camera, so ``vctrain predict --prior``
+writes ``p_g >= 0.5`` as the mask.
+"""
+from __future__ import annotations
+
+import hashlib
+from dataclasses import fields
+from pathlib import Path
+from typing import Any, Iterable
+
+import numpy as np
+
+from vcprep.backproject import backproject_array
+from vcprep.camera import Camera
+from vcprep.errors import InputError
+from vcprep.imageio import read_image, write_png
+from vcprep.labels import IGNORE, ROAD
+from vcprep.prior import check_prior_fits, check_thresholds, meta_path, read_prior, surrogate_labels
+from vcprep.store import Store
+
+from .checkpoint import load_checkpoint, save_checkpoint
+
+__all__ = ["COMBINE", "PriorPredictor", "fuse", "surrogate_for_item", "write_surrogate_labels", "adapt",
+           "adapt_store_path"]
+
+COMBINE = ("prior", "fuse")
+ADAPT_EPOCHS = 5       # a short fine-tune
+ADAPT_LR_FACTOR = 0.1  # of the model's own training learning rate
+
+
+class PriorPredictor:
+    """The geometric prior as a predictor with the interface :mod:`vctrain.predict` uses
+    (``mode``, ``data``, ``path``, ``store_item``). Its description (``<prior>.json``, written by
+    ``vcprep prior``) gives the virtual camera, scale and VP mode that images are warped with."""
+
+    mode = "virtual"
+    vp_channel = False
+
+    def __init__(self, prior: str | Path):
+        self.path = Path(prior)
+        self.prior, meta = read_prior(self.path)
+        if meta is None:
+            raise InputError(f"no description {meta_path(self.path).name} beside the prior (it says which virtual "
+                             "camera and scale the prior is in)", self.path,
+                             "write the prior with 'vcprep prior STORE... -o FILE'")
+        sp = meta.get("store_params") or {}
+        w, h = sp.get("store_size") or (0, 0)
+        if (self.prior.shape[1], self.prior.shape[0]) != (w, h):
+            raise InputError(f"prior is {self.prior.shape[1]}x{self.prior.shape[0]} but its description says {w}x{h}",
+                             self.path, "write the prior and its description again with 'vcprep prior'")
+        # the warp only places the prior: completion does not change the geometry
+        self.data: dict[str, Any] = {"mode": "virtual", "store_params": sp, "completion": "none",
+                                     "vp_status": meta.get("vp_status", ["camera"]), "input_size": [w, h]}
+
+    def store_item(self, store: Store, rec: dict[str, Any]) -> np.ndarray:
+        """P(road) = p_g in the item's ORIGINAL camera (source size; 0 outside the virtual image)."""
+        return np.clip(backproject_array(self.prior, rec, kind="prob"), 0.0, 1.0)
+
+
+def fuse(prior: np.ndarray, prob: np.ndarray) -> np.ndarray:
+    """``p_g p_n / (p_g p_n + (1 - p_g)(1 - p_n))`` (float32); 0.5 where both are certain and
+    disagree (0/0)."""
+    a = np.asarray(prior, np.float64) * np.asarray(prob, np.float64)
+    b = (1.0 - np.asarray(prior, np.float64)) * (1.0 - np.asarray(prob, np.float64))
+    return np.divide(a, a + b, out=np.full(a.shape, 0.5), where=(a + b) > 0).astype(np.float32)
+
+
+def surrogate_for_item(prior: np.ndarray, lo: float, hi: float, valid: np.ndarray | None = None,
+                       prob: np.ndarray | None = None) -> np.ndarray:
+    """Surrogate label (uint8 0/1/255, store size) of one item: the prior's tri-mask, or with
+    ``prob`` (the model's P(road) at the store size) the tri-mask of :func:`fuse`; ``valid``
+    (1 where a source pixel landed) given: ignore where it is 0."""
+    lab = surrogate_labels(prior if prob is None else fuse(prior, prob), lo, hi)
+    if valid is not None:
+        lab[np.asarray(valid) == 0] = IGNORE
+    return lab
+
+
+def write_surrogate_labels(store: Store, prior: np.ndarray, lo: float = 0.25, hi: float = 0.75,
+                           combine: str = "prior", predictor=None, ids: Iterable[str] | None = None,
+                           ignore_uncovered: bool = False) -> dict[str, float]:
+    """Write each item's surrogate label as its store label (``labels/<id>.png``) and record it
+    (``label_kind`` 'surrogate'). ``predictor`` (a :class:`vctrain.predict.Predictor`) is needed
+    for ``combine='fuse'``. Returns the label shares over all pixels (road, not_road, ignore)."""
+    from .data import vp_in_store
+
+    if combine not in COMBINE:
+        raise InputError(f"unknown combination '{combine}'", None, f"use one of {', '.join(COMBINE)}")
+    check_thresholds(lo, hi)
+    w, h = store.store_size
+    if prior.shape != (h, w):
+        raise InputError(f"prior is {prior.shape[1]}x{prior.shape[0]} but the store is {w}x{h}", store.root,
+                         "compute the prior from stores of this virtual camera and scale")
+    counts = np.zeros(3, np.int64)
+    recs = list(store) if ids is None else [store.get(i) for i in ids]
+    for rec in recs:
+        valid = read_image(store.path(rec["valid"]), label=True).array if ignore_uncovered else None
+        prob = None
+        if combine == "fuse":
+            prob = predictor.road_probability(read_image(store.path(rec["image"])).array, vp_in_store(rec, store))
+        lab = surrogate_for_item(prior, lo, hi, valid, prob)
+        rel = f"labels/{rec['id']}.png"
+        sha = write_png(store.path(rel), lab, kind="mask")
+        new = {**rec, "label": rel, "label_kind": "surrogate",
+               "files_sha256": {**(rec.get("files_sha256") or {}), "label": sha}}
+        store.record(new)
+        counts += [np.count_nonzero(lab == ROAD), np.count_nonzero(lab == 0), np.count_nonzero(lab == IGNORE)]
+    store.save()
+    total = max(int(counts.sum()), 1)
+    return {"road": float(counts[0] / total), "not_road": float(counts[1] / total), "ignore": float(counts[2] / total)}
+
+
+def adapt_store_path(out: str | Path) -> Path:
+    """Default store of the warped target images: ``OUT-stem.store`` beside the checkpoint."""
+    out = Path(out)
+    return out.with_name(out.stem + ".store")
+
+
+def _sha256(arr: np.ndarray) -> str:
+    return hashlib.sha256(np.ascontiguousarray(arr, np.float32).tobytes()).hexdigest()
+
+
+def adapt(model: str | Path, images: str | Path | Iterable[str | Path], camera: Camera,
+          prior: str | Path | np.ndarray, out: str | Path, lo: float = 0.25, hi: float = 0.75,
+          combine: str = "prior", epochs: int | None = None, lr: float | None = None,
+          store: str | Path | None = None, within: str = "auto", device: str = "auto", seed: int | None = None,
+          batch_size: int | None = None, max_steps: int | None = None, progress: bool = True) -> dict[str, Any]:
+    """Fine-tune the virtual-camera ``model`` on unlabelled ``images`` of ``camera`` with surrogate
+    labels from ``prior`` (a ``.npy``/``.png`` written by ``vcprep prior``, or the array of
+    :func:`vcprep.prior.compute_prior`); writes ``out`` (and ``OUT-stem.last.pt``, the log).
+    Returns :func:`vctrain.train.fit`'s summary plus ``adapted`` (what the checkpoint records).
+    See the module docstring for the steps and the defaults."""
+    from .predict import Predictor, collect_images, warp_like_training
+    from .train import TrainConfig, fit, last_path
+
+    model = Path(model)
+    ck = load_checkpoint(model)
+    data = ck["data"]
+    if data.get("mode") != "virtual" or not data.get("store_params"):
+        raise InputError("model has no virtual camera (a resize baseline); adaptation works in the virtual camera",
+                         model, "adapt a model trained on a store built by 'vcprep warp'")
+    check_thresholds(lo, hi)
+    if combine not in COMBINE:
+        raise InputError(f"unknown combination '{combine}'", None, f"use one of {', '.join(COMBINE)}")
+    sp = data["store_params"]
+    size = tuple(sp["store_size"])
+    if isinstance(prior, (str, Path)):
+        prior_path: str | None = str(prior)
+        p, meta = read_prior(prior, size=size)
+        check_prior_fits(prior, meta, sp)
+    else:
+        prior_path, meta = None, None
+        p = np.asarray(prior, np.float32)
+        if p.shape != (size[1], size[0]):
+            raise InputError(f"prior is {p.shape[1]}x{p.shape[0]} but the model's store is {size[0]}x{size[1]}", model,
+                             "compute the prior from stores of the model's virtual camera and scale")
+    out = Path(out)
+    if not out.parent.is_dir():
+        raise InputError("output folder does not exist", out.parent, "create it first")
+    if out.resolve() == model.resolve():
+        raise InputError("--out is the model being adapted", out, "write the adapted model to another file")
+    jobs = collect_images([images] if isinstance(images, (str, Path)) else images)
+    root = Path(store) if store is not None else adapt_store_path(out)
+    target = warp_like_training(data, model, jobs, camera, root, within, progress)
+    ids = [j.id for j in jobs]
+    predictor = Predictor(model, device) if combine == "fuse" else None
+    shares = write_surrogate_labels(target, p, lo, hi, combine, predictor, ids,
+                                    ignore_uncovered=data.get("completion", "none") == "none")
+    if shares["road"] == 0 or shares["not_road"] == 0:
+        raise InputError(f"surrogate labels hold no {'road' if shares['road'] == 0 else 'not-road'} pixel "
+                         f"(thresholds {lo:g}/{hi:g})", prior_path or model, "check the prior, or widen --lo/--hi")
+
+    # the model's own training settings (whatever this vctrain's TrainConfig knows), then ours
+    known = {f.name for f in fields(TrainConfig)}
+    base = {k: v for k, v in (ck.get("config") or {}).items() if k in known}
+    src_cfg = TrainConfig(**base)
+    overrides = dict(stores=[str(target.root)], out=str(out), init=str(model), resume=None, baseline="none",
+                     images=None, labels=None, label_format=None, val_fraction=0.0, val_stores=[], log=None,
+                     arch=ck["model_args"]["arch"], base_width=ck["model_args"]["base_width"],
+                     size=tuple(data.get("input_size") or size),
+                     epochs=int(epochs) if epochs is not None else ADAPT_EPOCHS,
+                     lr=float(lr) if lr is not None else ADAPT_LR_FACTOR * float(src_cfg.lr or 0.005),
+                     device=device, progress=progress, max_steps=max_steps, workers=0,
+                     vp_channel=bool(data.get("vp_channel", False)), greyscale=float(data.get("greyscale", 0.0)))
+    if seed is not None:
+        overrides["seed"] = int(seed)
+    if batch_size is not None:
+        overrides["batch_size"] = int(batch_size)
+    cfg = TrainConfig(**{**base, **overrides})
+    if cfg.epochs < 1 or not cfg.lr > 0:
+        raise InputError(f"epochs {cfg.epochs} and lr {cfg.lr:g} must be positive", None, "use e.g. --epochs 5")
+    summary = fit(cfg)
+
+    adapted = {"from": str(model), "from_sha256": hashlib.sha256(model.read_bytes()).hexdigest(),
+               "prior": prior_path, "prior_sha256": _sha256(p), "prior_meta": meta, "lo": float(lo), "hi": float(hi),
+               "combine": combine, "images": [str(j.image) for j in jobs], "camera": camera.to_dict(),
+               "store": str(target.root), "label_shares": shares, "epochs": cfg.epochs, "lr": cfg.lr}
+    for path in (out, last_path(out)):
+        if path.is_file():
+            ck_out = load_checkpoint(path)
+            ck_out["adapted"] = adapted
+            save_checkpoint(path, ck_out)
+    return {**summary, "adapted": adapted}
