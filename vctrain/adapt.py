@@ -41,7 +41,8 @@ from vcprep.errors import InputError
 from vcprep.imageio import read_image, write_png
 from vcprep.labels import IGNORE, ROAD
 from vcprep.prior import check_prior_fits, check_thresholds, meta_path, read_prior, surrogate_labels
-from vcprep.store import Store
+from vcprep.cliutil import err
+from vcprep.store import Store, store_lock
 
 from .checkpoint import load_checkpoint, save_checkpoint
 
@@ -101,17 +102,24 @@ def surrogate_for_item(prior: np.ndarray, lo: float, hi: float, valid: np.ndarra
     return lab
 
 
-def write_surrogate_labels(store: Store, prior: np.ndarray, lo: float = 0.25, hi: float = 0.75,
+def write_surrogate_labels(store: Store | str | Path, prior: np.ndarray, lo: float = 0.25, hi: float = 0.75,
                            combine: str = "prior", predictor=None, ids: Iterable[str] | None = None,
                            ignore_uncovered: bool = False) -> dict[str, float]:
     """Write each item's surrogate label as its store label (``labels/<id>.png``) and record it
-    (``label_kind`` 'surrogate'). ``predictor`` (a :class:`vctrain.predict.Predictor`) is needed
-    for ``combine='fuse'``. Returns the label shares over all pixels (road, not_road, ignore)."""
-    from .data import vp_in_store
-
+    (``label_kind`` 'surrogate'), holding the store's writer lock. ``predictor`` (a
+    :class:`vctrain.predict.Predictor`) is needed for ``combine='fuse'``. Returns the label
+    shares over all pixels (road, not_road, ignore)."""
     if combine not in COMBINE:
         raise InputError(f"unknown combination '{combine}'", None, f"use one of {', '.join(COMBINE)}")
     check_thresholds(lo, hi)
+    root = store.root if isinstance(store, Store) else Path(store)
+    with store_lock(root, on_wait=err):
+        return _write_surrogates(Store.open(root), prior, lo, hi, combine, predictor, ids, ignore_uncovered)
+
+
+def _write_surrogates(store: Store, prior, lo, hi, combine, predictor, ids, ignore_uncovered) -> dict[str, float]:
+    from .data import vp_in_store
+
     w, h = store.store_size
     if prior.shape != (h, w):
         raise InputError(f"prior is {prior.shape[1]}x{prior.shape[0]} but the store is {w}x{h}", store.root,
