@@ -145,6 +145,9 @@ def test_adapt_cli_fuse_and_bad_input(world, tmp_path):
     assert load_checkpoint(tmp_path / "f.pt")["adapted"]["combine"] == "fuse"
 
     write_prior(tmp_path / "small.npy", np.full((40, 80), 0.5, np.float32))
+    meta = json.loads((world / "prior.npy.json").read_text())
+    meta["store_params"]["scale"] = 0.025  # the right size, but its description says another scale
+    write_prior(tmp_path / "other.npy", np.load(world / "prior.npy"), meta)
     fit(_train_config(stores=[str(world / "store")], out=str(tmp_path / "resize.pt"), baseline="resize",
                       size=(64, 48), arch="segnet-narrow", base_width=4, epochs=1, batch_size=3, val_fraction=0,
                       progress=False))
@@ -152,6 +155,8 @@ def test_adapt_cli_fuse_and_bad_input(world, tmp_path):
     cases = [
         (["adapt", world / "model.pt", "--prior", tmp_path / "small.npy", *common],
          ("small.npy", "prior is 80x40 but the model's store is 110x56")),
+        (["adapt", world / "model.pt", "--prior", tmp_path / "other.npy", *common],
+         ("other.npy", "another scale than the model's (0.025 vs 0.02)")),
         (["adapt", tmp_path / "resize.pt", "--prior", world / "prior.npy", *common],
          ("resize.pt", "no virtual camera")),
         (["adapt", world / "model.pt", "--prior", world / "prior.npy", "--lo", "0.9", *common], ("thresholds",)),
