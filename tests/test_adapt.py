@@ -161,6 +161,7 @@ def test_adapt_cli_fuse_and_bad_input(world, tmp_path):
          ("resize.pt", "no virtual camera")),
         (["adapt", world / "model.pt", "--prior", world / "prior.npy", "--lo", "0.9", *common], ("thresholds",)),
         (["adapt", world / "model.pt", "--prior", world / "prior.npy", "--combine", "vote", *common], ("vote",)),
+        (["adapt", world / "model.pt", "--prior", world / "prior.npy", "--epochs", "0", *common], ("epochs 0",)),
     ]
     for args, needles in cases:
         assert_one_error_line(run_cli(*args, prog="vctrain"), *needles)

@@ -175,6 +175,10 @@ def adapt(model: str | Path, images: str | Path | Iterable[str | Path], camera: 
     check_thresholds(lo, hi)
     if combine not in COMBINE:
         raise InputError(f"unknown combination '{combine}'", None, f"use one of {', '.join(COMBINE)}")
+    epochs = int(epochs) if epochs is not None else ADAPT_EPOCHS
+    lr = float(lr) if lr is not None else ADAPT_LR_FACTOR * float((ck.get("config") or {}).get("lr") or 0.005)
+    if epochs < 1 or not lr > 0:
+        raise InputError(f"epochs {epochs} and lr {lr:g} must be positive", None, "use e.g. --epochs 5 --lr 0.001")
     sp = data["store_params"]
     size = tuple(sp["store_size"])
     if isinstance(prior, (str, Path)):
@@ -206,13 +210,11 @@ def adapt(model: str | Path, images: str | Path | Iterable[str | Path], camera: 
     # the model's own training settings (whatever this vctrain's TrainConfig knows), then ours
     known = {f.name for f in fields(TrainConfig)}
     base = {k: v for k, v in (ck.get("config") or {}).items() if k in known}
-    src_cfg = TrainConfig(**base)
     overrides = dict(stores=[str(target.root)], out=str(out), init=str(model), resume=None, baseline="none",
                      images=None, labels=None, label_format=None, val_fraction=0.0, val_stores=[], log=None,
                      arch=ck["model_args"]["arch"], base_width=ck["model_args"]["base_width"],
                      size=tuple(data.get("input_size") or size),
-                     epochs=int(epochs) if epochs is not None else ADAPT_EPOCHS,
-                     lr=float(lr) if lr is not None else ADAPT_LR_FACTOR * float(src_cfg.lr or 0.005),
+                     epochs=epochs, lr=lr,
                      device=device, progress=progress, max_steps=max_steps, workers=0,
                      vp_channel=bool(data.get("vp_channel", False)), greyscale=float(data.get("greyscale", 0.0)))
     if seed is not None:
@@ -220,8 +222,6 @@ def adapt(model: str | Path, images: str | Path | Iterable[str | Path], camera: 
     if batch_size is not None:
         overrides["batch_size"] = int(batch_size)
     cfg = TrainConfig(**{**base, **overrides})
-    if cfg.epochs < 1 or not cfg.lr > 0:
-        raise InputError(f"epochs {cfg.epochs} and lr {cfg.lr:g} must be positive", None, "use e.g. --epochs 5")
     summary = fit(cfg)
 
     adapted = {"from": str(model), "from_sha256": hashlib.sha256(model.read_bytes()).hexdigest(),
