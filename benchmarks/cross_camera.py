@@ -37,7 +37,6 @@ import argparse
 import json
 import platform
 import shutil
-import subprocess
 import sys
 import time
 from pathlib import Path
@@ -45,25 +44,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
-BIN = Path(sys.executable).parent
-DATA = ROOT.parent / "shared" / "data" / "camvid"
+from camvid_cameras import BIN, DATA, ROOT, SIMULATED, bar_plot as _bars, native_camera, run, simulate
+
 CONDITIONS = ["resize", "between", "within", "within-gt", "zero"]
 # name -> vcprep simulate arguments (None: the native CamVid frames)
-CAMERAS: dict[str, list[str] | None] = {
-    "native": None,
-    "tele": ["--size", "320x240", "--hfov", "35", "--tilt", "3"],
-    "band": ["--size", "480x146"],
-    "dashcam": ["--size", "400x225", "--hfov", "40", "--pan-jitter", "8", "--tilt-jitter", "4", "--seed", "1"],
-}
-
-
-def run(*args, stream: bool = False) -> str:
-    proc = subprocess.run([str(a) for a in args], stdout=subprocess.PIPE, stderr=None if stream else subprocess.PIPE,
-                          text=True)
-    if proc.returncode != 0:
-        sys.exit(f"failed: {' '.join(map(str, args))}\n{(proc.stderr or '')[-3000:]}")
-    return proc.stdout
+CAMERAS: dict[str, list[str] | None] = {"native": None, **SIMULATED}
 
 
 def deal(split: str, k: int, n: int, dest: Path) -> Path:
@@ -81,11 +66,10 @@ def deal(split: str, k: int, n: int, dest: Path) -> Path:
 
 def make_cameras(wd: Path) -> dict[str, dict]:
     """The four cameras' train/test folders, camera files and given VPs."""
-    from vcprep.camera import PRESETS, camera_to_yaml
+    from vcprep.camera import load_camera
     from vcprep.homography import vp_from_pose
 
-    native = PRESETS["camvid"].for_image_size((480, 360))
-    (wd / "native.yaml").write_text(camera_to_yaml(native))
+    native = load_camera(str(native_camera(wd)))
     out: dict[str, dict] = {}
     for k, (name, sim) in enumerate(CAMERAS.items()):
         entry: dict = {"name": name, "label_format": "camvid"}
@@ -99,10 +83,7 @@ def make_cameras(wd: Path) -> dict[str, dict]:
                                 "vps": str(src / "vps.csv")}
                 entry["camera"] = str(wd / "native.yaml")
                 continue
-            dst = wd / "cams" / name / split
-            run(BIN / "vcprep", "simulate", "--camera", wd / "native.yaml", "--images", src / "images",
-                "--labels", src / "labels", "--label-format", "camvid", "--out", dst, "--name", name, "--quiet", *sim)
-            entry[split] = {"images": str(dst / "images"), "labels": str(dst / "labels"), "vps": str(dst / "vps.csv")}
+            entry[split] = simulate(wd / "native.yaml", src / "images", src / "labels", wd / "cams" / name / split, name)
             # one camera file per camera: the train and test simulations share every parameter
             entry["camera"] = str(wd / "cams" / name / "train" / "camera.yaml")
         out[name] = entry
@@ -117,40 +98,13 @@ def make_cameras(wd: Path) -> dict[str, dict]:
 
 def bar_plot(rows: list[dict], heldout: list[str], conditions: list[str]) -> np.ndarray:
     """Grouped bars: road IoU per held-out camera (groups) and condition (colours), plus the mean."""
-    colours = [(160, 160, 160), (200, 140, 60), (60, 170, 60), (40, 110, 30), (60, 60, 200)]
-    groups = heldout + ["mean"]
     cell = {(r["heldout"], r["condition"]): r["iou"] for r in rows}
     for c in conditions:
         v = [cell[h, c] for h in heldout if (h, c) in cell]
         if v:
             cell["mean", c] = float(np.mean(v))
-    W, H, top, bottom, left = 1000, 540, 80, 60, 60
-    img = np.full((H, W, 3), 255, np.uint8)
-    gw = (W - left - 20) / len(groups)
-    bw = gw * 0.8 / len(conditions)
-    y0 = H - bottom
-    for t in range(0, 101, 20):
-        y = int(y0 - t / 100 * (H - top - bottom))
-        cv2.line(img, (left, y), (W - 20, y), (225, 225, 225), 1)
-        cv2.putText(img, f"{t}", (18, y + 5), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (80, 80, 80), 1, cv2.LINE_AA)
-    for g, name in enumerate(groups):
-        x0 = left + g * gw + gw * 0.1
-        for j, c in enumerate(conditions):
-            if (name, c) not in cell:
-                continue
-            h = cell[name, c] * (H - top - bottom)
-            x = int(x0 + j * bw)
-            cv2.rectangle(img, (x, int(y0 - h)), (int(x + bw - 2), y0), colours[j % len(colours)], -1)
-            cv2.putText(img, f"{100 * cell[name, c]:.0f}", (x, int(y0 - h) - 4), cv2.FONT_HERSHEY_SIMPLEX, 0.35,
-                        (40, 40, 40), 1, cv2.LINE_AA)
-        cv2.putText(img, name, (int(x0), y0 + 22), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 0, 0), 1, cv2.LINE_AA)
-    for j, c in enumerate(conditions):
-        x = left + j * 150
-        cv2.rectangle(img, (x, 18), (x + 14, 32), colours[j % len(colours)], -1)
-        cv2.putText(img, c, (x + 20, 31), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 1, cv2.LINE_AA)
-    cv2.putText(img, "road IoU (%) on the held-out camera's test frames, by held-out camera", (left, 52),
-                cv2.FONT_HERSHEY_SIMPLEX, 0.45, (80, 80, 80), 1, cv2.LINE_AA)
-    return img
+    return _bars(cell, heldout + ["mean"], conditions,
+                 "road IoU (%) on the held-out camera's test frames, by held-out camera")
 
 
 def main() -> None:

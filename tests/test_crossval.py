@@ -262,10 +262,8 @@ def test_test_role_datasets_are_scored_never_trained_on(mixed_run):
     assert [ln.split("|")[1].strip() for ln in table[4:]] == ["kitti", "cityscapes", "camvid2", "mean"]
 
 
-def test_test_role_models_never_see_test_data_and_use_the_overrides(mixed_run):
+def test_test_role_models_never_see_test_data(mixed_run):
     import torch
-
-    from vctrain.train import TrainConfig
 
     _, out, _ = mixed_run
     for c in MIXED_CONDS:
@@ -273,13 +271,28 @@ def test_test_role_models_never_see_test_data_and_use_the_overrides(mixed_run):
         stores = ck["config"]["stores"]
         assert len(stores) == 2 and all("/train/" in s for s in stores)
         assert not any("/cityscapes/" in s or "/camvid2/" in s for s in stores)
-        assert ck["config"]["seed"] == 3                       # --seed
-        assert ck["config"]["lr"] == TrainConfig().lr          # not in the study: vctrain fit's default
     study = json.loads((out / "study.json").read_text())
     assert study["roles"] == {"camvid": "train", "kitti": "both", "cityscapes": "test", "camvid2": "test"}
-    assert study["train"]["seed"] == 3 and study["train"]["momentum"] == TrainConfig().momentum
     # the designed virtual camera covers every camera of the study, test-role ones included
     assert len({tuple(Store.open(p).store_size) for p in (out / "stores").glob("*/*/*")}) == 1
+
+
+def test_settings_the_study_leaves_out_are_vctrain_fits_defaults(mixed_run, tmp_path):
+    """A study trains exactly as `vctrain fit` does with the same few options (the project's recipe)."""
+    import torch
+
+    _, out, _ = mixed_run
+    ck = torch.load(out / "runs" / "_all" / "within" / "model.pt", map_location="cpu", weights_only=False)
+    assert ck["config"]["seed"] == 3                                   # --seed
+    fit = run_cli("fit", *ck["config"]["stores"], "--out", tmp_path / "m.pt", "--epochs", "1", "--batch-size", "2",
+                  "--model", "segnet-narrow", "--width", "4", "--val-fraction", "0", "--seed", "3", "--quiet",
+                  prog="vctrain")
+    assert fit.returncode == 0, fit.stderr
+    direct = torch.load(tmp_path / "m.pt", map_location="cpu", weights_only=False)
+    per_run = {"stores", "out", "log", "progress", "max_steps", "size", "workers"}
+    assert {k: v for k, v in ck["config"].items() if k not in per_run} == \
+        {k: v for k, v in direct["config"].items() if k not in per_run}
+    assert ck["model_args"] == direct["model_args"]
 
 
 def test_mixed_study_resumes_and_reuses_a_trained_model(mixed_run, tmp_path):

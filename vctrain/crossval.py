@@ -522,8 +522,9 @@ def _execute(run: _Run, b: _Builder, sha: str, overrides: dict[str, Any], tag: s
     else:  # a training of other settings, or one that was interrupted: start afresh
         for old in (trained, Path(cfg.out), run_dir / "model.last.pt", run_dir / "model.log.jsonl"):
             old.unlink(missing_ok=True)
+        epochs = f"{cfg.epochs} epochs" if cfg.epochs else "vctrain fit's epochs"
         say(f"{tag} {run.name}, {c}: training on {', '.join(d.name for d in run.train)} "
-            f"({cfg.epochs} epochs at {size[0]}x{size[1]})")
+            f"({epochs} at {size[0]}x{size[1]})")
         t0 = time.perf_counter()
         summary = fit(cfg)
         info = {"train_datasets": [d.name for d in run.train], "train_items": summary["data"]["train_items"],

@@ -1,0 +1,445 @@
+"""Will a CamVid-trained model work on a new camera? Real and exactly simulated other cameras (issue 14).
+
+    .venv/bin/python benchmarks/real_cameras.py [--seeds 0,1,2] [--epochs N] [--conditions resize,between,within]
+                                                [--workdir benchmarks/out/real_cameras] [--threads 2] [--quick]
+
+One ``vctrain crossval`` study, run once per seed (``--seed k``) into WORKDIR/seed<k>/; every run
+resumes (crossval skips finished runs), so an interrupted benchmark continues where it stopped.
+
+Data (../shared/data; nothing is tuned on a test set):
+
+* **train** (role train): CamVid train (SegNet release, 480x360, the camvid preset at 1/2) minus
+  sequence 0001TP, i.e. 0016E5 + 0006R0 (305 frames; study split ``exclude: 0001TP_*``); the
+  checkpoint is chosen on the recipe's validation share of these frames.
+* **in-domain** test rows (same camera): ``camvid-val`` (CamVid val, 101 frames of 0016E5) and
+  ``camvid-0001TP`` (the unseen sequence 0001TP of CamVid train, 62 frames, never trained on).
+* **real other camera**: ``kitti``, the KITTI road frames in kitti_road/training (image_2 with
+  the road ground truth of gt_image_2, label format kitti; camera = the first frame's calibration
+  file: P2 gives K, Tr_cam_to_road the height and pitch). Other folders found in ../shared/data
+  are listed as not used.
+* **simulated other cameras**: CamVid val through ``tele``, ``band`` and ``dashcam``, made by
+  ``vcprep simulate`` exactly as benchmarks/cross_camera.py makes them (camvid_cameras.py).
+
+Every test set has role test: per condition ONE model is trained on CamVid train and scored on
+each test set in its own camera (back-projected, ignore excluded; road IoU = sum TP / sum
+(TP+FP+FN) over the set). Conditions (default): ``resize`` (the baseline: images resized to the
+working size), ``between`` (virtual camera, each camera's average pose), ``within`` (plus each
+image's estimated road VP). The virtual camera is designed from all the study's cameras
+(calibrations only). Training settings: ``vctrain fit``'s defaults (its CPU recipe without a GPU)
+except ``--epochs``; working width: crossval's default unless ``--store-width``.
+
+Reported (never asserted), mean +/- std over seeds (sample std, ddof 1) per cell, and the paired
+difference within - resize per seed. Headline ``within_minus_resize``: the mean over seeds of (the
+mean over the other-camera test sets kitti, tele, band, dashcam of within - resize); also KITTI
+(real) alone and the simulated cameras alone. Targets checked: in-domain road IoU >= 0.85 on both
+in-domain rows for every condition; cross-camera within - resize >= 10 IoU points; every model
+converged (best epoch before the last, or a plateau: the last quarter of the epochs, at least 2,
+improves the best validation IoU by < 0.5 points); data pipeline: the training images/s of each
+model >= 0.9x a pure forward + backward + optimiser step on random tensors of the same shape,
+measured in this process right after each seed's training (same model args, batch, working size,
+memory format, optimiser, device and threads; kept in runs/_all/<condition>/reference.json, so a
+resumed benchmark reuses the reference of the training it belongs to).
+
+Threads: ``--threads T`` (default: all cores) = ``torch.set_num_threads(T)`` and ``cv2.setNumThreads(T)``
+here, ``OMP_NUM_THREADS=T`` for the training processes, ``--jobs T`` store builders.
+Runtime: seeds x conditions models (9 by default) x minutes_per_model, plus store building and
+testing (a few minutes). ``--quick``: a smoke run (a few frames, 1 seed, 1 epoch of 2 steps,
+results in WORKDIR/results, not benchmarks/results).
+
+Outputs in benchmarks/results/: ``real_cameras.md`` (the table), ``real_cameras.png`` (bars with
++/- std), ``real_cameras.json`` (headline, every cell per seed, targets, models, settings). The last
+stdout line is one JSON object with ``within_minus_resize``, ``in_domain_within``,
+``in_domain_resize`` and ``minutes_per_model`` (and a few more figures).
+"""
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import platform
+import shutil
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from camvid_cameras import BIN, DATA, DESCRIPTION, ROOT, SHARED_DATA, SIMULATED, bar_plot, native_camera, run, simulate
+
+KITTI = SHARED_DATA / "kitti_road" / "training"
+UNSEEN = "0001TP"                         # the CamVid sequence held out of training
+IN_DOMAIN = ["camvid-val", f"camvid-{UNSEEN}"]
+REAL = ["kitti"]
+SIM = list(SIMULATED)
+OTHER = REAL + SIM                        # the other-camera test sets of the headline
+CONDITIONS = ["resize", "between", "within"]
+QUICK_TRAIN = {"epochs": 1, "max_steps": 2}
+
+
+# -- the study -----------------------------------------------------------------------------------
+def _link(names: list[str], src: Path, dest: Path) -> Path:
+    if dest.exists():
+        shutil.rmtree(dest)
+    dest.mkdir(parents=True)
+    for n in names:
+        (dest / n).symlink_to(src / n)
+    return dest
+
+
+def camvid_folders(wd: Path, quick: bool) -> dict[str, Path]:
+    """CamVid's train/val image and label folders (quick: a few frames of each sequence, linked)."""
+    full = {k: DATA / k for k in ("train", "trainannot", "val", "valannot")}
+    if not quick:
+        return full
+    train = sorted(p.name for p in full["train"].glob("*.png"))
+    pick = [n for seq in ("0016E5", "0006R0") for n in [m for m in train if m.startswith(seq)][:3]]
+    pick += [n for n in train if n.startswith(UNSEEN)][:2]
+    val = sorted(p.name for p in full["val"].glob("*.png"))[:3]
+    return {"train": _link(pick, full["train"], wd / "src" / "train"),
+            "trainannot": _link(pick, full["trainannot"], wd / "src" / "trainannot"),
+            "val": _link(val, full["val"], wd / "src" / "val"),
+            "valannot": _link(val, full["valannot"], wd / "src" / "valannot")}
+
+
+def kitti_dataset() -> dict | None:
+    """The KITTI road frames with road ground truth, camera = the first frame's calibration."""
+    images = sorted((KITTI / "image_2").glob("*.png")) if (KITTI / "image_2").is_dir() else []
+    if not images:
+        return None
+    calib = KITTI / "calib" / f"{images[0].stem}.txt"
+    return {"name": "kitti", "role": "test", "camera": str(calib), "label_format": "kitti",
+            "test": {"images": str(KITTI / "image_2"), "labels": str(KITTI / "gt_image_2")}}
+
+
+def make_study(wd: Path, args: argparse.Namespace, conditions: list[str]) -> tuple[dict, list[str]]:
+    """The study (camvid role train, every other set role test) and its test-set names."""
+    cam = native_camera(wd)
+    f = camvid_folders(wd, args.quick)
+
+    def camvid(name: str, role: str, images: Path, labels: Path, **select) -> dict:
+        split = "train" if role == "train" else "test"
+        return {"name": name, "role": role, "camera": str(cam), "label_format": "camvid",
+                split: {"images": str(images), "labels": str(labels), **select}}
+
+    datasets = [camvid("camvid", "train", f["train"], f["trainannot"], exclude=f"{UNSEEN}_*"),
+                camvid("camvid-val", "test", f["val"], f["valannot"]),
+                camvid(f"camvid-{UNSEEN}", "test", f["train"], f["trainannot"], include=f"{UNSEEN}_*")]
+    k = kitti_dataset()
+    if k is None:
+        print(f"note: no KITTI road frames in {KITTI}: no real other camera", file=sys.stderr)
+    else:
+        datasets.append(k)
+    for name in SIM:
+        split = simulate(cam, f["val"], f["valannot"], wd / "sim" / name, name)
+        datasets.append({"name": name, "role": "test", "camera": str(wd / "sim" / name / "camera.yaml"),
+                         "label_format": "camvid", "test": split})
+    study: dict = {"datasets": datasets, "conditions": conditions, "virtual": "design", "pan_range": 10,
+                   "tilt_range": 5}
+    if args.store_width:
+        study["store_width"] = args.store_width
+    train = dict(QUICK_TRAIN) if args.quick else {}
+    if args.device:
+        train["device"] = args.device
+    if train:
+        study["train"] = train
+    return study, [d["name"] for d in datasets if d["role"] == "test"]
+
+
+def unused_data() -> list[str]:
+    if not SHARED_DATA.is_dir():
+        return []
+    return sorted(p.name for p in SHARED_DATA.iterdir() if p.is_dir() and p.name not in ("camvid", "kitti_road"))
+
+
+# -- measurements --------------------------------------------------------------------------------
+def reference_images_per_s(ck: dict, threads: int, seconds: float, min_steps: int) -> float:
+    """Images/s of a pure training step (forward, cross-entropy, backward, optimiser step) on random
+    tensors shaped like the checkpoint's training batches: the same model args, batch, working size,
+    memory format, optimiser and device as ``vctrain fit`` used, no data loading."""
+    import torch
+    from torch.nn import functional as F
+
+    from vctrain.model import build_model
+    from vctrain.train import resolve_device
+
+    torch.set_num_threads(threads)
+    cfg, margs = ck["config"], ck["model_args"]
+    device = resolve_device(cfg.get("device") or "auto")
+    w, h = ck["data"]["input_size"]
+    batch = int(cfg.get("batch_size") or 8)
+    fmt = torch.channels_last if margs["arch"] == "resfpn" else torch.contiguous_format
+    torch.manual_seed(0)
+    model = build_model(margs).to(device, memory_format=fmt).train()
+    lr, wd, mom = cfg.get("lr") or 1e-3, cfg.get("weight_decay") or 0.0, cfg.get("momentum") or 0.9
+    if cfg.get("optimizer") == "adamw":
+        opt = torch.optim.AdamW(model.parameters(), lr=lr, betas=(mom, 0.999), weight_decay=wd)
+    else:
+        opt = torch.optim.SGD(model.parameters(), lr=lr, momentum=mom, weight_decay=wd)
+    x = torch.randn(batch, margs["in_channels"], h, w, device=device).contiguous(memory_format=fmt)
+    y = torch.randint(0, margs["num_classes"], (batch, h, w), device=device)
+
+    def step() -> None:
+        loss = F.cross_entropy(model(x), y, ignore_index=255)
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+
+    for _ in range(2):  # warm-up (allocator, kernels)
+        step()
+    n, t0 = 0, time.perf_counter()
+    while n < min_steps or time.perf_counter() - t0 < seconds:
+        step()
+        n += 1
+    if device.type == "cuda":
+        torch.cuda.synchronize()
+    return batch * n / (time.perf_counter() - t0)
+
+
+def convergence(log: list[dict], epochs: int, best_epoch: int) -> tuple[bool, str]:
+    """Converged: the best epoch is not the last, or the validation IoU plateaued (the last quarter
+    of the epochs, at least 2, improves the best before it by < 0.5 IoU points)."""
+    if 0 < best_epoch < epochs:
+        return True, f"best epoch {best_epoch} of {epochs}"
+    vals = [r["val_iou"] for r in log if "val_iou" in r]
+    k = max(2, len(vals) // 4)
+    if len(vals) < k + 2:
+        return False, f"best epoch is the last of {epochs}; too few epochs to see a plateau"
+    gain = max(vals[-k:]) - max(vals[:-k])
+    if gain < 0.005:
+        return True, f"plateau: the last {k} epochs gain {100 * gain:.2f} IoU points"
+    return False, f"still improving: the last {k} epochs gain {100 * gain:.2f} IoU points"
+
+
+def collect_seed(sd: Path, conditions: list[str], threads: int, quick: bool) -> tuple[dict, list[dict]]:
+    """{(test set, condition): row} and one record per model (timings, convergence, pipeline ratio)."""
+    import torch
+
+    rows = {(r["heldout"], r["condition"]): r
+            for r in map(json.loads, (sd / "results.jsonl").read_text().splitlines())}
+    models, refs = [], {}
+    for c in conditions:
+        run_dir = sd / "runs" / "_all" / c
+        if not (run_dir / "train.json").exists():
+            continue
+        tj = json.loads((run_dir / "train.json").read_text())
+        ck = torch.load(run_dir / "model.pt", map_location="cpu", weights_only=False)
+        log = [json.loads(line) for line in (run_dir / "model.log.jsonl").read_text().splitlines()]
+        shape = json.dumps([ck["model_args"], ck["data"]["input_size"], ck["config"].get("batch_size"),
+                            ck["config"].get("optimizer"), ck["config"].get("device"), threads], sort_keys=True)
+        # the reference is measured right after the training it belongs to and kept with it, so a
+        # resumed benchmark reuses it; one per distinct shape (resize and virtual share the working size)
+        cache = run_dir / "reference.json"
+        key = hashlib.sha256(((run_dir / "train.json").read_text() + shape).encode()).hexdigest()[:16]
+        old = json.loads(cache.read_text()) if cache.exists() else {}
+        if old.get("key") == key:
+            ref = old["images_per_s"]
+        else:
+            if shape not in refs:
+                refs[shape] = reference_images_per_s(ck, threads, 2.0 if quick else 20.0, 3 if quick else 10)
+            ref = refs[shape]
+            cache.write_text(json.dumps({"key": key, "images_per_s": ref}) + "\n")
+        ok, why = convergence(log, tj["epochs"], tj["best_epoch"])
+        models.append({"condition": c, "train_minutes": tj["train_seconds"] / 60, "epochs": tj["epochs"],
+                       "best_epoch": tj["best_epoch"], "best_val_iou": tj["best_val_iou"],
+                       "train_items": tj["train_items"], "val_items": tj["val_items"],
+                       "input_size": tj["input_size"], "model_args": ck["model_args"],
+                       "batch_size": ck["config"].get("batch_size"), "optimizer": ck["config"].get("optimizer"),
+                       "train_images_per_s": tj["train_images_per_s"], "reference_images_per_s": ref,
+                       "pipeline_ratio": tj["train_images_per_s"] / ref, "converged": ok,
+                       "convergence": why, "val_iou_per_epoch": [r.get("val_iou") for r in log]})
+    return rows, models
+
+
+# -- aggregation ---------------------------------------------------------------------------------
+def stats(v: list[float]) -> dict:
+    a = np.asarray(v, float)
+    return {"mean": float(a.mean()) if len(a) else None, "std": float(a.std(ddof=1)) if len(a) > 1 else 0.0,
+            "per_seed": [float(x) for x in a]}
+
+
+def fmt(s: dict | None, scale: float = 100.0, signed: bool = False) -> str:
+    if not s or s["mean"] is None:
+        return "-"
+    return f"{scale * s['mean']:{'+' if signed else ''}.1f} ± {scale * s['std']:.1f}"
+
+
+def aggregate(per_seed: dict[int, dict], sets: list[str], conditions: list[str]) -> dict:
+    """Cells (mean, std, per seed) and paired within - resize differences, per test set and group."""
+    seeds = sorted(per_seed)
+    others = [s for s in OTHER if s in sets]
+    groups = {"other cameras": others, "kitti (real)": [s for s in REAL if s in sets],
+              "simulated": [s for s in SIM if s in sets]}
+    cells: dict[str, dict[str, dict]] = {}
+    for s in sets:
+        cells[s] = {c: stats([per_seed[k][s, c]["iou"] for k in seeds if (s, c) in per_seed[k]]) for c in conditions}
+    for g, members in groups.items():
+        if members:
+            cells[g] = {c: stats([float(np.mean([per_seed[k][m, c]["iou"] for m in members])) for k in seeds
+                                  if all((m, c) in per_seed[k] for m in members)]) for c in conditions}
+    diff: dict[str, dict] = {}
+    if "within" in conditions and "resize" in conditions:
+        for s in sets:
+            diff[s] = stats([per_seed[k][s, "within"]["iou"] - per_seed[k][s, "resize"]["iou"] for k in seeds
+                             if (s, "within") in per_seed[k] and (s, "resize") in per_seed[k]])
+        for g, members in groups.items():
+            if members:
+                diff[g] = stats([float(np.mean([per_seed[k][m, "within"]["iou"] - per_seed[k][m, "resize"]["iou"]
+                                                for m in members])) for k in seeds
+                                 if all((m, c) in per_seed[k] for m in members for c in ("within", "resize"))])
+    return {"cells": cells, "within_minus_resize": diff, "groups": groups}
+
+
+def table(agg: dict, sets: list[str], conditions: list[str], items: dict[str, int]) -> str:
+    diff = bool(agg["within_minus_resize"])
+    header = ["test set", "frames"] + conditions + (["within − resize"] if diff else [])
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    for s in sets + [g for g in agg["groups"] if agg["groups"][g]]:
+        row = [s if s in sets else f"**{s}** (mean)", str(items.get(s, "")) if s in sets else ""]
+        row += [fmt(agg["cells"][s][c]) for c in conditions]
+        if diff:
+            row.append(fmt(agg["within_minus_resize"].get(s), signed=True))
+        lines.append("| " + " | ".join(row) + " |")
+    return "\n".join(lines) + "\n"
+
+
+def targets(agg: dict, models: list[dict], conditions: list[str]) -> dict:
+    cells, diff = agg["cells"], agg["within_minus_resize"]
+    in_dom = {f"{s} {c}": cells[s][c]["mean"] for s in IN_DOMAIN if s in cells for c in conditions
+              if cells[s][c]["mean"] is not None}
+    cross = diff.get("other cameras", {}).get("mean")
+    ratios = [m["pipeline_ratio"] for m in models]
+    return {
+        "in_domain_iou_ge_0.85": {"pass": bool(in_dom) and min(in_dom.values()) >= 0.85, "values": in_dom},
+        "cross_camera_within_minus_resize_ge_10_points": {"pass": cross is not None and cross >= 0.10,
+                                                          "value": cross},
+        "converged": {"pass": bool(models) and all(m["converged"] for m in models),
+                      "models": f"{sum(m['converged'] for m in models)}/{len(models)}"},
+        "pipeline_ratio_ge_0.9": {"pass": bool(ratios) and min(ratios) >= 0.9,
+                                  "min": min(ratios) if ratios else None,
+                                  "median": float(np.median(ratios)) if ratios else None},
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--seeds", default=None, help="comma-separated training seeds (default 0,1,2; --quick: 0)")
+    ap.add_argument("--epochs", type=int, default=None, help="training epochs (default: vctrain fit's recipe)")
+    ap.add_argument("--conditions", default=",".join(CONDITIONS))
+    ap.add_argument("--store-width", type=int, default=None, help="working width (default: crossval's)")
+    ap.add_argument("--device", default=None, help="training device (default: vctrain fit's, auto)")
+    ap.add_argument("--threads", type=int, default=os.cpu_count() or 1, help="threads (default: all cores)")
+    ap.add_argument("--workdir", type=Path, default=None,
+                    help="default benchmarks/out/real_cameras (--quick: benchmarks/out/real_cameras_quick)")
+    ap.add_argument("--results", type=Path, default=None, help="default benchmarks/results (--quick: WORKDIR/results)")
+    ap.add_argument("--quick", action="store_true", help="smoke run: a few frames, 1 seed, 1 epoch of 2 steps")
+    args = ap.parse_args()
+    if not DATA.is_dir():
+        sys.exit(f"{DATA} not found: this benchmark needs the CamVid train/val folders of ../shared/data")
+    import torch
+
+    T = args.threads
+    torch.set_num_threads(T)
+    cv2.setNumThreads(T)
+    seeds = [int(s) for s in (args.seeds or ("0" if args.quick else "0,1,2")).split(",") if s.strip()]
+    conditions = [c for c in args.conditions.split(",") if c]
+    wd = (args.workdir or ROOT / "benchmarks" / "out" / ("real_cameras_quick" if args.quick else "real_cameras"))
+    wd = wd.resolve()
+    res = (args.results or (wd / "results" if args.quick else ROOT / "benchmarks" / "results")).resolve()
+    wd.mkdir(parents=True, exist_ok=True)
+    res.mkdir(parents=True, exist_ok=True)
+    print(f"threads: {T} (torch.set_num_threads, cv2.setNumThreads; OMP_NUM_THREADS={T} for training; "
+          f"--jobs {T} store builds); seeds {seeds}; workdir {wd}", file=sys.stderr, flush=True)
+    for name in unused_data():
+        print(f"note: ../shared/data/{name} is not used (no reader for it in this benchmark)", file=sys.stderr)
+    import yaml
+
+    t0 = time.perf_counter()
+    study, sets = make_study(wd, args, conditions)
+    (wd / "study.yaml").write_text(yaml.safe_dump(study, sort_keys=False))
+    env = {"OMP_NUM_THREADS": str(T), "MKL_NUM_THREADS": str(T)}
+    per_seed, models = {}, []
+    for k in seeds:
+        sd = wd / f"seed{k}"
+        print(f"seed {k}: vctrain crossval -> {sd}", file=sys.stderr, flush=True)
+        cmd = [BIN / "vctrain", "crossval", wd / "study.yaml", "--out", sd, "--seed", k, "--json", "--jobs", T]
+        if args.epochs:
+            cmd += ["--epochs", args.epochs]
+        run(*cmd, stream=True, env=env)
+        rows, ms = collect_seed(sd, conditions, T, args.quick)  # the reference right after this seed's training
+        per_seed[k] = rows
+        models += [{"seed": k, **m} for m in ms]
+    total = time.perf_counter() - t0
+
+    agg = aggregate(per_seed, sets, conditions)
+    items = {s: per_seed[seeds[0]][s, conditions[0]]["test_items"] for s in sets if (s, conditions[0]) in per_seed[seeds[0]]}
+    tg = targets(agg, models, conditions)
+    diff, cells = agg["within_minus_resize"], agg["cells"]
+
+    def mean_of(d: dict | None) -> float | None:
+        return None if not d or d.get("mean") is None else round(d["mean"], 4)
+
+    minutes = float(np.mean([m["train_minutes"] for m in models])) if models else None
+    headline = {
+        "within_minus_resize": mean_of(diff.get("other cameras")),
+        "in_domain_within": mean_of(cells.get("camvid-val", {}).get("within")),
+        "in_domain_resize": mean_of(cells.get("camvid-val", {}).get("resize")),
+        "minutes_per_model": None if minutes is None else round(minutes, 2),
+        "within_minus_resize_std": round(diff["other cameras"]["std"], 4) if "other cameras" in diff else None,
+        "kitti_within_minus_resize": mean_of(diff.get("kitti (real)")),
+        "simulated_within_minus_resize": mean_of(diff.get("simulated")),
+        "unseen_sequence_within": mean_of(cells.get(f"camvid-{UNSEEN}", {}).get("within")),
+        "unseen_sequence_resize": mean_of(cells.get(f"camvid-{UNSEEN}", {}).get("resize")),
+        "pipeline_ratio_min": None if tg["pipeline_ratio_ge_0.9"]["min"] is None
+        else round(tg["pipeline_ratio_ge_0.9"]["min"], 3),
+        "converged": tg["converged"]["models"], "seeds": len(seeds), "quick": args.quick,
+    }
+    study_json = json.loads((wd / f"seed{seeds[0]}" / "study.json").read_text())
+    virt, m0 = study_json["virtual"], (models[0] if models else {})
+    md = ["# Real new cameras: train on CamVid, test on other cameras (benchmarks/real_cameras.py)", "",
+          f"Road IoU (%) on each test set in its own camera, mean ± std over {len(seeds)} seeds {seeds}"
+          + (" (QUICK SMOKE RUN: numbers mean nothing)" if args.quick else "") + ".", "",
+          table(agg, sets, conditions, items),
+          "Targets (reported, not asserted):", ""]
+    md += [f"- {name}: {'PASS' if t['pass'] else 'FAIL'} "
+           f"({json.dumps({k: v for k, v in t.items() if k != 'pass'}, default=str)})" for name, t in tg.items()]
+    md += ["", "Setup:", "",
+           f"- Training: CamVid train minus sequence {UNSEEN} ({m0.get('train_items')} + {m0.get('val_items')} "
+           f"validation frames), vctrain fit defaults{'' if not args.epochs else f', {args.epochs} epochs'}: "
+           f"{(m0.get('model_args') or {}).get('arch')}, {m0.get('optimizer')}, batch {m0.get('batch_size')}, "
+           f"{m0.get('epochs')} epochs, working size {m0.get('input_size')}; "
+           f"{minutes if minutes is None else round(minutes, 1)} min per model; device "
+           f"{study_json['train'].get('device')}; {platform.processor() or platform.machine()}, {T} threads.",
+           f"- Virtual camera (designed from every camera of the study, pan ±10°, tilt ±5°): "
+           f"{virt['image_size'][0]}x{virt['image_size'][1]}, f {virt['fx']:.1f}, height {virt['height']:.2f} m, "
+           f"store scale {study_json['scale']:.4f}.",
+           f"- In-domain: camvid-val = CamVid val; camvid-{UNSEEN} = the unseen sequence (never trained on).",
+           "- Real other camera: kitti = KITTI road frames (camera from the first frame's calibration file).",
+           *[f"- Simulated from CamVid val: {n} = {DESCRIPTION[n]}." for n in SIM if n in sets],
+           f"- Headline within − resize: mean over the other cameras ({', '.join(agg['groups']['other cameras'])}) "
+           "per seed, then mean ± std over seeds.",
+           f"- Wall time: {total / 60:.1f} min in this invocation (finished runs are resumed, not redone).", ""]
+    md += ["Models:", "", "| seed | condition | minutes | best epoch | converged | train img/s | reference img/s | ratio |",
+           "|---|---|---|---|---|---|---|---|"]
+    md += [f"| {m['seed']} | {m['condition']} | {m['train_minutes']:.1f} | {m['best_epoch']}/{m['epochs']} | "
+           f"{m['convergence']} | {m['train_images_per_s']:.1f} | {m['reference_images_per_s']:.1f} | "
+           f"{m['pipeline_ratio']:.2f} |" for m in models]
+    (res / "real_cameras.md").write_text("\n".join(md) + "\n")
+    groups = sets + [g for g in ("other cameras",) if g in cells]
+    cell = {(g, c): cells[g][c]["mean"] for g in groups for c in conditions if cells[g][c]["mean"] is not None}
+    spread = {(g, c): cells[g][c]["std"] for g in groups for c in conditions if cells[g][c]["mean"] is not None}
+    cv2.imwrite(str(res / "real_cameras.png"),
+                bar_plot(cell, groups, conditions, f"road IoU (%) per test set, trained on CamVid (mean +/- std over "
+                                                  f"{len(seeds)} seeds)", spread))
+    (res / "real_cameras.json").write_text(json.dumps(
+        {"headline": headline, "cells": cells, "within_minus_resize": diff, "groups": agg["groups"],
+         "test_frames": items, "targets": tg, "models": models, "seeds": seeds, "conditions": conditions,
+         "threads": T, "study": study, "virtual": virt, "scale": study_json["scale"],
+         "train_settings": study_json["train"], "wall_minutes": total / 60}, indent=1, default=str) + "\n")
+    print(table(agg, sets, conditions, items), file=sys.stderr)
+    print(json.dumps(headline))
+
+
+if __name__ == "__main__":
+    main()
