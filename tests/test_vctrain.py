@@ -15,6 +15,7 @@ from typer.testing import CliRunner
 
 from vcprep.build import list_dataset, warp_dataset
 from vcprep.camera import PRESETS
+from vcprep.errors import InputError
 from vcprep.imageio import read_image, write_png
 from vcprep.labels import get_label_format
 from vcprep.synthetic import RoadScene, render_road
@@ -23,7 +24,7 @@ from vctrain.cli import app
 from vctrain.data import RoadDataset, Sample, median_frequency_weights, vp_proximity
 from vctrain.metrics import KittiMetrics, RoadMetrics, confusion, kitti_metrics, road_metrics
 from vctrain.model import ModelArgs, SegNet, model_args_for
-from vctrain.train import TrainConfig, evaluate, fit, get_lr
+from vctrain.train import RECIPES, TrainConfig, evaluate, fit, get_lr, resolve_recipe
 
 torch.set_num_threads(1)
 FMT = "values:road=1"  # the synthetic labels: 0 not road, 1 road
@@ -110,10 +111,81 @@ def test_median_frequency_weights():
 
 
 def test_poly_schedule():
-    cfg = TrainConfig(lr=0.01)
+    cfg = TrainConfig(lr=0.01, schedule="poly")
     assert get_lr(0, 100, cfg) == pytest.approx(0.01)
     assert get_lr(100, 100, cfg) == 0.0
     assert get_lr(50, 100, cfg) == pytest.approx(0.01 * 0.5 ** 0.9)
+
+
+def test_cosine_schedule_warms_up_then_decays():
+    cfg = TrainConfig(lr=0.01, schedule="cosine")
+    assert get_lr(0, 1000, cfg) == pytest.approx(0.01 / 30)           # warm-up: 3 % of 1000 steps
+    assert get_lr(29, 1000, cfg) == pytest.approx(0.01)
+    assert get_lr(30, 1000, cfg) == pytest.approx(0.01)                 # the peak
+    mid = 30 + (1000 - 30) / 2
+    assert get_lr(int(mid), 1000, cfg) == pytest.approx(0.005, rel=1e-2)
+    assert get_lr(1000, 1000, cfg) == pytest.approx(0.0, abs=1e-12)
+    lrs = [get_lr(i, 1000, cfg) for i in range(30, 1001)]
+    assert all(a >= b for a, b in zip(lrs, lrs[1:]))                    # monotone after the warm-up
+
+
+def test_recipes_fill_only_unset_fields():
+    cpu = resolve_recipe(TrainConfig(recipe="cpu"))
+    assert (cpu.arch, cpu.optimizer, cpu.schedule, cpu.hflip) == ("resfpn", "adamw", "cosine", True)
+    paper = resolve_recipe(TrainConfig(recipe="paper"))
+    assert (paper.arch, paper.optimizer, paper.lr, paper.weight_decay, paper.batch_size, paper.schedule) == \
+        ("segnet", "sgd", 0.005, 0.0005, 8, "poly")
+    assert paper.scale_aug == paper.color_aug == 0 and paper.hflip is False
+    mixed = resolve_recipe(TrainConfig(recipe="paper", lr=0.01, hflip=True, arch="segnet-narrow"))
+    assert (mixed.lr, mixed.hflip, mixed.arch, mixed.optimizer) == (0.01, True, "segnet-narrow", "sgd")
+    assert resolve_recipe(TrainConfig(device="cpu")).recipe == "cpu"  # no GPU -> the cpu recipe
+    for bad in (dict(recipe="gpu"), dict(optimizer="adam"), dict(schedule="step"), dict(lr=0.0),
+                dict(scale_aug=-0.1), dict(epochs=0)):
+        with pytest.raises(InputError):
+            resolve_recipe(TrainConfig(**{"recipe": "cpu", **bad}))
+
+
+def test_scale_augmentation_is_about_the_vp(tmp_path):
+    """A random scale about the VP moves every labelled pixel radially from the VP: a road
+    wedge with its apex at the VP stays a wedge with the same apex (up to the shift, here 0)."""
+    w, h, vp = 80, 48, (30.0, 12.0)
+    yy, xx = np.mgrid[0:h, 0:w]
+    wedge = (yy > vp[1]) & (np.abs(xx - vp[0]) < 0.8 * (yy - vp[1]))  # invariant under scaling about vp
+    img = np.where(wedge[..., None], 200, 40).astype(np.uint8).repeat(3, axis=2)
+    write_png(tmp_path / "i.png", img)
+    write_png(tmp_path / "l.png", wedge.astype(np.uint8))
+    ds = RoadDataset([Sample("i", tmp_path / "i.png", tmp_path / "l.png", None, vp)], (w, h), scale_aug=0.5,
+                     vp_channel=True)
+    torch.manual_seed(3)
+    for _ in range(8):
+        x, y = ds[0]
+        y = y.numpy()
+        known = y != 255
+        # far from the wedge's edges, labels are unchanged by any scale about the VP
+        inner = (yy > vp[1] + 2) & (np.abs(np.abs(xx - vp[0]) - 0.8 * (yy - vp[1])) > 2)
+        assert known[inner].mean() > 0.3  # (a shrink by 1/1.5 leaves ~40 % known)
+        assert np.array_equal(y[inner & known], wedge[inner & known].astype(np.int64))
+        assert int(x[3].flatten().argmax()) == int(round(vp[1])) * w + int(round(vp[0]))  # VP did not move
+    # a scale < 1 leaves ignore (not a guess) where no source pixel lands
+    ds2 = RoadDataset([Sample("i", tmp_path / "i.png", tmp_path / "l.png", None, (0.0, 0.0))], (w, h), scale_aug=1.0)
+    shrunk = [(ds2[0][1].numpy() == 255).mean() for _ in range(20)]
+    assert max(shrunk) > 0.2 and min(shrunk) == 0.0
+
+
+def test_photometric_jitter_keeps_labels_and_range(tmp_path):
+    rng = np.random.default_rng(0)
+    img = rng.integers(0, 256, (24, 32, 3), dtype=np.uint8)
+    lab = (rng.random((24, 32)) > 0.5).astype(np.uint8)
+    write_png(tmp_path / "i.png", img)
+    write_png(tmp_path / "l.png", lab)
+    ds = RoadDataset([Sample("i", tmp_path / "i.png", tmp_path / "l.png")], (32, 24), color_aug=0.3)
+    torch.manual_seed(0)
+    xs = []
+    for _ in range(6):
+        x, y = ds[0]
+        assert np.array_equal(y.numpy(), lab) and x.min() >= -1 and x.max() <= 1
+        xs.append(x.numpy())
+    assert np.std([v.mean() for v in xs]) > 0.01  # it does change the image
 
 
 def test_hflip_moves_vp_channel(tmp_path):
@@ -151,7 +223,7 @@ def _render_set(folder: Path, cam, n: int, seed: int = 0):
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
     """6 synthetic CamVid-camera frames warped into the virtual camera at scale 0.02 (110x56),
-    and a narrow SegNet fitted on them (about 2 s)."""
+    and the default (cpu recipe: resfpn, AdamW, augmentation) network at width 8 fitted on them."""
     root = tmp_path_factory.mktemp("vctrain")
     cam = PRESETS["camvid"].resized(0.1)  # 96x72
     _render_set(root / "src", cam, 6)
@@ -159,7 +231,7 @@ def trained(tmp_path_factory):
     store, _ = warp_dataset(list_dataset(root / "src/images", root / "src/labels", fmt), cam, PRESETS["virtual"],
                             0.02, root / "store", fmt, progress=False)
     cfg = TrainConfig(stores=[str(root / "store")], out=str(root / "model.pt"), base_width=8, epochs=20,
-                      batch_size=2, lr=0.1, val_fraction=0, progress=False)
+                      batch_size=2, val_fraction=0, progress=False, device="cpu")
     summary = fit(cfg)
     return root, store, summary
 
@@ -183,11 +255,12 @@ def test_fit_learns_the_training_scenes(trained):
 def test_checkpoint_is_self_describing(trained):
     root, store, _ = trained
     ck = load_checkpoint(root / "model.pt")
-    assert ck["model_args"] == {"arch": "segnet-narrow", "base_width": 8, "in_channels": 3, "num_classes": 2}
+    assert ck["model_args"] == {"arch": "resfpn", "base_width": 8, "in_channels": 3, "num_classes": 2}
     assert ck["data"]["mode"] == "virtual" and ck["data"]["input_size"] == [110, 56]
     assert ck["data"]["store_params"]["scale"] == 0.02
     assert ck["data"]["store_params"]["virtual"]["fx"] == 2262
-    assert ck["config"]["lr"] == 0.1 and ck["epoch"] == 20
+    assert ck["config"]["recipe"] == "cpu" and ck["config"]["optimizer"] == "adamw" and ck["config"]["hflip"] is True
+    assert ck["config"]["lr"] == RECIPES["cpu"]["lr"] and ck["epoch"] == 20
     model = model_from_checkpoint(ck)
     for k, v in model.state_dict().items():
         assert torch.equal(v, ck["model"][k])
@@ -288,8 +361,9 @@ def test_every_command_has_an_example(cmd):
     assert r.exit_code == 0 and "Example:" in r.stdout
 
 
-def test_fit_help_names_the_cpu_default():
-    assert "segnet-narrow" in runner.invoke(app, ["fit", "--help"]).stdout
+def test_fit_help_names_the_recipes():
+    text = " ".join(runner.invoke(app, ["fit", "--help"]).stdout.split())
+    assert "resfpn" in text and "'cpu'" in text and "'paper'" in text
 
 
 def _cli(*args):

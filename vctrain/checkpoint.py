@@ -25,7 +25,9 @@ from vcprep.errors import InputError
 from vcprep.imageio import write_bytes_atomic
 
 from . import __version__
-from .model import ARCHITECTURES, SegNet, build_model
+from torch import nn
+
+from .model import ARCHITECTURES, build_model
 
 __all__ = ["CKPT_FORMAT", "CKPT_VERSION", "save_checkpoint", "load_checkpoint", "model_from_checkpoint"]
 
@@ -72,7 +74,7 @@ def load_checkpoint(path: str | Path) -> dict[str, Any]:
     return ck
 
 
-def model_from_checkpoint(ck: dict[str, Any], path: str | Path | None = None) -> SegNet:
+def model_from_checkpoint(ck: dict[str, Any], path: str | Path | None = None) -> nn.Module:
     """Rebuild the network from ``model_args`` and load its weights (strict)."""
     try:
         model = build_model(ck["model_args"])

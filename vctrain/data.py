@@ -6,13 +6,20 @@ is the working size. Images are resized bilinearly, labels by nearest neighbour.
 
 Augmentations (Bormans et al., domain-shift factors): horizontal flip with probability 0.5 (left/right
 hand traffic) and greyscale with probability ``greyscale`` (1.0 = train on greyscale only; the
-checkpoint remembers it and predict converts too).
+checkpoint remembers it and predict converts too). Geometric: a random scale ``s`` with
+log-uniform ``s`` in [1/(1+a), 1+a] about the item's VP (the image centre when it has none) plus a
+random shift of up to ``shift_aug`` of the width/height — one affine map, images bilinear with
+reflected borders, labels nearest with 255 (ignore) outside the item. In the virtual camera a
+scale about the VP is exactly a change of camera height for the road plane (and the shift a
+small pan/tilt), so the network learns a tolerance to the pose errors it meets at test time.
+Photometric: brightness, contrast and per-channel gain drawn in 1 ± ``color_aug`` (gain ±1/3 of it).
 
 VP proximity map (VPSeg): ``1 - max(|x - x_vp| / w, |y - y_vp| / h)`` over working-size pixel
 centres, with the VP in working coordinates (flipped with the image).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
@@ -130,10 +137,12 @@ class RoadDataset(torch.utils.data.Dataset):
     """Samples resized to the working size ``size`` (w, h), decoded once and kept in memory."""
 
     def __init__(self, samples: Sequence[Sample], size: tuple[int, int], hflip: bool = False,
-                 greyscale: float = 0.0, vp_channel: bool = False):
+                 greyscale: float = 0.0, vp_channel: bool = False, scale_aug: float = 0.0, shift_aug: float = 0.0,
+                 color_aug: float = 0.0):
         self.samples = list(samples)
         self.size = (int(size[0]), int(size[1]))
-        self.hflip = hflip
+        self.hflip = bool(hflip)
+        self.scale_aug, self.shift_aug, self.color_aug = float(scale_aug or 0), float(shift_aug or 0), float(color_aug or 0)
         self.greyscale = float(greyscale)
         self.vp_channel = vp_channel
         self._cache: dict[int, tuple[np.ndarray, np.ndarray, tuple[float, float] | None]] = {}
@@ -160,10 +169,42 @@ class RoadDataset(torch.utils.data.Dataset):
             self._cache[i] = hit
         return hit
 
+    def _affine(self, img: np.ndarray, lab: np.ndarray, vp: tuple[float, float] | None):
+        """Random scale about the VP (or the centre) plus a random shift; see the module docstring."""
+        w, h = self.size
+        r = torch.rand(3).tolist()  # torch RNG: seeded per run, epoch and worker
+        s = math.exp((2 * r[0] - 1) * math.log1p(self.scale_aug))
+        ax, ay = vp if vp is not None else ((w - 1) / 2.0, (h - 1) / 2.0)
+        dx, dy = (2 * r[1] - 1) * self.shift_aug * w, (2 * r[2] - 1) * self.shift_aug * h
+        M = np.array([[s, 0.0, (1 - s) * ax + dx], [0.0, s, (1 - s) * ay + dy]])
+        img = cv2.warpAffine(img, M, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT_101)
+        lab = cv2.warpAffine(lab, M, (w, h), flags=cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT,
+                             borderValue=IGNORE)
+        if vp is not None:
+            vp = (s * vp[0] + M[0, 2], s * vp[1] + M[1, 2])
+        return img, lab, vp
+
+    def _photometric(self, x: np.ndarray) -> np.ndarray:
+        """Brightness, contrast and per-channel gain on an input in [-1, 1] (3, h, w)."""
+        c = self.color_aug
+        r = (2 * torch.rand(5) - 1).tolist()
+        bright, contrast = 1 + c * r[0], 1 + c * r[1]
+        gain = np.array([1 + c / 3 * v for v in r[2:]], dtype=np.float32)[:, None, None]
+        img = (x[:3] + 1) * 0.5
+        m = float(img.mean())
+        img = ((img - m) * contrast + m) * (bright * gain)
+        x = x.copy()
+        x[:3] = np.clip(img, 0.0, 1.0) * 2 - 1
+        return x
+
     def __getitem__(self, i: int):
         img, lab, vp = self.item(i)
+        if self.scale_aug > 0 or self.shift_aug > 0:
+            img, lab, vp = self._affine(img, lab, vp)
         grey = self.greyscale >= 1.0 or (self.greyscale > 0 and float(torch.rand(())) < self.greyscale)
         x = to_input(img, greyscale=grey)
+        if self.color_aug > 0:
+            x = self._photometric(x)
         y = lab
         if self.hflip and float(torch.rand(())) < 0.5:  # torch RNG: seeded per run and per worker
             x = np.ascontiguousarray(x[:, :, ::-1])
