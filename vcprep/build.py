@@ -10,6 +10,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
+import os
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,7 +18,7 @@ from typing import Any, Mapping
 
 import numpy as np
 from . import __version__
-from .camera import Camera
+from .camera import Camera, FrameCameras, camera_of_image
 from .errors import InputError, StoreError, VCError
 from .homography import apply_homography, check_not_folded, pose_from_vp, virt_H_src, virtual_at_scale, vp_from_pose
 from .imageio import IMAGE_EXTENSIONS, image_size_from_header, read_image, write_png
@@ -27,7 +28,7 @@ from .store import VALID_PREFIX, Shard, Store, store_lock, temp_files
 from .completion import border_ignore, check_method, completion_maps
 from .warp import warp_image, warp_label
 
-__all__ = ["Job", "ItemPose", "BuildSummary", "item_maps", "warp_item", "list_dataset", "store_params", "item_geometry", "warp_dataset",
+__all__ = ["Job", "ItemPose", "BuildSummary", "item_maps", "warp_item", "find_images", "list_dataset", "store_params", "item_geometry", "warp_dataset",
            "WarpedItem", "warp_item_full", "complete_store", "record_key", "ItemResult", "build_item",
            "complete_item"]
 
@@ -68,23 +69,55 @@ class BuildSummary:
                 f"{len(self.failed)} failed")
 
 
-def _images_in(folder: Path) -> list[Path]:
+def find_images(folder: str | Path, kind: str = "image", skip: Path | None = None) -> list[Path]:
+    """Every image file under ``folder``, recursively (dataset trees such as Cityscapes'
+    ``leftImg8bit/train/<city>/``), sorted by path relative to ``folder``; names starting with
+    '.' (files and folders) are skipped, symbolic links to folders followed (each real folder
+    once), and ``skip`` (e.g. a label tree inside the image tree) left out."""
+    folder = Path(folder)
     if not folder.exists():
-        raise InputError("image folder not found", folder, "check --images")
+        raise InputError(f"{kind} folder not found", folder, f"check the {kind} folder path")
     if not folder.is_dir():
-        raise InputError("is a file, expected a folder of images", folder, "give the folder that holds the images")
-    files = sorted(p for p in folder.iterdir() if p.suffix.lower() in IMAGE_EXTENSIONS and not p.name.startswith("."))
+        raise InputError(f"is a file, expected a folder of {kind}s", folder, f"give the folder that holds the {kind}s")
+    skip_real = os.path.realpath(skip) if skip is not None else None
+    seen: set[str] = set()
+    files: list[Path] = []
+    for top, dirs, names in os.walk(folder, followlinks=True):
+        real = os.path.realpath(top)
+        if real in seen or real == skip_real:
+            dirs[:] = []
+            continue
+        seen.add(real)
+        dirs[:] = [d for d in dirs if not d.startswith(".")]
+        files += [Path(top) / n for n in names
+                  if not n.startswith(".") and os.path.splitext(n)[1].lower() in IMAGE_EXTENSIONS]
+    return sorted(files, key=lambda f: f.relative_to(folder).parts)
+
+
+def _images_in(folder: Path, skip: Path | None = None) -> list[Path]:
+    files = find_images(folder, skip=skip)
     if not files:
-        raise InputError(f"no images ({', '.join(IMAGE_EXTENSIONS)}) in folder", folder, "check --images")
+        raise InputError(f"no images ({', '.join(IMAGE_EXTENSIONS)}) in folder or its subfolders", folder,
+                         "check --images")
     return files
+
+
+def _inside(path: Path, folder: Path) -> bool:
+    try:
+        Path(os.path.realpath(path)).relative_to(os.path.realpath(folder))
+        return True
+    except ValueError:
+        return False
 
 
 def list_dataset(images: str | Path, labels: str | Path | None = None, fmt: LabelFormat | None = None,
                  id_prefix: str = "") -> list[Job]:
-    """Jobs for every image in ``images``; with ``labels``, each image's label is found by the
-    format's naming rule (``labels.LABEL_FORMATS``) and a missing one is an error."""
+    """Jobs for every image in the tree ``images`` (recursively, :func:`find_images`); with
+    ``labels``, each image's label is found in the mirrored tree: the same subfolder of
+    ``labels``, named by the format's naming rule (``labels.LABEL_FORMATS``; Cityscapes
+    ``leftImg8bit/train/<city>/X_leftImg8bit.png`` -> ``gtFine/train/<city>/X_gtFine_labelIds.png``).
+    A missing label is an error; ids are file stems, and two images with one id are an error."""
     images = Path(images)
-    files = _images_in(images)
     label_dir = Path(labels) if labels is not None else None
     if label_dir is not None:
         if fmt is None:
@@ -92,22 +125,27 @@ def list_dataset(images: str | Path, labels: str | Path | None = None, fmt: Labe
         if not label_dir.is_dir():
             raise InputError("label folder not found" if not label_dir.exists() else "is not a folder", label_dir,
                              "check --labels")
-        label_files = {p.stem: p for p in label_dir.iterdir() if p.suffix.lower() in IMAGE_EXTENSIONS}
+    files = _images_in(images, skip=label_dir if label_dir is not None and _inside(label_dir, images) else None)
+    label_files: dict[tuple[tuple[str, ...], str], Path] = {}
+    if label_dir is not None:
+        for p in find_images(label_dir, "label"):
+            label_files.setdefault((p.relative_to(label_dir).parent.parts, p.stem), p)
     jobs: list[Job] = []
     seen: dict[str, Path] = {}
     for f in files:
         iid = id_prefix + image_id(f, fmt)
         if iid in seen:
-            raise InputError(f"duplicate image id '{iid}' (also {seen[iid].name})", f,
-                             "give each image a unique file name stem")
+            raise InputError(f"duplicate image id '{iid}' (also {seen[iid].relative_to(images)})", f,
+                             "give each image a unique file name stem (ids are file stems, also in subfolders)")
         seen[iid] = f
         lab = None
         if label_dir is not None:
             stem = label_stem_for(f, fmt)
-            lab = label_files.get(stem)
+            sub = f.relative_to(images).parent
+            lab = label_files.get((sub.parts, stem))
             if lab is None:
-                raise InputError(f"no label '{stem}.png' for this image in {label_dir}", f,
-                                 "check --labels and --label-format, or remove the image")
+                raise InputError(f"no label '{sub / stem}.png' for this image in {label_dir}", f,
+                                 "check --labels (a tree mirroring --images) and --label-format, or remove the image")
         jobs.append(Job(iid, f, lab))
     return jobs
 
@@ -217,7 +255,7 @@ class _WarpContext:
     to each worker)."""
 
     root: Path
-    camera: Camera
+    camera: Camera | FrameCameras
     virtual_scaled: Camera
     params: dict[str, Any]
     fmt: LabelFormat | None
@@ -279,13 +317,14 @@ def build_item(ctx: _WarpContext, task: _WarpTask) -> ItemResult:
     size = image_size_from_header(data)
     if size is None:
         size = read_image(job.image).size
-    cam = camera.for_image_size(size, job.image)
+    per_frame = isinstance(camera, FrameCameras)
+    cam = camera_of_image(camera, job.image, size)  # per-frame: this frame's own calibration file
     if task.pose is not None:
         pan, tilt = pose_from_vp(cam, task.pose.vp)
         vp, vp_status = (float(task.pose.vp[0]), float(task.pose.vp[1])), task.pose.status
     else:
         pan, tilt = cam.pan, cam.tilt
-        vp, vp_status = vp_from_pose(cam, pan, tilt), "camera"
+        vp, vp_status = vp_from_pose(cam, pan, tilt), "calibrated" if per_frame else "camera"
     cam, H = item_geometry(cam, size, ctx.virtual_scaled, job.image, pan, tilt)
     vp_store = tuple(apply_homography(H, [vp])[0])  # = the virtual principal point (H maps VP -> pp)
     lab_hash, lab_data = _sha256_file(job.label, "label") if job.label is not None else (None, None)
@@ -307,6 +346,7 @@ def build_item(ctx: _WarpContext, task: _WarpTask) -> ItemResult:
         "label_format": fmt.name if fmt and job.label else None,
         "camera": camera.name,
         "camera_params": cam.to_dict(),
+        **({"camera_file": str(camera.file_for(job.image))} if per_frame else {}),
         "size": list(cam.size),
         "vp": [float(vp[0]), float(vp[1])],
         "vp_status": vp_status,
@@ -370,12 +410,16 @@ def _build_loop(store: Store, fn, ctx: Any, tasks: list, ids: list[str], summary
         raise first_error[0]
 
 
-def warp_dataset(jobs: list[Job], camera: Camera, virtual: Camera, scale: float, out: str | Path,
+def warp_dataset(jobs: list[Job], camera: Camera | FrameCameras, virtual: Camera, scale: float, out: str | Path,
                  fmt: LabelFormat | None = None, progress: bool = True,
                  poses: Mapping[str, ItemPose] | None = None,
                  completion: str = "none", workers: int = 1, shard: Shard | None = None,
                  keep_going: bool = False) -> tuple[Store, BuildSummary]:
     """Warp ``jobs`` from ``camera`` into ``virtual`` at ``scale`` into the store ``out``.
+
+    ``camera``: one :class:`Camera` for every image, or :class:`FrameCameras` (per-frame
+    calibration: each image its own camera and pose, ``vp_status`` 'calibrated', the file in the
+    record's ``camera_file``; an image without a file fails as a bad item).
 
     ``poses`` maps item ids to a per-image VP pose (within-camera correction); items without
     one use the camera's average pose (``vp_status`` 'camera'). ``completion`` names the

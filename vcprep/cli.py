@@ -10,7 +10,6 @@ from . import __version__
 from .camera import PRESETS, Camera, camera_to_yaml, load_camera
 from .cliutil import emit_json, err, run_app
 from .errors import InputError
-from .imageio import image_size_from_header
 from .labels import LABEL_FORMATS, get_label_format
 from .parallel import default_jobs
 
@@ -27,6 +26,8 @@ app.add_typer(figure_app, name="figure")
 COMPLETE_HELP = ("fill uncovered virtual pixels: projective (paper §4.3: rays from the VP), zero (image 0, label "
                  "not road), replicate (nearest covered pixel) or none (image 0, label ignore)")
 CAMERA_HELP = f"camera preset ({', '.join(PRESETS)}) or file (.yaml camera, .txt KITTI calib, .json Cityscapes)"
+FRAMES_HELP = (CAMERA_HELP + ", or a folder of per-frame calibration files matched to the images by stem (KITTI "
+               "calib/<stem>.txt, Cityscapes camera/.../<stem>_camera.json): each image gets its own camera and pose")
 WITHIN_HELP = ("within-camera correction: 'none' (camera's average pose), 'estimate' (detect each image's road "
                "VP) or a CSV file 'id,u,v' of known VPs in source pixels")
 JOBS_HELP = "worker processes (default: one per core); results are identical for any number"
@@ -60,15 +61,13 @@ def save_figure(out: Path, fig) -> None:
     print(out)
 
 
-def camera_for(spec: str, sample_image: Path | None = None) -> Camera:
-    """Load ``spec``; calibration files (.txt/.json) carry no image size, so take it from a frame."""
-    size = None
-    if sample_image is not None and not str(spec) in PRESETS and Path(spec).suffix.lower() in (".txt", ".json"):
-        try:
-            size = image_size_from_header(sample_image.read_bytes()[:65536])
-        except OSError:
-            size = None
-    return load_camera(spec, image_size=size)
+def camera_for(spec: str, sample_image: Path | None = None, per_frame: bool = True):
+    """Load ``spec`` (:func:`vcprep.camera.load_cameras`): calibration files (.txt/.json) carry
+    no image size, so it is taken from a frame; a folder is per-frame calibration
+    (:class:`~vcprep.camera.FrameCameras`) where ``per_frame``, else an error."""
+    from .camera import load_cameras
+
+    return load_cameras(spec, sample_image, per_frame=per_frame)
 
 
 @app.command("cameras")
@@ -116,18 +115,26 @@ def camera_design(cameras: List[str] = typer.Argument(..., help="physical camera
                   tilt_range: float = typer.Option(15.0, help="expected tilt variation, +/- degrees"),
                   rule: str = typer.Option("shift", help="'shift' (paper-like: a pose change shifts the image by "
                                                          "f*tan(angle)) or 'exact' (worst case of exact homographies)"),
-                  name: str = typer.Option("virtual", help="name of the designed camera")):
+                  name: str = typer.Option("virtual", help="name of the designed camera"),
+                  above: Optional[float] = typer.Option(None, "--above",
+                                                        help="crop to the road: keep only this many degrees above "
+                                                             "the horizon (plus the tilt range); default: the "
+                                                             "paper's rectangle centred on the horizon")):
     """Derive a virtual camera from physical cameras (paper §4.1.2): mean height, max focal,
     central principal point, FOV that holds the lower half of every camera under the pose ranges.
+    --above crops the rows above the horizon that can never be road (an exact crop: only cy and
+    the height change).
 
     \b
     Example:
       vcprep camera design camvid cityscapes kitti qian toronto2020 -o virtual.yaml
+      vcprep camera design camvid kitti --pan-range 10 --tilt-range 5 --above 8 -o road.yaml
     """
     from .virtual_camera import design_virtual_camera
 
     cams = [load_camera(c) for c in cameras]
-    design = design_virtual_camera(cams, pan_range=pan_range, tilt_range=tilt_range, rule=rule, name=name)
+    design = design_virtual_camera(cams, pan_range=pan_range, tilt_range=tilt_range, rule=rule, name=name,
+                                   above=above)
     from .imageio import write_bytes_atomic
 
     text = camera_to_yaml(design.camera) + design.report()
@@ -141,10 +148,11 @@ def camera_design(cameras: List[str] = typer.Argument(..., help="physical camera
 
 @app.command("warp")
 def warp_cmd(
-    camera: str = typer.Option(..., "--camera", "-c", help=CAMERA_HELP),
-    images: Path = typer.Option(..., "--images", "-i", help="folder of source images"),
+    camera: str = typer.Option(..., "--camera", "-c", help=FRAMES_HELP),
+    images: Path = typer.Option(..., "--images", "-i", help="folder of source images (subfolders included)"),
     out: Path = typer.Option(..., "--out", "-o", help="store directory (created, or updated in place)"),
-    labels: Optional[Path] = typer.Option(None, "--labels", "-l", help="folder of label images"),
+    labels: Optional[Path] = typer.Option(None, "--labels", "-l", help="folder of label images, a tree mirroring "
+                                          "--images (e.g. gtFine/train for leftImg8bit/train)"),
     label_format: Optional[str] = typer.Option(None, "--label-format", "-f",
                                                help=f"{', '.join(LABEL_FORMATS)} or values:road=3;ignore=11"),
     virtual: str = typer.Option("virtual", "--virtual", help="virtual camera: preset or YAML file"),
@@ -182,6 +190,10 @@ def warp_cmd(
       (with --shard, give --within a CSV from 'vcprep vp', or every shard estimates every VP)
       vcprep warp --camera camvid --images data/camvid/val --out stores/val --within estimate
       vcprep warp --camera camvid --images data/camvid/val --out stores/val --within vps.csv
+      vcprep warp --camera kitti/training/calib --images kitti/training/image_2 \\
+          --labels kitti/training/gt_image_2 --label-format kitti --out stores/kitti   # per-frame calibration
+      vcprep warp --camera cityscapes/camera/train --images cityscapes/leftImg8bit/train \\
+          --labels cityscapes/gtFine/train --label-format cityscapes --out stores/cs   # nested city folders
     """
     from .build import list_dataset, warp_dataset
     from .store import Shard
@@ -192,6 +204,9 @@ def warp_cmd(
     fmt = get_label_format(label_format) if label_format else None
     items = list_dataset(images, labels, fmt, id_prefix)
     cam = camera_for(camera, items[0].image)
+    if not isinstance(cam, Camera) and within != "none":
+        raise InputError("--within needs one camera; a per-frame calibration folder already gives every frame its "
+                         "exact pose", camera, "drop --within, or give one camera file or preset")
     virt = load_camera(virtual)
     # VPs over all frames even for one shard: the fallback VP and smoothing depend on the whole run
     poses = _within_poses(items, cam, within, vp_smooth, id_prefix, quiet)
@@ -553,13 +568,14 @@ def figure_fov(cameras: List[str] = typer.Argument(..., help=CAMERA_HELP),
 
 
 def _image_files(paths: List[Path]) -> list[Path]:
-    """IMAGES arguments: files as given, folders expanded to their images (sorted)."""
+    """IMAGES arguments: files as given, folders expanded to their images (recursively, sorted)."""
+    from .build import find_images
     from .imageio import IMAGE_EXTENSIONS
 
     files: list[Path] = []
     for p in paths:
         if p.is_dir():
-            inside = sorted(q for q in p.iterdir() if q.suffix.lower() in IMAGE_EXTENSIONS and not q.name.startswith("."))
+            inside = find_images(p)
             if not inside:
                 raise InputError("no images in folder", p, f"give image files ({', '.join(IMAGE_EXTENSIONS)})")
             files += inside
@@ -604,7 +620,7 @@ def vp_cmd(images: List[Path] = typer.Argument(..., help="image files or folders
         if i in seen:
             raise InputError(f"duplicate image id '{i}' (also {seen[i]})", f, "VP files are keyed by file stem: give each image a unique name")
         seen[i] = f
-    cam = camera_for(camera, files[0])
+    cam = camera_for(camera, files[0], per_frame=False)
     bar = tqdm(total=len(files), desc="vp", unit="img", disable=True if quiet else None, leave=False)
     try:
         results = estimate_files(files, cam, smooth=smooth, ids=ids, on_image=lambda i: bar.update())
@@ -642,7 +658,7 @@ def figure_vp(image: Path = typer.Argument(..., help="image file"),
     from .vanishing_point import VPConfig, apply_reliability, estimate_vp, prior_window
 
     img = read_image(image).array
-    cam = camera_for(camera, image).for_image_size((img.shape[1], img.shape[0]), image)
+    cam = camera_for(camera, image, per_frame=False).for_image_size((img.shape[1], img.shape[0]), image)
     cfg = VPConfig()
     res = apply_reliability([estimate_vp(img, cam, cfg)], [cam])[0]
     fig = vp_figure(img, res, cam, prior_window(cam, cfg.pan_range, cfg.tilt_range))
@@ -720,7 +736,7 @@ def simulate_cmd(
     fmt = get_label_format(label_format) if label_format else None
     out_size = parse_size(size) if size is not None else None
     jobs = list_dataset(images, labels, fmt)
-    cam = camera_for(camera, jobs[0].image)
+    cam = camera_for(camera, jobs[0].image, per_frame=False)
     params = SimulateParams(size=out_size, hfov=hfov, zoom=zoom, pan=pan, tilt=tilt, roll=roll, pan_jitter=pan_jitter,
                             tilt_jitter=tilt_jitter, roll_jitter=roll_jitter, seed=seed, horizon_shift=horizon_shift,
                             greyscale=greyscale, flip=flip, name=name)

@@ -635,14 +635,19 @@ def vps_for_items(images: Sequence[str | Path], ids: Sequence[str], camera: Came
     """Per-image VPs for within-camera correction: ``within`` is 'estimate' (detector + reliability
     rule + optional smoothing) or the path of a CSV ``id,u,v`` (status 'given'; every id must
     have a row; an id is looked up as given, then without ``id_prefix``)."""
+    from .camera import camera_of_image
+
     if within == "estimate":
+        if not isinstance(camera, Camera):
+            raise InputError("VP estimation needs one camera; a per-frame calibration folder already gives every "
+                             "frame its exact pose", camera.folder, "use the calibrated poses (no --within)")
         return estimate_files(images, camera, cfg, smooth, ids, on_image)
     path = Path(within)
     table = read_vp_csv(path)
     keys = [i if i in table or not (id_prefix and i.startswith(id_prefix)) else i[len(id_prefix):] for i in ids]
     from .imageio import image_size
 
-    cams = [camera.for_image_size(image_size(p), p) for p in images]
+    cams = [camera_of_image(camera, p, image_size(p)) for p in images]  # (per-frame calibration: each its own)
     res = given_results(table, keys, cams, path)
     for (u, v), c, k in zip((r.vp for r in res), cams, keys):
         w, h = c.size

@@ -22,6 +22,11 @@ and the held-out test images are predicted in the model's own domain and scored 
 camera (back-projected probabilities, threshold 0.5) against their original labels: road IoU =
 ΣTP / Σ(TP+FP+FN) over the held-out test images, ignore pixels excluded.
 
+A dataset's ``camera:`` may be a folder of per-frame calibration files (KITTI ``calib/``,
+Cityscapes ``camera/<split>/``; :class:`vcprep.camera.FrameCameras`): then every frame has its
+own camera and exact pose, in every geometry (nothing is estimated for it), and its first frame's
+camera stands for it in the virtual camera's design.
+
 Estimated VPs (``within``, ``zero``) are searched for and accepted only inside the pose range the
 virtual camera is designed to hold (``pan_range``, ``tilt_range`` of the study; rejected images fall
 back to the mean accepted VP, see :mod:`vcprep.vanishing_point`).
@@ -44,6 +49,7 @@ is redone.
 from __future__ import annotations
 
 import hashlib
+import math
 import json
 import re
 import time
@@ -55,9 +61,9 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from vcprep.build import ItemPose, Job, list_dataset, warp_dataset
-from vcprep.camera import Camera, load_camera
+from vcprep.camera import Camera, FrameCameras, load_camera, load_cameras
 from vcprep.errors import InputError
-from vcprep.imageio import image_size_from_header, read_image, read_text, write_bytes_atomic
+from vcprep.imageio import image_size, read_image, read_text, write_bytes_atomic
 from vcprep.labels import decode_label, get_label_format
 from vcprep.store import Store
 
@@ -138,7 +144,9 @@ class Study:
     virtual: str = "design"         # 'design' (from the datasets' cameras), a preset or a camera file
     pan_range: float = 10.0         # pose variation the designed virtual camera must hold (degrees)
     tilt_range: float = 5.0
-    store_width: int = 320          # working width (px) of the virtual stores; resize uses the same size
+    store_width: int = 320          # working width (px) of the virtual stores (unless store_pixels)
+    store_pixels: int | None = None  # pixel budget of the virtual stores (sets the scale; wins over store_width)
+    above: float | None = None      # designed virtual camera cropped to this many degrees above the horizon
     train: dict[str, Any] = field(default_factory=dict)  # TrainConfig overrides
 
     def dataset(self, name: str) -> Dataset:
@@ -216,7 +224,8 @@ def load_study(path: str | Path) -> Study:
     except yaml.YAMLError:
         raise InputError("not valid YAML", path, "fix the syntax; see the study schema in the README") from None
     d = _mapping(d, "the study file", path)
-    _keys(d, ("datasets", "conditions", "virtual", "pan_range", "tilt_range", "store_width", "train"), ("datasets",),
+    _keys(d, ("datasets", "conditions", "virtual", "pan_range", "tilt_range", "store_width", "store_pixels", "above",
+              "train"), ("datasets",),
           "the study file", path)
     raw = d["datasets"]
     if not isinstance(raw, list) or len(raw) < 2:
@@ -285,6 +294,19 @@ def load_study(path: str | Path) -> Study:
             raise InputError(f"'store_width' must be a whole number of pixels in 64..8192, got {v!r}", path,
                              "e.g. store_width: 320")
         study.store_width = v
+    if "store_pixels" in d:
+        v = d["store_pixels"]
+        if isinstance(v, bool) or not isinstance(v, int) or not 4096 <= v <= 64_000_000:
+            raise InputError(f"'store_pixels' must be a whole number of pixels in 4096..64000000, got {v!r}", path,
+                             "e.g. store_pixels: 76800 (the pixels of 320x240)")
+        study.store_pixels = v
+    if "above" in d:
+        v = d["above"]
+        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v < 60):
+            raise InputError(f"'above' must be degrees in [0, 60), got {v!r}", path, "e.g. above: 8")
+        if v is not None and study.virtual != "design":
+            raise InputError("'above' crops a designed virtual camera", path, "use it with virtual: design")
+        study.above = None if v is None else float(v)
     if "train" in d:
         t = _mapping(d["train"], "'train'", path)
         _check_train_keys(t, path)
@@ -325,36 +347,53 @@ class _Builder:
             self._items[key] = jobs
         return self._items[key]
 
-    def camera(self, ds: Dataset) -> Camera:
+    def camera(self, ds: Dataset) -> Camera | FrameCameras:
+        """The dataset's camera, or its per-frame calibration when ``camera:`` is a folder."""
         if ds.name not in self._cams:
-            size = None
-            first = self.items(ds, ds.first_split)[0].image
-            if Path(ds.camera).suffix.lower() in (".txt", ".json"):
-                size = image_size_from_header(first.read_bytes()[:65536])
-            self._cams[ds.name] = load_camera(ds.camera, image_size=size)
+            self._cams[ds.name] = load_cameras(ds.camera, self.items(ds, ds.first_split)[0].image)
         return self._cams[ds.name]
+
+    def nominal_camera(self, ds: Dataset) -> Camera:
+        """One camera standing for the dataset (the virtual camera's design): per-frame
+        calibration is represented by its first frame's camera."""
+        cam = self.camera(ds)
+        if isinstance(cam, FrameCameras):
+            first = self.items(ds, ds.first_split)[0].image
+            cam = cam.for_image(first, image_size(first))
+        return cam
 
     def virtual(self) -> Camera:
         if self._virtual is None:
             if self.study.virtual == "design":
                 from vcprep.virtual_camera import design_virtual_camera
 
-                design = design_virtual_camera([self.camera(d) for d in self.study.datasets], self.study.pan_range,
-                                               self.study.tilt_range, name="study-virtual")
+                design = design_virtual_camera([self.nominal_camera(d) for d in self.study.datasets], self.study.pan_range,
+                                               self.study.tilt_range, name="study-virtual", above=self.study.above)
                 self._virtual = design.camera
             else:
                 self._virtual = load_camera(self.study.virtual)
         return self._virtual
 
     def scale(self) -> float:
-        return self.study.store_width / self.virtual().size[0]
+        w, h = self.virtual().size
+        if self.study.store_pixels:
+            return math.sqrt(self.study.store_pixels / (w * h))
+        return self.study.store_width / w
+
+    def resize_size(self, datasets: Sequence[Dataset], store_size: tuple[int, int]) -> tuple[int, int]:
+        """The resize baseline's working size: the virtual store's pixel count at the aspect of
+        the first training dataset's images (same pixel budget, no squashing of the source)."""
+        first = self.items(datasets[0], "train")[0].image
+        w0, h0 = image_size(first)
+        n = store_size[0] * store_size[1]
+        return max(32, int(round(math.sqrt(n * w0 / h0)))), max(32, int(round(math.sqrt(n * h0 / w0))))
 
     def has_given_vps(self, ds: Dataset, split: str) -> bool:
         return self.split(ds, split).vps is not None
 
     def poses(self, ds: Dataset, split: str, source: str) -> dict[str, ItemPose] | None:
-        if source == "none":
-            return None
+        if source == "none" or (source == "estimate" and isinstance(self.camera(ds), FrameCameras)):
+            return None  # (per-frame calibration: every frame's exact pose, nothing to estimate)
         from vcprep.vanishing_point import vps_for_items, write_vp_csv
 
         key = (ds.name, split, source)
@@ -513,6 +552,8 @@ def _execute(run: _Run, b: _Builder, sha: str, overrides: dict[str, Any], tag: s
     stores = [b.store(d, "train", geometry) for d in run.train]
     test_stores = {ds.name: b.store(ds, "test", geometry) for ds in todo}
     size = Store.open(stores[0]).store_size
+    if baseline == "resize":
+        size = b.resize_size(run.train, size)
     run_dir.mkdir(parents=True, exist_ok=True)
     cfg = _train_config(b.study, stores, run_dir, baseline, size, b.progress, overrides)
     trained = run_dir / "train.json"
@@ -568,7 +609,7 @@ def run_study(study: Study, out: str | Path, conditions: Sequence[str] | None = 
     # what a run's result depends on (besides its datasets and condition): a finished run with
     # other settings is redone, never silently reused
     settings = {"virtual": virt.to_dict(), "scale": b.scale(), "pan_range": study.pan_range,
-                "tilt_range": study.tilt_range, "train": training,
+                "tilt_range": study.tilt_range, "train": training, "resize_size": "source aspect, store pixels",
                 "datasets": [[d.name, d.role, d.camera, d.label_format, repr(d.train), repr(d.test)]
                              for d in study.datasets]}
     settings_sha = hashlib.sha256(json.dumps(settings, sort_keys=True, default=str).encode()).hexdigest()[:16]

@@ -2,8 +2,8 @@
 
 Predictions are ``<stem>_mask.png`` (0 / nonzero = road) and optionally ``<stem>_prob.png``
 (0-255), as written by ``vctrain predict``; ``<stem>`` is the image's file stem, and its label is
-found in the label folder by the label format's naming rule (e.g. KITTI ``um_000000`` ->
-``um_road_000000.png``). A stem with only a probability map is thresholded at 128 (P >= 0.5).
+found in the label folder or its subfolders by the label format's naming rule (e.g. KITTI
+``um_000000`` -> ``um_road_000000.png``). A stem with only a probability map is thresholded at 128 (P >= 0.5).
 KITTI metrics are computed when every evaluated stem has a probability map.
 """
 from __future__ import annotations
@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from vcprep.build import find_images
 from vcprep.errors import InputError
 from vcprep.imageio import read_image
 from vcprep.labels import LabelFormat, decode_label, label_stem_for
@@ -49,15 +50,22 @@ def evaluate_folder(pred_dir: str | Path, labels: str | Path, fmt: LabelFormat,
     if not stems:
         raise InputError("no <stem>_mask.png or <stem>_prob.png in folder", pred_dir,
                          "give the --out folder of 'vctrain predict'")
-    label_files = {p.stem: p for p in labels.iterdir() if p.suffix.lower() == ".png"}
+    label_files: dict[str, list[Path]] = {}
+    for p in find_images(labels, "label"):  # recursively: nested trees (Cityscapes gtFine/<split>/<city>/)
+        if p.suffix.lower() == ".png":
+            label_files.setdefault(p.stem, []).append(p)
     road, kitti = RoadMetrics(), KittiMetrics()
     with_prob = all("prob" in v for v in stems.values())
     for stem, files in tqdm(stems.items(), desc="eval", unit="img", disable=None if progress else True, leave=False):
         lstem = label_stem_for(Path(stem + ".png"), fmt)
-        lf = label_files.get(lstem)
-        if lf is None:
+        found = label_files.get(lstem, [])
+        if not found:
             raise InputError(f"no label '{lstem}.png' in {labels}", files.get("mask") or files.get("prob"),
                              "check --labels and --label-format")
+        if len(found) > 1:
+            raise InputError(f"two labels '{lstem}.png' in {labels} ({found[0]}, {found[1]})",
+                             files.get("mask") or files.get("prob"), "evaluate one split at a time")
+        lf = found[0]
         label = decode_label(read_image(lf, label=True).array, fmt, lf)
         prob = None
         if "prob" in files:

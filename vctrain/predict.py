@@ -25,8 +25,8 @@ import torch
 from tqdm import tqdm
 
 from vcprep.backproject import backproject_array
-from vcprep.build import Job, warp_dataset
-from vcprep.camera import Camera, camera_from_dict, scale_matrix
+from vcprep.build import Job, find_images, warp_dataset
+from vcprep.camera import Camera, FrameCameras, camera_from_dict, camera_of_image, scale_matrix
 from vcprep.errors import InputError
 from vcprep.homography import vp_from_pose
 from vcprep.imageio import IMAGE_EXTENSIONS, read_image, write_png
@@ -111,12 +111,13 @@ def _out_dir(out: str | Path) -> Path:
 
 
 def collect_images(paths: Iterable[str | Path]) -> list[Job]:
-    """Jobs (id = file stem) for image files and every image inside given folders."""
+    """Jobs (id = file stem) for image files and every image inside given folders (and their
+    subfolders); two images with one stem are an error."""
     jobs: list[Job] = []
     seen: dict[str, Path] = {}
     for p in map(Path, paths):
         if p.is_dir():
-            files = sorted(f for f in p.iterdir() if f.suffix.lower() in IMAGE_EXTENSIONS and not f.name.startswith("."))
+            files = find_images(p)  # recursively: dataset trees such as Cityscapes' leftImg8bit/<split>/<city>/
             if not files:
                 raise InputError("no images in folder", p, f"give image files ({', '.join(IMAGE_EXTENSIONS)})")
         elif p.is_file():
@@ -153,10 +154,12 @@ def predict_store(predictor: Predictor, store: Store, out: str | Path, progress:
     return written
 
 
-def predict_images(predictor: Predictor, images: Iterable[str | Path], out: str | Path, camera: Camera | None,
+def predict_images(predictor: Predictor, images: Iterable[str | Path], out: str | Path,
+                   camera: Camera | FrameCameras | None,
                    progress: bool = True, keep_store: str | Path | None = None, overlay: bool = False,
                    within: str = "auto") -> list[Path]:
-    """Predict image files/folders taken with ``camera`` (needed for virtual-camera models).
+    """Predict image files/folders taken with ``camera`` (needed for virtual-camera models; a
+    :class:`~vcprep.camera.FrameCameras` gives every image its own calibrated camera and pose).
 
     ``within``: per-image pan/tilt from the road VP, as for ``vcprep warp --within``
     ('estimate', a CSV ``id,u,v``, 'none'); 'auto' estimates VPs when the model's training store
@@ -169,7 +172,7 @@ def predict_images(predictor: Predictor, images: Iterable[str | Path], out: str 
             img = read_image(job.image).array
             vp = None
             if camera is not None and predictor.vp_channel:
-                vp = vp_from_pose(camera.for_image_size((img.shape[1], img.shape[0]), job.image))
+                vp = vp_from_pose(camera_of_image(camera, job.image, (img.shape[1], img.shape[0])))
             written.append(write_prediction(out, job.id, predictor.road_probability(img, vp),
                                             job.image if overlay else None)[0])
         return written
@@ -182,7 +185,8 @@ def predict_images(predictor: Predictor, images: Iterable[str | Path], out: str 
         return predict_store(predictor, store, out, progress, ids=[j.id for j in jobs], overlay=overlay)
 
 
-def warp_like_training(data: dict[str, Any], path: str | Path, jobs: list[Job], camera: Camera, root: str | Path,
+def warp_like_training(data: dict[str, Any], path: str | Path, jobs: list[Job], camera: Camera | FrameCameras,
+                       root: str | Path,
                        within: str = "auto", progress: bool = True) -> Store:
     """Warp image ``jobs`` of ``camera`` into the store ``root`` exactly as the training store of
     a checkpoint (its ``data``; ``path`` names it in errors) was built: same code, virtual
@@ -195,9 +199,13 @@ def warp_like_training(data: dict[str, Any], path: str | Path, jobs: list[Job], 
                          "use a model trained on a store built by 'vcprep warp'")
     virtual = camera_from_dict(sp["virtual"], path)
     completion = data.get("completion", "none")
-    if within == "auto":
-        within = "estimate" if set(data.get("vp_status", [])) - {"camera"} else "none"
+    if within == "auto":  # poses from VPs if training had them; calibrated poses (one file, a folder) are no VPs
+        within = ("estimate" if set(data.get("vp_status", [])) - {"camera", "calibrated"} and isinstance(camera, Camera)
+                  else "none")
     poses = None
+    if within != "none" and not isinstance(camera, Camera):
+        raise InputError("--within needs one camera; a per-frame calibration folder already gives every frame its "
+                         "exact pose", camera.folder, "drop --within, or give one camera file or preset")
     if within != "none":
         from vcprep.build import ItemPose
         from vcprep.vanishing_point import vps_for_items
