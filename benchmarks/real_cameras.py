@@ -139,6 +139,10 @@ def make_study(wd: Path, args: argparse.Namespace, conditions: list[str]) -> tup
                    "tilt_range": 5}
     if args.store_width:
         study["store_width"] = args.store_width
+    if args.store_pixels:
+        study["store_pixels"] = args.store_pixels
+    if args.above is not None:
+        study["above"] = args.above
     train = dict(QUICK_TRAIN) if args.quick else {}
     if args.device:
         train["device"] = args.device
@@ -328,6 +332,9 @@ def main() -> None:
     ap.add_argument("--epochs", type=int, default=None, help="training epochs (default: vctrain fit's recipe)")
     ap.add_argument("--conditions", default=",".join(CONDITIONS))
     ap.add_argument("--store-width", type=int, default=None, help="working width (default: crossval's)")
+    ap.add_argument("--store-pixels", type=int, default=None, help="working pixel budget (default: crossval's)")
+    ap.add_argument("--above", type=float, default=None,
+                    help="crop the designed virtual camera to this many degrees above the horizon (default: crossval's)")
     ap.add_argument("--device", default=None, help="training device (default: vctrain fit's, auto)")
     ap.add_argument("--threads", type=int, default=os.cpu_count() or 1, help="threads (default: all cores)")
     ap.add_argument("--workdir", type=Path, default=None,

@@ -304,3 +304,39 @@ def test_geometry_figures(tmp_path):
         img = cv2.imread(str(cmd[-1]))
         assert img is not None and img.std() > 10 and "Example" in run_cli(*cmd[:2], "--help").stdout
     assert_one_error_line(run_cli("figure", "fov", "nosuchcam", "-o", tmp_path / "x.png"), "nosuchcam")
+
+
+def test_camera_design_above_is_an_exact_crop_that_keeps_the_road(tmp_path):
+    """--above only moves cy and shortens the image: H differs from the uncropped design's by a
+    vertical translation, and every road pixel of every camera, at poses in the design range,
+    that lands inside the uncropped design lands inside the cropped one too (rendered roads:
+    the exact road mask is known), while a large share of the uncropped image is cut."""
+    from vcprep.camera import PRESETS, read_camera_yaml
+    from vcprep.homography import apply_homography, virt_H_src
+    from vcprep.synthetic import render_road
+
+    names = ["camvid", "kitti", "toronto2020"]
+    full, crop = tmp_path / "full.yaml", tmp_path / "crop.yaml"
+    for out, extra in ((full, []), (crop, ["--above", "6"])):
+        proc = run_cli("camera", "design", *names, "--pan-range", "8", "--tilt-range", "4", "-o", out, *extra)
+        assert proc.returncode == 0, proc.stderr
+    vf, vc = read_camera_yaml(full), read_camera_yaml(crop)
+    assert (vf.fx, vf.cx, vf.size[0], vf.height) == (vc.fx, vc.cx, vc.size[0], vc.height)
+    assert vc.size[1] < 0.8 * vf.size[1]
+    f = vc.fx
+    assert vc.cy + 0.5 == pytest.approx(f * (np.tan(np.radians(6)) + np.tan(np.radians(4))), rel=1e-9)
+    T = np.array([[1, 0, 0], [0, 1, vc.cy - vf.cy], [0, 0, 1.0]])
+    for name in names:
+        cam = PRESETS[name].resized(0.1)
+        for pan, tilt in ((0, 0), (8, 4), (-8, -4), (8, -4)):
+            Hf = virt_H_src(cam, vf, pan=cam.pan + pan, tilt=cam.tilt + tilt)
+            Hc = virt_H_src(cam, vc, pan=cam.pan + pan, tilt=cam.tilt + tilt)
+            M = T @ Hf
+            assert np.allclose(Hc / Hc[2, 2], M / M[2, 2], atol=1e-9)
+            _, lab = render_road(cam, pan=cam.pan + pan, tilt=cam.tilt + tilt, supersample=1)
+            v, u = np.nonzero(lab == 1)
+            pts = np.stack([u, v], axis=1).astype(float)
+            pf, pc = apply_homography(Hf, pts), apply_homography(Hc, pts)
+            inside_f = (pf[:, 1] > -0.5) & (pf[:, 1] < vf.size[1] - 0.5)
+            inside_c = (pc[:, 1] > -0.5) & (pc[:, 1] < vc.size[1] - 0.5)
+            assert inside_f.sum() > 100 and (inside_c | ~inside_f).all()

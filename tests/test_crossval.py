@@ -382,3 +382,47 @@ def test_heldout_must_name_an_evaluated_dataset(tmp_path):
     proc = run_cli("crossval", study, "--out", out, "--heldout", "camvid", prog="vctrain")
     assert_one_error_line(proc, "dataset 'camvid' has role train: it is never tested")
     assert not out.exists()
+
+
+def test_pixel_budget_crop_and_resize_aspect(tmp_path):
+    """store_pixels sets the scale of a virtual camera cropped to 'above' degrees over the horizon;
+    the resize baseline gets the same pixel count at its training images' own aspect (4:3 here)."""
+    import math
+
+    import torch
+
+    study = _study(tmp_path / "data")
+    d = yaml.safe_load(study.read_text())
+    d.update(store_pixels=6000, above=6, conditions=["resize", "between"])
+    del d["store_width"]
+    study.write_text(yaml.safe_dump(d))
+    out = tmp_path / "out"
+    proc = run_cli("crossval", study, "--out", out, "--heldout", "kitti", prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    info = json.loads((out / "study.json").read_text())
+    v = info["virtual"]
+    f = v["fx"]
+    # rows above the horizon: f (tan 6 deg + tan tilt_range 3 deg); the horizon row is cy
+    assert v["cy"] + 0.5 == pytest.approx(f * (math.tan(math.radians(6)) + math.tan(math.radians(3))), rel=1e-6)
+    assert v["cy"] < v["image_size"][1] / 3  # most of the image is below the horizon
+    w, h = Store.open(out / "stores" / "camvid" / "train" / "between").store_size
+    assert abs(w * h - 6000) < 0.02 * 6000
+    ck = {c: torch.load(out / "runs" / "kitti" / c / "model.pt", map_location="cpu", weights_only=False)
+          for c in ("resize", "between")}
+    assert ck["between"]["data"]["input_size"] == [w, h]
+    rw, rh = ck["resize"]["data"]["input_size"]
+    assert rw / rh == pytest.approx(4 / 3, rel=0.03) and abs(rw * rh - w * h) < 0.03 * w * h
+
+
+@pytest.mark.parametrize("edit, needle", [
+    (lambda d: d.update(store_pixels=100), "store_pixels"),
+    (lambda d: d.update(above=75), "'above' must be degrees"),
+    (lambda d: d.update(above=5, virtual="virtual"), "'above' crops a designed virtual camera"),
+])
+def test_bad_budget_and_crop_give_one_error_line(tmp_path, edit, needle):
+    study = _study(tmp_path / "data")
+    d = yaml.safe_load(study.read_text())
+    edit(d)
+    study.write_text(yaml.safe_dump(d))
+    proc = run_cli("crossval", study, "--out", tmp_path / "out", prog="vctrain")
+    assert_one_error_line(proc, needle)
