@@ -16,15 +16,15 @@ import pytest
 
 from vcprep.build import ItemPose, list_dataset, warp_dataset
 from vcprep.camera import PRESETS
-from vcprep.completion import (METHODS, TABLE_ARC, CompletionMaps, border_ignore, check_method, complete_maps, completion_maps,
-                               exit_points_rectangle, store_vp)
+from vcprep.completion import (LABEL_RIM, METHODS, TABLE_ARC, CompletionMaps, border_ignore, check_method, complete_maps,
+                               completion_maps, exit_points_rectangle, label_exit_points, store_vp)
 from vcprep.errors import InputError
 from vcprep.homography import apply_homography, virt_H_src, virtual_at_scale, vp_from_pose
 from vcprep.labels import LABEL_FORMATS
 from vcprep.synthetic import RoadScene, render_road
 from vcprep.warp import OUTSIDE, maps_for, warp_image, warp_label
 
-from conftest import assert_one_error_line, run_cli, write_synthetic_dataset
+from conftest import EXAMPLES, assert_one_error_line, run_cli, write_synthetic_dataset
 
 V8 = virtual_at_scale(PRESETS["virtual"], 0.125)  # 688 x 350
 SCENE = RoadScene(offset=0.8, width=9.0, texture_seed=3)
@@ -331,3 +331,60 @@ def test_fused_pass_equals_the_one_remap_reference(camvid_half, kind, cut):
     wl = warp_label(lab, maps, maps.label_border)
     one = cv2.remap(lab, maps.nearest, None, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=255)
     assert np.array_equal(wl, one)
+
+
+# -- annotation rims (issue 16.2) --------------------------------------------------------------------
+
+@pytest.mark.parametrize("method", ["projective", "replicate"])
+def test_a_label_rim_is_not_completed(method):
+    """KITTI's gt_image_2 marks its last rows 'not road' even under the road. Completion takes
+    labels LABEL_RIM px inside the edge, so a rim up to that wide changes no completed pixel and
+    the road continues below the frame, as the virtual camera rendered directly sees it."""
+    kitti = PRESETS["kitti"]
+    img, lab, H, vp = _setup(kitti)
+    _, ref_lab = render_road(V8, SCENE, supersample=1)
+    maps = completion_maps(H, kitti.size, V8.size, method, vp)
+    unc = maps.valid == 0
+    clean = warp_label(lab, maps, maps.label_border)
+    for rows in (3, 5, LABEL_RIM):
+        rim = lab.copy()
+        rim[-rows:] = 0  # not road across the whole bottom band
+        rim[:, :2] = 0   # and a rim on the left edge too
+        np.testing.assert_array_equal(warp_label(rim, maps, maps.label_border)[unc], clean[unc])
+    if method == "replicate":  # (replication is no geometric completion: only the rim independence holds)
+        return
+    below = unc & (np.arange(V8.size[1])[:, None] > vp[1]) & (ref_lab == 1)  # road under the frame
+    assert below.sum() > 1000
+    assert (clean[below] == 1).mean() > 0.99
+    assert (clean[unc] == ref_lab[unc]).mean() > 0.98
+
+
+def test_label_exit_points_are_inset():
+    c = np.array([10.0, 5.0])
+    dx, dy = np.array([1.0, 0.0, -1.0, 1.0]), np.array([0.0, 1.0, 0.0, 1.0])
+    x, y = label_exit_points(c, dx, dy, (21, 11), rim=2)
+    np.testing.assert_array_equal(x, [18, 10, 2, 13])  # the diagonal meets the inset bottom (y 8) at x 13
+    np.testing.assert_array_equal(y, [5, 8, 5, 8])
+    # a centre inside the rim is moved in first; an image thinner than two rims is sampled at its middle
+    x, y = label_exit_points(np.array([0.0, 0.0]), np.array([1.0]), np.array([0.0]), (21, 3), rim=2)
+    assert (x[0], y[0]) == (18, 1)
+
+
+def test_real_kitti_frame_road_continues_below_it(tmp_path):
+    """The shipped KITTI frame (its gt_image_2 has 4 rows of 'not road' and a 5th half of it under
+    the road): below the frame, on the road VP's column, the completed label is road."""
+    kitti = EXAMPLES / "kitti"
+    out = tmp_path / "store"
+    proc = run_cli("warp", "--camera", kitti / "calib" / "um_000000.txt", "--images", kitti / "image_2", "--labels",
+                   kitti / "gt_image_2", "--label-format", "kitti", "--out", out, "--jobs", "1", "-q")
+    assert proc.returncode == 0, proc.stderr
+    rec = json.loads((out / "manifest.jsonl").read_text())
+    assert rec["key"] and "completion" in rec
+    lab = cv2.imread(str(out / rec["label"]), cv2.IMREAD_UNCHANGED)
+    valid = cv2.imread(str(out / rec["valid"]), cv2.IMREAD_UNCHANGED)
+    u = int(round(rec["completion_centre"][0]))
+    last = int(np.flatnonzero(valid[:, u])[-1])
+    column = lab[last + 1:, u]
+    assert len(column) > 50 and (column == 1).all()
+    # the frame's own bottom rows stay as annotated (the warp shows them; only completion skips them)
+    assert (lab[last - 1:last + 1, u] == 0).any()

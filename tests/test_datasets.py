@@ -43,10 +43,12 @@ def _kitti_calib(cam: Camera) -> str:
 
 
 def _kitti_label(lab: np.ndarray) -> np.ndarray:
-    """gt_image_2 colours (BGR): magenta road, red not road."""
+    """gt_image_2 colours (BGR): magenta road, red not road -- and, as KITTI ships them, the last
+    rows red across the whole width, even under the road."""
     out = np.zeros(lab.shape + (3,), np.uint8)
     out[lab == 1] = (255, 0, 255)
     out[lab != 1] = (0, 0, 255)
+    out[-3:] = (0, 0, 255)
     return out
 
 
@@ -144,6 +146,12 @@ def test_kitti_calib_folder_gives_every_frame_its_own_exact_pose(kitti, tmp_path
         assert ref["H"] == rec["H"] and ref["camera_params"] == rec["camera_params"]
         assert ref["vp_status"] == "camera"  # one file for the whole folder: its pose is the camera's
         assert (alone / ref["image"]).read_bytes() == (out / rec["image"]).read_bytes()
+        # the label's red bottom rim is not completed: the road continues below the frame
+        lab = cv2.imread(str(out / rec["label"]), cv2.IMREAD_UNCHANGED)
+        valid = cv2.imread(str(out / rec["valid"]), cv2.IMREAD_UNCHANGED)
+        u = int(round(rec["completion_centre"][0]))
+        below = lab[int(np.flatnonzero(valid[:, u])[-1]) + 1:, u]
+        assert len(below) > 20 and (below == 1).all()
     # the frames really differ: one camera for all would have been wrong for two of them
     assert len({tuple(r["H"]) for r in recs.values()}) == len(cams)
     # re-running does nothing; changing one frame's calibration redoes exactly that frame

@@ -22,6 +22,14 @@ on the ray's angle, it is kept as a 1-D table of angles, and applying the maps r
 pixels and looks the uncovered ones up in the table sampled once per image
 (:class:`CompletionMaps`): each pixel is computed once, and only the covered ones interpolate.
 
+Labels are completed from LABEL_RIM (8) px inside the image edge: a ray that leaves through the
+edge takes its label where it leaves the rectangle inset by 8 px on every side
+(:func:`label_exit_points`). Annotations often carry a thin rim that disagrees with the rows
+just inside it (KITTI road's ``gt_image_2`` marks its last 4-5 rows "not road" even under the
+road); sampled at the edge itself, that rim would fill the whole region below a frame. The
+image keeps the exact edge exit (its pixels there are real); ``replicate`` clamps its label
+points into the same inset rectangle.
+
 The covered region is the source rectangle (pixel centres ``[0, w-1] x [0, h-1]``) minus the
 label's ignore pixels that touch the image border (an ego-vehicle bonnet, a rectification
 border). A ray's exit point is the exact ray/rectangle intersection, unless the ray meets such
@@ -55,12 +63,14 @@ from .errors import GeometryError, InputError
 from .labels import IGNORE
 from .warp import RemapMaps, maps_for
 
-__all__ = ["METHODS", "COMPLETION_VERSION", "CompletionMaps", "check_method", "border_ignore", "completion_maps",
-           "complete_maps", "exit_points_rectangle", "store_vp"]
+__all__ = ["METHODS", "COMPLETION_VERSION", "LABEL_RIM", "CompletionMaps", "check_method", "border_ignore",
+           "completion_maps", "complete_maps", "exit_points_rectangle", "label_exit_points", "store_vp"]
 
 METHODS = ("projective", "zero", "replicate", "none")
-COMPLETION_VERSION = "completion-v2"  # bump when completed outputs of identical inputs would change
+COMPLETION_VERSION = "completion-v3"  # bump when completed outputs of identical inputs would change
+# v3: labels are sampled LABEL_RIM px inside the image edge (annotation rims, e.g. KITTI's bottom rows)
 INSET = 1.0            # px the image map steps inward from a cut (ignore) boundary
+LABEL_RIM = 8          # source px: completed labels never take their value from this band along the image edge
 FALLBACK_TOWARD = 0.1  # VP outside: move the nearest covered pixel this far toward the centroid
 TABLE_ARC = 0.5        # px: angular step of the fill table, as arc length at the farthest store pixel
 TABLE_COLS = 4096      # the fill table's row length (remap coordinates must fit in int16)
@@ -271,6 +281,20 @@ def exit_points_rectangle(c_src: np.ndarray, dx: np.ndarray, dy: np.ndarray, src
     return x, y
 
 
+def label_exit_points(c_src: np.ndarray, dx: np.ndarray, dy: np.ndarray, src_size: tuple[int, int],
+                      rim: float = LABEL_RIM) -> tuple[np.ndarray, np.ndarray]:
+    """The label pixel (rounded) of rays ``c_src + s (dx, dy)`` that leave through the image
+    edge: where they leave the rectangle inset by ``rim`` px on every side (at most half the
+    image), so that a thin band along the edge that disagrees with the rows inside it (an
+    annotation rim) never fills the completion. ``c_src`` is first moved into that rectangle."""
+    w, h = src_size
+    rx, ry = min(float(rim), (w - 1) / 2), min(float(rim), (h - 1) / 2)
+    c = np.clip(np.asarray(c_src, dtype=np.float64), [rx, ry], [w - 1 - rx, h - 1 - ry])
+    # the inset rectangle [rx, w-1-rx] x [ry, h-1-ry] is the full one of an image 2rx, 2ry px smaller
+    x, y = exit_points_rectangle(c - [rx, ry], dx, dy, (w - 2 * rx, h - 2 * ry))
+    return np.rint(x + rx), np.rint(y + ry)
+
+
 def _boundary_table(boundary: np.ndarray, c_src: np.ndarray, offset: tuple[int, int] = (0, 0)):
     """The first-exit boundary seen from ``c_src`` among the pixels of ``boundary`` (uint8 0/1).
 
@@ -361,7 +385,7 @@ def _build_rays(n: int, J: np.ndarray, c_src: np.ndarray, src_size) -> _Rays:
     dx = J[0, 0] * cx_ + J[0, 1] * cy_
     dy = J[1, 0] * cx_ + J[1, 1] * cy_
     xr, yr = exit_points_rectangle(c_src, dx, dy, src_size)
-    lx, ly = np.rint(xr), np.rint(yr)
+    lx, ly = label_exit_points(c_src, dx, dy, src_size)
     return _Rays(c_src, np.arctan2(dy, dx), xr, yr, np.hypot(xr - c_src[0], yr - c_src[1]), lx, ly,
                  ly.astype(np.int64) * src_size[0] + lx.astype(np.int64), _bilinear_taps(xr, yr, src_size))
 
@@ -574,7 +598,17 @@ def complete_maps(base: RemapMaps, dst_H_src: np.ndarray, src_size: tuple[int, i
         k = lut[lab[vs, us]]
         map_x[vs, us] = base.map_x[ry[k], rx[k]]
         map_y[vs, us] = base.map_y[ry[k], rx[k]]
-        return CompletionMaps(base, method, IGNORE, full=_finish(map_x, map_y, map_x, map_y, valid))
+        # labels: the same points clamped into the rectangle LABEL_RIM px inside the edge (an
+        # annotation rim is not replicated), unless that lands in the cut
+        lab_x, lab_y = map_x.copy(), map_y.copy()
+        rx_, ry_ = min(LABEL_RIM, (w - 1) / 2), min(LABEL_RIM, (h - 1) / 2)
+        cx_ = np.clip(map_x[vs, us], rx_, w - 1 - rx_)
+        cy_ = np.clip(map_y[vs, us], ry_, h - 1 - ry_)
+        if region_src is not None:
+            inside = region_src[np.rint(cy_).astype(np.int64), np.rint(cx_).astype(np.int64)] == 1
+            cx_, cy_ = np.where(inside, cx_, map_x[vs, us]), np.where(inside, cy_, map_y[vs, us])
+        lab_x[vs, us], lab_y[vs, us] = cx_, cy_
+        return CompletionMaps(base, method, IGNORE, full=_finish(map_x, map_y, lab_x, lab_y, valid))
 
     # projective
     if vp is None:
