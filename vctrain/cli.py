@@ -137,7 +137,8 @@ def predict_cmd(
     images: Optional[List[Path]] = typer.Argument(None, help="image files or folders"),
     out: Path = typer.Option(..., "--out", "-o", help="output folder (created)"),
     camera: Optional[str] = typer.Option(None, "--camera", "-c",
-                                         help="camera of the images: preset or file (.yaml, KITTI .txt, Cityscapes .json)"),
+                                         help="camera of the images: preset or file (.yaml, KITTI .txt, Cityscapes .json), "
+                                              "or a folder of per-frame calibration files matched by stem"),
     prior: Optional[Path] = typer.Option(None, "--prior", help="no model: segment with the geometric prior written by "
                                                                 "'vcprep prior' (p_g >= 0.5, back-projected)"),
     store: Optional[Path] = typer.Option(None, "--store", help="predict every item of this store instead of IMAGES"),
