@@ -363,6 +363,7 @@ def test_a_split_that_selects_nothing_is_one_error_line(tmp_path):
     (lambda d: d["datasets"][0]["train"].update(include=3), "'include' in dataset 'camvid' train must be a glob"),
     (lambda d: d["datasets"][0]["train"].update(exclude=[]), "'exclude' in dataset 'camvid' train must be a glob"),
     (lambda d: d["train"].update(stores=["x"]), "unknown key 'stores' in 'train'"),
+    (lambda d: d["train"].update(schedule="wavy"), "'train': unknown schedule 'wavy'"),
 ])
 def test_bad_roles_and_selections_give_one_error_line(tmp_path, edit, needle):
     study = _mixed_study(tmp_path / "data")

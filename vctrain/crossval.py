@@ -433,8 +433,9 @@ class _Builder:
 # -- one run -------------------------------------------------------------------------------------
 def _train_config(study: Study, stores: list[Path], out: Path, baseline: str, size: tuple[int, int] | None,
                   progress: bool, overrides: dict[str, Any]):
-    """TrainConfig's defaults (the project's recipe), then the study's ``train:``, then ``overrides``."""
-    from .train import TrainConfig
+    """The study's ``train:``, then ``overrides``, then for every setting left unset the recipe's
+    default exactly as ``vctrain fit`` resolves it (so a study follows the project's recipe)."""
+    from .train import TrainConfig, resolve_recipe
 
     cfg = TrainConfig(stores=[str(s) for s in stores], out=str(out / "model.pt"), baseline=baseline, size=size,
                       progress=progress)
@@ -442,7 +443,10 @@ def _train_config(study: Study, stores: list[Path], out: Path, baseline: str, si
     for k, v in {**study.train, **overrides}.items():
         if k in names and v is not None:
             setattr(cfg, k, v)
-    return cfg
+    try:
+        return resolve_recipe(cfg)
+    except InputError as e:
+        raise InputError(f"'train': {e.problem}", study.path, e.fix) from None
 
 
 def training_settings(study: Study, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
@@ -563,9 +567,8 @@ def _execute(run: _Run, b: _Builder, sha: str, overrides: dict[str, Any], tag: s
     else:  # a training of other settings, or one that was interrupted: start afresh
         for old in (trained, Path(cfg.out), run_dir / "model.last.pt", run_dir / "model.log.jsonl"):
             old.unlink(missing_ok=True)
-        epochs = f"{cfg.epochs} epochs" if cfg.epochs else "vctrain fit's epochs"
         say(f"{tag} {run.name}, {c}: training on {', '.join(d.name for d in run.train)} "
-            f"({epochs} at {size[0]}x{size[1]})")
+            f"({cfg.epochs} epochs at {size[0]}x{size[1]})")
         t0 = time.perf_counter()
         summary = fit(cfg)
         info = {"train_datasets": [d.name for d in run.train], "train_items": summary["data"]["train_items"],
@@ -599,10 +602,10 @@ def run_study(study: Study, out: str | Path, conditions: Sequence[str] | None = 
     conditions = check_conditions(conditions or study.conditions)
     evaluated = evaluated_datasets(study, heldout)
     overrides = dict(train_overrides or {})
+    training = training_settings(study, overrides)  # checks the training settings before anything is written
     out.mkdir(parents=True, exist_ok=True)
     b = _Builder(study, out, progress, jobs, say)
     virt = b.virtual()
-    training = training_settings(study, overrides)
     _atomic_json(out / "study.json", {"study": str(study.path), "virtual": virt.to_dict(), "scale": b.scale(),
                                       "conditions": conditions, "datasets": [d.name for d in study.datasets],
                                       "roles": {d.name: d.role for d in study.datasets}, "train": training})
