@@ -20,25 +20,30 @@ Data (../shared/data; nothing is tuned on a test set):
 * **simulated other cameras**: CamVid val through ``tele``, ``band`` and ``dashcam``, made by
   ``vcprep simulate`` exactly as benchmarks/cross_camera.py makes them (camvid_cameras.py).
 
-Every test set has role test: per condition ONE model is trained on CamVid train and scored on
-each test set in its own camera (back-projected, ignore excluded; road IoU = sum TP / sum
-(TP+FP+FN) over the set). Conditions (default): ``resize`` (the baseline: images resized to the
-working size), ``between`` (virtual camera, each camera's average pose), ``within`` (plus each
-image's estimated road VP). The virtual camera is designed from all the study's cameras
-(calibrations only). Training settings: ``vctrain fit``'s defaults (its CPU recipe without a GPU)
-except ``--epochs``; working width: crossval's default unless ``--store-width``.
+Every test set has role test: per condition ONE model is trained on CamVid train and scored on each
+test set in its own camera (back-projected, ignore excluded; road IoU = sum TP / sum (TP+FP+FN) over
+the set). Conditions (default): ``resize`` (the baseline: images resized to the working size),
+``between`` (virtual camera, each camera's average pose), ``within`` (plus each image's estimated
+road VP). Available with ``--conditions`` (not run by default): ``prior`` (no training: the
+geometric prior p_g of CamVid train in the virtual camera, back-projected, p_g >= 0.5; Table 5's
+"Geo-Prior") and ``adapt`` (the within model of the same seed, adapted without labels to each test
+set's test images with that prior; crossval trains the within model once for both). The virtual
+camera is designed from all the study's cameras (calibrations only). Training settings:
+``vctrain fit``'s defaults (its CPU recipe without a GPU) except ``--epochs``; working width: crossval's
+default unless ``--store-width``.
 
 Reported (never asserted), mean +/- std over seeds (sample std, ddof 1) per cell, and the paired
-difference within - resize per seed. Headline ``within_minus_resize``: the mean over seeds of (the
-mean over the other-camera test sets kitti, tele, band, dashcam of within - resize); also KITTI
-(real) alone and the simulated cameras alone. Targets checked: in-domain road IoU >= 0.85 on both
-in-domain rows for every condition; cross-camera within - resize >= 10 IoU points; every model
-converged (best epoch before the last, or a plateau: the last quarter of the epochs, at least 2,
-improves the best validation IoU by < 0.5 points); data pipeline: the training images/s of each
-model >= 0.9x a pure forward + backward + optimiser step on random tensors of the same shape,
-measured in this process right after each seed's training (same model args, batch, working size,
-memory format, optimiser, device and threads; kept in runs/_all/<condition>/reference.json, so a
-resumed benchmark reuses the reference of the training it belongs to).
+difference within - resize per seed (and adapt - within, when both ran). Headline
+``within_minus_resize``: the mean over seeds of (the mean over the other-camera test sets kitti,
+tele, band, dashcam of within - resize); also KITTI (real) alone and the simulated cameras alone.
+Targets checked: in-domain road IoU >= 0.85 on both in-domain rows for every trained condition (not
+prior, not adapt); cross-camera within - resize >= 10 IoU points; every model converged (best epoch
+before the last, or a plateau: the last quarter of the epochs, at least 2, improves the best
+validation IoU by < 0.5 points); data pipeline: the training images/s of each model >= 0.9x a pure
+forward + backward + optimiser step on random tensors of the same shape, measured in this process
+right after each seed's training (same model args, batch, working size, memory format, optimiser,
+device and threads; kept in runs/_all/<condition>/reference.json, so a resumed benchmark reuses the
+reference of the training it belongs to).
 
 Threads: ``--threads T`` (default: all cores) = ``torch.set_num_threads(T)`` and ``cv2.setNumThreads(T)``
 here, ``OMP_NUM_THREADS=T`` for the training processes, ``--jobs T`` store builders.
@@ -74,7 +79,8 @@ IN_DOMAIN = ["camvid-val", f"camvid-{UNSEEN}"]
 REAL = ["kitti"]
 SIM = list(SIMULATED)
 OTHER = REAL + SIM                        # the other-camera test sets of the headline
-CONDITIONS = ["resize", "between", "within"]
+CONDITIONS = ["resize", "between", "within"]     # the default; --conditions may add within-gt, zero, prior, adapt
+UNTRAINED = ("prior", "adapt")                   # no model of their own (no convergence or in-domain target)
 QUICK_TRAIN = {"epochs": 1, "max_steps": 2}
 
 
@@ -269,8 +275,24 @@ def fmt(s: dict | None, scale: float = 100.0, signed: bool = False) -> str:
     return f"{scale * s['mean']:{'+' if signed else ''}.1f} ± {scale * s['std']:.1f}"
 
 
+def paired(per_seed: dict[int, dict], sets: list[str], groups: dict[str, list[str]], a: str, b: str) -> dict:
+    """Paired differences a - b of road IoU per seed (mean, std, per seed), per test set and group
+    (a group's difference per seed is the mean over its members)."""
+    seeds = sorted(per_seed)
+    diff: dict[str, dict] = {}
+    for s in sets:
+        diff[s] = stats([per_seed[k][s, a]["iou"] - per_seed[k][s, b]["iou"] for k in seeds
+                         if (s, a) in per_seed[k] and (s, b) in per_seed[k]])
+    for g, members in groups.items():
+        if members:
+            diff[g] = stats([float(np.mean([per_seed[k][m, a]["iou"] - per_seed[k][m, b]["iou"] for m in members]))
+                             for k in seeds if all((m, c) in per_seed[k] for m in members for c in (a, b))])
+    return diff
+
+
 def aggregate(per_seed: dict[int, dict], sets: list[str], conditions: list[str]) -> dict:
-    """Cells (mean, std, per seed) and paired within - resize differences, per test set and group."""
+    """Cells (mean, std, per seed) and paired within - resize (and adapt - within) differences, per
+    test set and group."""
     seeds = sorted(per_seed)
     others = [s for s in OTHER if s in sets]
     groups = {"other cameras": others, "kitti (real)": [s for s in REAL if s in sets],
@@ -282,28 +304,23 @@ def aggregate(per_seed: dict[int, dict], sets: list[str], conditions: list[str])
         if members:
             cells[g] = {c: stats([float(np.mean([per_seed[k][m, c]["iou"] for m in members])) for k in seeds
                                   if all((m, c) in per_seed[k] for m in members)]) for c in conditions}
-    diff: dict[str, dict] = {}
-    if "within" in conditions and "resize" in conditions:
-        for s in sets:
-            diff[s] = stats([per_seed[k][s, "within"]["iou"] - per_seed[k][s, "resize"]["iou"] for k in seeds
-                             if (s, "within") in per_seed[k] and (s, "resize") in per_seed[k]])
-        for g, members in groups.items():
-            if members:
-                diff[g] = stats([float(np.mean([per_seed[k][m, "within"]["iou"] - per_seed[k][m, "resize"]["iou"]
-                                                for m in members])) for k in seeds
-                                 if all((m, c) in per_seed[k] for m in members for c in ("within", "resize"))])
-    return {"cells": cells, "within_minus_resize": diff, "groups": groups}
+    diff = paired(per_seed, sets, groups, "within", "resize") if {"within", "resize"} <= set(conditions) else {}
+    adapt = paired(per_seed, sets, groups, "adapt", "within") if {"adapt", "within"} <= set(conditions) else {}
+    return {"cells": cells, "within_minus_resize": diff, "adapt_minus_within": adapt, "groups": groups}
 
 
 def table(agg: dict, sets: list[str], conditions: list[str], items: dict[str, int]) -> str:
-    diff = bool(agg["within_minus_resize"])
-    header = ["test set", "frames"] + conditions + (["within − resize"] if diff else [])
+    diff, adapt = bool(agg["within_minus_resize"]), bool(agg["adapt_minus_within"])
+    header = (["test set", "frames"] + conditions + (["within − resize"] if diff else [])
+              + (["adapt − within"] if adapt else []))
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for s in sets + [g for g in agg["groups"] if agg["groups"][g]]:
         row = [s if s in sets else f"**{s}** (mean)", str(items.get(s, "")) if s in sets else ""]
         row += [fmt(agg["cells"][s][c]) for c in conditions]
         if diff:
             row.append(fmt(agg["within_minus_resize"].get(s), signed=True))
+        if adapt:
+            row.append(fmt(agg["adapt_minus_within"].get(s), signed=True))
         lines.append("| " + " | ".join(row) + " |")
     return "\n".join(lines) + "\n"
 
@@ -311,7 +328,7 @@ def table(agg: dict, sets: list[str], conditions: list[str], items: dict[str, in
 def targets(agg: dict, models: list[dict], conditions: list[str]) -> dict:
     cells, diff = agg["cells"], agg["within_minus_resize"]
     in_dom = {f"{s} {c}": cells[s][c]["mean"] for s in IN_DOMAIN if s in cells for c in conditions
-              if cells[s][c]["mean"] is not None}
+              if c not in UNTRAINED and cells[s][c]["mean"] is not None}
     cross = diff.get("other cameras", {}).get("mean")
     ratios = [m["pipeline_ratio"] for m in models]
     return {
@@ -330,7 +347,10 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", default=None, help="comma-separated training seeds (default 0,1,2; --quick: 0)")
     ap.add_argument("--epochs", type=int, default=None, help="training epochs (default: vctrain fit's recipe)")
-    ap.add_argument("--conditions", default=",".join(CONDITIONS))
+    from vctrain.crossval import CONDITIONS as AVAILABLE
+
+    ap.add_argument("--conditions", default=",".join(CONDITIONS),
+                    help=f"comma-separated, from {','.join(AVAILABLE)} (default: {','.join(CONDITIONS)})")
     ap.add_argument("--store-width", type=int, default=None, help="working width (default: crossval's)")
     ap.add_argument("--store-pixels", type=int, default=None, help="working pixel budget (default: crossval's)")
     ap.add_argument("--above", type=float, default=None,
@@ -351,6 +371,8 @@ def main() -> None:
     cv2.setNumThreads(T)
     seeds = [int(s) for s in (args.seeds or ("0" if args.quick else "0,1,2")).split(",") if s.strip()]
     conditions = [c for c in args.conditions.split(",") if c]
+    if not conditions or any(c not in AVAILABLE for c in conditions):
+        sys.exit(f"--conditions: choose from {', '.join(AVAILABLE)}")
     wd = (args.workdir or ROOT / "benchmarks" / "out" / ("real_cameras_quick" if args.quick else "real_cameras"))
     wd = wd.resolve()
     res = (args.results or (wd / "results" if args.quick else ROOT / "benchmarks" / "results")).resolve()
@@ -402,6 +424,8 @@ def main() -> None:
         else round(tg["pipeline_ratio_ge_0.9"]["min"], 3),
         "converged": tg["converged"]["models"], "seeds": len(seeds), "quick": args.quick,
     }
+    if agg["adapt_minus_within"]:
+        headline["adapt_minus_within"] = mean_of(agg["adapt_minus_within"].get("other cameras"))
     study_json = json.loads((wd / f"seed{seeds[0]}" / "study.json").read_text())
     virt, m0 = study_json["virtual"], (models[0] if models else {})
     md = ["# Real new cameras: train on CamVid, test on other cameras (benchmarks/real_cameras.py)", "",
@@ -440,7 +464,8 @@ def main() -> None:
                 bar_plot(cell, groups, conditions, f"road IoU (%) per test set, trained on CamVid (mean +/- std over "
                                                   f"{len(seeds)} seeds)", spread))
     (res / "real_cameras.json").write_text(json.dumps(
-        {"headline": headline, "cells": cells, "within_minus_resize": diff, "groups": agg["groups"],
+        {"headline": headline, "cells": cells, "within_minus_resize": diff,
+         "adapt_minus_within": agg["adapt_minus_within"], "groups": agg["groups"],
          "test_frames": items, "targets": tg, "models": models, "seeds": seeds, "conditions": conditions,
          "threads": T, "study": study, "virtual": virt, "scale": study_json["scale"],
          "train_settings": study_json["train"], "wall_minutes": total / 60}, indent=1, default=str) + "\n")

@@ -297,8 +297,8 @@ def crossval_cmd(
                                            "labels, optional VPs) and settings; schema in the README"),
     out: Path = typer.Option(..., "--out", "-o", help="study folder (created; an existing one is resumed)"),
     conditions: Optional[str] = typer.Option(None, "--conditions",
-                                             help="comma-separated subset of resize,between,within,within-gt,zero "
-                                                  "(default: the study file's, else all)"),
+                                             help="comma-separated subset of resize,between,within,within-gt,zero,"
+                                                  "prior,adapt (default: the study file's, else the first five)"),
     heldout: Optional[str] = typer.Option(None, "--heldout", help="comma-separated datasets to evaluate (default: "
                                                                    "every dataset of role both or test)"),
     epochs: Optional[int] = typer.Option(None, "--epochs", "-e", min=1, help="override the study's training epochs"),
@@ -316,7 +316,9 @@ def crossval_cmd(
 
     Conditions: resize (baseline: images resized), between (virtual camera, average pose),
     within (plus each image's estimated VP), within-gt (the study's given VPs), zero (within with
-    zero padding instead of projective completion). Prints the table (rows: evaluated dataset and
+    zero padding instead of projective completion), prior (no training: the training datasets'
+    geometric prior, p_g >= 0.5), adapt (the within model adapted to the evaluated dataset's
+    unlabelled images with that prior; not among the defaults). Prints the table (rows: evaluated dataset and
     mean; columns: conditions; road IoU in %) and writes OUT/table.md, table.csv, results.jsonl,
     summary.json and per-run logs under OUT/runs. Training settings the study does not give are
     vctrain fit's defaults. Finished runs are not redone: run the same command again to resume.

@@ -14,7 +14,18 @@ between     virtual camera, each dataset's average pose (between-camera correcti
 within      virtual camera, each image's pose from its ESTIMATED road VP (within-camera)
 within-gt   as within, with the GIVEN VPs of the study file (where every dataset has them)
 zero        as within, uncovered virtual pixels zero-padded instead of projective completion
+prior       no training: the geometric prior p_g of the training datasets' ``within`` stores
+            (their mean road label in the virtual camera), segmentation p_g >= 0.5 (Table 5
+            "Geo-Prior"); ``runs/<run>/prior/prior.npy`` (+ its description) is the prior
+adapt       the ``within`` model (the within run's own checkpoint, never a second training)
+            fine-tuned by :func:`vctrain.adapt.adapt` on the evaluated dataset's UNLABELLED images
+            (its ``unlabelled:`` split, else its test images without their labels) with
+            surrogate labels from the training datasets' prior; one adapted model per evaluated
+            dataset (``runs/<heldout>/adapt/`` or ``runs/_all/adapt/<dataset>/``)
 ==========  ==========================================================================
+
+A study's default conditions are the first five (:data:`DEFAULT_CONDITIONS`); ``prior`` and
+``adapt`` run when asked for (study ``conditions:`` or ``--conditions``).
 
 Everything runs through the real tools: stores are built with :func:`vcprep.build.warp_dataset`
 (one per dataset, split and geometry, shared by all folds), models with :func:`vctrain.train.fit`,
@@ -52,6 +63,7 @@ import hashlib
 import math
 import json
 import re
+import shutil
 import time
 from fnmatch import fnmatchcase
 from dataclasses import dataclass, field, fields
@@ -67,7 +79,8 @@ from vcprep.imageio import image_size, read_image, read_text, write_bytes_atomic
 from vcprep.labels import decode_label, get_label_format
 from vcprep.store import Store
 
-__all__ = ["CONDITIONS", "GEOMETRIES", "ROLES", "Split", "Dataset", "Study", "load_study", "evaluated_datasets",
+__all__ = ["CONDITIONS", "DEFAULT_CONDITIONS", "GEOMETRIES", "ROLES", "Split", "Dataset", "Study", "load_study",
+           "evaluated_datasets",
            "plan_runs", "training_settings", "run_study", "format_table", "summary_of"]
 
 # geometry name -> (VP source, completion); one store per dataset, split and geometry
@@ -77,14 +90,19 @@ GEOMETRIES: dict[str, tuple[str, str]] = {
     "within-gt": ("given", "projective"),
     "zero": ("estimate", "zero"),
 }
-# condition -> (geometry of its stores, training baseline)
+# condition -> (geometry of its stores, how its predictor comes about): a `vctrain fit` baseline
+# ('none': virtual camera, 'resize'), 'prior' (no training: the training stores' prior p_g) or
+# 'adapt' (the within run's model adapted to the evaluated dataset's unlabelled images)
 CONDITIONS: dict[str, tuple[str, str]] = {
     "resize": ("between", "resize"),  # the resize baseline reads the original images the store records
     "between": ("between", "none"),
     "within": ("within", "none"),
     "within-gt": ("within-gt", "none"),
     "zero": ("zero", "none"),
+    "prior": ("within", "prior"),
+    "adapt": ("within", "adapt"),
 }
+DEFAULT_CONDITIONS = ("resize", "between", "within", "within-gt", "zero")  # a study without 'conditions:'
 # the study file's `train:` section may set any TrainConfig field except these, which the study sets per run
 # (TRAIN_KEYS are checked without importing torch; another key is checked against TrainConfig itself)
 RUN_KEYS = ("stores", "out", "baseline", "images", "labels", "label_format", "size", "val_stores", "resume", "log",
@@ -100,7 +118,7 @@ _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 @dataclass(frozen=True)
 class Split:
     images: Path
-    labels: Path
+    labels: Path | None         # None: an unlabelled split (adaptation images)
     vps: Path | None = None
     include: tuple[str, ...] = ()  # keep only items whose id (file stem) matches one of these globs (empty: all)
     exclude: tuple[str, ...] = ()  # then drop items whose id matches one of these globs
@@ -119,6 +137,7 @@ class Dataset:
     train: Split | None      # None for role 'test'
     test: Split | None       # None for role 'train'
     role: str = "both"
+    unlabelled: Split | None = None  # images without labels to adapt to (condition adapt; default: test images)
 
     @property
     def trained(self) -> bool:
@@ -140,7 +159,7 @@ class Study:
 
     path: Path
     datasets: list[Dataset]
-    conditions: list[str] = field(default_factory=lambda: list(CONDITIONS))
+    conditions: list[str] = field(default_factory=lambda: list(DEFAULT_CONDITIONS))
     virtual: str = "design"         # 'design' (from the datasets' cameras), a preset or a camera file
     pan_range: float = 10.0         # pose variation the designed virtual camera must hold (degrees)
     tilt_range: float = 5.0
@@ -182,9 +201,13 @@ def _globs(v: Any, key: str, what: str, path: Path) -> tuple[str, ...]:
     return tuple(globs)
 
 
-def _split(d: Any, what: str, path: Path) -> Split:
+def _split(d: Any, what: str, path: Path, labelled: bool = True) -> Split:
+    """A split's mapping; ``labelled=False``: images only (an ``unlabelled:`` split)."""
     d = _mapping(d, what, path)
-    _keys(d, ("images", "labels", "vps", "include", "exclude"), ("images", "labels"), what, path)
+    if labelled:
+        _keys(d, ("images", "labels", "vps", "include", "exclude"), ("images", "labels"), what, path)
+    else:
+        _keys(d, ("images", "include", "exclude"), ("images",), what, path)
     base = path.parent
 
     def p(key: str) -> Path:
@@ -196,7 +219,7 @@ def _split(d: Any, what: str, path: Path) -> Split:
             raise InputError(f"'{key}' of {what} not found: {q}", path, "check the path (relative to the study file)")
         return q
 
-    return Split(p("images"), p("labels"), p("vps") if d.get("vps") is not None else None,
+    return Split(p("images"), p("labels") if labelled else None, p("vps") if d.get("vps") is not None else None,
                  _globs(d.get("include"), "include", what, path), _globs(d.get("exclude"), "exclude", what, path))
 
 
@@ -234,7 +257,8 @@ def load_study(path: str | Path) -> Study:
     datasets: list[Dataset] = []
     for i, r in enumerate(raw):
         r = _mapping(r, f"dataset #{i + 1}", path)
-        _keys(r, ("name", "camera", "label_format", "role", "train", "test"), ("name", "camera", "label_format"),
+        _keys(r, ("name", "camera", "label_format", "role", "train", "test", "unlabelled"),
+              ("name", "camera", "label_format"),
               f"dataset #{i + 1}", path)
         name = r["name"]
         if not isinstance(name, str) or not _NAME.match(name):
@@ -261,7 +285,13 @@ def load_study(path: str | Path) -> Study:
             cam = str(path.parent / cam)
         train = _split(r["train"], f"dataset '{name}' train", path) if role != "test" else None
         test = _split(r["test"], f"dataset '{name}' test", path) if r.get("test") is not None else train
-        datasets.append(Dataset(name, cam, str(r["label_format"]), train, test if role != "train" else None, role))
+        if role == "train" and r.get("unlabelled") is not None:
+            raise InputError(f"dataset '{name}' has role train, so its 'unlabelled' split would never be used", path,
+                             "remove 'unlabelled:' (it is what condition adapt adapts to on an evaluated dataset)")
+        unlabelled = (_split(r["unlabelled"], f"dataset '{name}' unlabelled", path, labelled=False)
+                      if r.get("unlabelled") is not None else None)
+        datasets.append(Dataset(name, cam, str(r["label_format"]), train, test if role != "train" else None, role,
+                                unlabelled))
     trainable = [x for x in datasets if x.trained]
     if not trainable:
         raise InputError("no dataset may be trained on (every role is 'test')", path,
@@ -333,14 +363,26 @@ class _Builder:
         self._virtual: Camera | None = None
 
     def split(self, ds: Dataset, split: str) -> Split:
-        return ds.train if split == "train" else ds.test
+        return {"train": ds.train, "test": ds.test, "unlabelled": ds.unlabelled}[split]
+
+    @staticmethod
+    def adapt_split(ds: Dataset) -> str:
+        """The split condition adapt adapts to: 'unlabelled' where the study gives one, else 'test'
+        (its images only: their labels are never read for adaptation)."""
+        return "unlabelled" if ds.unlabelled is not None else "test"
 
     def items(self, ds: Dataset, split: str) -> list[Job]:
-        """The split's items: every image of its folder that its include/exclude globs select."""
+        """The split's items: every image of its folder that its include/exclude globs select
+        (with their labels, except for an unlabelled split)."""
         key = (ds.name, split)
         if key not in self._items:
             s = self.split(ds, split)
-            jobs = [j for j in list_dataset(s.images, s.labels, get_label_format(ds.label_format)) if s.selects(j.id)]
+            fmt = get_label_format(ds.label_format) if s.labels is not None else None
+            try:
+                jobs = [j for j in list_dataset(s.images, s.labels, fmt) if s.selects(j.id)]
+            except InputError as e:
+                raise InputError(f"dataset '{ds.name}' {split}: {e.problem}{f' ({e.file})' if e.file else ''}",
+                                 self.study.path, "check the split's folders in the study file") from None
             if not jobs:
                 raise InputError(f"dataset '{ds.name}' {split}: no image of {s.images} is selected", self.study.path,
                                  "check the folder and the split's include/exclude globs (on file stems)")
@@ -458,12 +500,19 @@ def training_settings(study: Study, overrides: dict[str, Any] | None = None) -> 
 def evaluate_heldout(checkpoint: Path, store_dir: Path, progress: bool = False) -> dict[str, Any]:
     """Road metrics of ``checkpoint`` on every labelled item of a held-out test store, scored in the
     item's ORIGINAL camera against its original label (P(road) >= 0.5)."""
+    from .predict import Predictor
+
+    return score_store(Predictor(checkpoint, device="cpu"), store_dir, progress)
+
+
+def score_store(predictor, store_dir: Path, progress: bool = False) -> dict[str, Any]:
+    """Road metrics of ``predictor`` (a :class:`vctrain.predict.Predictor` or
+    :class:`vctrain.adapt.PriorPredictor`: anything with ``store_item``) on every labelled item of
+    a test store, each scored in its ORIGINAL camera against its original label (P(road) >= 0.5)."""
     from tqdm import tqdm
 
     from .metrics import RoadMetrics
-    from .predict import Predictor
 
-    predictor = Predictor(checkpoint, device="cpu")
     store = Store.open(store_dir)
     m = RoadMetrics()
     n = 0
@@ -518,43 +567,83 @@ def plan_runs(study: Study, conditions: Sequence[str], evaluated: Sequence[str])
     return runs + [_Run(ALL_RUN, c, trainable, tests) for c in conditions] if tests else runs
 
 
-def _execute(run: _Run, b: _Builder, sha: str, overrides: dict[str, Any], tag: str) -> list[dict[str, Any]]:
-    """Train (unless trained earlier with these settings) and score the results still missing."""
-    from .train import fit
+def _what(run: _Run, ds: Dataset, tag: str) -> str:
+    return f"{tag} {'held out' if ds.role == 'both' else 'tested on'} {ds.name}, {run.condition}"
 
-    say, c = b.say, run.condition
-    run_dir = b.out / "runs" / run.name / c
 
-    def what(ds: Dataset) -> str:
-        return f"{tag} {'held out' if ds.role == 'both' else 'tested on'} {ds.name}, {c}"
-
+def _pending(run: _Run, b: _Builder, sha: str, tag: str) -> tuple[list[dict[str, Any]], list[Dataset]]:
+    """(results finished earlier with settings ``sha``, datasets still to score); a result of other
+    settings is removed."""
+    run_dir = b.out / "runs" / run.name / run.condition
     rows, todo = [], []
     for ds in run.tests:
         f = run.result_file(run_dir, ds)
         prev = json.loads(f.read_text()) if f.exists() else None
         if prev is not None and prev.get("settings_sha") == sha:
             rows.append(prev)
-            say(f"{what(ds)}: done earlier (IoU {prev['iou']:.3f})")
+            b.say(f"{_what(run, ds, tag)}: done earlier (IoU {prev['iou']:.3f})")
             continue
         if prev is not None:
-            say(f"{what(ds)}: the study's settings changed since it ran; redoing it")
+            b.say(f"{_what(run, ds, tag)}: the study's settings changed since it ran; redoing it")
             f.unlink()
         todo.append(ds)
+    return rows, todo
+
+
+_INFO = ("train_datasets", "train_items", "val_items", "best_epoch", "best_val_iou", "epochs", "input_size",
+         "train_seconds", "train_images_per_s")  # what each result row repeats of its model's training
+
+
+def _execute(run: _Run, b: _Builder, sha: str, overrides: dict[str, Any], tag: str) -> list[dict[str, Any]]:
+    """Train (unless trained earlier with these settings) and score the results still missing."""
+    kind = CONDITIONS[run.condition][1]
+    if kind == "prior":
+        return _execute_prior(run, b, sha, tag)
+    if kind == "adapt":
+        return _execute_adapt(run, b, sha, overrides, tag)
+    rows, todo = _pending(run, b, sha, tag)
     if not todo:
         return rows
-    geometry, baseline = CONDITIONS[c]
+    say, c = b.say, run.condition
+    geometry = CONDITIONS[c][0]
     if GEOMETRIES[geometry][0] == "given":
         no_train = [d.name for d in run.train if not b.has_given_vps(d, "train")]
         for ds in list(todo):
             missing = no_train + ([ds.name] if not b.has_given_vps(ds, "test") else [])
             if missing:
-                say(f"{what(ds)}: skipped (no given VPs for {', '.join(missing)})")
+                say(f"{_what(run, ds, tag)}: skipped (no given VPs for {', '.join(missing)})")
                 todo.remove(ds)
         if not todo:
             return rows
     say(f"{tag} {run.name}, {c}: stores")
-    stores = [b.store(d, "train", geometry) for d in run.train]
     test_stores = {ds.name: b.store(ds, "test", geometry) for ds in todo}
+    cfg, info = _trained(run, b, sha, overrides, tag)
+    for ds in todo:
+        t0 = time.perf_counter()
+        metrics = evaluate_heldout(Path(cfg.out), test_stores[ds.name], b.progress)
+        rows.append(_result(run, b, ds, metrics, info, info["train_seconds"] + time.perf_counter() - t0, sha, tag))
+    return rows
+
+
+def _result(run: _Run, b: _Builder, ds: Dataset, metrics: dict[str, Any], info: dict[str, Any], seconds: float,
+            sha: str, tag: str, **extra: Any) -> dict[str, Any]:
+    """Write and return the result row of ``ds`` in ``run``."""
+    row = {"heldout": ds.name, "condition": run.condition, "role": ds.role, "run": run.name, **metrics,
+           **{k: info[k] for k in _INFO}, **extra, "total_seconds": round(seconds, 1), "settings_sha": sha}
+    _atomic_json(run.result_file(b.out / "runs" / run.name / run.condition, ds), row)
+    b.say(f"{_what(run, ds, tag)}: road IoU {row['iou']:.3f} ({row['total_seconds']:.0f} s)")
+    return row
+
+
+def _trained(run: _Run, b: _Builder, sha: str, overrides: dict[str, Any], tag: str):
+    """``(config, train.json)`` of ``run``'s model: trained now, or found trained earlier with
+    settings ``sha`` (``runs/<run>/<condition>/train.json``), so a model is never trained twice."""
+    from .train import fit
+
+    say, c = b.say, run.condition
+    run_dir = b.out / "runs" / run.name / c
+    geometry, baseline = CONDITIONS[c]
+    stores = [b.store(d, "train", geometry) for d in run.train]
     size = Store.open(stores[0]).store_size
     if baseline == "resize":
         size = b.resize_size(run.train, size)
@@ -578,17 +667,127 @@ def _execute(run: _Run, b: _Builder, sha: str, overrides: dict[str, Any], tag: s
                 "train_images_per_s": summary["train_images_per_s"], "model_args": summary["model_args"],
                 "settings_sha": sha}
         _atomic_json(trained, info)
+    return cfg, info
+
+
+def _write_prior(run: _Run, b: _Builder, run_dir: Path) -> tuple[Path, dict[str, Any], float]:
+    """The geometric prior p_g of ``run``'s training datasets (their ``within`` training stores,
+    :func:`vcprep.prior.compute_prior`), written as ``run_dir/prior.npy`` with its description
+    (usable by ``vctrain predict --prior``); returns (path, description, seconds)."""
+    from vcprep.prior import compute_prior, prior_meta, write_prior
+
+    stores = [b.store(d, "train", CONDITIONS["prior"][0]) for d in run.train]
+    t0 = time.perf_counter()
+    prior, n_unlabelled = compute_prior(stores)
+    meta = prior_meta(stores, n_unlabelled)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    path = write_prior(run_dir / "prior.npy", prior, meta)
+    return path, meta, time.perf_counter() - t0
+
+
+def _execute_prior(run: _Run, b: _Builder, sha: str, tag: str) -> list[dict[str, Any]]:
+    """Condition prior: no model; P(road) = the training datasets' p_g back-projected to each test
+    image (:class:`vctrain.adapt.PriorPredictor`), scored like every other condition."""
+    from .adapt import PriorPredictor
+
+    rows, todo = _pending(run, b, sha, tag)
+    if not todo:
+        return rows
+    run_dir = b.out / "runs" / run.name / run.condition
+    b.say(f"{tag} {run.name}, prior: stores and the prior of {', '.join(d.name for d in run.train)}")
+    path, meta, seconds = _write_prior(run, b, run_dir)
+    predictor = PriorPredictor(path)
+    info = {"train_datasets": [d.name for d in run.train], "train_items": meta["items"], "val_items": 0,
+            "best_epoch": None, "best_val_iou": None, "epochs": 0, "input_size": list(predictor.prior.shape[::-1]),
+            "train_seconds": round(seconds, 1), "train_images_per_s": None}
     for ds in todo:
+        store = b.store(ds, "test", CONDITIONS["prior"][0])
         t0 = time.perf_counter()
-        metrics = evaluate_heldout(Path(cfg.out), test_stores[ds.name], b.progress)
-        row = {"heldout": ds.name, "condition": c, "role": ds.role, "run": run.name, **metrics,
-               **{k: info[k] for k in ("train_datasets", "train_items", "val_items", "best_epoch", "best_val_iou",
-                                       "epochs", "input_size", "train_seconds", "train_images_per_s")},
-               "total_seconds": round(info["train_seconds"] + time.perf_counter() - t0, 1), "settings_sha": sha}
-        _atomic_json(run.result_file(run_dir, ds), row)
-        rows.append(row)
-        say(f"{what(ds)}: road IoU {row['iou']:.3f} ({row['total_seconds']:.0f} s)")
+        metrics = score_store(predictor, store, b.progress)
+        rows.append(_result(run, b, ds, metrics, info, seconds + time.perf_counter() - t0, sha, tag,
+                            prior_unlabelled_pixels=meta["unlabelled_pixels"]))
     return rows
+
+
+def _adapt_settings() -> dict[str, Any]:
+    """What an adapted model depends on besides the study's settings (vctrain.adapt's defaults)."""
+    from .adapt import ADAPT_EPOCHS, ADAPT_LR_FACTOR
+
+    return {"epochs": ADAPT_EPOCHS, "lr_factor": ADAPT_LR_FACTOR, "lo": 0.25, "hi": 0.75, "combine": "prior"}
+
+
+def _execute_adapt(run: _Run, b: _Builder, sha: str, overrides: dict[str, Any], tag: str) -> list[dict[str, Any]]:
+    """Condition adapt: the within run's model (trained once, shared with condition within)
+    adapted to each evaluated dataset's unlabelled images with the training datasets' prior
+    (:func:`vctrain.adapt.adapt`), then scored on its test images like every other condition."""
+    from .adapt import adapt
+
+    # a result depends on the study's settings, the adaptation's and the images adapted to
+    def adapt_sha(ds: Dataset) -> str:
+        key = {"study": sha, "adapt": _adapt_settings(), "target": b.adapt_split(ds),
+               "unlabelled": repr(ds.unlabelled)}
+        return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:16]
+
+    rows, todo = [], []
+    for ds in run.tests:  # each evaluated dataset has its own adapted model and settings
+        r, t = _pending(_Run(run.name, run.condition, run.train, (ds,)), b, adapt_sha(ds), tag)
+        rows, todo = rows + r, todo + t
+    if not todo:
+        return rows
+    say = b.say
+    run_dir = b.out / "runs" / run.name / run.condition
+    within = _Run(run.name, "within", run.train, run.tests)
+    cfg, info = _trained(within, b, sha, overrides, tag)
+    source = Path(cfg.out)
+    source_sha = hashlib.sha256(source.read_bytes()).hexdigest()
+    prior_path, _, _ = _write_prior(run, b, run_dir)
+    for ds in todo:
+        asha = adapt_sha(ds)
+        split = b.adapt_split(ds)
+        adir = run_dir if ds.name == run.name else run_dir / ds.name
+        adir.mkdir(parents=True, exist_ok=True)
+        model, record = adir / "model.pt", adir / "adapt.json"
+        done = json.loads(record.read_text()) if record.exists() else None
+        if (done is not None and done.get("settings_sha") == asha and done.get("from_sha256") == source_sha
+                and model.exists()):
+            say(f"{_what(run, ds, tag)}: adapted earlier")
+        else:  # adapted with other settings or from another model, or interrupted: afresh
+            for old in (record, model, adir / "model.last.pt", adir / "model.log.jsonl"):
+                old.unlink(missing_ok=True)
+            shutil.rmtree(adir / "target.store", ignore_errors=True)  # never train on another run's items
+            jobs = b.items(ds, split)
+            b.poses(ds, split, "estimate")  # the study's VP estimates (its pose range), as the test store's
+            vps = b.out / "vps" / f"{ds.name}-{split}.csv"
+            say(f"{_what(run, ds, tag)}: adapting the within model to {len(jobs)} unlabelled {split} images")
+            t0 = time.perf_counter()
+            # images only: adapt never sees a label of the evaluated dataset (its labels are surrogates from the prior)
+            summary = adapt(source, [j.image for j in jobs], b.camera(ds), prior_path, model,
+                            store=adir / "target.store", within=str(vps), device=cfg.device, seed=cfg.seed,
+                            max_steps=cfg.max_steps, progress=b.progress)
+            done = {"settings_sha": asha, "from": str(source), "from_sha256": source_sha, "target": split,
+                    "target_items": len(jobs), "adapt_seconds": round(time.perf_counter() - t0, 1),
+                    "label_shares": summary["adapted"]["label_shares"], "epochs": summary["adapted"]["epochs"],
+                    "lr": summary["adapted"]["lr"]}
+            _atomic_json(record, done)
+        t0 = time.perf_counter()
+        metrics = evaluate_heldout(model, b.store(ds, "test", CONDITIONS["adapt"][0]), b.progress)
+        rows.append(_result(run, b, ds, metrics, info,
+                            info["train_seconds"] + done["adapt_seconds"] + time.perf_counter() - t0, asha, tag,
+                            adapt_target=split, adapt_items=done["target_items"],
+                            adapt_seconds=done["adapt_seconds"], adapt_label_shares=done["label_shares"]))
+    return rows
+
+
+def _check_adapt_targets(b: _Builder, evaluated: Sequence[str]) -> None:
+    """Condition adapt needs, for every evaluated dataset, one camera (adaptation warps its
+    images with per-image VPs) and at least one image to adapt to."""
+    for name in evaluated:
+        ds = b.study.dataset(name)
+        if Path(ds.camera).is_dir():
+            raise InputError(f"condition adapt: dataset '{ds.name}' has per-frame calibration (camera: a folder); "
+                             "adaptation needs one camera", b.study.path,
+                             "give it one camera file, or drop the adapt condition")
+        b.items(ds, b.adapt_split(ds))
 
 
 def run_study(study: Study, out: str | Path, conditions: Sequence[str] | None = None,
@@ -603,8 +802,10 @@ def run_study(study: Study, out: str | Path, conditions: Sequence[str] | None = 
     evaluated = evaluated_datasets(study, heldout)
     overrides = dict(train_overrides or {})
     training = training_settings(study, overrides)  # checks the training settings before anything is written
-    out.mkdir(parents=True, exist_ok=True)
     b = _Builder(study, out, progress, jobs, say)
+    if "adapt" in conditions:
+        _check_adapt_targets(b, evaluated)  # also before anything is written
+    out.mkdir(parents=True, exist_ok=True)
     virt = b.virtual()
     _atomic_json(out / "study.json", {"study": str(study.path), "virtual": virt.to_dict(), "scale": b.scale(),
                                       "conditions": conditions, "datasets": [d.name for d in study.datasets],
