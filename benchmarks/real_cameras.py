@@ -29,7 +29,9 @@ geometric prior p_g of CamVid train in the virtual camera, back-projected, p_g >
 "Geo-Prior") and ``adapt`` (the within model of the same seed, adapted without labels to each test
 set's test images with that prior; crossval trains the within model once for both). The virtual
 camera is designed from all the study's cameras (calibrations only). Training settings:
-``vctrain fit``'s defaults (its CPU recipe without a GPU) except ``--epochs``; working width: crossval's
+``vctrain fit``'s defaults (its CPU recipe without a GPU) except ``--epochs``; pixel budget 76800
+per model (``--store-pixels``: the virtual stores' scale; resize at the same count, CamVid's 4:3 =
+320x240), virtual camera cropped to 8 degrees above the horizon (``--above``); otherwise crossval's
 default unless ``--store-width``.
 
 Reported (never asserted), mean +/- std over seeds (sample std, ddof 1) per cell, and the paired
@@ -147,7 +149,7 @@ def make_study(wd: Path, args: argparse.Namespace, conditions: list[str]) -> tup
         study["store_width"] = args.store_width
     if args.store_pixels:
         study["store_pixels"] = args.store_pixels
-    if args.above is not None:
+    if args.above is not None and args.above >= 0:
         study["above"] = args.above
     train = dict(QUICK_TRAIN) if args.quick else {}
     if args.device:
@@ -352,9 +354,11 @@ def main() -> None:
     ap.add_argument("--conditions", default=",".join(CONDITIONS),
                     help=f"comma-separated, from {','.join(AVAILABLE)} (default: {','.join(CONDITIONS)})")
     ap.add_argument("--store-width", type=int, default=None, help="working width (default: crossval's)")
-    ap.add_argument("--store-pixels", type=int, default=None, help="working pixel budget (default: crossval's)")
-    ap.add_argument("--above", type=float, default=None,
-                    help="crop the designed virtual camera to this many degrees above the horizon (default: crossval's)")
+    ap.add_argument("--store-pixels", type=int, default=76800,
+                    help="working pixel budget of every model (default 76800: 320x240 for resize)")
+    ap.add_argument("--above", type=float, default=8.0,
+                    help="crop the designed virtual camera to this many degrees above the horizon (default 8; "
+                         "-1: the paper's uncropped rectangle)")
     ap.add_argument("--device", default=None, help="training device (default: vctrain fit's, auto)")
     ap.add_argument("--threads", type=int, default=os.cpu_count() or 1, help="threads (default: all cores)")
     ap.add_argument("--workdir", type=Path, default=None,

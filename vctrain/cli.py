@@ -64,7 +64,7 @@ def fit_cmd(
     label_format: Optional[str] = typer.Option(None, "--label-format", help="baseline only: camvid, kitti, cityscapes, "
                                                                            "bdd or values:road=3;ignore=11"),
     size: Optional[str] = typer.Option(None, "--size", help="working size WxH (default: the store size)"),
-    epochs: Optional[int] = typer.Option(None, "--epochs", "-e", help="epochs (recipe: 30; the paper: 600 on a GPU)"),
+    epochs: Optional[int] = typer.Option(None, "--epochs", "-e", help="epochs (cpu recipe: 20, paper recipe: 30; the paper: 600 on a GPU)"),
     batch_size: Optional[int] = typer.Option(None, "--batch-size", "-b", help="global batch size (recipes: 8)"),
     optimizer: Optional[str] = typer.Option(None, "--optimizer", help="sgd (momentum 0.9; paper) or adamw (cpu)"),
     lr: Optional[float] = typer.Option(None, "--lr", help="peak learning rate (paper: 0.005, cpu: 0.002)"),

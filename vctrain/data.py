@@ -12,7 +12,8 @@ random shift of up to ``shift_aug`` of the width/height — one affine map, imag
 reflected borders, labels nearest with 255 (ignore) outside the item. In the virtual camera a
 scale about the VP is exactly a change of camera height for the road plane (and the shift a
 small pan/tilt), so the network learns a tolerance to the pose errors it meets at test time.
-Photometric: brightness, contrast and per-channel gain drawn in 1 ± ``color_aug`` (gain ±1/3 of it).
+Photometric: brightness, contrast and per-channel gain drawn in 1 ± ``color_aug`` (gain ±1/3 of it)
+and a gamma in [1/(1+c), 1+c] (dusk and over-exposed frames differ by more than a linear map).
 
 VP proximity map (VPSeg): ``1 - max(|x - x_vp| / w, |y - y_vp| / h)`` over working-size pixel
 centres, with the VP in working coordinates (flipped with the image).
@@ -185,12 +186,12 @@ class RoadDataset(torch.utils.data.Dataset):
         return img, lab, vp
 
     def _photometric(self, x: np.ndarray) -> np.ndarray:
-        """Brightness, contrast and per-channel gain on an input in [-1, 1] (3, h, w)."""
+        """Brightness, contrast, per-channel gain and gamma on an input in [-1, 1] (3, h, w)."""
         c = self.color_aug
-        r = (2 * torch.rand(5) - 1).tolist()
+        r = (2 * torch.rand(6) - 1).tolist()
         bright, contrast = 1 + c * r[0], 1 + c * r[1]
-        gain = np.array([1 + c / 3 * v for v in r[2:]], dtype=np.float32)[:, None, None]
-        img = (x[:3] + 1) * 0.5
+        gain = np.array([1 + c / 3 * v for v in r[2:5]], dtype=np.float32)[:, None, None]
+        img = ((x[:3] + 1) * 0.5) ** math.exp(r[5] * math.log1p(c))
         m = float(img.mean())
         img = ((img - m) * contrast + m) * (bright * gain)
         x = x.copy()

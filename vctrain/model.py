@@ -10,7 +10,9 @@ a final 3x3 conv to ``num_classes`` logits. Widths per block are ``base_width * 
 ``segnet`` = 64 (the paper's network, 29 M parameters), ``segnet-narrow`` = 16 (1/16 of the
 FLOPs, ~1.8 M parameters; the default when no GPU is present).
 
-``resfpn`` (the default without a GPU): a ResNet-style encoder (a stride-2 stem, then four
+``resfpn`` (the default without a GPU): each image's colour channels standardised (zero mean, unit
+variance per image and channel: exposure, contrast and white balance differ between cameras),
+then a ResNet-style encoder (a stride-2 stem, then four
 stages of two residual BasicBlocks at 1/4 ... 1/32, widths ``base_width * (2, 4, 8, 8)``) with a
 light feature-pyramid decoder (1x1 lateral projections summed top-down with bilinear upsampling,
 one 3x3 conv per level, global-average context added at 1/32) that predicts at 1/4 and upsamples
@@ -152,6 +154,12 @@ class ResFPN(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         size = x.shape[-2:]
+        # per-image, per-channel standardisation of the colour channels: exposure, contrast and
+        # white balance differ between cameras (and CamVid's own sequences: 0001TP is at dusk)
+        c = x[:, :3]
+        mu = c.mean((2, 3), keepdim=True)
+        sd = c.std((2, 3), keepdim=True).clamp_min(1e-2)
+        x = torch.cat([(c - mu) / sd, x[:, 3:]], 1)
         feats = []
         x = self.stem(x)
         for stage in self.stages:

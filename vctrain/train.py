@@ -10,7 +10,8 @@ cpu        converges in minutes on a 2-core CPU (benchmarks/real_cameras.py has 
            0.01, batch 8, cosine decay after a linear warm-up over the first 3 % of the steps,
            augmentation: horizontal flip, random scale 1/1.25..1.25 about the VP (the image
            centre when the VP is unknown) with a shift of up to 5 % of the size, and photometric
-           jitter (brightness, contrast, per-channel gain, 0.3). The default without a GPU.
+           jitter (brightness, contrast, per-channel gain, gamma; 0.3); 20 epochs. The default
+           without a GPU.
 =========  ==============================================================================
 
 Loss: cross-entropy over {not road, road}, label 255 ignored, optionally weighted by
@@ -65,7 +66,7 @@ RECIPES: dict[str, dict[str, Any]] = {
     "paper": {"arch": "segnet", "epochs": 30, "batch_size": 8, "optimizer": "sgd", "lr": 0.005, "momentum": 0.9,
               "weight_decay": 0.0005, "schedule": "poly", "hflip": False, "scale_aug": 0.0, "shift_aug": 0.0,
               "color_aug": 0.0},
-    "cpu": {"arch": "resfpn", "epochs": 30, "batch_size": 8, "optimizer": "adamw", "lr": 0.002, "momentum": 0.9,
+    "cpu": {"arch": "resfpn", "epochs": 20, "batch_size": 8, "optimizer": "adamw", "lr": 0.002, "momentum": 0.9,
             "weight_decay": 0.01, "schedule": "cosine", "hflip": True, "scale_aug": 0.25, "shift_aug": 0.05,
             "color_aug": 0.3},
 }
