@@ -14,9 +14,11 @@ Data (../shared/data; nothing is tuned on a test set):
 * **in-domain** test rows (same camera): ``camvid-val`` (CamVid val, 101 frames of 0016E5) and
   ``camvid-0001TP`` (the unseen sequence 0001TP of CamVid train, 62 frames, never trained on).
 * **real other camera**: ``kitti``, the KITTI road frames in kitti_road/training (image_2 with
-  the road ground truth of gt_image_2, label format kitti; camera = the first frame's calibration
-  file: P2 gives K, Tr_cam_to_road the height and pitch). Other folders found in ../shared/data
-  are listed as not used.
+  the road ground truth of gt_image_2, label format kitti; camera = the per-frame calibration
+  folder calib/: P2 gives K, that frame's Tr_cam_to_road its exact height and pitch, so no VP is
+  estimated). ``kitti-vp``: the same frames with one camera file and estimated road VPs, reported
+  as a row of its own (not in the headline). Other folders found in ../shared/data are listed as
+  not used.
 * **simulated other cameras**: CamVid val through ``tele``, ``band`` and ``dashcam``, made by
   ``vcprep simulate`` exactly as benchmarks/cross_camera.py makes them (camvid_cameras.py).
 
@@ -111,14 +113,18 @@ def camvid_folders(wd: Path, quick: bool) -> dict[str, Path]:
             "valannot": _link(val, full["valannot"], wd / "src" / "valannot")}
 
 
-def kitti_dataset() -> dict | None:
-    """The KITTI road frames with road ground truth, camera = the first frame's calibration."""
+def kitti_datasets() -> list[dict]:
+    """The KITTI road frames with road ground truth, twice: ``kitti`` with every frame's own
+    calibration (calib/: P2 and that frame's Tr_cam_to_road, the exact pose; what a user with
+    KITTI's files gets), and ``kitti-vp`` with one camera (the first frame's file) and poses from
+    estimated road VPs (the method without calibration; a row of its own, not in the headline)."""
     images = sorted((KITTI / "image_2").glob("*.png")) if (KITTI / "image_2").is_dir() else []
     if not images:
-        return None
-    calib = KITTI / "calib" / f"{images[0].stem}.txt"
-    return {"name": "kitti", "role": "test", "camera": str(calib), "label_format": "kitti",
-            "test": {"images": str(KITTI / "image_2"), "labels": str(KITTI / "gt_image_2")}}
+        return []
+    test = {"images": str(KITTI / "image_2"), "labels": str(KITTI / "gt_image_2")}
+    return [{"name": "kitti", "role": "test", "camera": str(KITTI / "calib"), "label_format": "kitti", "test": test},
+            {"name": "kitti-vp", "role": "test", "camera": str(KITTI / "calib" / f"{images[0].stem}.txt"),
+             "label_format": "kitti", "test": test}]
 
 
 def make_study(wd: Path, args: argparse.Namespace, conditions: list[str]) -> tuple[dict, list[str]]:
@@ -134,11 +140,10 @@ def make_study(wd: Path, args: argparse.Namespace, conditions: list[str]) -> tup
     datasets = [camvid("camvid", "train", f["train"], f["trainannot"], exclude=f"{UNSEEN}_*"),
                 camvid("camvid-val", "test", f["val"], f["valannot"]),
                 camvid(f"camvid-{UNSEEN}", "test", f["train"], f["trainannot"], include=f"{UNSEEN}_*")]
-    k = kitti_dataset()
-    if k is None:
+    k = kitti_datasets()
+    if not k:
         print(f"note: no KITTI road frames in {KITTI}: no real other camera", file=sys.stderr)
-    else:
-        datasets.append(k)
+    datasets += k
     for name in SIM:
         split = simulate(cam, f["val"], f["valannot"], wd / "sim" / name, name)
         datasets.append({"name": name, "role": "test", "camera": str(wd / "sim" / name / "camera.yaml"),
@@ -308,7 +313,9 @@ def aggregate(per_seed: dict[int, dict], sets: list[str], conditions: list[str])
                                   if all((m, c) in per_seed[k] for m in members)]) for c in conditions}
     diff = paired(per_seed, sets, groups, "within", "resize") if {"within", "resize"} <= set(conditions) else {}
     adapt = paired(per_seed, sets, groups, "adapt", "within") if {"adapt", "within"} <= set(conditions) else {}
-    return {"cells": cells, "within_minus_resize": diff, "adapt_minus_within": adapt, "groups": groups}
+    vp = paired(per_seed, sets, groups, "within", "between") if {"within", "between"} <= set(conditions) else {}
+    return {"cells": cells, "within_minus_resize": diff, "adapt_minus_within": adapt, "within_minus_between": vp,
+            "groups": groups}
 
 
 def table(agg: dict, sets: list[str], conditions: list[str], items: dict[str, int]) -> str:
@@ -450,7 +457,9 @@ def main() -> None:
            f"{virt['image_size'][0]}x{virt['image_size'][1]}, f {virt['fx']:.1f}, height {virt['height']:.2f} m, "
            f"store scale {study_json['scale']:.4f}.",
            f"- In-domain: camvid-val = CamVid val; camvid-{UNSEEN} = the unseen sequence (never trained on).",
-           "- Real other camera: kitti = KITTI road frames (camera from the first frame's calibration file).",
+           "- Real other camera: kitti = KITTI road frames, every frame with its own calibration (calib/: exact "
+           "pose, nothing estimated); kitti-vp = the same frames with one camera (the first frame's file) and "
+           "estimated road VPs (not in the headline).",
            *[f"- Simulated from CamVid val: {n} = {DESCRIPTION[n]}." for n in SIM if n in sets],
            f"- Headline within − resize: mean over the other cameras ({', '.join(agg['groups']['other cameras'])}) "
            "per seed, then mean ± std over seeds.",
@@ -469,7 +478,8 @@ def main() -> None:
                                                   f"{len(seeds)} seeds)", spread))
     (res / "real_cameras.json").write_text(json.dumps(
         {"headline": headline, "cells": cells, "within_minus_resize": diff,
-         "adapt_minus_within": agg["adapt_minus_within"], "groups": agg["groups"],
+         "adapt_minus_within": agg["adapt_minus_within"], "within_minus_between": agg["within_minus_between"],
+         "groups": agg["groups"],
          "test_frames": items, "targets": tg, "models": models, "seeds": seeds, "conditions": conditions,
          "threads": T, "study": study, "virtual": virt, "scale": study_json["scale"],
          "train_settings": study_json["train"], "wall_minutes": total / 60}, indent=1, default=str) + "\n")

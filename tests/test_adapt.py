@@ -125,6 +125,43 @@ def test_adapting_on_the_target_camera_raises_its_iou(world, tmp_path):
         assert (lab[valid & (prior >= 0.25) & (prior <= 0.75)] == 255).all()
 
 
+def test_adapt_with_per_frame_calibration(world, tmp_path):
+    """``--camera DIR`` (one calibration file per frame): every target frame is warped with its own
+    calibrated pose, exactly, and the checkpoint records the folder."""
+    import dataclasses
+
+    calib = tmp_path / "calib"
+    calib.mkdir()
+    frames = sorted((world / "tgt_train/images").glob("*.png"))[:3]
+    poses = {}
+    for k, f in enumerate(frames):
+        cam = dataclasses.replace(TGT, name=f.stem, pan=2.0 * k - 2.0, tilt=1.0 - k)
+        (calib / f"{f.stem}.yaml").write_text(camera_to_yaml(cam))
+        poses[f.stem] = cam
+    args = ["--camera", calib, "--prior", world / "prior.npy", "--out", tmp_path / "a.pt", "--epochs", "1", "--quiet"]
+    # a frame without a calibration file is one error line naming it, before any training
+    assert_one_error_line(run_cli("adapt", world / "model.pt", "--images", world / "tgt_train/images", *args,
+                                  prog="vctrain"), "s3_3.png", "no calibration file")
+    assert not (tmp_path / "a.pt").exists()
+    images = tmp_path / "images"
+    images.mkdir()
+    for f in frames:
+        (images / f.name).write_bytes(f.read_bytes())
+    proc = run_cli("adapt", world / "model.pt", "--images", images, *args, prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    ck = load_checkpoint(tmp_path / "a.pt")
+    assert ck["adapted"]["camera"] == {"calibration_folder": str(calib)}
+    st = Store.open(tmp_path / "a.store")
+    vs = virtual_at_scale(PRESETS["virtual"], SCALE)
+    assert len(st) == 3
+    for rec in st:
+        cam = poses[rec["id"]]
+        assert rec["vp_status"] == "calibrated" and rec["label_kind"] == "surrogate"
+        H = np.asarray(rec["H"], np.float64).reshape(3, 3)
+        np.testing.assert_allclose(H / H[2, 2], virt_H_src(cam, vs, cam.pan, cam.tilt) /
+                                   virt_H_src(cam, vs, cam.pan, cam.tilt)[2, 2], rtol=1e-7, atol=1e-7)
+
+
 def test_fuse_and_surrogate_for_item():
     p = np.array([[0.9, 0.9, 0.5, 0.1, 1.0]], np.float32)
     n = np.array([[0.9, 0.1, 0.95, 0.5, 0.0]], np.float32)

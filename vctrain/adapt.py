@@ -36,7 +36,7 @@ from typing import Any, Iterable
 import numpy as np
 
 from vcprep.backproject import backproject_array
-from vcprep.camera import Camera
+from vcprep.camera import Camera, FrameCameras
 from vcprep.errors import InputError
 from vcprep.imageio import read_image, write_png
 from vcprep.labels import IGNORE, ROAD
@@ -153,14 +153,15 @@ def _sha256(arr: np.ndarray) -> str:
     return hashlib.sha256(np.ascontiguousarray(arr, np.float32).tobytes()).hexdigest()
 
 
-def adapt(model: str | Path, images: str | Path | Iterable[str | Path], camera: Camera,
+def adapt(model: str | Path, images: str | Path | Iterable[str | Path], camera: Camera | FrameCameras,
           prior: str | Path | np.ndarray, out: str | Path, lo: float = 0.25, hi: float = 0.75,
           combine: str = "prior", epochs: int | None = None, lr: float | None = None,
           store: str | Path | None = None, within: str = "auto", device: str = "auto", seed: int | None = None,
           batch_size: int | None = None, max_steps: int | None = None, progress: bool = True) -> dict[str, Any]:
     """Fine-tune the virtual-camera ``model`` on unlabelled ``images`` of ``camera`` with surrogate
     labels from ``prior`` (a ``.npy``/``.png`` written by ``vcprep prior``, or the array of
-    :func:`vcprep.prior.compute_prior`); writes ``out`` (and ``OUT-stem.last.pt``, the log).
+    :func:`vcprep.prior.compute_prior`); ``camera`` may be per-frame calibration (every frame
+    its exact pose, no VP estimated); writes ``out`` (and ``OUT-stem.last.pt``, the log).
     Returns :func:`vctrain.train.fit`'s summary plus ``adapted`` (what the checkpoint records).
     See the module docstring for the steps and the defaults."""
     from .predict import Predictor, collect_images, warp_like_training
@@ -226,7 +227,8 @@ def adapt(model: str | Path, images: str | Path | Iterable[str | Path], camera: 
 
     adapted = {"from": str(model), "from_sha256": hashlib.sha256(model.read_bytes()).hexdigest(),
                "prior": prior_path, "prior_sha256": _sha256(p), "prior_meta": meta, "lo": float(lo), "hi": float(hi),
-               "combine": combine, "images": [str(j.image) for j in jobs], "camera": camera.to_dict(),
+               "combine": combine, "images": [str(j.image) for j in jobs],
+               "camera": camera.to_dict() if isinstance(camera, Camera) else {"calibration_folder": str(camera.folder)},
                "store": str(target.root), "label_shares": shares, "epochs": cfg.epochs, "lr": cfg.lr}
     for path in (out, last_path(out)):
         if path.is_file():

@@ -206,7 +206,8 @@ def adapt_cmd(
     checkpoint: Path = typer.Argument(..., help="virtual-camera model written by 'vctrain fit'"),
     images: Path = typer.Option(..., "--images", "-i", help="folder (or file) of UNLABELLED target images"),
     camera: str = typer.Option(..., "--camera", "-c", help="camera of the target images: preset or file (.yaml, "
-                                                           "KITTI .txt, Cityscapes .json)"),
+                                                           "KITTI .txt, Cityscapes .json), or a folder of per-frame "
+                                                           "calibration files (every frame its exact pose)"),
     prior: Path = typer.Option(..., "--prior", help="geometric prior written by 'vcprep prior' (.npy or .png) in the "
                                                     "model's virtual camera and scale"),
     out: Path = typer.Option(..., "--out", "-o", help="adapted checkpoint; OUT-stem.last.pt and OUT-stem.log.jsonl "

@@ -756,13 +756,16 @@ def _execute_adapt(run: _Run, b: _Builder, sha: str, overrides: dict[str, Any], 
                 old.unlink(missing_ok=True)
             shutil.rmtree(adir / "target.store", ignore_errors=True)  # never train on another run's items
             jobs = b.items(ds, split)
-            b.poses(ds, split, "estimate")  # the study's VP estimates (its pose range), as the test store's
-            vps = b.out / "vps" / f"{ds.name}-{split}.csv"
+            if isinstance(b.camera(ds), FrameCameras):
+                within = "none"  # per-frame calibration: every frame's exact pose, as in the test store
+            else:
+                b.poses(ds, split, "estimate")  # the study's VP estimates (its pose range), as the test store's
+                within = str(b.out / "vps" / f"{ds.name}-{split}.csv")
             say(f"{_what(run, ds, tag)}: adapting the within model to {len(jobs)} unlabelled {split} images")
             t0 = time.perf_counter()
             # images only: adapt never sees a label of the evaluated dataset (its labels are surrogates from the prior)
             summary = adapt(source, [j.image for j in jobs], b.camera(ds), prior_path, model,
-                            store=adir / "target.store", within=str(vps), device=cfg.device, seed=cfg.seed,
+                            store=adir / "target.store", within=within, device=cfg.device, seed=cfg.seed,
                             max_steps=cfg.max_steps, progress=b.progress)
             done = {"settings_sha": asha, "from": str(source), "from_sha256": source_sha, "target": split,
                     "target_items": len(jobs), "adapt_seconds": round(time.perf_counter() - t0, 1),
@@ -779,14 +782,9 @@ def _execute_adapt(run: _Run, b: _Builder, sha: str, overrides: dict[str, Any], 
 
 
 def _check_adapt_targets(b: _Builder, evaluated: Sequence[str]) -> None:
-    """Condition adapt needs, for every evaluated dataset, one camera (adaptation warps its
-    images with per-image VPs) and at least one image to adapt to."""
+    """Condition adapt needs, for every evaluated dataset, at least one image to adapt to."""
     for name in evaluated:
         ds = b.study.dataset(name)
-        if Path(ds.camera).is_dir():
-            raise InputError(f"condition adapt: dataset '{ds.name}' has per-frame calibration (camera: a folder); "
-                             "adaptation needs one camera", b.study.path,
-                             "give it one camera file, or drop the adapt condition")
         b.items(ds, b.adapt_split(ds))
 
 

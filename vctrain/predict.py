@@ -206,6 +206,9 @@ def warp_like_training(data: dict[str, Any], path: str | Path, jobs: list[Job], 
     if within != "none" and not isinstance(camera, Camera):
         raise InputError("--within needs one camera; a per-frame calibration folder already gives every frame its "
                          "exact pose", camera.folder, "drop --within, or give one camera file or preset")
+    if isinstance(camera, FrameCameras):
+        for j in jobs:  # every frame's calibration file exists: an error before anything is written
+            camera.file_for(j.image)
     if within != "none":
         from vcprep.build import ItemPose
         from vcprep.vanishing_point import vps_for_items
