@@ -21,7 +21,7 @@ from vcprep.labels import get_label_format
 from vcprep.synthetic import RoadScene, render_road
 from vctrain.checkpoint import load_checkpoint, model_from_checkpoint
 from vctrain.cli import app
-from vctrain.data import RoadDataset, Sample, median_frequency_weights, vp_proximity
+from vctrain.data import RoadDataset, Sample, median_frequency_weights, to_input, vp_proximity
 from vctrain.metrics import KittiMetrics, RoadMetrics, confusion, kitti_metrics, road_metrics
 from vctrain.model import ModelArgs, SegNet, model_args_for
 from vctrain.train import RECIPES, TrainConfig, evaluate, fit, get_lr, resolve_recipe
@@ -186,6 +186,24 @@ def test_photometric_jitter_keeps_labels_and_range(tmp_path):
         assert np.array_equal(y.numpy(), lab) and x.min() >= -1 and x.max() <= 1
         xs.append(x.numpy())
     assert np.std([v.mean() for v in xs]) > 0.01  # it does change the image
+
+
+def test_photometric_table_lookup_equals_the_per_pixel_formula():
+    """The 8-bit fast path (one 256 x 3 table) gives, per draw, the module docstring's jitter
+    computed pixel by pixel in float64: gamma, contrast about the image mean, brightness x gain."""
+    rng = np.random.default_rng(1)
+    ds = RoadDataset([], (40, 30), color_aug=0.3)
+    for k in range(10):
+        img = rng.integers(0, 256, (30, 40, 3), dtype=np.uint8)
+        torch.manual_seed(k)
+        bright, contrast, gain, gamma = ds._photometric_draw()
+        v = (img.astype(np.float64) / 255.0) ** gamma
+        want = np.clip(((v - v.mean()) * contrast + v.mean()) * bright * gain.astype(np.float64), 0, 1) * 2 - 1
+        torch.manual_seed(k)
+        got = ds._photometric_u8(img)
+        assert got.shape == (3, 30, 40) and got.dtype == np.float32
+        np.testing.assert_allclose(got, want.transpose(2, 0, 1), atol=1e-5)
+        assert np.abs(got - to_input(img)).max() > 0.01  # the draw does change the image
 
 
 def test_hflip_moves_vp_channel(tmp_path):
