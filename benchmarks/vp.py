@@ -1,4 +1,5 @@
-"""Road vanishing-point benchmark: our detector vs a plain LSD + unweighted RANSAC baseline.
+"""Road vanishing-point benchmark: our detector vs a plain LSD + RANSAC baseline, on synthetic
+frames, real CamVid frames, CamVid val through three simulated cameras, and KITTI.
 
 Run (one thread, as the figures below are stated):
 
@@ -80,12 +81,34 @@ Data
   No parameter of the detector was tuned on ``val``; ``train`` (and synthetic) was used during
   development; ``val`` was run once at the end.
 
+* **other cameras** (issue 17): the CamVid ``val`` frames that have a reference VP, through the
+  simulated cameras of the cross-camera benchmarks (``camvid_cameras.SIMULATED``: ``tele`` 35 deg
+  HFOV tilted 3 deg down, 320x240; ``band`` 480x146; ``dashcam`` 40 deg, 400x225, per-image pan
+  +/-8 and tilt +/-4 deg), made by ``vcprep simulate --vps`` so that each frame's reference VP is
+  moved by the same exact homography as its pixels (in ``--workdir``). The detector gets the
+  simulated camera at its nominal pose. Plus the KITTI road frames in ../shared/data with the
+  same rule on their road ground truth (magenta road; an edge counts where the pixel outside is
+  red) and each frame's own calibration; the one frame shipped (um_000000) is skipped by the
+  rule (its left road boundary fails rule 3's goodness tests), so it is counted, not scored.
+
+Baseline (issue 17's plain vote, no camera, no prior): OpenCV LSD with default settings on the
+grey image; segments 15-75 deg from horizontal, longer than 15 px, midpoint in the lower 60 % of
+the image; 500 seeded RANSAC pairs, each intersection scored by the summed length of segments
+whose line passes within 3 px; the best intersection, unrefined.
+
+Reliability (ours): ``estimate_vp`` accepts or rejects each VP (pose outside pan +/-20 / tilt
++/-15 deg of the camera, or fewer than ``min_support`` segments); a rejected VP is replaced by
+the mean of the set's accepted VPs (``apply_reliability``, what ``vcprep warp`` does). Reported
+per set: the error of the accepted VPs, and of the rejected ones (their detection, and the
+fallback that replaces them), so a user can see what ``accepted`` is worth.
+
 Metrics: error = |VP - reference| in pixels / image width * 100 (median, 90th percentile),
 time = wall ms per image for detection from the decoded image (grey conversion, downscale,
 line detection, voting), median over ``--repeats`` passes, single thread (``cv2.setNumThreads(1)``).
 Results: ``benchmarks/results/vp.json``; the last stdout line is one JSON object with the headline
 figures (``median_pct_width``, ``p90_pct_width``, ``ms_per_image_480`` for ours on real val frames,
-and ``baseline_*`` for the baseline).
+``baseline_*`` for the baseline, and ``per_set``: ours, the baseline and the reliability split
+for every set).
 """
 from __future__ import annotations
 
@@ -107,55 +130,48 @@ sys.path.insert(0, str(ROOT))
 from vcprep.camera import PRESETS  # noqa: E402
 from vcprep.homography import vp_from_pose  # noqa: E402
 from vcprep.synthetic import RoadScene, render_road  # noqa: E402
-from vcprep.vanishing_point import VPConfig, detect_segments, estimate_vp, prior_window, to_gray  # noqa: E402
+from vcprep.vanishing_point import VPConfig, apply_reliability, estimate_vp, prior_window, to_gray  # noqa: E402
 
 DATA = ROOT.parent / "shared" / "data" / "camvid"
+KITTI = ROOT.parent / "shared" / "data" / "kitti_road" / "training"
 STATIC = np.array([0, 1, 4, 5, 7])  # classes whose border with road is a real road edge
 
 
 # ------------------------------------------------------------------------------- baseline
 
-def baseline_vp(image: np.ndarray, work_width: int = 480, iters: int = 500, inlier_deg: float = 2.0,
-                min_len_px: float = 12.0, seed: int = 0) -> tuple[float, float]:
-    """Plain baseline: LSD segments (>= ``min_len_px`` at working scale), RANSAC over pairs of
-    segments with an unweighted inlier count (angular residual < ``inlier_deg``), then an
-    unweighted least-squares intersection of the inliers. No prior, no weights."""
+def baseline_vp(image: np.ndarray, iters: int = 500, min_len_px: float = 15.0, lower: float = 0.6,
+                min_deg: float = 15.0, max_deg: float = 75.0, band_px: float = 3.0,
+                seed: int = 0) -> tuple[float, float]:
+    """The plain baseline of issue 17: OpenCV's LSD (default settings) on the grey image; segments
+    kept if 15-75 deg from horizontal, longer than 15 px and with their midpoint in the lower 60 %
+    of the image; ``iters`` RANSAC pairs (seeded), each pair's intersection scored by the summed
+    length of the kept segments whose line passes within ``band_px`` px of it; the best
+    intersection, unrefined. No prior, no camera. (Image centre if fewer than 2 segments.)"""
     h, w = image.shape[:2]
-    seg = detect_segments(to_gray(image), work_width, lsd_scale=0.6, lsd_refine=1)  # pinned: the baseline stays as it was
-    s = min(1.0, work_width / w)
+    lines = cv2.createLineSegmentDetector().detect(to_gray(image))[0]
+    seg = np.zeros((0, 4)) if lines is None else lines.reshape(-1, 4).astype(np.float64)
     d = seg[:, 2:4] - seg[:, 0:2]
     L = np.hypot(d[:, 0], d[:, 1])
-    keep = L * s >= min_len_px
-    seg, d, L = seg[keep], d[keep], L[keep]
+    ang = np.degrees(np.arctan2(np.abs(d[:, 1]), np.abs(d[:, 0])))
+    mid_y = 0.5 * (seg[:, 1] + seg[:, 3])
+    keep = (L > min_len_px) & (ang >= min_deg) & (ang <= max_deg) & (mid_y >= (1 - lower) * h)
+    seg, L = seg[keep], L[keep]
     if len(seg) < 2:
         return (w / 2 - 0.5, h / 2 - 0.5)
-    dirs = d / L[:, None]
-    mid = 0.5 * (seg[:, :2] + seg[:, 2:])
     hom = np.cross(np.c_[seg[:, :2], np.ones(len(seg))], np.c_[seg[:, 2:], np.ones(len(seg))])
-    hom /= np.linalg.norm(hom[:, :2], axis=1, keepdims=True)
+    hom /= np.linalg.norm(hom[:, :2], axis=1, keepdims=True)          # a u + b v + c = 0, (a, b) unit
     rng = np.random.default_rng(seed)
-    tau = math.sin(math.radians(inlier_deg))
     i = rng.integers(0, len(seg), iters)
     j = rng.integers(0, len(seg), iters)
     X = np.cross(hom[i], hom[j])
-    ok = (i != j) & (np.abs(X[:, 2]) > 1e-9)
-    X = X[ok, :2] / X[ok, 2:3]
-    if len(X) == 0:
+    ok = (i != j) & (np.abs(X[:, 2]) > 1e-12)
+    if not ok.any():
         return (w / 2 - 0.5, h / 2 - 0.5)
-    rx = X[:, None, 0] - mid[None, :, 0]
-    ry = X[:, None, 1] - mid[None, :, 1]
-    r = np.abs(rx * dirs[None, :, 1] - ry * dirs[None, :, 0]) / (np.hypot(rx, ry) + 1e-9)
-    inl = r < tau
-    best = int(np.argmax(inl.sum(1)))
-    m = inl[best]
-    if m.sum() < 2:
-        return tuple(X[best])
-    A, b = hom[m, :2], -hom[m, 2]
-    try:
-        c = np.linalg.lstsq(A, b, rcond=None)[0]
-    except np.linalg.LinAlgError:
-        c = X[best]
-    return float(c[0]), float(c[1])
+    X = X[ok, :2] / X[ok, 2:3]
+    dist = np.abs(X @ hom[:, :2].T + hom[None, :, 2])                  # (candidates, segments) px
+    score = (dist < band_px).astype(np.float64) @ L
+    best = X[int(np.argmax(score))]
+    return float(best[0]), float(best[1])
 
 
 # ------------------------------------------------------------------------------- references
@@ -195,7 +211,24 @@ def reference_vp(label: np.ndarray, cam, band: float = 2.0, gate: bool = True) -
     """Reference road VP of a CamVid label image (rule in the module docstring), or None.
     ``band`` (rule 3's inlier band, 2 px) and ``gate`` (rule 3's goodness tests) are changed
     only to measure the reference's spread on frames the rule accepted."""
-    road = (label == 3).astype(np.uint8)
+    return reference_from_masks(label == 3, np.isin(label, STATIC), cam, band, gate)
+
+
+def kitti_reference_vp(gt: np.ndarray, cam) -> tuple[float, float] | None:
+    """The same rule on a KITTI road ground truth (BGR colours): road = magenta; a road edge
+    counts where the pixel outside is red (evaluated not-road), never black (outside the
+    evaluated area)."""
+    b, g, r = (gt[..., k].astype(int) for k in range(3))
+    road = (r > 127) & (b > 127) & (g < 128)
+    not_road = (r > 127) & (b < 128) & (g < 128)
+    return reference_from_masks(road, not_road, cam)
+
+
+def reference_from_masks(road: np.ndarray, edge_ok: np.ndarray, cam, band: float = 2.0,
+                         gate: bool = True) -> tuple[float, float] | None:
+    """Rule steps 1-4 on a road mask; ``edge_ok`` marks the pixels whose border with the road is
+    a real road edge (static classes), so occluders never give boundary points."""
+    road = road.astype(np.uint8)
     n, comp, stats, _ = cv2.connectedComponentsWithStats(road, connectivity=8)
     if n < 2:
         return None
@@ -212,9 +245,9 @@ def reference_vp(label: np.ndarray, cam, band: float = 2.0, gate: bool = True) -
         xl, xr = xs[0], xs[-1]
         if xr - xl < 12:
             continue
-        if xl >= 3 and np.isin(label[y, xl - 1], STATIC):
+        if xl >= 3 and edge_ok[y, xl - 1]:
             pts["l"][0].append(y), pts["l"][1].append(xl - 0.5)
-        if xr <= w - 4 and np.isin(label[y, xr + 1], STATIC):
+        if xr <= w - 4 and edge_ok[y, xr + 1]:
             pts["r"][0].append(y), pts["r"][1].append(xr + 0.5)
     fits = [_fit_side(np.array(pts[s][0], float), np.array(pts[s][1], float), band, gate) for s in ("l", "r")]
     if fits[0] is None or fits[1] is None:
@@ -275,27 +308,103 @@ def camvid_set(split: str, cam):
     return out, skipped, spread
 
 
+def simulated_sets(val_items, cam, workdir: Path):
+    """CamVid val frames that have a reference VP, through the simulated cameras of the
+    cross-camera benchmarks (``vcprep simulate``: crop/zoom and rotation about the optical centre
+    are exact), each frame's reference VP mapped exactly by the same homography (``--vps``).
+    Returns [(name, camera, [(id, image, reference VP)])]; the camera is the simulated camera at
+    its nominal pose (per-image pan/tilt jitter is what the detector must find)."""
+    from camvid_cameras import BIN, SIMULATED, native_camera, run
+    from vcprep.camera import load_camera
+
+    src = workdir / "val_with_reference"
+    if src.exists():
+        import shutil
+
+        shutil.rmtree(src)
+    src.mkdir(parents=True)
+    rows = ["id,u,v"]
+    for iid, _, ref in val_items:
+        (src / f"{iid}.png").symlink_to(DATA / "val" / f"{iid}.png")
+        rows.append(f"{iid},{ref[0]:.9f},{ref[1]:.9f}")
+    (workdir / "val_reference_vps.csv").write_text("\n".join(rows) + "\n")
+    native = native_camera(workdir)
+    out = []
+    for name, args in SIMULATED.items():
+        dst = workdir / "sim" / name
+        run(BIN / "vcprep", "simulate", "--camera", native, "--images", src, "--out", dst, "--name", name,
+            "--vps", workdir / "val_reference_vps.csv", "--quiet", *args)
+        refs = {r[0]: (float(r[1]), float(r[2])) for r in
+                (line.split(",") for line in (dst / "vps.csv").read_text().splitlines()[1:])}
+        items = [(iid, cv2.imread(str(dst / "images" / f"{iid}.png"), cv2.IMREAD_COLOR), refs[iid])
+                 for iid, _, _ in val_items]
+        out.append((name, load_camera(str(dst / "camera.yaml")), items))
+    return out
+
+
+def kitti_set():
+    """The KITTI road frames shipped in ../shared/data whose ground truth the rule accepts, each
+    with its own calibration file; (camera, items, skipped)."""
+    from vcprep.camera import load_camera
+
+    items, cams, skipped = [], [], 0
+    for p in sorted((KITTI / "image_2").glob("*.png")) if (KITTI / "image_2").is_dir() else []:
+        prefix, _, num = p.stem.partition("_")
+        gt = cv2.imread(str(KITTI / "gt_image_2" / f"{prefix}_road_{num}.png"), cv2.IMREAD_COLOR)
+        img = cv2.imread(str(p), cv2.IMREAD_COLOR)
+        cam = load_camera(str(KITTI / "calib" / f"{p.stem}.txt")).for_image_size((img.shape[1], img.shape[0]))
+        ref = kitti_reference_vp(gt, cam) if gt is not None else None
+        if ref is None:
+            skipped += 1
+            continue
+        items.append((p.stem, img, ref))
+        cams.append(cam)
+    return cams, items, skipped
+
+
 # ------------------------------------------------------------------------------- evaluation
 
-def evaluate(items, cam, cfg: VPConfig, repeats: int):
-    """Errors (% width) and median ms/image for ours and the baseline, same images, same run."""
+def _errors(vps, items, cams) -> np.ndarray:
+    return np.array([math.hypot(v[0] - r[0], v[1] - r[1]) / c.size[0] * 100 for v, (_, _, r), c in zip(vps, items, cams)])
+
+
+def _summary(e: np.ndarray) -> dict:
+    return {"n": int(len(e)), "median_pct_width": round(float(np.median(e)), 3) if len(e) else None,
+            "p90_pct_width": round(float(np.percentile(e, 90)), 3) if len(e) else None,
+            "mean_pct_width": round(float(np.mean(e)), 3) if len(e) else None}
+
+
+def evaluate(items, cams, cfg: VPConfig, repeats: int):
+    """Errors (% width) and median ms/image for ours and the baseline, same images, same run;
+    ``cams``: one camera per item (or one for all). For ours also the reliability rule's split:
+    the error of the VPs it accepts, and of those it rejects (their detection, and the dataset
+    mean of the accepted VPs that replaces them: what ``vcprep warp`` uses)."""
+    cams = list(cams) if isinstance(cams, (list, tuple)) else [cams] * len(items)
     res = {}
-    for name, fn in (("ours", lambda im: estimate_vp(im, cam, cfg).vp),
-                     ("baseline", lambda im: baseline_vp(im, cfg.work_width))):
-        errs, per_pass = [], []
+    for name, fn in (("ours", lambda im, c: estimate_vp(im, c, cfg)),
+                     ("baseline", lambda im, c: baseline_vp(im))):
+        per_pass, out = [], []
         for rep in range(repeats):
             t0 = time.perf_counter()
-            vps = [fn(im) for _, im, _ in items]
+            got = [fn(im, c) for (_, im, _), c in zip(items, cams)]
             per_pass.append((time.perf_counter() - t0) * 1000 / max(1, len(items)))
             if rep == 0:
-                errs = [math.hypot(v[0] - r[0], v[1] - r[1]) / cam.size[0] * 100 for v, (_, _, r) in zip(vps, items)]
-        e = np.array(errs)
-        res[name] = {"n": len(items), "median_pct_width": round(float(np.median(e)), 3) if len(e) else None,
-                     "p90_pct_width": round(float(np.percentile(e, 90)), 3) if len(e) else None,
-                     "mean_pct_width": round(float(np.mean(e)), 3) if len(e) else None,
-                     "ms_per_image": round(float(np.median(per_pass)), 2),
+                out = got
+        vps = [r.vp for r in out] if name == "ours" else out
+        e = _errors(vps, items, cams)
+        res[name] = {**_summary(e), "ms_per_image": round(float(np.median(per_pass)), 2),
                      "ms_spread": [round(float(min(per_pass)), 2), round(float(max(per_pass)), 2)],
                      "errors": [round(float(x), 4) for x in e]}
+        if name == "ours":
+            acc = np.array([r.status == "accepted" for r in out], bool)
+            final = apply_reliability(out, cams)
+            det = [(r.detected or r.vp) for r in out]
+            res[name]["reliability"] = {
+                "accepted": _summary(e[acc]),
+                "rejected_detection": _summary(_errors(det, items, cams)[~acc]),
+                "rejected_fallback": _summary(_errors([r.vp for r in final], items, cams)[~acc]),
+                "reasons": sorted({r.reason for r in out if r.status != "accepted"}),
+            }
     return res
 
 
@@ -310,7 +419,9 @@ def main(argv=None) -> int:
     ap.add_argument("--n-synthetic-960", type=int, default=8, help="960x720 renders (timing + error)")
     ap.add_argument("--repeats", type=int, default=3, help="timing passes (median reported)")
     ap.add_argument("--splits", default="val,train")
+    ap.add_argument("--no-other-cameras", action="store_true", help="skip the simulated cameras and KITTI")
     ap.add_argument("--set", action="append", default=[], help="override a VPConfig field, e.g. work_width=360")
+    ap.add_argument("--workdir", default=str(ROOT / "benchmarks" / "out" / "vp"), help="simulated frames go here")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results" / "vp.json"))
     args = ap.parse_args(argv)
     cv2.setNumThreads(1)
@@ -324,10 +435,10 @@ def main(argv=None) -> int:
     results = {"config": asdict(cfg), "threads": 1, "opencv": cv2.__version__, "python": platform.python_version(),
                "seed": 0, "sets": {}}
     print(f"threads: 1 (cv2.setNumThreads(1)); opencv {cv2.__version__}; repeats {args.repeats}", file=sys.stderr)
-    print(f"{'set':<26} {'size':>8} {'n':>4}  {'med %w':>7} {'p90 %w':>7} {'ms/img':>8}")
     sets = [("synthetic", "480x360", synthetic_set(args.n_synthetic, cam480), cam480)]
     if args.n_synthetic_960:
         sets.append(("synthetic", "960x720", synthetic_set(args.n_synthetic_960, cam960, seed=1), cam960))
+    val_items = None
     if DATA.is_dir():
         for split in args.splits.split(","):
             items, skipped, spread = camvid_set(split, cam480)
@@ -341,13 +452,32 @@ def main(argv=None) -> int:
             results.setdefault("reference_spread", {})[f"camvid/{split}"] = ref_noise
             sets.append((f"camvid/{split}", "480x360", items, cam480))
             results.setdefault("skipped", {})[f"camvid/{split}"] = skipped
+            if split == "val":
+                val_items = items
     else:
         print(f"NOTE: {DATA} is absent: real-frame figures are NOT measured (synthetic only).", file=sys.stderr)
+    if not args.no_other_cameras:
+        if val_items:
+            for name, cam, items in simulated_sets(val_items, cam480, Path(args.workdir)):
+                sets.append((f"sim/{name}", f"{cam.size[0]}x{cam.size[1]}", items, cam))
+        kcams, kitems, kskipped = kitti_set()
+        if kitems:
+            w, h = kcams[0].size
+            sets.append(("kitti", f"{w}x{h}", kitems, kcams))
+            results.setdefault("skipped", {})["kitti"] = kskipped
+        else:
+            print(f"NOTE: no KITTI road frame with a usable reference in {KITTI}", file=sys.stderr)
+    print(f"{'set':<26} {'size':>8} {'n':>4}  {'med %w':>7} {'p90 %w':>7} {'ms/img':>8}   accepted: n med p90 | "
+          "rejected: n, detection med, fallback med")
     for name, size, items, cam in sets:
         r = evaluate(items, cam, cfg, args.repeats)
         results["sets"][f"{name}@{size}"] = r
-        for who in ("ours", "baseline"):
-            print(_row(f"{name} {who}", size, r[who]))
+        rel = r["ours"]["reliability"]
+        print(_row(f"{name} ours", size, r["ours"]) +
+              f"   {rel['accepted']['n']} {rel['accepted']['median_pct_width']} {rel['accepted']['p90_pct_width']} | "
+              f"{rel['rejected_detection']['n']}, {rel['rejected_detection']['median_pct_width']}, "
+              f"{rel['rejected_fallback']['median_pct_width']}")
+        print(_row(f"{name} baseline", size, r["baseline"]))
     S = results["sets"]
     real = S.get("camvid/val@480x360")
     head_src = real or S["synthetic@480x360"]
@@ -356,24 +486,25 @@ def main(argv=None) -> int:
         "n": head_src["ours"]["n"],
         "median_pct_width": head_src["ours"]["median_pct_width"],
         "p90_pct_width": head_src["ours"]["p90_pct_width"],
-        "ms_per_image_480": S["synthetic@480x360"]["ours"]["ms_per_image"] if not real else real["ours"]["ms_per_image"],
+        "ms_per_image_480": head_src["ours"]["ms_per_image"],
         "ms_per_image_960": S.get("synthetic@960x720", {}).get("ours", {}).get("ms_per_image"),
         "reference_spread_median_pct_width": results.get("reference_spread", {}).get("camvid/val", {}).get("median_pct_width"),
         "reference_spread_p90_pct_width": results.get("reference_spread", {}).get("camvid/val", {}).get("p90_pct_width"),
         "baseline_median_pct_width": head_src["baseline"]["median_pct_width"],
         "baseline_p90_pct_width": head_src["baseline"]["p90_pct_width"],
         "baseline_ms_per_image_480": head_src["baseline"]["ms_per_image"],
-        "synthetic_median_pct_width": S["synthetic@480x360"]["ours"]["median_pct_width"],
-        "synthetic_p90_pct_width": S["synthetic@480x360"]["ours"]["p90_pct_width"],
-        "synthetic_baseline_median_pct_width": S["synthetic@480x360"]["baseline"]["median_pct_width"],
-        "synthetic_baseline_p90_pct_width": S["synthetic@480x360"]["baseline"]["p90_pct_width"],
+        "per_set": {k: {"n": v["ours"]["n"], "median_pct_width": v["ours"]["median_pct_width"],
+                        "p90_pct_width": v["ours"]["p90_pct_width"],
+                        "baseline_median_pct_width": v["baseline"]["median_pct_width"],
+                        "baseline_p90_pct_width": v["baseline"]["p90_pct_width"],
+                        "accepted": v["ours"]["reliability"]["accepted"]["n"],
+                        "accepted_median_pct_width": v["ours"]["reliability"]["accepted"]["median_pct_width"],
+                        "accepted_p90_pct_width": v["ours"]["reliability"]["accepted"]["p90_pct_width"],
+                        "rejected": v["ours"]["reliability"]["rejected_detection"]["n"],
+                        "rejected_fallback_median_pct_width":
+                            v["ours"]["reliability"]["rejected_fallback"]["median_pct_width"]}
+                    for k, v in S.items()},
     }
-    if "camvid/train@480x360" in S:
-        t = S["camvid/train@480x360"]
-        headline.update({"train_median_pct_width": t["ours"]["median_pct_width"],
-                         "train_p90_pct_width": t["ours"]["p90_pct_width"],
-                         "train_baseline_median_pct_width": t["baseline"]["median_pct_width"],
-                         "train_baseline_p90_pct_width": t["baseline"]["p90_pct_width"]})
     results["headline"] = headline
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
