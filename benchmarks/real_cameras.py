@@ -28,8 +28,10 @@ the set). Conditions (default): ``resize`` (the baseline: images resized to the 
 ``between`` (virtual camera, each camera's average pose), ``within`` (plus each image's estimated
 road VP). Available with ``--conditions`` (not run by default): ``prior`` (no training: the
 geometric prior p_g of CamVid train in the virtual camera, back-projected, p_g >= 0.5; Table 5's
-"Geo-Prior") and ``adapt`` (the within model of the same seed, adapted without labels to each test
-set's test images with that prior; crossval trains the within model once for both). The virtual
+"Geo-Prior"), ``adapt`` (the within model of the same seed, adapted without labels to each test
+set's test images with that prior's tri-mask; crossval trains the within model once for all) and
+``adapt-fuse`` (the same, the surrogate labels from the prior fused with the within model's own
+prediction). The virtual
 camera is designed from all the study's cameras (calibrations only). Training settings:
 ``vctrain fit``'s defaults (its CPU recipe without a GPU) except ``--epochs``; pixel budget 76800
 per model (``--store-pixels``: the virtual stores' scale; resize at the same count, CamVid's 4:3 =
@@ -37,7 +39,8 @@ per model (``--store-pixels``: the virtual stores' scale; resize at the same cou
 default unless ``--store-width``.
 
 Reported (never asserted), mean +/- std over seeds (sample std, ddof 1) per cell, and the paired
-difference within - resize per seed (and adapt - within, when both ran). Headline
+difference within - resize per seed (and adapt - within, adapt-fuse - within, when they ran;
+within - between in the JSON). Headline
 ``within_minus_resize``: the mean over seeds of (the mean over the other-camera test sets kitti,
 tele, band, dashcam of within - resize); also KITTI (real) alone and the simulated cameras alone.
 Targets checked: in-domain road IoU >= 0.85 on both in-domain rows for every trained condition (not
@@ -83,8 +86,10 @@ IN_DOMAIN = ["camvid-val", f"camvid-{UNSEEN}"]
 REAL = ["kitti"]
 SIM = list(SIMULATED)
 OTHER = REAL + SIM                        # the other-camera test sets of the headline
-CONDITIONS = ["resize", "between", "within"]     # the default; --conditions may add within-gt, zero, prior, adapt
-UNTRAINED = ("prior", "adapt")                   # no model of their own (no convergence or in-domain target)
+CONDITIONS = ["resize", "between", "within"]     # the default; --conditions may add within-gt, zero, prior,
+                                                 # adapt, adapt-fuse
+UNTRAINED = ("prior", "adapt", "adapt-fuse")     # no model of their own (no convergence or in-domain target)
+ADAPTED = ("adapt", "adapt-fuse")                # reported as paired differences to within
 QUICK_TRAIN = {"epochs": 1, "max_steps": 2}
 
 
@@ -312,24 +317,24 @@ def aggregate(per_seed: dict[int, dict], sets: list[str], conditions: list[str])
             cells[g] = {c: stats([float(np.mean([per_seed[k][m, c]["iou"] for m in members])) for k in seeds
                                   if all((m, c) in per_seed[k] for m in members)]) for c in conditions}
     diff = paired(per_seed, sets, groups, "within", "resize") if {"within", "resize"} <= set(conditions) else {}
-    adapt = paired(per_seed, sets, groups, "adapt", "within") if {"adapt", "within"} <= set(conditions) else {}
+    adapt = {c: paired(per_seed, sets, groups, c, "within") for c in ADAPTED if {c, "within"} <= set(conditions)}
     vp = paired(per_seed, sets, groups, "within", "between") if {"within", "between"} <= set(conditions) else {}
     return {"cells": cells, "within_minus_resize": diff, "adapt_minus_within": adapt, "within_minus_between": vp,
             "groups": groups}
 
 
 def table(agg: dict, sets: list[str], conditions: list[str], items: dict[str, int]) -> str:
-    diff, adapt = bool(agg["within_minus_resize"]), bool(agg["adapt_minus_within"])
+    diff, adapt = bool(agg["within_minus_resize"]), list(agg["adapt_minus_within"])
     header = (["test set", "frames"] + conditions + (["within − resize"] if diff else [])
-              + (["adapt − within"] if adapt else []))
+              + [f"{c} − within" for c in adapt])
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
     for s in sets + [g for g in agg["groups"] if agg["groups"][g]]:
         row = [s if s in sets else f"**{s}** (mean)", str(items.get(s, "")) if s in sets else ""]
         row += [fmt(agg["cells"][s][c]) for c in conditions]
         if diff:
             row.append(fmt(agg["within_minus_resize"].get(s), signed=True))
-        if adapt:
-            row.append(fmt(agg["adapt_minus_within"].get(s), signed=True))
+        for c in adapt:
+            row.append(fmt(agg["adapt_minus_within"][c].get(s), signed=True))
         lines.append("| " + " | ".join(row) + " |")
     return "\n".join(lines) + "\n"
 
@@ -435,8 +440,8 @@ def main() -> None:
         else round(tg["pipeline_ratio_ge_0.9"]["min"], 3),
         "converged": tg["converged"]["models"], "seeds": len(seeds), "quick": args.quick,
     }
-    if agg["adapt_minus_within"]:
-        headline["adapt_minus_within"] = mean_of(agg["adapt_minus_within"].get("other cameras"))
+    for c, d in agg["adapt_minus_within"].items():
+        headline[f"{c.replace('-', '_')}_minus_within"] = mean_of(d.get("other cameras"))
     study_json = json.loads((wd / f"seed{seeds[0]}" / "study.json").read_text())
     virt, m0 = study_json["virtual"], (models[0] if models else {})
     md = ["# Real new cameras: train on CamVid, test on other cameras (benchmarks/real_cameras.py)", "",

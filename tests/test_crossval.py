@@ -564,6 +564,49 @@ def test_prior_and_adapt_resume_and_share_the_within_model(geo_run, tmp_path):
     assert summary["prior"] == pytest.approx(json.loads(proc.stdout.strip().splitlines()[-1])["prior"])
 
 
+def test_adapt_fuse_fuses_the_prior_with_the_within_models_own_prediction(geo_run, tmp_path):
+    """Condition adapt-fuse: the same within model (no training), adapted with surrogate labels
+    = tri-mask of p_g p_n / (p_g p_n + (1 - p_g)(1 - p_n)), p_n the within model's own P(road)
+    on each target image, computed here by hand from the predictor."""
+    import shutil
+
+    import numpy as np
+    import torch
+
+    from vcprep.imageio import read_image
+    from vcprep.prior import surrogate_labels
+    from vctrain.data import vp_in_store
+    from vctrain.predict import Predictor
+
+    study, out, proc = geo_run
+    copy = tmp_path / "out"
+    shutil.copytree(out, copy)
+    again = run_cli("crossval", study, "--out", copy, "--conditions", "within,adapt-fuse", "--json", prog="vctrain")
+    assert again.returncode == 0, again.stderr
+    assert "training on" not in again.stderr and again.stderr.count("adapting the within model") == 3
+    summary = json.loads(again.stdout.strip().splitlines()[-1])
+    assert list(summary) == ["within", "adapt-fuse"]
+    for run, ds in (("kitti", "kitti"), ("_all", "cityscapes"), ("_all", "camvid2")):
+        adir = copy / "runs" / run / "adapt-fuse" / ("" if ds == run else ds)
+        src = copy / "runs" / run / "within" / "model.pt"
+        ck = torch.load(adir / "model.pt", map_location="cpu", weights_only=False)
+        assert ck["adapted"]["combine"] == "fuse" and ck["adapted"]["from"] == str(src)
+        prior = np.load(copy / "runs" / run / "adapt-fuse" / "prior.npy")
+        pred = Predictor(src, "cpu")
+        store = Store.open(adir / "target.store")
+        differs = False
+        for item in store:
+            pn = pred.road_probability(read_image(store.path(item["image"])).array, vp_in_store(item, store))
+            a, b = prior.astype(np.float64) * pn, (1 - prior.astype(np.float64)) * (1 - pn)
+            fused = np.divide(a, a + b, out=np.full(a.shape, 0.5), where=(a + b) > 0)
+            lab = read_image(store.path(item["label"]), label=True).array
+            np.testing.assert_array_equal(lab, surrogate_labels(fused.astype(np.float32), 0.25, 0.75))
+            differs |= not np.array_equal(lab, surrogate_labels(prior, 0.25, 0.75))
+        assert differs  # the network's own evidence changed the labels somewhere
+    row = json.loads((copy / "runs" / "_all" / "adapt-fuse" / "result-cityscapes.json").read_text())
+    assert row["condition"] == "adapt-fuse" and row["train_datasets"] == ["camvid", "kitti"]
+
+
 @pytest.mark.parametrize("edit, needle", [
     (lambda d, root: (root / "empty").mkdir() or d["datasets"][3].update(unlabelled={"images": "empty"}),
      "dataset 'camvid2' unlabelled: no images"),

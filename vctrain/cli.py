@@ -299,7 +299,8 @@ def crossval_cmd(
     out: Path = typer.Option(..., "--out", "-o", help="study folder (created; an existing one is resumed)"),
     conditions: Optional[str] = typer.Option(None, "--conditions",
                                              help="comma-separated subset of resize,between,within,within-gt,zero,"
-                                                  "prior,adapt (default: the study file's, else the first five)"),
+                                                  "prior,adapt,adapt-fuse (default: the study file's, else the first "
+                                                  "five)"),
     heldout: Optional[str] = typer.Option(None, "--heldout", help="comma-separated datasets to evaluate (default: "
                                                                    "every dataset of role both or test)"),
     epochs: Optional[int] = typer.Option(None, "--epochs", "-e", min=1, help="override the study's training epochs"),
@@ -319,7 +320,8 @@ def crossval_cmd(
     within (plus each image's estimated VP), within-gt (the study's given VPs), zero (within with
     zero padding instead of projective completion), prior (no training: the training datasets'
     geometric prior, p_g >= 0.5), adapt (the within model adapted to the evaluated dataset's
-    unlabelled images with that prior; not among the defaults). Prints the table (rows: evaluated dataset and
+    unlabelled images with that prior's tri-mask), adapt-fuse (as adapt, the prior fused with the
+    model's own prediction; prior, adapt and adapt-fuse are not among the defaults). Prints the table (rows: evaluated dataset and
     mean; columns: conditions; road IoU in %) and writes OUT/table.md, table.csv, results.jsonl,
     summary.json and per-run logs under OUT/runs. Training settings the study does not give are
     vctrain fit's defaults. Finished runs are not redone: run the same command again to resume.

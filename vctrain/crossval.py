@@ -21,11 +21,15 @@ adapt       the ``within`` model (the within run's own checkpoint, never a secon
             fine-tuned by :func:`vctrain.adapt.adapt` on the evaluated dataset's UNLABELLED images
             (its ``unlabelled:`` split, else its test images without their labels) with
             surrogate labels from the training datasets' prior; one adapted model per evaluated
-            dataset (``runs/<heldout>/adapt/`` or ``runs/_all/adapt/<dataset>/``)
+            dataset (``runs/<heldout>/adapt/`` or ``runs/_all/adapt/<dataset>/``); the
+            surrogate labels are the prior's tri-mask alone (paper §4.5)
+adapt-fuse  as adapt, the surrogate labels from the prior FUSED with the within model's own
+            prediction on each image (``vctrain adapt --combine fuse``, GeoSeg-like: a
+            confident network decides where the prior is unsure, and vice versa)
 ==========  ==========================================================================
 
-A study's default conditions are the first five (:data:`DEFAULT_CONDITIONS`); ``prior`` and
-``adapt`` run when asked for (study ``conditions:`` or ``--conditions``).
+A study's default conditions are the first five (:data:`DEFAULT_CONDITIONS`); ``prior``,
+``adapt`` and ``adapt-fuse`` run when asked for (study ``conditions:`` or ``--conditions``).
 
 Everything runs through the real tools: stores are built with :func:`vcprep.build.warp_dataset`
 (one per dataset, split and geometry, shared by all folds), models with :func:`vctrain.train.fit`,
@@ -101,7 +105,11 @@ CONDITIONS: dict[str, tuple[str, str]] = {
     "zero": ("zero", "none"),
     "prior": ("within", "prior"),
     "adapt": ("within", "adapt"),
+    "adapt-fuse": ("within", "adapt"),
 }
+# adaptation condition -> how its surrogate labels are made (vctrain.adapt.COMBINE): the prior's
+# tri-mask alone (paper §4.5), or the prior fused with the within model's own prediction (GeoSeg-like)
+ADAPT_COMBINE = {"adapt": "prior", "adapt-fuse": "fuse"}
 DEFAULT_CONDITIONS = ("resize", "between", "within", "within-gt", "zero")  # a study without 'conditions:'
 # the study file's `train:` section may set any TrainConfig field except these, which the study sets per run
 # (TRAIN_KEYS are checked without importing torch; another key is checked against TrainConfig itself)
@@ -709,11 +717,12 @@ def _execute_prior(run: _Run, b: _Builder, sha: str, tag: str) -> list[dict[str,
     return rows
 
 
-def _adapt_settings() -> dict[str, Any]:
+def _adapt_settings(condition: str = "adapt") -> dict[str, Any]:
     """What an adapted model depends on besides the study's settings (vctrain.adapt's defaults)."""
     from .adapt import ADAPT_EPOCHS, ADAPT_LR_FACTOR
 
-    return {"epochs": ADAPT_EPOCHS, "lr_factor": ADAPT_LR_FACTOR, "lo": 0.25, "hi": 0.75, "combine": "prior"}
+    return {"epochs": ADAPT_EPOCHS, "lr_factor": ADAPT_LR_FACTOR, "lo": 0.25, "hi": 0.75,
+            "combine": ADAPT_COMBINE[condition]}
 
 
 def _execute_adapt(run: _Run, b: _Builder, sha: str, overrides: dict[str, Any], tag: str) -> list[dict[str, Any]]:
@@ -724,7 +733,7 @@ def _execute_adapt(run: _Run, b: _Builder, sha: str, overrides: dict[str, Any], 
 
     # a result depends on the study's settings, the adaptation's and the images adapted to
     def adapt_sha(ds: Dataset) -> str:
-        key = {"study": sha, "adapt": _adapt_settings(), "target": b.adapt_split(ds),
+        key = {"study": sha, "adapt": _adapt_settings(run.condition), "target": b.adapt_split(ds),
                "unlabelled": repr(ds.unlabelled)}
         return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:16]
 
@@ -765,7 +774,8 @@ def _execute_adapt(run: _Run, b: _Builder, sha: str, overrides: dict[str, Any], 
             t0 = time.perf_counter()
             # images only: adapt never sees a label of the evaluated dataset (its labels are surrogates from the prior)
             summary = adapt(source, [j.image for j in jobs], b.camera(ds), prior_path, model,
-                            store=adir / "target.store", within=within, device=cfg.device, seed=cfg.seed,
+                            store=adir / "target.store", within=within, combine=ADAPT_COMBINE[run.condition],
+                            device=cfg.device, seed=cfg.seed,
                             max_steps=cfg.max_steps, progress=b.progress)
             done = {"settings_sha": asha, "from": str(source), "from_sha256": source_sha, "target": split,
                     "target_items": len(jobs), "adapt_seconds": round(time.perf_counter() - t0, 1),
@@ -801,7 +811,7 @@ def run_study(study: Study, out: str | Path, conditions: Sequence[str] | None = 
     overrides = dict(train_overrides or {})
     training = training_settings(study, overrides)  # checks the training settings before anything is written
     b = _Builder(study, out, progress, jobs, say)
-    if "adapt" in conditions:
+    if any(CONDITIONS[c][1] == "adapt" for c in conditions):
         _check_adapt_targets(b, evaluated)  # also before anything is written
     out.mkdir(parents=True, exist_ok=True)
     virt = b.virtual()
