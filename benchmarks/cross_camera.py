@@ -24,8 +24,9 @@ pose) moved exactly by the simulated rotation, so the per-image pose change is e
 source frame's own deviation from the nominal pose is not known; for ``native`` it is the nominal
 VP for every frame (within-gt = between there). Also available with ``--conditions`` (not run by
 default): ``prior`` (no training: the training cameras' geometric prior p_g >= 0.5, Table 5's
-"Geo-Prior") and ``adapt`` (each run's within model adapted without labels to the held-out camera's
-test images with that prior); both appear in the table, the plot and the JSON like the others.
+"Geo-Prior"), ``adapt`` (each run's within model adapted without labels to the held-out camera's
+test images with that prior's tri-mask) and ``adapt-fuse`` (the same, the prior fused with the
+within model's own prediction); they appear in the table, the plot and the JSON like the others.
 
 Budget: segnet-narrow on the CPU, torch's default threads (2 on the reference machine), seed 0,
 ``--epochs`` each (default 6), working size = the virtual store's (default width 288; the resize baseline uses the same
@@ -49,7 +50,8 @@ import numpy as np
 
 from camvid_cameras import BIN, DATA, ROOT, SIMULATED, bar_plot as _bars, native_camera, run, simulate
 
-CONDITIONS = ["resize", "between", "within", "within-gt", "zero"]  # the default; --conditions may add prior, adapt
+CONDITIONS = ["resize", "between", "within", "within-gt", "zero"]  # the default; --conditions may add prior,
+                                                                    # adapt, adapt-fuse
 # name -> vcprep simulate arguments (None: the native CamVid frames)
 CAMERAS: dict[str, list[str] | None] = {"native": None, **SIMULATED}
 
