@@ -62,7 +62,8 @@ def bar_plot(cell: dict[tuple[str, str], float], groups: list[str], conditions: 
              spread: dict[tuple[str, str], float] | None = None) -> np.ndarray:
     """Grouped bars: road IoU in [0, 1] per group and condition (colours); ``spread``: error bars
     (+/- that much) where given."""
-    colours = [(160, 160, 160), (200, 140, 60), (60, 170, 60), (40, 110, 30), (60, 60, 200)]
+    colours = [(160, 160, 160), (200, 140, 60), (60, 170, 60), (40, 110, 30), (60, 60, 200), (170, 70, 170),
+               (0, 150, 255)]
     W, H, top, bottom, left = 1000, 540, 80, 60, 60
     img = np.full((H, W, 3), 255, np.uint8)
     gw = (W - left - 20) / len(groups)
