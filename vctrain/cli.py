@@ -321,8 +321,9 @@ def crossval_cmd(
     zero padding instead of projective completion), prior (no training: the training datasets'
     geometric prior, p_g >= 0.5), adapt (the within model adapted to the evaluated dataset's
     unlabelled images with that prior's tri-mask), adapt-fuse (as adapt, the prior fused with the
-    model's own prediction; prior, adapt and adapt-fuse are not among the defaults). Prints the table (rows: evaluated dataset and
-    mean; columns: conditions; road IoU in %) and writes OUT/table.md, table.csv, results.jsonl,
+    model's own prediction; prior, adapt and adapt-fuse are not among the defaults). Prints the
+    table (rows: evaluated dataset and mean; columns: conditions; road IoU in %) and writes
+    OUT/table.md, table.csv, results.jsonl,
     summary.json and per-run logs under OUT/runs. Training settings the study does not give are
     vctrain fit's defaults. Finished runs are not redone: run the same command again to resume.
 

@@ -766,15 +766,15 @@ def _execute_adapt(run: _Run, b: _Builder, sha: str, overrides: dict[str, Any], 
             shutil.rmtree(adir / "target.store", ignore_errors=True)  # never train on another run's items
             jobs = b.items(ds, split)
             if isinstance(b.camera(ds), FrameCameras):
-                within = "none"  # per-frame calibration: every frame's exact pose, as in the test store
+                poses = "none"  # per-frame calibration: every frame's exact pose, as in the test store
             else:
                 b.poses(ds, split, "estimate")  # the study's VP estimates (its pose range), as the test store's
-                within = str(b.out / "vps" / f"{ds.name}-{split}.csv")
+                poses = str(b.out / "vps" / f"{ds.name}-{split}.csv")
             say(f"{_what(run, ds, tag)}: adapting the within model to {len(jobs)} unlabelled {split} images")
             t0 = time.perf_counter()
             # images only: adapt never sees a label of the evaluated dataset (its labels are surrogates from the prior)
             summary = adapt(source, [j.image for j in jobs], b.camera(ds), prior_path, model,
-                            store=adir / "target.store", within=within, combine=ADAPT_COMBINE[run.condition],
+                            store=adir / "target.store", within=poses, combine=ADAPT_COMBINE[run.condition],
                             device=cfg.device, seed=cfg.seed,
                             max_steps=cfg.max_steps, progress=b.progress)
             done = {"settings_sha": asha, "from": str(source), "from_sha256": source_sha, "target": split,
