@@ -146,7 +146,7 @@ def resolve_recipe(cfg: TrainConfig, device: torch.device | None = None) -> Trai
         v = float(getattr(cfg, k))
         if not math.isfinite(v) or v < 0 or (k == "lr" and v == 0):
             raise InputError(f"{k.replace('_', '-')} must be a finite number >= 0 (lr > 0), got {v}", None,
-                             f"see vctrain fit --help")
+                             "see vctrain fit --help")
     return cfg
 
 
