@@ -116,6 +116,7 @@ import argparse
 import json
 import math
 import platform
+import shutil
 import sys
 import time
 from dataclasses import asdict, replace
@@ -308,20 +309,18 @@ def camvid_set(split: str, cam):
     return out, skipped, spread
 
 
-def simulated_sets(val_items, cam, workdir: Path):
+def simulated_sets(val_items, workdir: Path):
     """CamVid val frames that have a reference VP, through the simulated cameras of the
     cross-camera benchmarks (``vcprep simulate``: crop/zoom and rotation about the optical centre
     are exact), each frame's reference VP mapped exactly by the same homography (``--vps``).
     Returns [(name, camera, [(id, image, reference VP)])]; the camera is the simulated camera at
-    its nominal pose (per-image pan/tilt jitter is what the detector must find)."""
+    its nominal pose (per-image pan/tilt jitter is what the detector must find); the source
+    camera is CamVid's (the camvid preset at 480x360)."""
     from camvid_cameras import BIN, SIMULATED, native_camera, run
     from vcprep.camera import load_camera
 
     src = workdir / "val_with_reference"
-    if src.exists():
-        import shutil
-
-        shutil.rmtree(src)
+    shutil.rmtree(src, ignore_errors=True)
     src.mkdir(parents=True)
     rows = ["id,u,v"]
     for iid, _, ref in val_items:
@@ -458,7 +457,7 @@ def main(argv=None) -> int:
         print(f"NOTE: {DATA} is absent: real-frame figures are NOT measured (synthetic only).", file=sys.stderr)
     if not args.no_other_cameras:
         if val_items:
-            for name, cam, items in simulated_sets(val_items, cam480, Path(args.workdir)):
+            for name, cam, items in simulated_sets(val_items, Path(args.workdir)):
                 sets.append((f"sim/{name}", f"{cam.size[0]}x{cam.size[1]}", items, cam))
         kcams, kitems, kskipped = kitti_set()
         if kitems:
