@@ -12,7 +12,9 @@ Data (../shared/data; nothing is tuned on a test set):
   sequence 0001TP, i.e. 0016E5 + 0006R0 (305 frames; study split ``exclude: 0001TP_*``); the
   checkpoint is chosen on the recipe's validation share of these frames.
 * **in-domain** test rows (same camera): ``camvid-val`` (CamVid val, 101 frames of 0016E5) and
-  ``camvid-0001TP`` (the unseen sequence 0001TP of CamVid train, 62 frames, never trained on).
+  ``camvid-0001TP`` (the unseen sequence 0001TP of CamVid train, 62 frames, never trained on);
+  beside them ``camvid-0001TP-crop``: the same frames with the rig's bonnet (bottom 36 rows,
+  ``EGO_ROWS``) cut off by an exact crop and the camera at the cropped size (not in the target).
 * **real other camera**: ``kitti``, the KITTI road frames in kitti_road/training (image_2 with
   the road ground truth of gt_image_2, label format kitti; camera = the per-frame calibration
   folder calib/: P2 gives K, that frame's Tr_cam_to_road its exact height and pitch, so no VP is
@@ -73,6 +75,7 @@ import platform
 import shutil
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
@@ -82,6 +85,12 @@ from camvid_cameras import BIN, DATA, DESCRIPTION, ROOT, SHARED_DATA, SIMULATED,
 
 KITTI = SHARED_DATA / "kitti_road" / "training"
 UNSEEN = "0001TP"                         # the CamVid sequence held out of training
+# The 0001TP rig shows its ego-vehicle: a bonnet up to 36 rows high at the bottom of every frame
+# (the height of its ego-vehicle mask, CamVid class 11 connected to the bottom edge; the training
+# sequences 0016E5 and 0006R0 show none). A bottom crop is exact (K unchanged, only the size), so
+# the row camvid-0001TP-crop is the same frames and camera with the rig's bonnet cut off: what a
+# user describes when the camera sees its own car. Not in the in-domain target (reported beside it).
+EGO_ROWS = 36
 IN_DOMAIN = ["camvid-val", f"camvid-{UNSEEN}"]
 REAL = ["kitti"]
 SIM = list(SIMULATED)
@@ -118,6 +127,24 @@ def camvid_folders(wd: Path, quick: bool) -> dict[str, Path]:
             "valannot": _link(val, full["valannot"], wd / "src" / "valannot")}
 
 
+def bottom_crop(images: list[Path], labels: Path, rows: int, dst: Path) -> dict[str, str]:
+    """``images`` (and their labels) with the bottom ``rows`` cut off, and the native camera at the
+    cropped size (a bottom crop keeps K exactly; only the image height changes)."""
+    from vcprep.camera import PRESETS, camera_to_yaml
+
+    for sub in ("images", "labels"):
+        (dst / sub).mkdir(parents=True, exist_ok=True)
+    for p in images:
+        for src, sub, flag in ((p, "images", cv2.IMREAD_COLOR), (labels / p.name, "labels", cv2.IMREAD_UNCHANGED)):
+            out = dst / sub / p.name
+            if not out.exists():
+                a = cv2.imread(str(src), flag)
+                cv2.imwrite(str(out), a[: a.shape[0] - rows])
+    cam = PRESETS["camvid"].for_image_size((480, 360))
+    (dst / "camera.yaml").write_text(camera_to_yaml(replace(cam, size=(cam.size[0], cam.size[1] - rows))))
+    return {"images": str(dst / "images"), "labels": str(dst / "labels"), "camera": str(dst / "camera.yaml")}
+
+
 def kitti_datasets() -> list[dict]:
     """The KITTI road frames with road ground truth, twice: ``kitti`` with every frame's own
     calibration (calib/: P2 and that frame's Tr_cam_to_road, the exact pose; what a user with
@@ -145,6 +172,9 @@ def make_study(wd: Path, args: argparse.Namespace, conditions: list[str]) -> tup
     datasets = [camvid("camvid", "train", f["train"], f["trainannot"], exclude=f"{UNSEEN}_*"),
                 camvid("camvid-val", "test", f["val"], f["valannot"]),
                 camvid(f"camvid-{UNSEEN}", "test", f["train"], f["trainannot"], include=f"{UNSEEN}_*")]
+    crop = bottom_crop(sorted(f["train"].glob(f"{UNSEEN}_*.png")), f["trainannot"], EGO_ROWS, wd / f"{UNSEEN}-crop")
+    datasets.append({"name": f"camvid-{UNSEEN}-crop", "role": "test", "camera": str(crop["camera"]),
+                     "label_format": "camvid", "test": {"images": crop["images"], "labels": crop["labels"]}})
     k = kitti_datasets()
     if not k:
         print(f"note: no KITTI road frames in {KITTI}: no real other camera", file=sys.stderr)
@@ -461,7 +491,9 @@ def main() -> None:
            f"- Virtual camera (designed from every camera of the study, pan ±10°, tilt ±5°): "
            f"{virt['image_size'][0]}x{virt['image_size'][1]}, f {virt['fx']:.1f}, height {virt['height']:.2f} m, "
            f"store scale {study_json['scale']:.4f}.",
-           f"- In-domain: camvid-val = CamVid val; camvid-{UNSEEN} = the unseen sequence (never trained on).",
+           f"- In-domain: camvid-val = CamVid val; camvid-{UNSEEN} = the unseen sequence (never trained on); "
+           f"camvid-{UNSEEN}-crop = the same frames with the rig's bonnet cut off (bottom {EGO_ROWS} rows, an exact "
+           "crop; not in the target).",
            "- Real other camera: kitti = KITTI road frames, every frame with its own calibration (calib/: exact "
            "pose, nothing estimated); kitti-vp = the same frames with one camera (the first frame's file) and "
            "estimated road VPs (not in the headline).",
