@@ -149,6 +149,29 @@ def test_changed_settings_redo_the_runs(study_run, tmp_path):
     assert json.loads((copy / "runs" / "kitti" / "between" / "result.json").read_text())["epochs"] == 2
 
 
+def test_a_changed_virtual_camera_rebuilds_the_studys_stores(study_run, tmp_path):
+    """Another store width (or datasets that change the designed virtual camera) makes the study's
+    stores obsolete: they are built afresh for the new camera and scale, never mixed, never an error."""
+    study, out, _ = study_run
+    import shutil
+
+    copy = tmp_path / "out"
+    shutil.copytree(out, copy)
+    edited = study.parent / "study_width96.yaml"  # beside the study: its relative paths hold
+    d = yaml.safe_load(study.read_text())
+    d["store_width"] = 96
+    edited.write_text(yaml.safe_dump(d, sort_keys=False))
+    proc = run_cli("crossval", edited, "--out", copy, "--heldout", "kitti", "--conditions", "between", "--epochs", "1",
+                   "--json", prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    assert "built for another virtual camera or scale; building it afresh" in proc.stderr
+    for d_ in ("camvid", "cityscapes", "kitti"):
+        split = "test" if d_ == "kitti" else "train"
+        st = Store.open(copy / "stores" / d_ / split / "between")
+        assert st.store_size[0] == 96 and all(r["store_size"][0] == 96 for r in st)
+    assert json.loads((copy / "runs" / "kitti" / "between" / "result.json").read_text())["epochs"] == 1
+
+
 def test_within_gt_is_skipped_without_given_vps(tmp_path):
     study = _study(tmp_path / "data", vps_for=("camvid", "kitti"))
     proc = run_cli("crossval", study, "--out", tmp_path / "out", "--conditions", "within-gt", "--heldout", "camvid",

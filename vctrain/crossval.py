@@ -469,12 +469,26 @@ class _Builder:
             self._vps[key] = {i: ItemPose((r.vp[0], r.vp[1]), r.status) for i, r in zip(ids, res)}
         return self._vps[key]
 
+    def _drop_if_other_virtual(self, root: Path) -> None:
+        """The study's stores are its own derived data: one built for another virtual camera or
+        scale (the study's datasets or settings changed since) is removed, to be built afresh."""
+        if not (root / "store.json").exists():
+            return
+        from vcprep.build import store_params
+
+        want = store_params(self.virtual(), self.scale())
+        have = Store.open(root).params
+        if any(have.get(k) != want[k] for k in ("virtual", "scale", "store_size")):
+            self.say(f"{root.relative_to(self.out)}: built for another virtual camera or scale; building it afresh")
+            shutil.rmtree(root)
+
     def store(self, ds: Dataset, split: str, geometry: str) -> Path:
         """The store of ``ds``'s ``split`` in ``geometry`` (built or brought up to date)."""
         source, completion = GEOMETRIES[geometry]
         root = self.out / "stores" / ds.name / split / geometry
         jobs = self.items(ds, split)
         poses = self.poses(ds, split, source)
+        self._drop_if_other_virtual(root)
         warp_dataset(jobs, self.camera(ds), self.virtual(), self.scale(), root, get_label_format(ds.label_format),
                      progress=self.progress, poses=poses, completion=completion, workers=self.jobs)
         return root
