@@ -131,15 +131,16 @@ def bottom_crop(images: list[Path], labels: Path, rows: int, dst: Path) -> dict[
     """``images`` (and their labels) with the bottom ``rows`` cut off, and the native camera at the
     cropped size (a bottom crop keeps K exactly; only the image height changes)."""
     from vcprep.camera import PRESETS, camera_to_yaml
+    from vcprep.imageio import read_image, write_png
 
     for sub in ("images", "labels"):
         (dst / sub).mkdir(parents=True, exist_ok=True)
     for p in images:
-        for src, sub, flag in ((p, "images", cv2.IMREAD_COLOR), (labels / p.name, "labels", cv2.IMREAD_UNCHANGED)):
+        for src, sub, kind in ((p, "images", "photo"), (labels / p.name, "labels", "mask")):
             out = dst / sub / p.name
-            if not out.exists():
-                a = cv2.imread(str(src), flag)
-                cv2.imwrite(str(out), a[: a.shape[0] - rows])
+            if not out.exists():  # written atomically: an existing file is a whole one
+                a = read_image(src, label=kind == "mask").array
+                write_png(out, a[: a.shape[0] - rows], kind=kind)
     cam = PRESETS["camvid"].for_image_size((480, 360))
     (dst / "camera.yaml").write_text(camera_to_yaml(replace(cam, size=(cam.size[0], cam.size[1] - rows))))
     return {"images": str(dst / "images"), "labels": str(dst / "labels"), "camera": str(dst / "camera.yaml")}
