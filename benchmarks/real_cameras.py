@@ -220,7 +220,7 @@ def reference_images_per_s(ck: dict, threads: int, seconds: float, min_steps: in
     torch.set_num_threads(threads)
     cfg, margs = ck["config"], ck["model_args"]
     device = resolve_device(cfg.get("device") or "auto")
-    w, h = ck["data"]["input_size"]
+    w, h = ck["data"].get("crop_size") or ck["data"]["input_size"]  # the training batches' shape
     batch = int(cfg.get("batch_size") or 8)
     fmt = torch.channels_last if margs["arch"] == "resfpn" else torch.contiguous_format
     torch.manual_seed(0)
@@ -279,7 +279,8 @@ def collect_seed(sd: Path, conditions: list[str], threads: int, quick: bool) -> 
         tj = json.loads((run_dir / "train.json").read_text())
         ck = torch.load(run_dir / "model.pt", map_location="cpu", weights_only=False)
         log = [json.loads(line) for line in (run_dir / "model.log.jsonl").read_text().splitlines()]
-        shape = json.dumps([ck["model_args"], ck["data"]["input_size"], ck["config"].get("batch_size"),
+        shape = json.dumps([ck["model_args"], ck["data"].get("crop_size") or ck["data"]["input_size"],
+                            ck["config"].get("batch_size"),
                             ck["config"].get("optimizer"), ck["config"].get("device"), threads], sort_keys=True)
         # the reference is measured right after the training it belongs to and kept with it, so a
         # resumed benchmark reuses it; one per distinct shape (resize and virtual share the working size)

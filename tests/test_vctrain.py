@@ -226,6 +226,55 @@ def test_hflip_moves_vp_channel(tmp_path):
     assert seen == {True, False}
 
 
+def _coordinate_item(tmp_path, w: int, h: int) -> Sample:
+    """An image and label whose pixel values encode their own (x, y): any window is identifiable."""
+    yy, xx = np.mgrid[0:h, 0:w]
+    img = np.stack([xx * 3, yy * 5, (xx + yy) % 256], axis=2).astype(np.uint8)
+    write_png(tmp_path / "c.png", img)
+    write_png(tmp_path / "cl.png", ((xx + 2 * yy) % 2).astype(np.uint8))
+    return Sample("c", tmp_path / "c.png", tmp_path / "cl.png", None, (31.0, 9.0))
+
+
+@pytest.mark.parametrize("affine", [False, True])
+def test_random_crop_is_an_exact_window_of_the_working_image(tmp_path, affine):
+    """--crop: each training item is a (cw, ch) window of the working image at a random position
+    inside it, the VP channel is the window of the whole image's map (normalised by the whole
+    size), and positions cover the image. With the affine augmentation drawn at a vanishing
+    strength the window (one composed warp) must be the same exact window."""
+    w, h, cw, ch = 64, 40, 40, 24
+    sample = _coordinate_item(tmp_path, w, h)
+    eps = 1e-9 if affine else 0.0
+    full = RoadDataset([sample], (w, h), vp_channel=True)
+    ds = RoadDataset([sample], (w, h), vp_channel=True, crop=(cw, ch), scale_aug=eps, shift_aug=eps)
+    x_full, y_full = full[0]
+    torch.manual_seed(5)
+    origins = set()
+    for _ in range(40):
+        x, y = ds[0]
+        assert x.shape == (4, ch, cw) and y.shape == (ch, cw)
+        # the image's first two channels give the window's origin
+        x0 = int(round((x[0, 0, 0].item() + 1) / 2 * 255 / 3))
+        y0 = int(round((x[1, 0, 0].item() + 1) / 2 * 255 / 5))
+        assert 0 <= x0 <= w - cw and 0 <= y0 <= h - ch
+        origins.add((x0, y0))
+        np.testing.assert_allclose(x.numpy(), x_full[:, y0:y0 + ch, x0:x0 + cw].numpy(), atol=1e-4)
+        assert torch.equal(y, y_full[y0:y0 + ch, x0:x0 + cw])
+    xs, ys = {o[0] for o in origins}, {o[1] for o in origins}
+    assert len(origins) > 20 and min(xs) <= 3 and max(xs) >= w - cw - 3 and min(ys) <= 2 and max(ys) >= h - ch - 2
+
+
+def test_crop_size_from_a_share_or_pixels():
+    from vctrain.train import crop_size
+
+    assert crop_size(None, (480, 360)) == (480, 360)
+    assert crop_size(2 / 3, (480, 360)) == (320, 240)
+    assert crop_size(1.0, (99, 50)) == (99, 50)
+    assert crop_size((320, 200), (480, 360)) == (320, 200)
+    for bad in (0.0, 1.5, (500, 200), (20, 20), 0.05):
+        with pytest.raises(InputError):
+            crop_size(bad, (480, 360))
+
+
 # -- end to end on a synthetic store ----------------------------------------------------------------
 def _render_set(folder: Path, cam, n: int, seed: int = 0):
     (folder / "images").mkdir(parents=True)
@@ -338,6 +387,27 @@ def test_predict_store_and_resize_baseline(trained, tmp_path):
     r = runner.invoke(app, ["predict", str(tmp_path / "resize.pt"), str(img), "--out", str(tmp_path / "rp"), "--quiet"])
     assert r.exit_code == 0, r.output
     assert read_image(tmp_path / "rp" / f"{img.stem}_mask.png", label=True).array.shape == (72, 96)
+
+
+def test_fit_on_crops_predicts_on_the_whole_image(trained, tmp_path):
+    """--crop trains on windows (the checkpoint records both sizes) and validation and prediction
+    run on the whole working image (fully convolutional), so masks keep the source size."""
+    root, store, _ = trained
+    r = runner.invoke(app, ["fit", str(root / "store"), "--crop", "0.6", "--width", "4", "--epochs", "1",
+                            "--batch-size", "3", "--val-fraction", "0.34", "--out", str(tmp_path / "c.pt"),
+                            "--quiet", "--json"])
+    assert r.exit_code == 0, r.output
+    ck = load_checkpoint(tmp_path / "c.pt")
+    assert ck["data"]["input_size"] == [110, 56] and ck["data"]["crop_size"] == [66, 34]
+    assert ck["config"]["crop"] == 0.6
+    r = runner.invoke(app, ["predict", str(tmp_path / "c.pt"), "--store", str(root / "store"),
+                            "--out", str(tmp_path / "cp"), "--quiet"])
+    assert r.exit_code == 0, r.output
+    rec = next(iter(store))
+    mask = read_image(tmp_path / "cp" / f"{rec['id']}_mask.png", label=True).array
+    assert mask.shape == (72, 96)  # the source camera's size
+    r = runner.invoke(app, ["fit", str(root / "store"), "--crop", "200x20", "--out", str(tmp_path / "d.pt")])
+    assert r.exit_code != 0 and "does not fit the working size 110x56" in str(r.exception)
 
 
 def test_resume_continues_exactly(trained, tmp_path):

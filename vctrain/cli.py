@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import List, Optional
+from typing import Any, List, Optional
 
 import typer
 
@@ -44,6 +44,18 @@ def _parse_size(text: Optional[str]) -> Optional[tuple[int, int]]:
     return None if text is None else parse_size(text)
 
 
+def _parse_crop(text: Optional[str]) -> Optional[Any]:
+    """--crop: 'WxH' pixels or a share of each side ('0.67')."""
+    if text is None:
+        return None
+    if "x" in text.lower():
+        return _parse_size(text)
+    try:
+        return float(text)
+    except ValueError:
+        raise InputError(f"--crop '{text}' is neither WxH nor a number", None, "use e.g. --crop 320x240 or --crop 0.67") from None
+
+
 @app.command("fit")
 def fit_cmd(
     stores: Optional[List[Path]] = typer.Argument(None, help="training stores built by 'vcprep warp' (one virtual camera and scale)"),
@@ -64,6 +76,9 @@ def fit_cmd(
     label_format: Optional[str] = typer.Option(None, "--label-format", help="baseline only: camvid, kitti, cityscapes, "
                                                                            "bdd or values:road=3;ignore=11"),
     size: Optional[str] = typer.Option(None, "--size", help="working size WxH (default: the store size)"),
+    crop: Optional[str] = typer.Option(None, "--crop", help="train on random windows of the working image: WxH "
+                                                            "pixels or a share of each side (0.67); validation and "
+                                                            "prediction see the whole image (default: no crop)"),
     epochs: Optional[int] = typer.Option(None, "--epochs", "-e", help="epochs (cpu recipe: 20, paper recipe: 30; the paper: 600 on a GPU)"),
     batch_size: Optional[int] = typer.Option(None, "--batch-size", "-b", help="global batch size (recipes: 8)"),
     optimizer: Optional[str] = typer.Option(None, "--optimizer", help="sgd (momentum 0.9; paper) or adamw (cpu)"),
@@ -107,13 +122,14 @@ def fit_cmd(
       vctrain fit stores/camvid_train --val-store stores/camvid_val --epochs 20 --out runs/vc.pt
       vctrain fit stores/camvid_train --baseline resize --size 344x176 --out runs/resize.pt
       vctrain fit stores/camvid_train --out runs/vc.pt --resume runs/vc.last.pt --epochs 40
+      vctrain fit stores/camvid_train_fine --crop 0.67 --out runs/vc_fine.pt
     """
     from .train import TrainConfig, fit
 
     cfg = TrainConfig(stores=[str(s) for s in stores or []], out=str(out), baseline=baseline,
                       images=str(images) if images else None, labels=str(labels) if labels else None,
                       label_format=label_format, recipe=recipe, arch=model, base_width=width, size=_parse_size(size),
-                      epochs=epochs, batch_size=batch_size, optimizer=optimizer, lr=lr, weight_decay=weight_decay,
+                      crop=_parse_crop(crop), epochs=epochs, batch_size=batch_size, optimizer=optimizer, lr=lr, weight_decay=weight_decay,
                       schedule=schedule, scale_aug=scale_aug, shift_aug=shift_aug, color_aug=color_aug, seed=seed,
                       device=device, val_fraction=val_fraction, val_stores=[str(s) for s in val_store or []],
                       class_weights=class_weights, hflip=hflip, greyscale=greyscale, vp_channel=vp_channel,

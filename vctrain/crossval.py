@@ -116,7 +116,7 @@ DEFAULT_CONDITIONS = ("resize", "between", "within", "within-gt", "zero")  # a s
 RUN_KEYS = ("stores", "out", "baseline", "images", "labels", "label_format", "size", "val_stores", "resume", "log",
             "progress")
 TRAIN_KEYS = ("epochs", "arch", "base_width", "batch_size", "lr", "momentum", "weight_decay", "schedule", "seed",
-              "val_fraction", "class_weights", "hflip", "greyscale", "device", "workers", "max_steps")
+              "val_fraction", "class_weights", "hflip", "greyscale", "device", "workers", "max_steps", "crop")
 # role -> (trained on, evaluated); 'both' = held out in turn (leave one out)
 ROLES: dict[str, tuple[bool, bool]] = {"both": (True, True), "train": (True, False), "test": (False, True)}
 ALL_RUN = "_all"  # runs/_all/<condition>/: trained on every trainable dataset, scored on the test-role ones

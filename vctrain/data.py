@@ -15,8 +15,15 @@ small pan/tilt), so the network learns a tolerance to the pose errors it meets a
 Photometric: brightness, contrast and per-channel gain drawn in 1 ± ``color_aug`` (gain ±1/3 of it)
 and a gamma in [1/(1+c), 1+c] (dusk and over-exposed frames differ by more than a linear map).
 
+Random crops (``crop`` (cw, ch), training only): each item is a random window of the
+(augmented) working-size image, drawn uniformly over the positions that keep it inside; the
+affine map above and the crop are one warp, so a crop costs no more than the augmentation alone.
+A model trains on windows of a finer store at the pixel cost of the window and predicts on the
+whole working size (the networks are fully convolutional).
+
 VP proximity map (VPSeg): ``1 - max(|x - x_vp| / w, |y - y_vp| / h)`` over working-size pixel
-centres, with the VP in working coordinates (flipped with the image).
+centres, with the VP in working coordinates (flipped with the image); (w, h) is always the working
+size, so a crop sees exactly its window of the whole image's map.
 """
 from __future__ import annotations
 
@@ -104,11 +111,13 @@ def to_input(image: np.ndarray, greyscale: bool = False) -> np.ndarray:
     return np.ascontiguousarray((img * 2.0 - 1.0).transpose(2, 0, 1))
 
 
-def vp_proximity(size: tuple[int, int], vp: tuple[float, float]) -> np.ndarray:
-    """VP proximity map (h, w) float32: ``1 - max(|x - x_vp| / w, |y - y_vp| / h)``."""
+def vp_proximity(size: tuple[int, int], vp: tuple[float, float], norm: tuple[int, int] | None = None) -> np.ndarray:
+    """VP proximity map (h, w) float32: ``1 - max(|x - x_vp| / W, |y - y_vp| / H)`` with (W, H) =
+    ``norm`` (default: ``size``; a crop passes the whole image's size)."""
     w, h = size
-    x = np.abs(np.arange(w, dtype=np.float32) - vp[0]) / w
-    y = np.abs(np.arange(h, dtype=np.float32) - vp[1]) / h
+    nw, nh = norm if norm is not None else size
+    x = np.abs(np.arange(w, dtype=np.float32) - vp[0]) / nw
+    y = np.abs(np.arange(h, dtype=np.float32) - vp[1]) / nh
     return 1.0 - np.maximum(x[None, :], y[:, None])
 
 
@@ -135,13 +144,19 @@ def _load(sample: Sample) -> tuple[np.ndarray, np.ndarray]:
 
 
 class RoadDataset(torch.utils.data.Dataset):
-    """Samples resized to the working size ``size`` (w, h), decoded once and kept in memory."""
+    """Samples resized to the working size ``size`` (w, h), decoded once and kept in memory;
+    with ``crop`` (cw, ch) every item is a random window of that size (module docstring)."""
 
     def __init__(self, samples: Sequence[Sample], size: tuple[int, int], hflip: bool = False,
                  greyscale: float = 0.0, vp_channel: bool = False, scale_aug: float = 0.0, shift_aug: float = 0.0,
-                 color_aug: float = 0.0):
+                 color_aug: float = 0.0, crop: tuple[int, int] | None = None):
         self.samples = list(samples)
         self.size = (int(size[0]), int(size[1]))
+        self.crop = None
+        if crop is not None and (int(crop[0]), int(crop[1])) != self.size:
+            if not (0 < crop[0] <= self.size[0] and 0 < crop[1] <= self.size[1]):
+                raise ValueError(f"crop {crop[0]}x{crop[1]} does not fit the working size {self.size[0]}x{self.size[1]}")
+            self.crop = (int(crop[0]), int(crop[1]))
         self.hflip = bool(hflip)
         self.scale_aug, self.shift_aug, self.color_aug = float(scale_aug or 0), float(shift_aug or 0), float(color_aug or 0)
         self.greyscale = float(greyscale)
@@ -170,16 +185,25 @@ class RoadDataset(torch.utils.data.Dataset):
             self._cache[i] = hit
         return hit
 
-    def _affine(self, img: np.ndarray, lab: np.ndarray, vp: tuple[float, float] | None):
-        """Random scale about the VP (or the centre) plus a random shift; see the module docstring."""
+    def _crop_origin(self) -> tuple[int, int]:
+        """A random window position (x0, y0) for ``crop``, uniform over those inside the image."""
+        (w, h), (cw, ch) = self.size, self.crop
+        r = torch.rand(2).tolist()  # torch RNG: seeded per run, epoch and worker
+        return min(int(r[0] * (w - cw + 1)), w - cw), min(int(r[1] * (h - ch + 1)), h - ch)
+
+    def _affine(self, img: np.ndarray, lab: np.ndarray, vp: tuple[float, float] | None,
+                origin: tuple[int, int] = (0, 0)):
+        """Random scale about the VP (or the centre) plus a random shift, then the window at
+        ``origin`` of the crop size (the whole image without a crop); see the module docstring."""
         w, h = self.size
         r = torch.rand(3).tolist()  # torch RNG: seeded per run, epoch and worker
         s = math.exp((2 * r[0] - 1) * math.log1p(self.scale_aug))
         ax, ay = vp if vp is not None else ((w - 1) / 2.0, (h - 1) / 2.0)
         dx, dy = (2 * r[1] - 1) * self.shift_aug * w, (2 * r[2] - 1) * self.shift_aug * h
-        M = np.array([[s, 0.0, (1 - s) * ax + dx], [0.0, s, (1 - s) * ay + dy]])
-        img = cv2.warpAffine(img, M, (w, h), flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT_101)
-        lab = cv2.warpAffine(lab, M, (w, h), flags=cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT,
+        M = np.array([[s, 0.0, (1 - s) * ax + dx - origin[0]], [0.0, s, (1 - s) * ay + dy - origin[1]]])
+        out = self.crop or self.size
+        img = cv2.warpAffine(img, M, out, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT_101)
+        lab = cv2.warpAffine(lab, M, out, flags=cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT,
                              borderValue=IGNORE)
         if vp is not None:
             vp = (s * vp[0] + M[0, 2], s * vp[1] + M[1, 2])
@@ -217,8 +241,15 @@ class RoadDataset(torch.utils.data.Dataset):
 
     def __getitem__(self, i: int):
         img, lab, vp = self.item(i)
+        origin = self._crop_origin() if self.crop else (0, 0)
         if self.scale_aug > 0 or self.shift_aug > 0:
-            img, lab, vp = self._affine(img, lab, vp)
+            img, lab, vp = self._affine(img, lab, vp, origin)
+        elif self.crop:
+            (x0, y0), (cw, ch) = origin, self.crop
+            img = np.ascontiguousarray(img[y0:y0 + ch, x0:x0 + cw])
+            lab = np.ascontiguousarray(lab[y0:y0 + ch, x0:x0 + cw])
+            vp = (vp[0] - x0, vp[1] - y0) if vp is not None else None
+        out_w = img.shape[1]
         grey = self.greyscale >= 1.0 or (self.greyscale > 0 and float(torch.rand(())) < self.greyscale)
         if self.color_aug > 0 and not grey and img.dtype == np.uint8 and img.ndim == 3 and img.shape[2] == 3:
             x = self._photometric_u8(img)
@@ -231,9 +262,9 @@ class RoadDataset(torch.utils.data.Dataset):
             x = np.ascontiguousarray(x[:, :, ::-1])
             y = np.ascontiguousarray(y[:, ::-1])
             if vp is not None:
-                vp = (self.size[0] - 1 - vp[0], vp[1])
+                vp = (out_w - 1 - vp[0], vp[1])
         if self.vp_channel:
-            x = np.concatenate([x, vp_proximity(self.size, vp)[None]], axis=0)
+            x = np.concatenate([x, vp_proximity((out_w, img.shape[0]), vp, norm=self.size)[None]], axis=0)
         return torch.from_numpy(x), torch.from_numpy(y.astype(np.int64))
 
 

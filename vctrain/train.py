@@ -57,7 +57,8 @@ from .data import RoadDataset, Sample, class_frequencies, median_frequency_weigh
 from .metrics import RoadMetrics
 from .model import ARCHITECTURES, build_model, model_args_for
 
-__all__ = ["TrainConfig", "RECIPES", "fit", "evaluate", "get_lr", "resolve_device", "resolve_recipe", "last_path"]
+__all__ = ["TrainConfig", "RECIPES", "fit", "evaluate", "get_lr", "resolve_device", "resolve_recipe", "last_path",
+           "crop_size"]
 
 MIN_SIDE = 32  # five 2x2 poolings
 
@@ -89,6 +90,8 @@ class TrainConfig:
     arch: Optional[str] = None         # 'resfpn' | 'segnet' | 'segnet-narrow'; None: the recipe's
     base_width: Optional[int] = None   # override the architecture's first-block width
     size: Optional[tuple[int, int]] = None  # working size (w, h); None: the store size (first image for folders)
+    crop: Optional[Any] = None         # training window: (w, h) in pixels or a float share of each side of the
+                                       # working size; None: the whole image (validation always sees it whole)
     epochs: Optional[int] = None       # None: the recipe's (the paper trains 600 on a GPU)
     batch_size: Optional[int] = None   # global batch (paper Table 2: 8)
     optimizer: Optional[str] = None    # 'sgd' (momentum) | 'adamw'
@@ -259,10 +262,29 @@ def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str
         raise InputError(f"working size {size[0]}x{size[1]} is below {MIN_SIDE} pixels", None,
                          "use a larger --size or store scale")
     info["input_size"] = list(size)
+    info["crop_size"] = list(crop_size(cfg.crop, size))
     info["vp_status"] = sorted({rec.get("vp_status", "camera") for s in stores for rec in s})
     info["train_items"] = len(train)
     info["val_items"] = len(val)
     return train, val, info
+
+
+def crop_size(crop: Any, size: tuple[int, int]) -> tuple[int, int]:
+    """The training window (w, h) of ``crop`` at working size ``size``: None -> ``size``; a number
+    in (0, 1] -> that share of each side (rounded); (w, h) -> as given. It must fit ``size`` and
+    be at least MIN_SIDE on each side."""
+    if crop is None:
+        return tuple(size)
+    if isinstance(crop, (int, float)) and not isinstance(crop, bool):
+        if not 0 < float(crop) <= 1:
+            raise InputError(f"crop share {crop} is not in (0, 1]", None, "use e.g. --crop 0.67 or --crop 320x240")
+        out = (int(round(size[0] * float(crop))), int(round(size[1] * float(crop))))
+    else:
+        out = (int(crop[0]), int(crop[1]))
+    if out[0] > size[0] or out[1] > size[1] or min(out) < MIN_SIDE:
+        raise InputError(f"crop {out[0]}x{out[1]} does not fit the working size {size[0]}x{size[1]} (or is below "
+                         f"{MIN_SIDE} px)", None, "use a smaller --crop, a larger --size, or leave --crop out")
+    return out
 
 
 # -- evaluation ----------------------------------------------------------------------------------
@@ -357,7 +379,8 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
 
     size = tuple(info["input_size"])
     train_ds = RoadDataset(train_s, size, hflip=cfg.hflip, greyscale=cfg.greyscale, vp_channel=cfg.vp_channel,
-                           scale_aug=cfg.scale_aug, shift_aug=cfg.shift_aug, color_aug=cfg.color_aug)
+                           scale_aug=cfg.scale_aug, shift_aug=cfg.shift_aug, color_aug=cfg.color_aug,
+                           crop=tuple(info["crop_size"]))
     val_ds = RoadDataset(val_s, size, greyscale=1.0 if cfg.greyscale >= 1 else 0.0, vp_channel=cfg.vp_channel)
     weight = None
     if cfg.class_weights == "median-freq":
