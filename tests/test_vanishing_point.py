@@ -119,6 +119,61 @@ def test_vp_error_bound_on_synthetic_renders(camvid_half, renders):
     assert max(errs) < 3.0, errs
 
 
+def _one_sided_distractor(cam, pan, tilt, dx, dy, n, side, length=90):
+    """A road render (exact VP from the pose) plus a fan of ``n`` bright lines aimed at the point
+    D = VP + (dx, dy), all lying below D and on ONE side of its vertical (``side`` +1: right),
+    like a row of parked cars or a kerb of a side road: a mode that is supported from one side only."""
+    img, _ = render_road(cam, RoadScene(width=7.0), pan=pan, tilt=tilt, supersample=2)
+    img = img.copy()
+    gt = np.array(vp_from_pose(cam, pan, tilt))
+    D = gt + [dx, dy]
+    for k in range(n):
+        a = math.radians(18 + 50 * k / max(1, n - 1))
+        d = np.array([side * math.cos(a), math.sin(a)])
+        p, q = D + 40 * d, D + (40 + length) * d
+        cv2.line(img, tuple(int(round(v)) for v in p), tuple(int(round(v)) for v in q), (255, 255, 255), 2, cv2.LINE_AA)
+    return img, gt, D
+
+
+@pytest.mark.parametrize("dx, dy, n, side", [(-60, 10, 10, -1), (-50, -10, 8, 1)])
+def test_two_sided_score_beats_a_one_sided_distractor(camvid_half, dx, dy, n, side):
+    """The plain vote (one_sided=1) takes the distractor fan; the two-sided factor takes the road's
+    exact VP. The pose prior is switched off to isolate the factor (the distractor lies nearer the
+    camera's average pose than the road's VP, so the prior could not help), then on (default)."""
+    img, gt, D = _one_sided_distractor(camvid_half, 8.0, 2.0, dx, dy, n, side)
+    w = camvid_half.width
+    plain = estimate_vp(img, camvid_half, VPConfig(pose_sigma=0.0, one_sided=1.0))
+    assert math.dist(plain.vp, D) < 0.02 * w, (plain.vp, D)        # the scene is a real trap
+    two = estimate_vp(img, camvid_half, VPConfig(pose_sigma=0.0))
+    assert math.dist(two.vp, gt) < 0.005 * w, (two.vp, gt)
+    default = estimate_vp(img, camvid_half)
+    assert math.dist(default.vp, gt) < 0.005 * w and default.status == "accepted", (default.vp, gt)
+
+
+def test_pose_prior_is_a_gaussian_of_the_implied_pose(camvid_half):
+    """_scores' prior factor equals exp(-d_pan^2 / 2 s_pan^2 - d_tilt^2 / 2 s_tilt^2), the pose
+    taken from pose_from_vp (independent code), s = pose_sigma x the reliability window; checked
+    on a camera with a non-zero average pose so that a sign error shows."""
+    from dataclasses import replace
+
+    from vcprep.vanishing_point import _scores
+
+    cam = replace(camvid_half, pan=3.0, tilt=-2.0)
+    cfg = VPConfig(one_sided=1.0)
+    poses = [(3.0, -2.0), (13.0, -2.0), (3.0, 10.0), (-15.0, -12.0)]
+    cands = np.array([vp_from_pose(cam, a, b) for a, b in poses])
+    mid = np.array([[cam.cx, cam.cy + 100.0]])           # one vertical segment below the centre
+    dirs = np.array([[0.0, 1.0]])
+    with_prior = _scores(cands, mid, dirs, np.array([10.0]), np.array([1.0]), 1.0, cam, cfg)
+    without = _scores(cands, mid, dirs, np.array([10.0]), np.array([1.0]), 1.0, cam, replace(cfg, pose_sigma=0.0))
+    assert np.all(without > 0)
+    s_pan, s_tilt = cfg.pose_sigma * cfg.pan_range, cfg.pose_sigma * cfg.tilt_range
+    for k, vp in enumerate(cands):
+        pan, tilt = pose_from_vp(cam, vp)
+        expect = math.exp(-0.5 * ((pan - 3.0) / s_pan) ** 2 - 0.5 * ((tilt + 2.0) / s_tilt) ** 2)
+        assert with_prior[k] / without[k] == pytest.approx(expect, rel=1e-9), poses[k]
+
+
 def test_deterministic(camvid_half, renders):
     a = estimate_vp(renders[1][0], camvid_half)
     b = estimate_vp(renders[1][0].copy(), camvid_half)
