@@ -7,6 +7,10 @@ forward warp. That is one ``cv2.warpPerspective(..., WARP_INVERSE_MAP)`` with th
 interpolated and computing the coordinates on the fly is cheaper than reading them). Labels/
 masks use nearest neighbour, probabilities bilinear; source pixels that fall outside the store
 image get ``fill`` (0: not road; bilinear blends toward it over the store's last half pixel).
+
+The result always has the item's full source size ``record["size"]``: an item whose camera sees
+its own vehicle (record ``ego_rows``, the bottom rows that were cut off before warping) gets
+``fill`` in those rows too, so it can be scored against the uncropped labels as is.
 """
 from __future__ import annotations
 
@@ -31,7 +35,8 @@ def src_H_virt(record: dict) -> np.ndarray:
 def backproject_array(arr: np.ndarray, record: dict, kind: str = "mask", fill: int = 0) -> np.ndarray:
     """Map ``arr`` (store-sized) back to the source image of ``record``.
 
-    ``kind='mask'``: nearest neighbour (values never mixed); ``'prob'``: bilinear."""
+    ``kind='mask'``: nearest neighbour (values never mixed); ``'prob'``: bilinear. The bottom
+    ``record["ego_rows"]`` rows (the rig's own vehicle, never warped; absent = 0) are ``fill``."""
     sw, sh = record["store_size"]
     if arr.shape[:2] != (sh, sw):
         raise InputError(f"map is {arr.shape[1]}x{arr.shape[0]} but the store is {sw}x{sh}", record.get("id"),
@@ -41,8 +46,12 @@ def backproject_array(arr: np.ndarray, record: dict, kind: str = "mask", fill: i
     w, h = record["size"]
     H = np.asarray(record["H"], dtype=np.float64).reshape(3, 3)
     interp = cv2.INTER_NEAREST if kind == "mask" else cv2.INTER_LINEAR
-    return cv2.warpPerspective(arr, H, (int(w), int(h)), flags=interp | cv2.WARP_INVERSE_MAP,
-                               borderMode=cv2.BORDER_CONSTANT, borderValue=fill)
+    out = cv2.warpPerspective(arr, H, (int(w), int(h)), flags=interp | cv2.WARP_INVERSE_MAP,
+                              borderMode=cv2.BORDER_CONSTANT, borderValue=fill)
+    ego = int(record.get("ego_rows") or 0)
+    if ego:
+        out[int(h) - ego:] = fill
+    return out
 
 
 def backproject_folder(store: str | Path, masks: str | Path, out: str | Path, kind: str = "mask",

@@ -152,6 +152,10 @@ def list_dataset(images: str | Path, labels: str | Path | None = None, fmt: Labe
 
 def store_params(virtual: Camera, scale: float) -> dict[str, Any]:
     """The parameters that define a store: one virtual camera at one scale."""
+    if virtual.ego_rows:
+        raise InputError(f"virtual camera '{virtual.name}' has ego_rows {virtual.ego_rows}", None,
+                         "ego_rows describes a physical camera that sees its own vehicle; drop it from the virtual "
+                         "camera")
     vs = virtual_at_scale(virtual, scale)
     return {"virtual": virtual.to_dict(), "scale": float(scale), "store_size": list(vs.size),
             "virtual_scaled": vs.to_dict()}
@@ -160,7 +164,8 @@ def store_params(virtual: Camera, scale: float) -> dict[str, Any]:
 def item_geometry(camera: Camera, size: tuple[int, int], virtual_scaled: Camera, file: Path | None = None,
                   pan: float | None = None, tilt: float | None = None) -> tuple[Camera, np.ndarray]:
     """The camera at this image's size and ``virt_H_src`` to the scaled virtual camera, checked
-    not to fold the image. ``H`` is read-only: it is shared by every image with the same camera,
+    not to fold the image (its visible part: the ego-vehicle rows are never warped). ``H`` is
+    read-only: it is shared by every image with the same camera,
     size and pose (cached; a failure is not, and raises naming ``file``)."""
     try:
         return _geometry(camera, (int(size[0]), int(size[1])), virtual_scaled, pan, tilt)
@@ -168,7 +173,7 @@ def item_geometry(camera: Camera, size: tuple[int, int], virtual_scaled: Camera,
         pass
     cam = camera.for_image_size(size, file)
     H = virt_H_src(cam, virtual_scaled, pan, tilt)
-    check_not_folded(H, cam.size, str(file) if file else cam.name)
+    check_not_folded(H, cam.visible_size, str(file) if file else cam.name)
     return cam, H
 
 
@@ -177,7 +182,7 @@ def _geometry(camera: Camera, size: tuple[int, int], virtual_scaled: Camera, pan
               tilt: float | None) -> tuple[Camera, np.ndarray]:
     cam = camera.for_image_size(size)
     H = virt_H_src(cam, virtual_scaled, pan, tilt)
-    check_not_folded(H, cam.size, cam.name)
+    check_not_folded(H, cam.visible_size, cam.name)
     H.setflags(write=False)
     return cam, H
 
@@ -214,9 +219,13 @@ class WarpedItem:
 
 def warp_item_full(job: Job, store_size: tuple[int, int], H: np.ndarray, fmt: LabelFormat | None,
                    completion: str = "none", vp_store: tuple[float, float] | None = None,
-                   data: tuple[bytes | None, bytes | None] = (None, None)) -> WarpedItem:
+                   data: tuple[bytes | None, bytes | None] = (None, None), ego_rows: int = 0) -> WarpedItem:
     """Warp + complete one item in memory (one pass per image/label, :mod:`vcprep.completion`).
-    ``data``: the image's and label's file bytes if already read (hashing reads them)."""
+    ``data``: the image's and label's file bytes if already read (hashing reads them).
+    ``ego_rows``: the bottom rows showing the rig's own vehicle are cut off before anything else
+    (an exact bottom crop: ``H`` holds as is for the remaining (w, h - ego_rows) image), so they
+    never reach the store; the store pixels they would have covered are uncovered (completed or
+    label ignore) like any other."""
     img = read_image(job.image, data=data[0])
     lab = None
     if job.label is not None:
@@ -225,16 +234,24 @@ def warp_item_full(job: Job, store_size: tuple[int, int], H: np.ndarray, fmt: La
             raise InputError(f"label is {raw.size[0]}x{raw.size[1]} but its image is {img.size[0]}x{img.size[1]}",
                              job.label, "labels must have the size of their images")
         lab = decode_label(raw.array, fmt, job.label)
-    maps = item_maps(H, img.size, store_size, completion, vp_store, border_ignore(lab))
-    warped = warp_image(img.array, maps)
+    src, w, h = img.array, img.size[0], img.size[1] - int(ego_rows)
+    if ego_rows:
+        if h < 1:
+            raise InputError(f"ego_rows {ego_rows} leaves nothing of the {img.size[0]}x{img.size[1]} image", job.image,
+                             "ego_rows must be less than the image height")
+        src = src[:h]
+        lab = lab[:h] if lab is not None else None
+    maps = item_maps(H, (w, h), store_size, completion, vp_store, border_ignore(lab))
+    warped = warp_image(src, maps)
     label = warp_label(lab, maps, border_value=maps.label_border) if lab is not None else None
     return WarpedItem(warped, label, maps.valid, maps)
 
 
 def warp_item(job: Job, camera: Camera, store_size: tuple[int, int], H: np.ndarray, fmt: LabelFormat | None,
               completion: str = "none", vp_store: tuple[float, float] | None = None):
-    """Warp one item in memory: returns (image, label or None, valid)."""
-    item = warp_item_full(job, store_size, H, fmt, completion, vp_store)
+    """Warp one item in memory: returns (image, label or None, valid). ``camera`` is the camera
+    at this image's size (its ``ego_rows`` are cut off)."""
+    item = warp_item_full(job, store_size, H, fmt, completion, vp_store, ego_rows=camera.ego_rows)
     return item.image, item.label, item.valid
 
 
@@ -336,7 +353,7 @@ def build_item(ctx: _WarpContext, task: _WarpTask) -> ItemResult:
     if old is not None and old.get("key") == key and _files_present(ctx.root, old):
         return ItemResult(job.id, "up_to_date", old)
     item = warp_item_full(job, store_size=store_size, H=H, fmt=fmt, completion=completion, vp_store=vp_store,
-                          data=(data, lab_data))
+                          data=(data, lab_data), ego_rows=cam.ego_rows)
     rec = {
         "id": job.id,
         "source": str(job.image),
@@ -348,6 +365,7 @@ def build_item(ctx: _WarpContext, task: _WarpTask) -> ItemResult:
         "camera_params": cam.to_dict(),
         **({"camera_file": str(camera.file_for(job.image))} if per_frame else {}),
         "size": list(cam.size),
+        **({"ego_rows": int(cam.ego_rows)} if cam.ego_rows else {}),
         "vp": [float(vp[0]), float(vp[1])],
         "vp_status": vp_status,
         "pan_deg": pan,
@@ -355,7 +373,7 @@ def build_item(ctx: _WarpContext, task: _WarpTask) -> ItemResult:
         "H": H.ravel().tolist(),
         "image": f"images/{job.id}.png",
         "label": f"labels/{job.id}.png" if item.label is not None else None,
-        "valid": valid_path(H, size, store_size),
+        "valid": valid_path(H, cam.visible_size, store_size),
         "store_size": list(store_size),
         "completion": completion,
         **completion_fields(item.maps),
@@ -513,10 +531,11 @@ def complete_item(ctx: _CompleteContext, rec: dict[str, Any]) -> ItemResult:
     H = np.asarray(rec["H"], dtype=np.float64).reshape(3, 3)
     store_size = (int(ctx.params["store_size"][0]), int(ctx.params["store_size"][1]))
     vp_store = tuple(apply_homography(H, [rec["vp"]])[0])
-    item = warp_item_full(Job(rec["id"], src, lab), store_size, H, fmt, ctx.method, vp_store)
+    ego = int(rec.get("ego_rows", 0))
+    item = warp_item_full(Job(rec["id"], src, lab), store_size, H, fmt, ctx.method, vp_store, ego_rows=ego)
     new = dict(rec)
     new.update({"completion": ctx.method, **completion_fields(item.maps), "key": key,
-                "valid": valid_path(H, (int(rec["size"][0]), int(rec["size"][1])), store_size)})
+                "valid": valid_path(H, (int(rec["size"][0]), int(rec["size"][1]) - ego), store_size)})
     new.pop("files_sha256", None)  # keep the field order of a record built by warp
     new["files_sha256"] = _write_item(ctx.root, new, item, ctx.written)
     return ItemResult(rec["id"], "built", new, f"{rec['id']}: {item.maps.note}" if item.maps.note else None)

@@ -14,6 +14,10 @@ Cityscapes ``camera/.../X_camera.json`` for ``leftImg8bit/.../X_leftImg8bit.png`
 
 Resizing an image by ``s`` maps pixel centres as ``u' = s*(u + 0.5) - 0.5``, so K scales as
 ``fx' = s*fx`` and ``cx' = s*(cx + 0.5) - 0.5`` (see :func:`scale_matrix`).
+
+Ego-vehicle rows (``ego_rows``): the bottom rows of every image that show the rig's own vehicle
+(a bonnet). Everything that warps an image treats them as cut off by an exact bottom crop: same
+K and pose, source size ``visible_size`` = (w, h - ego_rows) (:meth:`Camera.without_ego`).
 """
 from __future__ import annotations
 
@@ -61,7 +65,9 @@ class Camera:
     """A pinhole camera above a flat road.
 
     ``size`` is (width, height) in pixels of the images K refers to; ``height`` is the
-    mounting height in metres; ``tilt``/``pan`` are the average pose in degrees.
+    mounting height in metres; ``tilt``/``pan`` are the average pose in degrees; the bottom
+    ``ego_rows`` rows of every image (at ``size``) show the rig's own vehicle and are never
+    warped (an exact bottom crop: K unchanged, see :meth:`without_ego`).
     """
 
     name: str
@@ -73,6 +79,7 @@ class Camera:
     height: float
     tilt: float = 0.0
     pan: float = 0.0
+    ego_rows: int = 0
 
     @property
     def K(self) -> np.ndarray:
@@ -85,6 +92,18 @@ class Camera:
     @property
     def rows(self) -> int:
         return self.size[1]
+
+    @property
+    def visible_size(self) -> tuple[int, int]:
+        """(w, h - ego_rows): the size of the image once the ego-vehicle rows are cut off."""
+        return self.size[0], self.size[1] - self.ego_rows
+
+    def without_ego(self) -> "Camera":
+        """The camera of the image with its bottom ``ego_rows`` rows cut off: a bottom crop is
+        exact, so K and the pose are unchanged and only the height shrinks (``ego_rows`` 0)."""
+        if not self.ego_rows:
+            return self
+        return replace(self, size=self.visible_size, ego_rows=0)
 
     def fov_deg(self) -> tuple[float, float]:
         """Horizontal and vertical field of view (degrees), measured to the outer pixel edges."""
@@ -100,7 +119,16 @@ class Camera:
         if size is None:
             size = (int(round(self.size[0] * sx)), int(round(self.size[1] * sy)))
         return replace(self, size=(int(size[0]), int(size[1])), fx=float(K[0, 0]), fy=float(K[1, 1]),
-                       cx=float(K[0, 2]), cy=float(K[1, 2]))
+                       cx=float(K[0, 2]), cy=float(K[1, 2]), ego_rows=self._ego_rows_at(sy, int(size[1])))
+
+    def _ego_rows_at(self, sy: float, rows: int) -> int:
+        """``ego_rows`` for the image resized by ``sy`` to ``rows`` rows: every new row that
+        reaches below the top edge of the ego-vehicle rows (pixel edge ``sy*(h - ego_rows)``), i.e.
+        rounded up so that the whole vehicle stays excluded; at least 1, at most ``rows - 1``."""
+        if not self.ego_rows:
+            return 0
+        n = math.ceil(rows - sy * (self.size[1] - self.ego_rows) - 1e-9)
+        return int(min(max(n, 1), rows - 1))
 
     def for_image_size(self, size: tuple[int, int], file: str | Path | None = None) -> "Camera":
         """This camera for images of ``size`` (w, h).
@@ -128,8 +156,13 @@ class Camera:
         return replace(self, pan=self.pan if pan is None else float(pan), tilt=self.tilt if tilt is None else float(tilt))
 
     def to_dict(self) -> dict[str, Any]:
-        return {"name": self.name, "image_size": list(self.size), "fx": self.fx, "fy": self.fy, "cx": self.cx,
-                "cy": self.cy, "height": self.height, "tilt": self.tilt, "pan": self.pan}
+        """The YAML schema's keys; ``ego_rows`` only when non-zero (so that the records, keys and
+        store parameters of cameras without an ego-vehicle are what they were before it existed)."""
+        d = {"name": self.name, "image_size": list(self.size), "fx": self.fx, "fy": self.fy, "cx": self.cx,
+             "cy": self.cy, "height": self.height, "tilt": self.tilt, "pan": self.pan}
+        if self.ego_rows:
+            d["ego_rows"] = int(self.ego_rows)
+        return d
 
 
 # --- presets: the one table of built-in cameras (paper Table 1; virtual fx = 2262, see method.md)
@@ -149,7 +182,7 @@ PRESETS: dict[str, Camera] = {
 }
 
 _REQUIRED = ("image_size", "fx", "fy", "cx", "cy", "height")
-_OPTIONAL = ("name", "tilt", "pan")
+_OPTIONAL = ("name", "tilt", "pan", "ego_rows")
 
 
 def _number(d: dict, key: str, file, default=None) -> float:
@@ -206,10 +239,19 @@ def camera_from_dict(d: Any, file: str | Path | None = None, default_name: str =
                          f"tilt is in degrees, positive = pitched down, |tilt| < {MAX_ABS_TILT_DEG:g}")
     if abs(pan) >= MAX_ABS_PAN_DEG:
         raise InputError(f"key 'pan' is {pan:g} degrees", file, f"pan is in degrees, |pan| < {MAX_ABS_PAN_DEG:g}")
+    ego = d.get("ego_rows", 0)
+    if isinstance(ego, bool) or not isinstance(ego, int) or ego < 0:
+        raise InputError(f"key 'ego_rows' must be a whole number of rows >= 0, got {ego!r}", file,
+                         "write the number of bottom image rows that show your own vehicle, e.g. 'ego_rows: 36'")
+    if ego >= h:
+        raise InputError(f"key 'ego_rows' is {ego} but the image has only {h} rows", file,
+                         "ego_rows counts the bottom rows (at image_size) that show your own vehicle; "
+                         "it must be less than the image height")
     name = d.get("name", default_name)
     if not isinstance(name, str) or not name:
         raise InputError(f"key 'name' must be a non-empty string, got {name!r}", file, "write e.g. 'name: mycam'")
-    return Camera(name=name, size=(int(w), int(h)), fx=fx, fy=fy, cx=cx, cy=cy, height=height, tilt=tilt, pan=pan)
+    return Camera(name=name, size=(int(w), int(h)), fx=fx, fy=fy, cx=cx, cy=cy, height=height, tilt=tilt, pan=pan,
+                  ego_rows=int(ego))
 
 
 def read_camera_yaml(path: str | Path) -> Camera:
@@ -243,6 +285,8 @@ def camera_to_yaml(cam: Camera) -> str:
         f"tilt: {d['tilt']:.10g}   # degrees, positive = pitched down",
         f"pan: {d['pan']:.10g}   # degrees",
     ]
+    if cam.ego_rows:
+        lines.append(f"ego_rows: {cam.ego_rows}   # bottom rows (at image_size) showing the rig's own vehicle")
     return "\n".join(lines) + "\n"
 
 

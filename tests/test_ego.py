@@ -1,0 +1,327 @@
+"""A camera that sees its own vehicle: ``ego_rows`` in the camera YAML.
+
+The oracle is the hand crop the README used to prescribe: warping full frames with
+``ego_rows: N`` must give exactly the store that warping the frames cropped by N bottom rows gives
+with the camera at the cropped size (same K); back-projection must return the full frame with the
+ego rows "not road"."""
+from __future__ import annotations
+
+import json
+import shutil
+from dataclasses import replace
+
+import cv2
+import numpy as np
+import pytest
+
+from vcprep.backproject import backproject_array
+from vcprep.build import store_params
+from vcprep.camera import PRESETS, Camera, camera_to_yaml, read_camera_yaml
+from vcprep.errors import InputError
+from vcprep.homography import vp_from_pose
+from vcprep.synthetic import RoadScene, render_road
+
+from conftest import assert_one_error_line, run_cli
+
+EGO = 36  # CamVid 0001TP: the bonnet fills the bottom 36 rows of the 480x360 frames
+BONNET_BGR = (255, 0, 255)  # magenta: no colour of the synthetic scene comes near it
+GOOD = """name: mycam
+image_size: [960, 720]
+fx: 862
+fy: 1141
+cx: 485
+cy: 365
+height: 1.21
+"""
+
+
+def _is_bonnet(img: np.ndarray) -> np.ndarray:
+    b, g, r = (img[..., c].astype(int) for c in range(3))
+    return (b > 180) & (r > 180) & (g < 60)
+
+
+@pytest.fixture(scope="module")
+def frames(tmp_path_factory, camvid_half):
+    """Three 480x360 road frames whose bottom 36 rows show a magenta bonnet labelled ROAD (3) (the
+    worst case: only the crop keeps it out of the virtual road), their hand-cropped 480x324
+    copies, camera files for both, and a VP table that pitches each frame differently."""
+    root = tmp_path_factory.mktemp("ego")
+    full_i, full_l, crop_i, crop_l = (root / d for d in ("full/images", "full/labels", "crop/images", "crop/labels"))
+    for d in (full_i, full_l, crop_i, crop_l):
+        d.mkdir(parents=True)
+    vps = []
+    for i, (pan, tilt) in enumerate([(0.0, 0.0), (4.0, -3.0), (-3.0, 4.0)]):
+        img, lab = render_road(camvid_half, RoadScene(offset=0.3 * i, texture_seed=i), pan=pan, tilt=tilt,
+                               supersample=1)
+        ids = np.where(lab == 1, 3, 0).astype(np.uint8)
+        img[-EGO:] = BONNET_BGR
+        ids[-EGO:] = 3
+        name = f"seq_{i:04d}.png"
+        cv2.imwrite(str(full_i / name), img)
+        cv2.imwrite(str(full_l / name), ids)
+        cv2.imwrite(str(crop_i / name), img[:-EGO])
+        cv2.imwrite(str(crop_l / name), ids[:-EGO])
+        u, v = vp_from_pose(camvid_half, pan, tilt)  # off the average pose: within-camera correction
+        vps.append(f"seq_{i:04d},{u:.6f},{v:.6f}")
+    (root / "vps.csv").write_text("id,u,v\n" + "\n".join(vps) + "\n")
+    ego = replace(camvid_half, name="rig", ego_rows=EGO)
+    (root / "ego.yaml").write_text(camera_to_yaml(ego))
+    (root / "noego.yaml").write_text(camera_to_yaml(replace(ego, ego_rows=0)))
+    (root / "crop.yaml").write_text(camera_to_yaml(ego.without_ego()))
+    return root
+
+
+def _warp(root, which, camera, out, *extra):
+    proc = run_cli("warp", "--camera", root / camera, "--images", root / which / "images", "--labels",
+                   root / which / "labels", "--label-format", "camvid", "--scale", "0.1", "--out", out,
+                   "--within", root / "vps.csv", "--jobs", "1", *extra)
+    assert proc.returncode == 0, proc.stderr
+    return proc
+
+
+def _records(store):
+    return [json.loads(line) for line in (store / "manifest.jsonl").read_text().splitlines()]
+
+
+def _png(path):
+    return cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+
+
+@pytest.fixture(scope="module")
+def stores(frames, tmp_path_factory):
+    out = tmp_path_factory.mktemp("ego_stores")
+    _warp(frames, "full", "ego.yaml", out / "ego")
+    _warp(frames, "crop", "crop.yaml", out / "crop")
+    _warp(frames, "full", "noego.yaml", out / "noego")
+    return out
+
+
+# -- the camera model -------------------------------------------------------------------------------
+
+def test_yaml_ego_rows_round_trip(tmp_path):
+    p = tmp_path / "cam.yaml"
+    p.write_text(GOOD + "ego_rows: 72\n")
+    cam = read_camera_yaml(p)
+    assert cam.ego_rows == 72 and cam.visible_size == (960, 648)
+    assert cam.to_dict()["ego_rows"] == 72
+    p2 = tmp_path / "again.yaml"
+    p2.write_text(camera_to_yaml(cam))
+    assert "ego_rows: 72" in p2.read_text() and read_camera_yaml(p2) == cam
+    # no ego_rows: the camera, its dict and its YAML are what they were before the key existed
+    p.write_text(GOOD)
+    plain = read_camera_yaml(p)
+    assert plain.ego_rows == 0 and "ego_rows" not in plain.to_dict() and "ego_rows" not in camera_to_yaml(plain)
+    assert all(c.ego_rows == 0 for c in PRESETS.values())
+    # the camera without its ego rows: an exact bottom crop (same K, 72 rows shorter)
+    crop = cam.without_ego()
+    assert crop.size == (960, 648) and crop.ego_rows == 0 and np.array_equal(crop.K, cam.K)
+
+
+@pytest.mark.parametrize("value, needle", [
+    ("-1", "'ego_rows' must be a whole number"),
+    ("3.5", "'ego_rows' must be a whole number"),
+    ("true", "'ego_rows' must be a whole number"),
+    ("abc", "'ego_rows' must be a whole number"),
+    ("720", "'ego_rows' is 720 but the image has only 720 rows"),
+    ("1000", "'ego_rows' is 1000"),
+])
+def test_yaml_ego_rows_errors_name_file_and_key(tmp_path, value, needle):
+    p = tmp_path / "bad.yaml"
+    p.write_text(GOOD + f"ego_rows: {value}\n")
+    with pytest.raises(InputError) as e:
+        read_camera_yaml(p)
+    assert needle in str(e.value) and str(p) in str(e.value)
+
+
+def test_ego_rows_scale_with_the_image_size_rounded_up():
+    cam = Camera("rig", (960, 720), 862, 1141, 485, 365, 1.21, ego_rows=72)
+    assert cam.for_image_size((480, 360)).ego_rows == 36
+    assert cam.for_image_size((1920, 1440)).ego_rows == 144
+    # 71 full-size rows are 35.5 half-size rows: the half row is excluded too
+    assert Camera("rig", (960, 720), 862, 1141, 485, 365, 1.21, ego_rows=71).for_image_size((480, 360)).ego_rows == 36
+    assert Camera("rig", (960, 720), 862, 1141, 485, 365, 1.21, ego_rows=1).for_image_size((480, 360)).ego_rows == 1
+    assert cam.resized(0.1).size == (96, 72) and cam.resized(0.1).ego_rows == 8  # 7.2 -> 8
+    # K follows the pixel-centre rule as for any camera; no ego rows stay none at any size
+    assert cam.for_image_size((480, 360)).fy == 570.5
+    assert PRESETS["camvid"].for_image_size((480, 360)).ego_rows == 0
+    assert PRESETS["virtual"].resized(0.125).ego_rows == 0
+
+
+def test_a_virtual_camera_with_ego_rows_is_refused(tmp_path, frames):
+    v = Camera("v", (5500, 2800), 2262, 2262, 2749.5, 1399.5, 1.38, ego_rows=10)
+    with pytest.raises(InputError, match="ego_rows"):
+        store_params(v, 0.1)
+    (tmp_path / "v.yaml").write_text(camera_to_yaml(v))
+    proc = run_cli("warp", "--camera", frames / "ego.yaml", "--images", frames / "full/images", "--virtual",
+                   tmp_path / "v.yaml", "--out", tmp_path / "s")
+    assert_one_error_line(proc, "ego_rows")
+    assert not (tmp_path / "s" / "manifest.jsonl").exists()
+
+
+# -- warp: ego_rows == the hand crop ----------------------------------------------------------------
+
+def test_warp_with_ego_rows_equals_the_hand_cropped_warp(stores):
+    ego, crop = _records(stores / "ego"), _records(stores / "crop")
+    assert [r["id"] for r in ego] == [r["id"] for r in crop] == ["seq_0000", "seq_0001", "seq_0002"]
+    for a, b in zip(ego, crop):
+        assert a["H"] == b["H"] and a["vp"] == b["vp"] and a["pan_deg"] == b["pan_deg"]
+        assert a["size"] == [480, 360] and a["ego_rows"] == EGO  # the record keeps the full frame
+        assert b["size"] == [480, 324] and "ego_rows" not in b
+        assert a["camera_params"]["ego_rows"] == EGO
+        assert a["valid"] == b["valid"]  # same geometry: the same shared valid mask
+        assert a["completion_centre"] == b["completion_centre"]
+        for k in ("image", "label", "valid"):
+            x, y = _png(stores / "ego" / a[k]), _png(stores / "crop" / b[k])
+            assert x.shape == y.shape and np.array_equal(x, y), (a["id"], k)
+
+
+def test_no_bonnet_pixel_reaches_the_virtual_image(stores):
+    """... while without ego_rows the bonnet lands in the store (the check can fail), with its
+    'road' label."""
+    for a, n in zip(_records(stores / "ego"), _records(stores / "noego")):
+        assert not _is_bonnet(_png(stores / "ego" / a["image"])).any()
+        img_n = _png(stores / "noego" / n["image"])
+        bonnet = _is_bonnet(img_n)
+        assert bonnet.sum() > 500
+        assert (_png(stores / "noego" / n["label"])[bonnet] == 1).mean() > 0.9  # its 'road' label went along
+        # with ego_rows those store pixels are completed from the scene above the bonnet (asphalt etc.)
+        assert _png(stores / "ego" / a["valid"])[bonnet].sum() == 0
+        assert n["H"] == a["H"]
+
+
+def test_warped_labels_are_ignore_where_the_ego_rows_would_land(frames, tmp_path):
+    """Bare warp (no completion): the store pixels the bonnet would cover are uncovered, label 255."""
+    _warp(frames, "full", "ego.yaml", tmp_path / "ego", "--complete", "none")
+    _warp(frames, "full", "noego.yaml", tmp_path / "noego", "--complete", "none")
+    for a, n in zip(_records(tmp_path / "ego"), _records(tmp_path / "noego")):
+        bonnet = _is_bonnet(_png(tmp_path / "noego" / n["image"]))
+        assert bonnet.sum() > 500
+        assert (_png(tmp_path / "ego" / a["label"])[bonnet] == 255).all()
+        assert (_png(tmp_path / "ego" / a["valid"])[bonnet] == 0).all()
+        assert not _png(tmp_path / "ego" / a["image"])[bonnet].any()
+
+
+def test_complete_of_an_ego_store_equals_warp_with_completion(frames, stores, tmp_path):
+    out = tmp_path / "later"
+    _warp(frames, "full", "ego.yaml", out, "--complete", "none")
+    proc = run_cli("complete", out, "--jobs", "1")
+    assert proc.returncode == 0, proc.stderr
+    for a, b in zip(_records(out), _records(stores / "ego")):
+        assert a["key"] == b["key"] and a["valid"] == b["valid"] and a["ego_rows"] == EGO
+        for k in ("image", "label", "valid"):
+            assert np.array_equal(_png(out / a[k]), _png(stores / "ego" / b[k])), k
+
+
+def test_ego_rows_0_keeps_existing_stores_up_to_date_and_a_change_rebuilds(frames, tmp_path):
+    out = tmp_path / "s"
+    plain = frames / "plain.yaml"
+    plain.write_text((frames / "noego.yaml").read_text())
+    assert "ego_rows" not in plain.read_text()
+    _warp(frames, "full", "plain.yaml", out)
+    explicit = tmp_path / "zero.yaml"
+    explicit.write_text(plain.read_text() + "ego_rows: 0\n")
+    proc = run_cli("warp", "--camera", explicit, "--images", frames / "full/images", "--labels",
+                   frames / "full/labels", "--label-format", "camvid", "--scale", "0.1", "--out", out,
+                   "--within", frames / "vps.csv", "--jobs", "1")
+    assert proc.returncode == 0 and "0 built, 3 up to date" in proc.stderr, proc.stderr
+    proc = _warp(frames, "full", "ego.yaml", out)
+    assert "3 built, 0 up to date" in proc.stderr
+    assert all(r["ego_rows"] == EGO for r in _records(out))
+
+
+# -- back-projection: the full frame, ego rows 'not road' --------------------------------------------
+
+def test_backproject_gives_the_full_frame_with_zero_ego_rows(stores, tmp_path):
+    recs = {r["id"]: r for r in _records(stores / "ego")}
+    crop = {r["id"]: r for r in _records(stores / "crop")}
+    masks = tmp_path / "masks"
+    masks.mkdir()
+    w, h = recs["seq_0000"]["store_size"]
+    for i in recs:  # 'road' everywhere in the virtual image
+        cv2.imwrite(str(masks / f"{i}.png"), np.full((h, w), 255, np.uint8))
+    for store, out in ((stores / "ego", tmp_path / "back_ego"), (stores / "crop", tmp_path / "back_crop")):
+        proc = run_cli("backproject", store, masks, "--out", out, "--kind", "prob", "--quiet")
+        assert proc.returncode == 0, proc.stderr
+    for i in recs:
+        full, cropped = _png(tmp_path / "back_ego" / f"{i}.png"), _png(tmp_path / "back_crop" / f"{i}.png")
+        assert full.shape == (360, 480) and cropped.shape == (324, 480)
+        assert not full[-EGO:].any()
+        assert np.array_equal(full[:-EGO], cropped)
+        assert (full[-EGO - 20:-EGO] == 255).all()  # the road just above the bonnet is seen
+        # the same in memory, for a mask
+        m = backproject_array(np.ones((h, w), np.uint8), recs[i], "mask")
+        assert m.shape == (360, 480) and not m[-EGO:].any()
+        assert np.array_equal(m[:-EGO], backproject_array(np.ones((h, w), np.uint8), crop[i], "mask"))
+
+
+def test_a_record_without_ego_rows_backprojects_as_before(stores):
+    rec = _records(stores / "noego")[0]
+    assert "ego_rows" not in rec
+    w, h = rec["store_size"]
+    m = backproject_array(np.ones((h, w), np.uint8), rec, "mask")
+    assert m.shape == (360, 480) and m[-EGO:].all()  # the whole frame lands inside the store
+
+
+# -- vctrain predict on raw images ------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def tiny_model(tmp_path_factory):
+    """A tiny virtual-camera checkpoint (2 epochs, width 4) on synthetic 96x72 CamVid-camera frames."""
+    from vcprep.build import list_dataset, warp_dataset
+    from vcprep.labels import get_label_format
+    from vctrain.train import TrainConfig, fit
+
+    root = tmp_path_factory.mktemp("ego_model")
+    cam = PRESETS["camvid"].resized(0.1)  # 96x72
+    (root / "images").mkdir()
+    (root / "labels").mkdir()
+    for i in range(4):
+        img, lab = render_road(cam, RoadScene(offset=0.5 * i - 1, texture_seed=20 + i), pan=2.0 * i - 3)
+        cv2.imwrite(str(root / "images" / f"t{i}.png"), img)
+        cv2.imwrite(str(root / "labels" / f"t{i}.png"), lab)
+    fmt = get_label_format("values:road=1")
+    warp_dataset(list_dataset(root / "images", root / "labels", fmt), cam, PRESETS["virtual"], 0.02, root / "store",
+                 fmt, progress=False)
+    fit(TrainConfig(stores=[str(root / "store")], out=str(root / "model.pt"), base_width=4, epochs=2, batch_size=2,
+                    val_fraction=0, progress=False, device="cpu"))
+    return root / "model.pt"
+
+
+def test_predict_with_ego_rows_gives_full_frames_with_zero_ego_rows(tiny_model, tmp_path):
+    cam = replace(PRESETS["camvid"].resized(0.1), name="rig", ego_rows=8)  # 96x72
+    full, crop = tmp_path / "full", tmp_path / "crop"
+    full.mkdir()
+    crop.mkdir()
+    for i in range(2):
+        img, _ = render_road(cam, RoadScene(offset=0.4 * i, texture_seed=40 + i))
+        img[-8:] = BONNET_BGR
+        cv2.imwrite(str(full / f"p{i}.png"), img)
+        cv2.imwrite(str(crop / f"p{i}.png"), img[:-8])
+    (tmp_path / "ego.yaml").write_text(camera_to_yaml(cam))
+    (tmp_path / "crop.yaml").write_text(camera_to_yaml(cam.without_ego()))
+    for cam_file, images, out in (("ego.yaml", full, "pred_ego"), ("crop.yaml", crop, "pred_crop")):
+        proc = run_cli("predict", tiny_model, "--camera", tmp_path / cam_file, images, "--out", tmp_path / out,
+                       "--quiet", prog="vctrain")
+        assert proc.returncode == 0, proc.stderr
+    for i in range(2):
+        prob, mask = _png(tmp_path / "pred_ego" / f"p{i}_prob.png"), _png(tmp_path / "pred_ego" / f"p{i}_mask.png")
+        assert prob.shape == mask.shape == (72, 96)
+        assert not prob[-8:].any() and not mask[-8:].any()
+        assert prob[:-8].any()
+        # the rows above: exactly what the hand-cropped frames give
+        assert np.array_equal(prob[:-8], _png(tmp_path / "pred_crop" / f"p{i}_prob.png"))
+        assert np.array_equal(mask[:-8], _png(tmp_path / "pred_crop" / f"p{i}_mask.png"))
+
+
+def test_frame_camera_folders_take_ego_rows_from_their_yaml(frames, stores, tmp_path):
+    """Per-frame calibration folders (one <stem>.yaml per frame) need nothing new."""
+    calib = tmp_path / "calib"
+    calib.mkdir()
+    for i in range(3):
+        shutil.copy(frames / "ego.yaml", calib / f"seq_{i:04d}.yaml")
+    proc = run_cli("warp", "--camera", calib, "--images", frames / "full/images", "--scale", "0.1",
+                   "--out", tmp_path / "s", "--jobs", "1", "--complete", "none")
+    assert proc.returncode == 0, proc.stderr
+    for r in _records(tmp_path / "s"):
+        assert r["ego_rows"] == EGO and r["size"] == [480, 360]
+        assert not _is_bonnet(_png(tmp_path / "s" / r["image"])).any()
