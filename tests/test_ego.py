@@ -325,3 +325,9 @@ def test_frame_camera_folders_take_ego_rows_from_their_yaml(frames, stores, tmp_
     for r in _records(tmp_path / "s"):
         assert r["ego_rows"] == EGO and r["size"] == [480, 360]
         assert not _is_bonnet(_png(tmp_path / "s" / r["image"])).any()
+
+
+@pytest.mark.parametrize("prog, cmd", [("vcprep", "warp"), ("vcprep", "backproject"), ("vctrain", "predict")])
+def test_help_says_what_ego_rows_do(prog, cmd):
+    proc = run_cli(cmd, "--help", prog=prog)
+    assert proc.returncode == 0 and "ego_rows" in proc.stdout and "Example" in proc.stdout

@@ -174,6 +174,11 @@ def warp_cmd(
     the valid/ mask always marks the covered pixels). Re-running with unchanged inputs does no work; a changed image,
     label, camera or parameter redoes exactly the affected items. Prints the store path.
 
+    A camera YAML with 'ego_rows: N' (the bottom N rows of every image, at its image_size,
+    show the rig's own vehicle) cuts those rows off before warping, an exact bottom crop: they
+    never reach the store (completed like any uncovered pixel; labels ignore without
+    completion); records keep the full size and ego_rows, for back-projection.
+
     With --within, each image's own pan and tilt come from its road vanishing point
     (within-camera correction): 'estimate' detects it (see 'vcprep vp'), FILE reads a CSV
     'id,u,v' of known VPs (source pixels); the record gets vp, vp_status, pan_deg, tilt_deg.
@@ -431,7 +436,8 @@ def backproject_cmd(store: Path = typer.Argument(..., help="store the masks belo
                     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar")):
     """Map virtual-domain masks or probability maps back to each item's original camera,
     exactly inverting its H. Writes OUT/<id>.png at the source image size; source pixels
-    outside the virtual image get 0.
+    outside the virtual image get 0, and so do the ego-vehicle rows of an item whose camera
+    has ego_rows (never warped: "not road").
 
     \b
     Example:
