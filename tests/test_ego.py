@@ -331,3 +331,14 @@ def test_frame_camera_folders_take_ego_rows_from_their_yaml(frames, stores, tmp_
 def test_help_says_what_ego_rows_do(prog, cmd):
     proc = run_cli(cmd, "--help", prog=prog)
     assert proc.returncode == 0 and "ego_rows" in proc.stdout and "Example" in proc.stdout
+
+
+def test_virtual_camera_design_sees_the_camera_as_cropped():
+    from vcprep.virtual_camera import design_virtual_camera
+
+    cam = replace(PRESETS["camvid"], name="rig", ego_rows=200)
+    a = design_virtual_camera([cam, PRESETS["kitti"]], above=8)
+    b = design_virtual_camera([cam.without_ego(), PRESETS["kitti"]], above=8)
+    full = design_virtual_camera([replace(cam, ego_rows=0), PRESETS["kitti"]], above=8)
+    assert a.camera == b.camera and a.camera.ego_rows == 0
+    assert a.camera.size != full.camera.size  # (the ego rows would have made it taller)

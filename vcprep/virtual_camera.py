@@ -3,7 +3,8 @@
 Rule: height = mean of the cameras' heights; level (tilt = pan = 0); square pixels with
 f = the largest focal length (px) of any camera (keeps resolution); central principal point;
 size = the smallest centred rectangle that holds the lower half of every camera's image
-(rows from the middle row down) under the expected pose variation.
+(rows from the middle row down) under the expected pose variation. A camera with ``ego_rows``
+counts as the image with those rows cropped off (they are never warped).
 
 Two ways to account for the pose variation:
 
@@ -78,7 +79,7 @@ def design_virtual_camera(cameras: list[Camera], pan_range: float = 20.0, tilt_r
     probe = Camera("probe", (1, 1), f, f, 0.0, 0.0, height)
     mx = my = bottom = 0.0
     for cam in cameras:
-        pts = _lower_half_corners(cam)
+        pts = _lower_half_corners(cam.without_ego())  # ego-vehicle rows: as if cropped off (never warped)
         if rule == "shift":
             p = apply_homography(virt_H_src(cam, probe), pts)
             mx = max(mx, np.abs(p[:, 0]).max() + f * math.tan(math.radians(pan_range)))
