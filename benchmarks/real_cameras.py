@@ -91,6 +91,7 @@ UNSEEN = "0001TP"                         # the CamVid sequence held out of trai
 # the row camvid-0001TP-crop is the same frames and camera with the rig's bonnet cut off: what a
 # user describes when the camera sees its own car. Not in the in-domain target (reported beside it).
 EGO_ROWS = 36
+DEV_TRAIN, DEV_TEST = "0016E5", "0006R0"  # --dev: train on one CamVid train sequence, score on the other
 IN_DOMAIN = ["camvid-val", f"camvid-{UNSEEN}"]
 REAL = ["kitti"]
 SIM = list(SIMULATED)
@@ -160,8 +161,27 @@ def kitti_datasets() -> list[dict]:
              "label_format": "kitti", "test": test}]
 
 
+def dev_datasets(wd: Path, f: dict[str, Path], cam: Path, camvid) -> list[dict]:
+    """--dev: a split for choosing settings without any test frame. Train on CamVid train's
+    sequence DEV_TRAIN alone; score on its sequence DEV_TEST (never trained on here) and on
+    DEV_TEST through the same simulated cameras (named like the benchmark's, so they form the
+    'other cameras' group). KITTI joins the study only so the virtual camera is designed exactly
+    as in the benchmark; its rows are dropped from the dev report."""
+    names = sorted(p.name for p in f["train"].glob(f"{DEV_TEST}_*.png"))
+    images = _link(names, f["train"], wd / "src" / "dev" / "images")
+    labels = _link(names, f["trainannot"], wd / "src" / "dev" / "labels")
+    datasets = [camvid("camvid", "train", f["train"], f["trainannot"], include=f"{DEV_TRAIN}_*"),
+                camvid(f"camvid-{DEV_TEST}", "test", images, labels)]
+    datasets += kitti_datasets()
+    for name in SIM:
+        split = simulate(cam, images, labels, wd / "sim" / name, name)
+        datasets.append({"name": name, "role": "test", "camera": str(wd / "sim" / name / "camera.yaml"),
+                         "label_format": "camvid", "test": split})
+    return datasets
+
+
 def make_study(wd: Path, args: argparse.Namespace, conditions: list[str]) -> tuple[dict, list[str]]:
-    """The study (camvid role train, every other set role test) and its test-set names."""
+    """The study (camvid role train, every other set role test) and its reported test-set names."""
     cam = native_camera(wd)
     f = camvid_folders(wd, args.quick)
 
@@ -170,6 +190,10 @@ def make_study(wd: Path, args: argparse.Namespace, conditions: list[str]) -> tup
         return {"name": name, "role": role, "camera": str(cam), "label_format": "camvid",
                 split: {"images": str(images), "labels": str(labels), **select}}
 
+    if args.dev:
+        datasets = dev_datasets(wd, f, cam, camvid)
+        return _study(datasets, args, conditions), [d["name"] for d in datasets
+                                                    if d["role"] == "test" and not d["name"].startswith("kitti")]
     datasets = [camvid("camvid", "train", f["train"], f["trainannot"], exclude=f"{UNSEEN}_*"),
                 camvid("camvid-val", "test", f["val"], f["valannot"]),
                 camvid(f"camvid-{UNSEEN}", "test", f["train"], f["trainannot"], include=f"{UNSEEN}_*")]
@@ -184,6 +208,10 @@ def make_study(wd: Path, args: argparse.Namespace, conditions: list[str]) -> tup
         split = simulate(cam, f["val"], f["valannot"], wd / "sim" / name, name)
         datasets.append({"name": name, "role": "test", "camera": str(wd / "sim" / name / "camera.yaml"),
                          "label_format": "camvid", "test": split})
+    return _study(datasets, args, conditions), [d["name"] for d in datasets if d["role"] == "test"]
+
+
+def _study(datasets: list[dict], args: argparse.Namespace, conditions: list[str]) -> dict:
     study: dict = {"datasets": datasets, "conditions": conditions, "virtual": "design", "pan_range": 10,
                    "tilt_range": 5}
     if args.store_width:
@@ -195,9 +223,11 @@ def make_study(wd: Path, args: argparse.Namespace, conditions: list[str]) -> tup
     train = dict(QUICK_TRAIN) if args.quick else {}
     if args.device:
         train["device"] = args.device
+    if args.crop:
+        train["crop"] = args.crop
     if train:
         study["train"] = train
-    return study, [d["name"] for d in datasets if d["role"] == "test"]
+    return study
 
 
 def unused_data() -> list[str]:
@@ -400,6 +430,12 @@ def main() -> None:
     ap.add_argument("--store-width", type=int, default=None, help="working width (default: crossval's)")
     ap.add_argument("--store-pixels", type=int, default=76800,
                     help="working pixel budget of every model (default 76800: 320x240 for resize)")
+    ap.add_argument("--crop", type=float, default=None,
+                    help="train every model on random windows of this share of each side of its working image "
+                         "(vctrain fit --crop); with --store-pixels N/crop^2 the windows keep the N-pixel budget")
+    ap.add_argument("--dev", action="store_true",
+                    help=f"development split for choosing settings: train on sequence {DEV_TRAIN} of CamVid train, "
+                         f"score on {DEV_TEST} and its simulated cameras (no test frame; results in WORKDIR/results)")
     ap.add_argument("--above", type=float, default=8.0,
                     help="crop the designed virtual camera to this many degrees above the horizon (default 8; "
                          "-1: the paper's uncropped rectangle)")
@@ -421,9 +457,10 @@ def main() -> None:
     conditions = [c for c in args.conditions.split(",") if c]
     if not conditions or any(c not in AVAILABLE for c in conditions):
         sys.exit(f"--conditions: choose from {', '.join(AVAILABLE)}")
-    wd = (args.workdir or ROOT / "benchmarks" / "out" / ("real_cameras_quick" if args.quick else "real_cameras"))
+    wd = (args.workdir or ROOT / "benchmarks" / "out" / ("real_cameras_quick" if args.quick else
+                                                         "real_cameras_dev" if args.dev else "real_cameras"))
     wd = wd.resolve()
-    res = (args.results or (wd / "results" if args.quick else ROOT / "benchmarks" / "results")).resolve()
+    res = (args.results or (wd / "results" if args.quick or args.dev else ROOT / "benchmarks" / "results")).resolve()
     wd.mkdir(parents=True, exist_ok=True)
     res.mkdir(parents=True, exist_ok=True)
     print(f"threads: {T} (torch.set_num_threads, cv2.setNumThreads; OMP_NUM_THREADS={T} for training; "

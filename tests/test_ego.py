@@ -342,3 +342,29 @@ def test_virtual_camera_design_sees_the_camera_as_cropped():
     full = design_virtual_camera([replace(cam, ego_rows=0), PRESETS["kitti"]], above=8)
     assert a.camera == b.camera and a.camera.ego_rows == 0
     assert a.camera.size != full.camera.size  # (the ego rows would have made it taller)
+
+
+def test_vp_estimation_ignores_lines_on_the_bonnet(camvid_half):
+    """The rig's own vehicle can carry strong lines (panel edges, reflections). With ``ego_rows``
+    the detector reads the frame as its exact bottom crop: the VP equals the one found on the
+    hand-cropped image, lies at the rendered scene's VP, and the bonnet's lines (which pull the
+    detection away without ego_rows) do not vote."""
+    from vcprep.vanishing_point import estimate_vp
+
+    pan, tilt = 3.0, -2.0
+    img, _ = render_road(camvid_half, RoadScene(texture_seed=4), pan=pan, tilt=tilt, supersample=1)
+    h, w = img.shape[:2]
+    img[-EGO:] = 90
+    truth = np.array(vp_from_pose(camvid_half, pan, tilt))
+    decoy = truth + (0.15 * w, 0.08 * h)  # a fan of bright lines on the bonnet, aimed at a decoy VP
+    for x0 in np.linspace(0, w - 1, 25):
+        d = decoy - (x0, h - 1)
+        x1 = x0 + d[0] * (EGO - 1) / -d[1]
+        cv2.line(img, (int(round(x0)), h - 1), (int(round(x1)), h - EGO), (250, 250, 250), 2)
+    ego = replace(camvid_half, ego_rows=EGO)
+    with_ego = estimate_vp(img, ego)
+    cropped = estimate_vp(np.ascontiguousarray(img[:-EGO]), ego.without_ego())
+    assert with_ego.vp == pytest.approx(cropped.vp, abs=1e-9) and with_ego.status == cropped.status
+    assert np.abs(np.array(with_ego.vp) - truth).max() < 0.01 * w
+    without = estimate_vp(img, camvid_half)  # the counter-check: the bonnet's lines move the VP
+    assert np.abs(np.array(without.vp) - np.array(with_ego.vp)).max() > 0.01 * w

@@ -412,12 +412,17 @@ def estimate_vp(image: np.ndarray, cam: Camera, cfg: VPConfig = VPConfig(),
 
     Returns status 'accepted', or 'rejected' with a ``reason`` and ``vp`` = the camera's
     average-pose VP (the dataset rule :func:`apply_reliability` replaces it). ``segments``
-    (N, 4) may be given to skip line detection. Never raises on image content.
+    (N, 4) may be given to skip line detection. Never raises on image content. A camera with
+    ``ego_rows`` (its own vehicle at the bottom) is read as the exact bottom crop without them:
+    no line of the rig votes, and the VP's coordinates are those of the whole frame.
     """
     h, w = image.shape[:2]
     if (w, h) != tuple(cam.size):
         raise InputError(f"image is {w}x{h} but the camera is for {cam.size[0]}x{cam.size[1]}", None,
                          "use camera.for_image_size(...) first")
+    if cam.ego_rows:
+        image, cam = image[: h - cam.ego_rows], cam.without_ego()
+        h = image.shape[0]
     prior = vp_from_pose(cam)
     gray = to_gray(image)
     seg = detect_segments(gray, cfg.work_width, cfg.lsd_scale, cfg.lsd_refine) if segments is None else np.asarray(segments, float).reshape(-1, 4)
