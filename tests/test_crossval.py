@@ -410,7 +410,8 @@ def test_heldout_must_name_an_evaluated_dataset(tmp_path):
 
 def test_pixel_budget_crop_and_resize_aspect(tmp_path):
     """store_pixels sets the scale of a virtual camera cropped to 'above' degrees over the horizon;
-    the resize baseline gets the same pixel count at its training images' own aspect (4:3 here)."""
+    the resize baseline gets the same pixel count at its training images' own aspect (4:3 here);
+    a crop share in 'train' gives each condition windows of its own working size."""
     import math
 
     import torch
@@ -418,6 +419,7 @@ def test_pixel_budget_crop_and_resize_aspect(tmp_path):
     study = _study(tmp_path / "data")
     d = yaml.safe_load(study.read_text())
     d.update(store_pixels=6000, above=6, conditions=["resize", "between"])
+    d.setdefault("train", {})["crop"] = 0.9
     del d["store_width"]
     study.write_text(yaml.safe_dump(d))
     out = tmp_path / "out"
@@ -436,6 +438,10 @@ def test_pixel_budget_crop_and_resize_aspect(tmp_path):
     assert ck["between"]["data"]["input_size"] == [w, h]
     rw, rh = ck["resize"]["data"]["input_size"]
     assert rw / rh == pytest.approx(4 / 3, rel=0.03) and abs(rw * rh - w * h) < 0.03 * w * h
+    # train: {crop: share}: every condition trains on windows of that share of its own working size
+    assert ck["between"]["config"]["crop"] == 0.9
+    assert ck["between"]["data"]["crop_size"] == [round(0.9 * w), round(0.9 * h)]
+    assert ck["resize"]["data"]["crop_size"] == [round(0.9 * rw), round(0.9 * rh)]
 
 
 @pytest.mark.parametrize("edit, needle", [

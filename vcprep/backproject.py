@@ -8,9 +8,13 @@ interpolated and computing the coordinates on the fly is cheaper than reading th
 masks use nearest neighbour, probabilities bilinear; source pixels that fall outside the store
 image get ``fill`` (0: not road; bilinear blends toward it over the store's last half pixel).
 
-The result always has the item's full source size ``record["size"]``: an item whose camera sees
-its own vehicle (record ``ego_rows``, the bottom rows that were cut off before warping) gets
-``fill`` in those rows too, so it can be scored against the uncropped labels as is.
+The result always has the item's full source size ``record["size"]``. An item whose camera sees
+its own vehicle (record ``ego_rows``: the bottom rows cut off before warping) is back-projected
+like any other: its H is the full frame's, and the store pixels its ego rows map to hold the
+completion of the visible image, so the prediction there continues the scene seen above the
+vehicle (the vehicle's own pixels never reached the network; labels mark them ignore, e.g.
+CamVid's class 11). A bonnet rarely spans the whole width: the road beside it is predicted, not
+declared "not road".
 """
 from __future__ import annotations
 
@@ -35,8 +39,8 @@ def src_H_virt(record: dict) -> np.ndarray:
 def backproject_array(arr: np.ndarray, record: dict, kind: str = "mask", fill: int = 0) -> np.ndarray:
     """Map ``arr`` (store-sized) back to the source image of ``record``.
 
-    ``kind='mask'``: nearest neighbour (values never mixed); ``'prob'``: bilinear. The bottom
-    ``record["ego_rows"]`` rows (the rig's own vehicle, never warped; absent = 0) are ``fill``."""
+    ``kind='mask'``: nearest neighbour (values never mixed); ``'prob'``: bilinear. Every source
+    pixel, ego rows included (module docstring)."""
     sw, sh = record["store_size"]
     if arr.shape[:2] != (sh, sw):
         raise InputError(f"map is {arr.shape[1]}x{arr.shape[0]} but the store is {sw}x{sh}", record.get("id"),
@@ -46,12 +50,8 @@ def backproject_array(arr: np.ndarray, record: dict, kind: str = "mask", fill: i
     w, h = record["size"]
     H = np.asarray(record["H"], dtype=np.float64).reshape(3, 3)
     interp = cv2.INTER_NEAREST if kind == "mask" else cv2.INTER_LINEAR
-    out = cv2.warpPerspective(arr, H, (int(w), int(h)), flags=interp | cv2.WARP_INVERSE_MAP,
-                              borderMode=cv2.BORDER_CONSTANT, borderValue=fill)
-    ego = int(record.get("ego_rows") or 0)
-    if ego:
-        out[int(h) - ego:] = fill
-    return out
+    return cv2.warpPerspective(arr, H, (int(w), int(h)), flags=interp | cv2.WARP_INVERSE_MAP,
+                               borderMode=cv2.BORDER_CONSTANT, borderValue=fill)
 
 
 def backproject_folder(store: str | Path, masks: str | Path, out: str | Path, kind: str = "mask",

@@ -436,8 +436,8 @@ def backproject_cmd(store: Path = typer.Argument(..., help="store the masks belo
                     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar")):
     """Map virtual-domain masks or probability maps back to each item's original camera,
     exactly inverting its H. Writes OUT/<id>.png at the source image size; source pixels
-    outside the virtual image get 0, and so do the ego-vehicle rows of an item whose camera
-    has ego_rows (never warped: "not road").
+    outside the virtual image get 0. The ego_rows of an item whose camera sees its own vehicle
+    get what the store holds there (the completion of the visible scene), like every pixel.
 
     \b
     Example:

@@ -155,7 +155,8 @@ def predict_cmd(
     camera: Optional[str] = typer.Option(None, "--camera", "-c",
                                          help="camera of the images: preset or file (.yaml, KITTI .txt, Cityscapes .json), "
                                               "or a folder of per-frame calibration files matched by stem; a .yaml "
-                                              "camera's ego_rows (its own vehicle) are never warped and predicted 0"),
+                                              "camera's ego_rows (its own vehicle) are never warped; the prediction there "
+                                              "continues the scene above them"),
     prior: Optional[Path] = typer.Option(None, "--prior", help="no model: segment with the geometric prior written by "
                                                                 "'vcprep prior' (p_g >= 0.5, back-projected)"),
     store: Optional[Path] = typer.Option(None, "--store", help="predict every item of this store instead of IMAGES"),
