@@ -221,7 +221,7 @@ def _study(datasets: list[dict], args: argparse.Namespace, conditions: list[str]
     train = dict(QUICK_TRAIN) if args.quick else {}
     if args.device:
         train["device"] = args.device
-    if args.crop and args.crop < 1:
+    if args.crop and args.crop != 1.0 and args.crop != [1.0, 1.0]:
         train["crop"] = args.crop
     if train:
         study["train"] = train
@@ -418,6 +418,14 @@ def targets(agg: dict, models: list[dict], conditions: list[str]) -> dict:
     }
 
 
+def _crop_share(text: str) -> float | list[float]:
+    """--crop: one share of each side ('0.67') or shares of width and height ('0.4444x1')."""
+    parts = [float(v) for v in text.lower().split("x")]
+    if len(parts) not in (1, 2) or not all(0 < v <= 1 for v in parts):
+        raise argparse.ArgumentTypeError(f"'{text}': give a share in (0, 1] or two as WxH")
+    return parts[0] if len(parts) == 1 else parts
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", default=None, help="comma-separated training seeds (default 0,1,2; --quick: 0)")
@@ -430,10 +438,10 @@ def main() -> None:
     ap.add_argument("--store-pixels", type=int, default=172800,
                     help="working pixel count of every model's whole image (default 172800: 480x360 for resize; "
                          "with --crop 2/3 the training windows hold 76800 = 320x240)")
-    ap.add_argument("--crop", type=float, default=2 / 3,
-                    help="train every model on random windows of this share of each side of its working image "
-                         "(vctrain fit --crop; default 2/3; 1: whole images); the windows hold "
-                         "store-pixels x crop^2 pixels")
+    ap.add_argument("--crop", type=_crop_share, default=2 / 3,
+                    help="train every model on random windows of this share of each side of its working image, "
+                         "or of its width and height ('0.4444x1': full-height windows) (vctrain fit --crop; "
+                         "default 2/3; 1: whole images)")
     ap.add_argument("--dev", action="store_true",
                     help=f"development split for choosing settings: train on sequence {DEV_TRAIN} of CamVid train, "
                          f"score on {DEV_TEST} and its simulated cameras (no test frame; results in WORKDIR/results)")

@@ -263,14 +263,22 @@ def test_random_crop_is_an_exact_window_of_the_working_image(tmp_path, affine):
     assert len(origins) > 20 and min(xs) <= 3 and max(xs) >= w - cw - 3 and min(ys) <= 2 and max(ys) >= h - ch - 2
 
 
-def test_crop_size_from_a_share_or_pixels():
+def test_crop_size_from_shares_or_pixels():
     from vctrain.train import crop_size
 
     assert crop_size(None, (480, 360)) == (480, 360)
     assert crop_size(2 / 3, (480, 360)) == (320, 240)
     assert crop_size(1.0, (99, 50)) == (99, 50)
     assert crop_size((320, 200), (480, 360)) == (320, 200)
-    for bad in (0.0, 1.5, (500, 200), (20, 20), 0.05):
+    assert crop_size((0.5, 1.0), (480, 360)) == (240, 360)  # shares of width and height: full-height windows
+    assert crop_size([0.4444, 1.0], (749, 231)) == (333, 231)
+    from vctrain.cli import _parse_crop
+
+    assert [_parse_crop(t) for t in ("320x240", "0.67", "0.5x1", "0.5x1.0")] == [(320, 240), 0.67, (0.5, 1.0),
+                                                                              (0.5, 1.0)]
+    with pytest.raises(InputError):
+        _parse_crop("wide")
+    for bad in (0.0, 1.5, (500, 200), (20, 20), 0.05, (0.5, 1.5), (0.05, 1.0)):
         with pytest.raises(InputError):
             crop_size(bad, (480, 360))
 

@@ -45,15 +45,21 @@ def _parse_size(text: Optional[str]) -> Optional[tuple[int, int]]:
 
 
 def _parse_crop(text: Optional[str]) -> Optional[Any]:
-    """--crop: 'WxH' pixels or a share of each side ('0.67')."""
+    """--crop: 'WxH' pixels, a share of each side ('0.67') or shares of width and height ('0.44x1')."""
     if text is None:
         return None
-    if "x" in text.lower():
-        return _parse_size(text)
+    parts = text.lower().split("x")
     try:
-        return float(text)
+        if len(parts) == 2 and all(p.strip().isdigit() for p in parts) and "." not in text:
+            return int(parts[0]), int(parts[1])
+        if len(parts) == 2:
+            return float(parts[0]), float(parts[1])
+        if len(parts) == 1:
+            return float(text)
     except ValueError:
-        raise InputError(f"--crop '{text}' is neither WxH nor a number", None, "use e.g. --crop 320x240 or --crop 0.67") from None
+        pass
+    raise InputError(f"--crop '{text}' is neither WxH, a share nor two shares", None,
+                     "use e.g. --crop 320x240, --crop 0.67 or --crop 0.44x1")
 
 
 @app.command("fit")
@@ -77,7 +83,8 @@ def fit_cmd(
                                                                            "bdd or values:road=3;ignore=11"),
     size: Optional[str] = typer.Option(None, "--size", help="working size WxH (default: the store size)"),
     crop: Optional[str] = typer.Option(None, "--crop", help="train on random windows of the working image: WxH "
-                                                            "pixels or a share of each side (0.67); validation and "
+                                                            "pixels, a share of each side (0.67) or of width and "
+                                                            "height (0.44x1: full height); validation and "
                                                             "prediction see the whole image (default: no crop)"),
     epochs: Optional[int] = typer.Option(None, "--epochs", "-e", help="epochs (cpu recipe: 20, paper recipe: 30; the paper: 600 on a GPU)"),
     batch_size: Optional[int] = typer.Option(None, "--batch-size", "-b", help="global batch size (recipes: 8)"),

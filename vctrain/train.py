@@ -90,8 +90,9 @@ class TrainConfig:
     arch: Optional[str] = None         # 'resfpn' | 'segnet' | 'segnet-narrow'; None: the recipe's
     base_width: Optional[int] = None   # override the architecture's first-block width
     size: Optional[tuple[int, int]] = None  # working size (w, h); None: the store size (first image for folders)
-    crop: Optional[Any] = None         # training window: (w, h) in pixels or a float share of each side of the
-                                       # working size; None: the whole image (validation always sees it whole)
+    crop: Optional[Any] = None         # training window: (w, h) pixels (ints), a share of each side (float) or
+                                       # of width and height (two floats); None: the whole image (validation
+                                       # and prediction always see it whole)
     epochs: Optional[int] = None       # None: the recipe's (the paper trains 600 on a GPU)
     batch_size: Optional[int] = None   # global batch (paper Table 2: 8)
     optimizer: Optional[str] = None    # 'sgd' (momentum) | 'adamw'
@@ -271,14 +272,21 @@ def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str
 
 def crop_size(crop: Any, size: tuple[int, int]) -> tuple[int, int]:
     """The training window (w, h) of ``crop`` at working size ``size``: None -> ``size``; a number
-    in (0, 1] -> that share of each side (rounded); (w, h) -> as given. It must fit ``size`` and
-    be at least MIN_SIDE on each side."""
+    in (0, 1] -> that share of each side; a pair of floats in (0, 1] -> the shares of the width
+    and the height (e.g. (0.44, 1.0): full-height windows); a pair of ints -> pixels. Shares are
+    rounded. The window must fit ``size`` and be at least MIN_SIDE on each side."""
     if crop is None:
         return tuple(size)
+
+    def share(v: Any, side: int) -> int:
+        if not 0 < float(v) <= 1:
+            raise InputError(f"crop share {v} is not in (0, 1]", None, "use e.g. --crop 0.67, 0.44x1 or 320x240")
+        return int(round(side * float(v)))
+
     if isinstance(crop, (int, float)) and not isinstance(crop, bool):
-        if not 0 < float(crop) <= 1:
-            raise InputError(f"crop share {crop} is not in (0, 1]", None, "use e.g. --crop 0.67 or --crop 320x240")
-        out = (int(round(size[0] * float(crop))), int(round(size[1] * float(crop))))
+        out = (share(crop, size[0]), share(crop, size[1]))
+    elif all(isinstance(v, float) for v in crop):
+        out = (share(crop[0], size[0]), share(crop[1], size[1]))
     else:
         out = (int(crop[0]), int(crop[1]))
     if out[0] > size[0] or out[1] > size[1] or min(out) < MIN_SIDE:
