@@ -37,10 +37,12 @@ set's test images with that prior's tri-mask; crossval trains the within model o
 prediction). The virtual
 camera is designed from all the study's cameras (calibrations only). Training settings:
 ``vctrain fit``'s defaults (its CPU recipe without a GPU) except ``--epochs``, plus ``--crop``: every
-model trains on random windows of 2/3 of each side of its working image, 76800 pixels a step,
-and predicts on the whole image of 172800 pixels (``--store-pixels``: the virtual stores' scale;
-resize at the same count, CamVid's 4:3 = 480x360 with 320x240 windows); chosen with ``--dev``
-(below) over whole images of 76800 pixels. Virtual camera cropped to 8 degrees above the horizon
+model trains on random full-height windows of 4/9 of the width of its working image, 76800 pixels
+a step, and predicts on the whole image of 172800 pixels (``--store-pixels``: the virtual stores'
+scale; resize at the same count, CamVid's 4:3 = 480x360 with 213x360 windows). Chosen with
+``--dev`` (below): whole 76800-pixel images, 2/3 x 2/3 windows and full-height windows (the
+virtual camera's horizon stays on one row of every window) measured, the windows ahead of whole
+images and tied with each other; full height kept the position of the road in the image. Virtual camera cropped to 8 degrees above the horizon
 (``--above``); otherwise crossval's default unless ``--store-width``.
 
 ``--dev``: the split on which settings are chosen, never a test frame: train on CamVid train's
@@ -438,10 +440,10 @@ def main() -> None:
     ap.add_argument("--store-pixels", type=int, default=172800,
                     help="working pixel count of every model's whole image (default 172800: 480x360 for resize; "
                          "with --crop 2/3 the training windows hold 76800 = 320x240)")
-    ap.add_argument("--crop", type=_crop_share, default=2 / 3,
+    ap.add_argument("--crop", type=_crop_share, default=[4 / 9, 1.0],
                     help="train every model on random windows of this share of each side of its working image, "
                          "or of its width and height ('0.4444x1': full-height windows) (vctrain fit --crop; "
-                         "default 2/3; 1: whole images)")
+                         "default 4/9x1: full-height windows of 4/9 the width; 1: whole images)")
     ap.add_argument("--dev", action="store_true",
                     help=f"development split for choosing settings: train on sequence {DEV_TRAIN} of CamVid train, "
                          f"score on {DEV_TEST} and its simulated cameras (no test frame; results in WORKDIR/results)")
