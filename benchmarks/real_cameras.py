@@ -421,11 +421,18 @@ def targets(agg: dict, models: list[dict], conditions: list[str]) -> dict:
 
 
 def _crop_share(text: str) -> float | list[float]:
-    """--crop: one share of each side ('0.67') or shares of width and height ('0.4444x1')."""
-    parts = [float(v) for v in text.lower().split("x")]
-    if len(parts) not in (1, 2) or not all(0 < v <= 1 for v in parts):
+    """--crop: one share of each side ('0.67') or shares of width and height ('0.4444x1'), parsed
+    as ``vctrain fit --crop`` parses them (shares only: every condition has its own working size)."""
+    from vcprep.errors import InputError
+    from vctrain.cli import _parse_crop
+
+    try:
+        crop = _parse_crop(text)
+    except InputError as e:
+        raise argparse.ArgumentTypeError(e.problem) from None
+    if not all(isinstance(v, float) and 0 < v <= 1 for v in ([crop] if isinstance(crop, float) else crop)):
         raise argparse.ArgumentTypeError(f"'{text}': give a share in (0, 1] or two as WxH")
-    return parts[0] if len(parts) == 1 else parts
+    return crop if isinstance(crop, float) else list(crop)
 
 
 def main() -> None:

@@ -48,16 +48,15 @@ def _parse_crop(text: Optional[str]) -> Optional[Any]:
     """--crop: 'WxH' pixels, a share of each side ('0.67') or shares of width and height ('0.44x1')."""
     if text is None:
         return None
-    parts = text.lower().split("x")
+    parts = text.lower().replace(" ", "").split("x")
+    if len(parts) == 2 and all(p.isdigit() for p in parts):
+        return _parse_size(text)
     try:
-        if len(parts) == 2 and all(p.strip().isdigit() for p in parts) and "." not in text:
-            return int(parts[0]), int(parts[1])
-        if len(parts) == 2:
-            return float(parts[0]), float(parts[1])
-        if len(parts) == 1:
-            return float(text)
+        shares = [float(p) for p in parts]
     except ValueError:
-        pass
+        shares = []
+    if len(shares) in (1, 2):
+        return shares[0] if len(shares) == 1 else tuple(shares)
     raise InputError(f"--crop '{text}' is neither WxH, a share nor two shares", None,
                      "use e.g. --crop 320x240, --crop 0.67 or --crop 0.44x1")
 
