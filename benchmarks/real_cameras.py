@@ -63,6 +63,15 @@ right after each seed's training (same model args, batch, working size, memory f
 device and threads; kept in runs/_all/<condition>/reference.json, so a resumed benchmark reuses the
 reference of the training it belongs to).
 
+The camera change alone (simulated cameras, :func:`no_shift_reference`): every trained model's
+prediction on the simulations' source frames (CamVid val; ``--dev``: 0006R0) in their own camera,
+carried into each simulated camera by the simulation's exact homography and scored against the
+simulated labels: the same frames and pixels with no camera change. The score on the simulated
+camera minus this is the cost of the camera change alone, per condition; within's no-change score
+minus resize's score is within - resize if the virtual camera removed the whole camera shift
+(``zero_cost``; over the other cameras with KITTI as measured): what these test sets allow at this
+network quality. The re-planned simulation must reproduce every simulated label exactly (checked).
+
 Threads: ``--threads T`` (default: all cores) = ``torch.set_num_threads(T)`` and ``cv2.setNumThreads(T)``
 here, ``OMP_NUM_THREADS=T`` for the training processes, ``--jobs T`` store builders.
 Runtime: seeds x conditions models (9 by default) x minutes_per_model, plus store building and
@@ -72,7 +81,8 @@ results in WORKDIR/results, not benchmarks/results).
 Outputs in benchmarks/results/: ``real_cameras.md`` (the table), ``real_cameras.png`` (bars with
 +/- std), ``real_cameras.json`` (headline, every cell per seed, targets, models, settings). The last
 stdout line is one JSON object with ``within_minus_resize``, ``in_domain_within``,
-``in_domain_resize`` and ``minutes_per_model`` (and a few more figures).
+``in_domain_resize`` and ``minutes_per_model`` (and a few more figures: ``simulated_shift_cost_<condition>``,
+``within_minus_resize_zero_cost``, ``simulated_within_minus_resize_zero_cost``).
 """
 from __future__ import annotations
 
@@ -162,7 +172,7 @@ def kitti_datasets() -> list[dict]:
              "label_format": "kitti", "test": test}]
 
 
-def dev_datasets(wd: Path, f: dict[str, Path], cam: Path, camvid) -> list[dict]:
+def dev_datasets(wd: Path, f: dict[str, Path], cam: Path, camvid) -> tuple[list[dict], dict]:
     """--dev: a split for choosing settings without any test frame. Train on CamVid train's
     sequence DEV_TRAIN alone; score on its sequence DEV_TEST (never trained on here) and on
     DEV_TEST through the same simulated cameras (named like the benchmark's, so they form the
@@ -178,11 +188,13 @@ def dev_datasets(wd: Path, f: dict[str, Path], cam: Path, camvid) -> list[dict]:
         split = simulate(cam, images, labels, wd / "sim" / name, name)
         datasets.append({"name": name, "role": "test", "camera": str(wd / "sim" / name / "camera.yaml"),
                          "label_format": "camvid", "test": split})
-    return datasets
+    return datasets, {"dataset": f"camvid-{DEV_TEST}", "camera": cam, "images": images, "labels": labels}
 
 
-def make_study(wd: Path, args: argparse.Namespace, conditions: list[str]) -> tuple[dict, list[str]]:
-    """The study (camvid role train, every other set role test) and its reported test-set names."""
+def make_study(wd: Path, args: argparse.Namespace, conditions: list[str]) -> tuple[dict, list[str], dict]:
+    """The study (camvid role train, every other set role test), its reported test-set names and
+    the source of the simulated cameras ({dataset, camera, images, labels}: the in-domain test set
+    they are made from)."""
     cam = native_camera(wd)
     f = camvid_folders(wd, args.quick)
 
@@ -192,9 +204,9 @@ def make_study(wd: Path, args: argparse.Namespace, conditions: list[str]) -> tup
                 split: {"images": str(images), "labels": str(labels), **select}}
 
     if args.dev:
-        datasets = dev_datasets(wd, f, cam, camvid)
+        datasets, source = dev_datasets(wd, f, cam, camvid)
         return _study(datasets, args, conditions), [d["name"] for d in datasets
-                                                    if d["role"] == "test" and not d["name"].startswith("kitti")]
+                                                    if d["role"] == "test" and not d["name"].startswith("kitti")], source
     datasets = [camvid("camvid", "train", f["train"], f["trainannot"], exclude=f"{UNSEEN}_*"),
                 camvid("camvid-val", "test", f["val"], f["valannot"]),
                 camvid(f"camvid-{UNSEEN}", "test", f["train"], f["trainannot"], include=f"{UNSEEN}_*")]
@@ -208,7 +220,8 @@ def make_study(wd: Path, args: argparse.Namespace, conditions: list[str]) -> tup
         split = simulate(cam, f["val"], f["valannot"], wd / "sim" / name, name)
         datasets.append({"name": name, "role": "test", "camera": str(wd / "sim" / name / "camera.yaml"),
                          "label_format": "camvid", "test": split})
-    return _study(datasets, args, conditions), [d["name"] for d in datasets if d["role"] == "test"]
+    return (_study(datasets, args, conditions), [d["name"] for d in datasets if d["role"] == "test"],
+            {"dataset": "camvid-val", "camera": cam, "images": f["val"], "labels": f["valannot"]})
 
 
 def _study(datasets: list[dict], args: argparse.Namespace, conditions: list[str]) -> dict:
@@ -337,6 +350,71 @@ def collect_seed(sd: Path, conditions: list[str], threads: int, quick: bool) -> 
     return rows, models
 
 
+# -- the camera change alone ---------------------------------------------------------------------
+def no_shift_reference(sd: Path, wd: Path, source: dict, conditions: list[str], sets: list[str]) -> dict:
+    """{(simulated set, condition): {"iou", "test_items"}}: each trained model's prediction on the
+    simulations' SOURCE frames in their own camera (the in-domain test set, e.g. CamVid val),
+    carried into the simulated camera by the simulation's exact homography (``out_H_src`` of
+    :func:`vcprep.simulate.plan_simulation` with the simulation's recorded parameters; P(road)
+    bilinear, like the images) and scored against the simulated labels. Same frames, same pixels,
+    no camera change: the score the model would get on that camera if the change cost nothing,
+    so (simulated score - this) is the cost of the camera change alone. The plan is checked
+    against the files: every warped source label must equal the simulated label, or the benchmark
+    stops. Kept in runs/_all/<condition>/no_shift.json (keyed by the training and the simulations)."""
+    from vcprep.build import list_dataset
+    from vcprep.camera import load_camera
+    from vcprep.imageio import read_image
+    from vcprep.labels import decode_label, get_label_format
+    from vcprep.simulate import SimulateParams, plan_simulation, simulate_arrays
+    from vcprep.store import Store
+    from vctrain.crossval import CONDITIONS as MODES
+    from vctrain.metrics import RoadMetrics
+    from vctrain.predict import Predictor
+
+    sims = [n for n in SIM if n in sets]
+    fmt = get_label_format("camvid")
+    jobs = list_dataset(source["images"], source["labels"], fmt)
+    plans, labels = {}, {}
+    for n in sims:
+        params = json.loads((wd / "sim" / n / "simulate.json").read_text())["parameters"]
+        kw = {k: (tuple(v) if k == "size" else v) for k, v in params.items() if k not in ("label_format", "vps")}
+        plans[n] = plan_simulation(jobs, load_camera(str(source["camera"])), SimulateParams(**kw), out_name=n)
+        for it in plans[n].items:  # the exact-geometry check: the plan reproduces the simulated labels
+            raw = read_image(it.job.label, label=True).array
+            mine = simulate_arrays(raw, raw, it.out_H_src, plans[n].camera.size)[1]
+            sim_file = wd / "sim" / n / "labels" / Path(it.job.label).name
+            theirs = read_image(sim_file, label=True).array
+            if not np.array_equal(mine, theirs):
+                sys.exit(f"{sim_file}: the re-planned simulation does not reproduce this label; "
+                         f"delete {wd / 'sim'} and run again")
+            labels[n, it.job.id] = decode_label(theirs, fmt, sim_file)
+    out: dict[tuple[str, str], dict] = {}
+    key_sims = json.dumps({n: (wd / "sim" / n / "simulate.json").read_text() for n in sims}, sort_keys=True)
+    for c in conditions:
+        run_dir = sd / "runs" / "_all" / c
+        if c in UNTRAINED or not (run_dir / "train.json").exists():
+            continue
+        key = hashlib.sha256(((run_dir / "train.json").read_text() + key_sims).encode()).hexdigest()[:16]
+        cache = run_dir / "no_shift.json"
+        old = json.loads(cache.read_text()) if cache.exists() else {}
+        if old.get("key") != key:
+            store = Store.open(sd / "stores" / source["dataset"] / "test" / MODES[c][0])
+            pred = Predictor(run_dir / "model.pt", device="cpu")
+            probs = {rec["id"]: pred.store_item(store, rec).astype(np.float32) for rec in store}
+            res = {}
+            for n in sims:
+                m = RoadMetrics()
+                for it in plans[n].items:
+                    q = simulate_arrays(probs[it.job.id], None, it.out_H_src, plans[n].camera.size)[0]
+                    m.add(q >= 0.5, labels[n, it.job.id])
+                res[n] = {**m.result(), "test_items": len(plans[n].items)}
+            old = {"key": key, "results": res}
+            cache.write_text(json.dumps(old, indent=1) + "\n")
+        for n, r in old["results"].items():
+            out[n, c] = r
+    return out
+
+
 # -- aggregation ---------------------------------------------------------------------------------
 def stats(v: list[float]) -> dict:
     a = np.asarray(v, float)
@@ -384,6 +462,73 @@ def aggregate(per_seed: dict[int, dict], sets: list[str], conditions: list[str])
     vp = paired(per_seed, sets, groups, "within", "between") if {"within", "between"} <= set(conditions) else {}
     return {"cells": cells, "within_minus_resize": diff, "adapt_minus_within": adapt, "within_minus_between": vp,
             "groups": groups}
+
+
+def shift_costs(per_seed: dict[int, dict], no_shift: dict[int, dict], sets: list[str], conditions: list[str]) -> dict:
+    """The camera change alone, per simulated set and condition (mean, std, per seed): ``reference``
+    (:func:`no_shift_reference`: the same pixels seen by the model in the source camera), ``cost``
+    = score on the simulated camera - reference (and per group), and ``zero_cost``: within -
+    resize if the within model lost nothing to the camera change (within's reference - resize's
+    score; what these test sets allow at this network quality), per simulated set, over the
+    simulated sets, and over the other cameras with the real ones (no reference) as measured."""
+    seeds = [k for k in sorted(per_seed) if no_shift.get(k)]
+    sims = [n for n in SIM if n in sets]
+    trained = [c for c in conditions if c not in UNTRAINED]
+    ref: dict[str, dict] = {n: {} for n in sims}
+    cost: dict[str, dict] = {n: {} for n in sims}
+    for n in sims:
+        for c in trained:
+            ks = [k for k in seeds if (n, c) in no_shift[k] and (n, c) in per_seed[k]]
+            if ks:
+                ref[n][c] = stats([no_shift[k][n, c]["iou"] for k in ks])
+                cost[n][c] = stats([per_seed[k][n, c]["iou"] - no_shift[k][n, c]["iou"] for k in ks])
+    if sims:
+        cost["simulated"] = {c: stats([float(np.mean([per_seed[k][n, c]["iou"] - no_shift[k][n, c]["iou"]
+                                                       for n in sims])) for k in seeds])
+                             for c in trained if all(c in cost[n] for n in sims)}
+    zero: dict[str, dict] = {}
+    if {"within", "resize"} <= set(trained) and sims and all("within" in ref[n] for n in sims):
+        def gap(k: int, n: str) -> float:
+            if n in sims:
+                return no_shift[k][n, "within"]["iou"] - per_seed[k][n, "resize"]["iou"]
+            return per_seed[k][n, "within"]["iou"] - per_seed[k][n, "resize"]["iou"]
+
+        for n in sims:
+            zero[n] = stats([gap(k, n) for k in seeds])
+        zero["simulated"] = stats([float(np.mean([gap(k, n) for n in sims])) for k in seeds])
+        others = [n for n in OTHER if n in sets]
+        if all((n, c) in per_seed[k] for k in seeds for n in others for c in ("within", "resize")):
+            zero["other cameras"] = stats([float(np.mean([gap(k, n) for n in others])) for k in seeds])
+    return {"reference": ref, "cost": cost, "zero_cost": zero, "seeds": seeds}
+
+
+def shift_table(shift: dict, conditions: list[str]) -> list[str]:
+    """Markdown lines: the camera change alone (empty without simulated sets)."""
+    sims = [n for n in shift["reference"] if shift["reference"][n]]
+    if not sims:
+        return []
+    trained = [c for c in conditions if c not in UNTRAINED and all(c in shift["reference"][n] for n in sims)]
+    lines = ["The camera change alone: each model's prediction on the simulations' source frames in their own "
+             "camera, carried into the simulated camera by the exact simulation homography and scored there "
+             "(same frames, same pixels, no camera change), and the cost of the change = the score on the "
+             "camera − that (road IoU points, mean ± std over seeds):", "",
+             "| simulated set | " + " | ".join(f"{c}: no change | {c}: cost" for c in trained) + " |",
+             "|---|" + "---|---|" * len(trained)]
+    for n in sims + (["simulated"] if "simulated" in shift["cost"] else []):
+        row = [n if n in sims else "**simulated** (mean)"]
+        for c in trained:
+            row += [fmt(shift["reference"][n].get(c)) if n in sims else "",
+                    fmt(shift["cost"][n].get(c), signed=True)]
+        lines.append("| " + " | ".join(row) + " |")
+    b = shift["zero_cost"]
+    if b:
+        parts = [f"{n} {fmt(b[n], signed=True)}" for n in sims if n in b]
+        lines += ["", "within − resize if the within model lost nothing to the camera change (within's no-change "
+                  "score − resize's score; what these test sets allow at this network quality): " + ", ".join(parts)
+                  + (f"; simulated mean **{fmt(b['simulated'], signed=True)}**" if "simulated" in b else "")
+                  + (f"; other cameras (KITTI as measured) **{fmt(b['other cameras'], signed=True)}**"
+                     if "other cameras" in b else "") + "."]
+    return lines + [""]
 
 
 def table(agg: dict, sets: list[str], conditions: list[str], items: dict[str, int]) -> str:
@@ -488,10 +633,10 @@ def main() -> None:
     import yaml
 
     t0 = time.perf_counter()
-    study, sets = make_study(wd, args, conditions)
+    study, sets, source = make_study(wd, args, conditions)
     (wd / "study.yaml").write_text(yaml.safe_dump(study, sort_keys=False))
     env = {"OMP_NUM_THREADS": str(T), "MKL_NUM_THREADS": str(T)}
-    per_seed, models = {}, []
+    per_seed, models, no_shift = {}, [], {}
     for k in seeds:
         sd = wd / f"seed{k}"
         print(f"seed {k}: vctrain crossval -> {sd}", file=sys.stderr, flush=True)
@@ -502,7 +647,9 @@ def main() -> None:
         rows, ms = collect_seed(sd, conditions, T, args.quick)  # the reference right after this seed's training
         per_seed[k] = rows
         models += [{"seed": k, **m} for m in ms]
+        no_shift[k] = no_shift_reference(sd, wd, source, conditions, sets)
     total = time.perf_counter() - t0
+    shift = shift_costs(per_seed, no_shift, sets, conditions)
 
     agg = aggregate(per_seed, sets, conditions)
     items = {s: per_seed[seeds[0]][s, conditions[0]]["test_items"] for s in sets if (s, conditions[0]) in per_seed[seeds[0]]}
@@ -529,12 +676,18 @@ def main() -> None:
     }
     for c, d in agg["adapt_minus_within"].items():
         headline[f"{c.replace('-', '_')}_minus_within"] = mean_of(d.get("other cameras"))
+    for c, d in shift["cost"].get("simulated", {}).items():
+        headline[f"simulated_shift_cost_{c}"] = mean_of(d)
+    for g in ("simulated", "other cameras"):
+        if g in shift["zero_cost"]:
+            headline[f"{'simulated_' if g == 'simulated' else ''}within_minus_resize_zero_cost"] = mean_of(shift["zero_cost"][g])
     study_json = json.loads((wd / f"seed{seeds[0]}" / "study.json").read_text())
     virt, m0 = study_json["virtual"], (models[0] if models else {})
     md = ["# Real new cameras: train on CamVid, test on other cameras (benchmarks/real_cameras.py)", "",
           f"Road IoU (%) on each test set in its own camera, mean ± std over {len(seeds)} seeds {seeds}"
           + (" (QUICK SMOKE RUN: numbers mean nothing)" if args.quick else "") + ".", "",
           table(agg, sets, conditions, items),
+          *shift_table(shift, conditions),
           "Targets (reported, not asserted):", ""]
     md += [f"- {name}: {'PASS' if t['pass'] else 'FAIL'} "
            f"({json.dumps({k: v for k, v in t.items() if k != 'pass'}, default=str)})" for name, t in tg.items()]
@@ -574,7 +727,7 @@ def main() -> None:
     (res / "real_cameras.json").write_text(json.dumps(
         {"headline": headline, "cells": cells, "within_minus_resize": diff,
          "adapt_minus_within": agg["adapt_minus_within"], "within_minus_between": agg["within_minus_between"],
-         "groups": agg["groups"],
+         "groups": agg["groups"], "no_shift": shift,
          "test_frames": items, "targets": tg, "models": models, "seeds": seeds, "conditions": conditions,
          "threads": T, "study": study, "virtual": virt, "scale": study_json["scale"],
          "train_settings": study_json["train"], "wall_minutes": total / 60}, indent=1, default=str) + "\n")
