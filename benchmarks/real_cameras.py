@@ -415,6 +415,45 @@ def no_shift_reference(sd: Path, wd: Path, source: dict, conditions: list[str], 
     return out
 
 
+def exact_vp_scores(sd: Path, wd: Path, sets: list[str], threads: int) -> dict:
+    """{simulated set: {"iou", "test_items"}}: the seed's within model on each simulated camera's
+    test frames warped with their EXACT road VPs (the simulation's vps.csv, status 'given') instead
+    of the estimated ones, into the same virtual camera and scale (stores under
+    ``exact_vp/<set>``). Within with estimated VPs minus this is what the VP errors cost. Kept in
+    runs/_all/within/exact_vp.json (keyed by the training and the VP files)."""
+    from vcprep.build import ItemPose, list_dataset, warp_dataset
+    from vcprep.camera import camera_from_dict, load_camera
+    from vcprep.labels import get_label_format
+    from vcprep.vanishing_point import vps_for_items
+    from vctrain.crossval import evaluate_heldout
+
+    run_dir = sd / "runs" / "_all" / "within"
+    sims = [n for n in SIM if n in sets]
+    if not sims or not (run_dir / "train.json").exists():
+        return {}
+    key = hashlib.sha256(((run_dir / "train.json").read_text() + json.dumps(
+        {n: (wd / "sim" / n / "vps.csv").read_text() for n in sims}, sort_keys=True)).encode()).hexdigest()[:16]
+    cache = run_dir / "exact_vp.json"
+    old = json.loads(cache.read_text()) if cache.exists() else {}
+    if old.get("key") == key:
+        return old["results"]
+    study = json.loads((sd / "study.json").read_text())
+    virtual, fmt = camera_from_dict(study["virtual"]), get_label_format("camvid")
+    res = {}
+    for n in sims:
+        d = wd / "sim" / n
+        jobs = list_dataset(d / "images", d / "labels", fmt)
+        cam = load_camera(str(d / "camera.yaml"))
+        vps = vps_for_items([j.image for j in jobs], [j.id for j in jobs], cam, str(d / "vps.csv"))
+        poses = {j.id: ItemPose((r.vp[0], r.vp[1]), r.status) for j, r in zip(jobs, vps)}
+        store = sd / "exact_vp" / n
+        warp_dataset(jobs, cam, virtual, study["scale"], store, fmt, progress=False, poses=poses,
+                     completion="projective", workers=threads)
+        res[n] = evaluate_heldout(run_dir / "model.pt", store)
+    cache.write_text(json.dumps({"key": key, "results": res}, indent=1) + "\n")
+    return res
+
+
 # -- aggregation ---------------------------------------------------------------------------------
 def stats(v: list[float]) -> dict:
     a = np.asarray(v, float)
@@ -502,6 +541,20 @@ def shift_costs(per_seed: dict[int, dict], no_shift: dict[int, dict], sets: list
     return {"reference": ref, "cost": cost, "zero_cost": zero, "seeds": seeds}
 
 
+def vp_costs(per_seed: dict[int, dict], exact: dict[int, dict]) -> dict:
+    """Per simulated set (and their mean): within with the exact VPs (``exact``, mean, std, per
+    seed) and ``cost`` = within with estimated VPs - that (what the VP errors cost)."""
+    seeds = [k for k in sorted(exact) if exact[k]]
+    sims = [n for n in SIM if all(n in exact[k] and (n, "within") in per_seed[k] for k in seeds)] if seeds else []
+    out = {n: {"exact": stats([exact[k][n]["iou"] for k in seeds]),
+               "cost": stats([per_seed[k][n, "within"]["iou"] - exact[k][n]["iou"] for k in seeds])} for n in sims}
+    if sims:
+        out["simulated"] = {"exact": stats([float(np.mean([exact[k][n]["iou"] for n in sims])) for k in seeds]),
+                            "cost": stats([float(np.mean([per_seed[k][n, "within"]["iou"] - exact[k][n]["iou"]
+                                                          for n in sims])) for k in seeds])}
+    return out
+
+
 def shift_table(shift: dict, conditions: list[str]) -> list[str]:
     """Markdown lines: the camera change alone (empty without simulated sets)."""
     sims = [n for n in shift["reference"] if shift["reference"][n]]
@@ -528,6 +581,11 @@ def shift_table(shift: dict, conditions: list[str]) -> list[str]:
                   + (f"; simulated mean **{fmt(b['simulated'], signed=True)}**" if "simulated" in b else "")
                   + (f"; other cameras (KITTI as measured) **{fmt(b['other cameras'], signed=True)}**"
                      if "other cameras" in b else "") + "."]
+    v = shift.get("exact_vp") or {}
+    if v:
+        lines += ["", "within with the EXACT road VPs of the simulation instead of estimated ones (same model, same "
+                  "virtual camera): " + ", ".join(f"{n} {fmt(v[n]['exact'])} (estimated − exact: {fmt(v[n]["cost"], signed=True)})"
+                                                  for n in v) + "."]
     return lines + [""]
 
 
@@ -636,7 +694,7 @@ def main() -> None:
     study, sets, source = make_study(wd, args, conditions)
     (wd / "study.yaml").write_text(yaml.safe_dump(study, sort_keys=False))
     env = {"OMP_NUM_THREADS": str(T), "MKL_NUM_THREADS": str(T)}
-    per_seed, models, no_shift = {}, [], {}
+    per_seed, models, no_shift, exact = {}, [], {}, {}
     for k in seeds:
         sd = wd / f"seed{k}"
         print(f"seed {k}: vctrain crossval -> {sd}", file=sys.stderr, flush=True)
@@ -648,8 +706,10 @@ def main() -> None:
         per_seed[k] = rows
         models += [{"seed": k, **m} for m in ms]
         no_shift[k] = no_shift_reference(sd, wd, source, conditions, sets)
+        exact[k] = exact_vp_scores(sd, wd, sets, T) if "within" in conditions else {}
     total = time.perf_counter() - t0
     shift = shift_costs(per_seed, no_shift, sets, conditions)
+    shift["exact_vp"] = vp_costs(per_seed, exact)
 
     agg = aggregate(per_seed, sets, conditions)
     items = {s: per_seed[seeds[0]][s, conditions[0]]["test_items"] for s in sets if (s, conditions[0]) in per_seed[seeds[0]]}
@@ -678,6 +738,8 @@ def main() -> None:
         headline[f"{c.replace('-', '_')}_minus_within"] = mean_of(d.get("other cameras"))
     for c, d in shift["cost"].get("simulated", {}).items():
         headline[f"simulated_shift_cost_{c}"] = mean_of(d)
+    if "simulated" in shift["exact_vp"]:
+        headline["simulated_vp_error_cost_within"] = mean_of(shift["exact_vp"]["simulated"]["cost"])
     for g in ("simulated", "other cameras"):
         if g in shift["zero_cost"]:
             headline[f"{'simulated_' if g == 'simulated' else ''}within_minus_resize_zero_cost"] = mean_of(shift["zero_cost"][g])
