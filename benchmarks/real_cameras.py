@@ -71,6 +71,8 @@ camera minus this is the cost of the camera change alone, per condition; within'
 minus resize's score is within - resize if the virtual camera removed the whole camera shift
 (``zero_cost``; over the other cameras with KITTI as measured): what these test sets allow at this
 network quality. The re-planned simulation must reproduce every simulated label exactly (checked).
+What the VP errors cost (:func:`exact_vp_scores`): the within model on the simulated cameras' frames
+warped with their exact VPs (the simulation's vps.csv) instead of the estimated ones.
 
 Threads: ``--threads T`` (default: all cores) = ``torch.set_num_threads(T)`` and ``cv2.setNumThreads(T)``
 here, ``OMP_NUM_THREADS=T`` for the training processes, ``--jobs T`` store builders.
@@ -82,7 +84,8 @@ Outputs in benchmarks/results/: ``real_cameras.md`` (the table), ``real_cameras.
 +/- std), ``real_cameras.json`` (headline, every cell per seed, targets, models, settings). The last
 stdout line is one JSON object with ``within_minus_resize``, ``in_domain_within``,
 ``in_domain_resize`` and ``minutes_per_model`` (and a few more figures: ``simulated_shift_cost_<condition>``,
-``within_minus_resize_zero_cost``, ``simulated_within_minus_resize_zero_cost``).
+``within_minus_resize_zero_cost``, ``simulated_within_minus_resize_zero_cost``,
+``simulated_vp_error_cost_within``).
 """
 from __future__ import annotations
 
@@ -584,7 +587,7 @@ def shift_table(shift: dict, conditions: list[str]) -> list[str]:
     v = shift.get("exact_vp") or {}
     if v:
         lines += ["", "within with the EXACT road VPs of the simulation instead of estimated ones (same model, same "
-                  "virtual camera): " + ", ".join(f"{n} {fmt(v[n]['exact'])} (estimated − exact: {fmt(v[n]["cost"], signed=True)})"
+                  "virtual camera): " + ", ".join(f"{n} {fmt(v[n]['exact'])} (estimated − exact: {fmt(v[n]['cost'], signed=True)})"
                                                   for n in v) + "."]
     return lines + [""]
 
