@@ -71,8 +71,10 @@ camera minus this is the cost of the camera change alone, per condition; within'
 minus resize's score is within - resize if the virtual camera removed the whole camera shift
 (``zero_cost``; over the other cameras with KITTI as measured): what these test sets allow at this
 network quality. The re-planned simulation must reproduce every simulated label exactly (checked).
-What the VP errors cost (:func:`exact_vp_scores`): the within model on the simulated cameras' frames
-warped with their exact VPs (the simulation's vps.csv) instead of the estimated ones.
+Estimated VPs vs the exact pose (:func:`exact_vp_scores`): the within model on the simulated
+cameras' frames warped with each frame's exact camera pose (the simulation's vps.csv: the source
+camera's nominal pose carried through that frame's simulated rotation, i.e. what a perfect
+per-frame calibration gives) instead of its estimated road VP.
 
 Threads: ``--threads T`` (default: all cores) = ``torch.set_num_threads(T)`` and ``cv2.setNumThreads(T)``
 here, ``OMP_NUM_THREADS=T`` for the training processes, ``--jobs T`` store builders.
@@ -85,7 +87,7 @@ Outputs in benchmarks/results/: ``real_cameras.md`` (the table), ``real_cameras.
 stdout line is one JSON object with ``within_minus_resize``, ``in_domain_within``,
 ``in_domain_resize`` and ``minutes_per_model`` (and a few more figures: ``simulated_shift_cost_<condition>``,
 ``within_minus_resize_zero_cost``, ``simulated_within_minus_resize_zero_cost``,
-``simulated_vp_error_cost_within``).
+``simulated_estimated_minus_exact_pose_within``).
 """
 from __future__ import annotations
 
@@ -420,10 +422,11 @@ def no_shift_reference(sd: Path, wd: Path, source: dict, conditions: list[str], 
 
 def exact_vp_scores(sd: Path, wd: Path, sets: list[str], threads: int) -> dict:
     """{simulated set: {"iou", "test_items"}}: the seed's within model on each simulated camera's
-    test frames warped with their EXACT road VPs (the simulation's vps.csv, status 'given') instead
-    of the estimated ones, into the same virtual camera and scale (stores under
-    ``exact_vp/<set>``). Within with estimated VPs minus this is what the VP errors cost. Kept in
-    runs/_all/within/exact_vp.json (keyed by the training and the VP files)."""
+    test frames warped with each frame's EXACT camera pose (the simulation's vps.csv, status
+    'given': the source camera's nominal pose through the frame's simulated rotation, what a
+    perfect per-frame calibration gives) instead of its estimated road VP, into the same virtual
+    camera and scale (stores under ``exact_vp/<set>``). Kept in runs/_all/within/exact_vp.json
+    (keyed by the training and the VP files)."""
     from vcprep.build import ItemPose, list_dataset, warp_dataset
     from vcprep.camera import camera_from_dict, load_camera
     from vcprep.labels import get_label_format
@@ -545,8 +548,8 @@ def shift_costs(per_seed: dict[int, dict], no_shift: dict[int, dict], sets: list
 
 
 def vp_costs(per_seed: dict[int, dict], exact: dict[int, dict]) -> dict:
-    """Per simulated set (and their mean): within with the exact VPs (``exact``, mean, std, per
-    seed) and ``cost`` = within with estimated VPs - that (what the VP errors cost)."""
+    """Per simulated set (and their mean): within with each frame's exact pose (``exact``, mean,
+    std, per seed) and ``cost`` = within with estimated road VPs - that."""
     seeds = [k for k in sorted(exact) if exact[k]]
     sims = [n for n in SIM if all(n in exact[k] and (n, "within") in per_seed[k] for k in seeds)] if seeds else []
     out = {n: {"exact": stats([exact[k][n]["iou"] for k in seeds]),
@@ -586,8 +589,8 @@ def shift_table(shift: dict, conditions: list[str]) -> list[str]:
                      if "other cameras" in b else "") + "."]
     v = shift.get("exact_vp") or {}
     if v:
-        lines += ["", "within with the EXACT road VPs of the simulation instead of estimated ones (same model, same "
-                  "virtual camera): " + ", ".join(f"{n} {fmt(v[n]['exact'])} (estimated − exact: {fmt(v[n]['cost'], signed=True)})"
+        lines += ["", "within with each frame's EXACT camera pose (the simulation's, as a perfect per-frame "
+                  "calibration gives) instead of its estimated road VP (same model, same virtual camera): " + ", ".join(f"{n} {fmt(v[n]['exact'])} (estimated − exact: {fmt(v[n]['cost'], signed=True)})"
                                                   for n in v) + "."]
     return lines + [""]
 
@@ -742,7 +745,7 @@ def main() -> None:
     for c, d in shift["cost"].get("simulated", {}).items():
         headline[f"simulated_shift_cost_{c}"] = mean_of(d)
     if "simulated" in shift["exact_vp"]:
-        headline["simulated_vp_error_cost_within"] = mean_of(shift["exact_vp"]["simulated"]["cost"])
+        headline["simulated_estimated_minus_exact_pose_within"] = mean_of(shift["exact_vp"]["simulated"]["cost"])
     for g in ("simulated", "other cameras"):
         if g in shift["zero_cost"]:
             headline[f"{'simulated_' if g == 'simulated' else ''}within_minus_resize_zero_cost"] = mean_of(shift["zero_cost"][g])
