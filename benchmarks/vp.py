@@ -128,6 +128,15 @@ were run once, after the choice. Dev figures, median / p90 % width, train | tele
   1.86/12.3 | 0.94/3.84 | 1.72/10.8 | 0.10/0.23 (tele's p90 is three rejected frames whose
   detections were 2.6 % off and whose fallback is 20 % off: the rule's price on that set).
 
+Camera consistency (simulated sets; reference-free): our VP on each simulated frame vs our VP on
+its source frame carried into the simulated camera by the frame's exact homography (re-planned from
+the simulation's recorded parameters), % of the simulated width: a camera-independent detector
+finds the same road direction in both, whatever the reference says. Beside it, ``inherited``: the
+source frame's own error carried over by the same homography, i.e. the simulated set's error if the
+detector did on every simulated frame exactly as on its source; a crop or zoom enlarges it in % of
+the narrower width (tele: about 1.8x), so a simulated set's median near its inherited median is the
+source set's reference disagreement, magnified, not a camera dependence.
+
 Baseline (issue 17's plain vote, no camera, no prior): OpenCV LSD with default settings on the
 grey image; segments 15-75 deg from horizontal, longer than 15 px, midpoint in the lower 60 % of
 the image; 500 seeded RANSAC pairs, each intersection scored by the summed length of segments
@@ -145,7 +154,7 @@ line detection, voting), median over ``--repeats`` passes, single thread (``cv2.
 Results: ``benchmarks/results/vp.json``; the last stdout line is one JSON object with the headline
 figures (``median_pct_width``, ``p90_pct_width``, ``ms_per_image_480`` for ours on real val frames,
 ``baseline_*`` for the baseline, and ``per_set``: ours, the baseline and the reliability split
-for every set).
+for every set, and for the simulated sets ``consistency_*`` and ``inherited_*``).
 """
 from __future__ import annotations
 
@@ -431,7 +440,8 @@ def evaluate(items, cams, cfg: VPConfig, repeats: int):
         e = _errors(vps, items, cams)
         res[name] = {**_summary(e), "ms_per_image": round(float(np.median(per_pass)), 2),
                      "ms_spread": [round(float(min(per_pass)), 2), round(float(max(per_pass)), 2)],
-                     "errors": [round(float(x), 4) for x in e]}
+                     "errors": [round(float(x), 4) for x in e],
+                     "vps": {iid: [round(float(v[0]), 4), round(float(v[1]), 4)] for (iid, _, _), v in zip(items, vps)}}
         if name == "ours":
             acc = np.array([r.status == "accepted" for r in out], bool)
             final = apply_reliability(out, cams)
@@ -443,6 +453,38 @@ def evaluate(items, cams, cfg: VPConfig, repeats: int):
                 "reasons": sorted({r.reason for r in out if r.status != "accepted"}),
             }
     return res
+
+
+def camera_consistency(source_vps: dict, sim_items, sim_vps: dict, sim_dir: Path, source_dir: Path,
+                       source_camera, width: int) -> dict:
+    """Reference-free camera independence of our detector on one simulated set: its VP on each
+    simulated frame vs its VP on the SOURCE frame carried into the simulated camera by that
+    frame's exact homography (``out_H_src`` of the simulation, re-planned from its recorded
+    parameters on the same source folder; the plan's zoom must equal the recorded one), in % of
+    the simulated width. A camera-independent detector finds the same road direction in both (0
+    up to resampling), whatever the reference says. ``inherited``: the source frame's own error
+    carried over (its VP vs its reference, both through the same homography), i.e. the simulated
+    set's error if the detector did exactly as well on every simulated frame as on its source;
+    a crop/zoom makes it larger in % of the (narrower) width."""
+    from vcprep.build import list_dataset
+    from vcprep.homography import apply_homography
+    from vcprep.simulate import SimulateParams, plan_simulation
+
+    recorded = json.loads((sim_dir / "simulate.json").read_text())
+    kw = {k: (tuple(v) if k == "size" else v) for k, v in recorded["parameters"].items()
+          if k not in ("label_format", "vps")}
+    plan = plan_simulation(list_dataset(source_dir), source_camera, SimulateParams(**kw),
+                           out_name=kw.get("name") or "simulated")
+    if not math.isclose(plan.zoom, recorded["zoom"], rel_tol=1e-9):
+        sys.exit(f"{sim_dir}: re-planned zoom {plan.zoom} != recorded {recorded['zoom']}; delete it and run again")
+    H = {it.job.id: it.out_H_src for it in plan.items}
+    cons, inh = [], []
+    for iid, _, ref in sim_items:
+        mapped = apply_homography(H[iid], np.array([source_vps[iid]], float))[0]
+        cons.append(math.hypot(*(np.asarray(sim_vps[iid]) - mapped)) / width * 100)
+        inh.append(math.hypot(mapped[0] - ref[0], mapped[1] - ref[1]) / width * 100)
+    return {"consistency": _summary(np.array(cons)), "inherited": _summary(np.array(inh)),
+            "consistency_errors": [round(x, 4) for x in cons]}
 
 
 def _row(label, size, r):
@@ -500,12 +542,16 @@ def main(argv=None) -> int:
                 val_items = items
     else:
         print(f"NOTE: {DATA} is absent: real-frame figures are NOT measured (synthetic only).", file=sys.stderr)
+    sims = {}  # simulated set -> (its folder, the source frames' folder, the source set, items, camera)
     if not args.no_other_cameras:
         if val_items:
             sim_split = "train" if args.dev else "val"
-            for name, cam, items in simulated_sets(val_items, Path(args.workdir), sim_split):
-                sets.append((f"sim/{name}" if not args.dev else f"sim-train/{name}", f"{cam.size[0]}x{cam.size[1]}",
-                             items, cam))
+            wd = Path(args.workdir)
+            for name, cam, items in simulated_sets(val_items, wd, sim_split):
+                key = (f"sim/{name}" if not args.dev else f"sim-train/{name}") + f"@{cam.size[0]}x{cam.size[1]}"
+                sims[key] = (wd / "sim" / (name if sim_split == "val" else f"{sim_split}-{name}"),
+                             wd / f"{sim_split}_with_reference", f"camvid/{sim_split}@480x360", items, cam)
+                sets.append((key.split("@")[0], key.split("@")[1], items, cam))
         kcams, kitems, kskipped = kitti_set() if not args.dev else ([], [], 0)
         if kitems:
             w, h = kcams[0].size
@@ -525,6 +571,15 @@ def main(argv=None) -> int:
               f"{rel['rejected_fallback']['median_pct_width']}")
         print(_row(f"{name} baseline", size, r["baseline"]))
     S = results["sets"]
+    if sims:
+        print("camera consistency (ours on the simulated frame vs ours on its source frame carried over exactly; "
+              "% width): median p90 | inherited (the source frame's own error carried over): median p90")
+    for key, (sim_dir, src_dir, src_key, items, cam) in sims.items():
+        c = camera_consistency(S[src_key]["ours"]["vps"], items, S[key]["ours"]["vps"], sim_dir, src_dir, cam480,
+                               cam.size[0])
+        S[key]["ours"]["camera_consistency"] = c
+        print(f"{key:<26} {c['consistency']['median_pct_width']!s:>7} {c['consistency']['p90_pct_width']!s:>7} | "
+              f"{c['inherited']['median_pct_width']!s:>7} {c['inherited']['p90_pct_width']!s:>7}")
     real = S.get("camvid/train@480x360" if args.dev else "camvid/val@480x360")
     head_src = real or S["synthetic@480x360"]
     headline = {
@@ -548,7 +603,10 @@ def main(argv=None) -> int:
                         "accepted_p90_pct_width": v["ours"]["reliability"]["accepted"]["p90_pct_width"],
                         "rejected": v["ours"]["reliability"]["rejected_detection"]["n"],
                         "rejected_fallback_median_pct_width":
-                            v["ours"]["reliability"]["rejected_fallback"]["median_pct_width"]}
+                            v["ours"]["reliability"]["rejected_fallback"]["median_pct_width"],
+                        **({f"{m}_{q}_pct_width": v["ours"]["camera_consistency"][m][f"{q}_pct_width"]
+                            for m in ("consistency", "inherited") for q in ("median", "p90")}
+                           if "camera_consistency" in v["ours"] else {})}
                     for k, v in S.items()},
     }
     results["headline"] = headline
