@@ -70,7 +70,7 @@ simulated labels: the same frames and pixels with no camera change. The score on
 camera minus this is the cost of the camera change alone, per condition; within's no-change score
 minus resize's score is within - resize if the virtual camera removed the whole camera shift
 (``zero_cost``; over the other cameras with KITTI as measured): what these test sets allow at this
-network quality. The re-planned simulation must reproduce every simulated label exactly (checked).
+network quality. The recorded homography must carry every source label onto its simulated label exactly (checked).
 Estimated VPs vs the exact pose (:func:`exact_vp_scores`): the within model on the simulated
 cameras' frames warped with each frame's exact camera pose (the simulation's vps.csv: the source
 camera's nominal pose carried through that frame's simulated rotation, i.e. what a perfect
@@ -359,18 +359,17 @@ def collect_seed(sd: Path, conditions: list[str], threads: int, quick: bool) -> 
 def no_shift_reference(sd: Path, wd: Path, source: dict, conditions: list[str], sets: list[str]) -> dict:
     """{(simulated set, condition): {"iou", "test_items"}}: each trained model's prediction on the
     simulations' SOURCE frames in their own camera (the in-domain test set, e.g. CamVid val),
-    carried into the simulated camera by the simulation's exact homography (``out_H_src`` of
-    :func:`vcprep.simulate.plan_simulation` with the simulation's recorded parameters; P(road)
-    bilinear, like the images) and scored against the simulated labels. Same frames, same pixels,
-    no camera change: the score the model would get on that camera if the change cost nothing,
-    so (simulated score - this) is the cost of the camera change alone. The plan is checked
-    against the files: every warped source label must equal the simulated label, or the benchmark
+    carried into the simulated camera by the simulation's exact homography (each frame's
+    ``out_H_src`` as the simulation recorded it, :func:`vcprep.simulate.recorded_homographies`;
+    P(road) bilinear, like the images) and scored against the simulated labels. Same frames, same
+    pixels, no camera change: the score the model would get on that camera if the change cost
+    nothing, so (simulated score - this) is the cost of the camera change alone. Checked against
+    the files: every source label carried over must equal the simulated label, or the benchmark
     stops. Kept in runs/_all/<condition>/no_shift.json (keyed by the training and the simulations)."""
     from vcprep.build import list_dataset
-    from vcprep.camera import load_camera
     from vcprep.imageio import read_image
     from vcprep.labels import decode_label, get_label_format
-    from vcprep.simulate import SimulateParams, plan_simulation, simulate_arrays
+    from vcprep.simulate import recorded_homographies, simulate_arrays
     from vcprep.store import Store
     from vctrain.crossval import CONDITIONS as MODES
     from vctrain.metrics import RoadMetrics
@@ -378,21 +377,20 @@ def no_shift_reference(sd: Path, wd: Path, source: dict, conditions: list[str], 
 
     sims = [n for n in SIM if n in sets]
     fmt = get_label_format("camvid")
-    jobs = list_dataset(source["images"], source["labels"], fmt)
-    plans, labels = {}, {}
+    jobs = {j.id: j for j in list_dataset(source["images"], source["labels"], fmt)}
+    Hs, sizes, labels = {}, {}, {}
     for n in sims:
-        params = json.loads((wd / "sim" / n / "simulate.json").read_text())["parameters"]
-        kw = {k: (tuple(v) if k == "size" else v) for k, v in params.items() if k not in ("label_format", "vps")}
-        plans[n] = plan_simulation(jobs, load_camera(str(source["camera"])), SimulateParams(**kw), out_name=n)
-        for it in plans[n].items:  # the exact-geometry check: the plan reproduces the simulated labels
-            raw = read_image(it.job.label, label=True).array
-            mine = simulate_arrays(raw, raw, it.out_H_src, plans[n].camera.size)[1]
-            sim_file = wd / "sim" / n / "labels" / Path(it.job.label).name
+        Hs[n] = recorded_homographies(wd / "sim" / n)
+        sizes[n] = tuple(json.loads((wd / "sim" / n / "simulate.json").read_text())["camera"]["image_size"])
+        for iid in Hs[n]:  # the exact-geometry check: the recorded H reproduces the simulated label
+            raw = read_image(jobs[iid].label, label=True).array
+            mine = simulate_arrays(raw, raw, Hs[n][iid], sizes[n])[1]
+            sim_file = wd / "sim" / n / "labels" / jobs[iid].label.name
             theirs = read_image(sim_file, label=True).array
             if not np.array_equal(mine, theirs):
-                sys.exit(f"{sim_file}: the re-planned simulation does not reproduce this label; "
+                sys.exit(f"{sim_file}: the recorded homography does not reproduce this label; "
                          f"delete {wd / 'sim'} and run again")
-            labels[n, it.job.id] = decode_label(theirs, fmt, sim_file)
+            labels[n, iid] = decode_label(theirs, fmt, sim_file)
     out: dict[tuple[str, str], dict] = {}
     key_sims = json.dumps({n: (wd / "sim" / n / "simulate.json").read_text() for n in sims}, sort_keys=True)
     for c in conditions:
@@ -409,10 +407,9 @@ def no_shift_reference(sd: Path, wd: Path, source: dict, conditions: list[str], 
             res = {}
             for n in sims:
                 m = RoadMetrics()
-                for it in plans[n].items:
-                    q = simulate_arrays(probs[it.job.id], None, it.out_H_src, plans[n].camera.size)[0]
-                    m.add(q >= 0.5, labels[n, it.job.id])
-                res[n] = {**m.result(), "test_items": len(plans[n].items)}
+                for iid, H in Hs[n].items():
+                    m.add(simulate_arrays(probs[iid], None, H, sizes[n])[0] >= 0.5, labels[n, iid])
+                res[n] = {**m.result(), "test_items": len(Hs[n])}
             old = {"key": key, "results": res}
             cache.write_text(json.dumps(old, indent=1) + "\n")
         for n, r in old["results"].items():

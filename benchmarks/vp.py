@@ -129,8 +129,8 @@ were run once, after the choice. Dev figures, median / p90 % width, train | tele
   detections were 2.6 % off and whose fallback is 20 % off: the rule's price on that set).
 
 Camera consistency (simulated sets; reference-free): our VP on each simulated frame vs our VP on
-its source frame carried into the simulated camera by the frame's exact homography (re-planned from
-the simulation's recorded parameters), % of the simulated width: a camera-independent detector
+its source frame carried into the simulated camera by the frame's exact homography (as the
+simulation recorded it), % of the simulated width: a camera-independent detector
 finds the same road direction in both, whatever the reference says. Beside it, ``inherited``: the
 source frame's own error carried over by the same homography, i.e. the simulated set's error if the
 detector did on every simulated frame exactly as on its source; a crop or zoom enlarges it in % of
@@ -455,29 +455,19 @@ def evaluate(items, cams, cfg: VPConfig, repeats: int):
     return res
 
 
-def camera_consistency(source_vps: dict, sim_items, sim_vps: dict, sim_dir: Path, source_dir: Path,
-                       source_camera, width: int) -> dict:
+def camera_consistency(source_vps: dict, sim_items, sim_vps: dict, sim_dir: Path, width: int) -> dict:
     """Reference-free camera independence of our detector on one simulated set: its VP on each
     simulated frame vs its VP on the SOURCE frame carried into the simulated camera by that
-    frame's exact homography (``out_H_src`` of the simulation, re-planned from its recorded
-    parameters on the same source folder; the plan's zoom must equal the recorded one), in % of
-    the simulated width. A camera-independent detector finds the same road direction in both (0
-    up to resampling), whatever the reference says. ``inherited``: the source frame's own error
+    frame's exact homography (``out_H_src`` recorded by the simulation), in % of the simulated
+    width. A camera-independent detector finds the same road direction in both (0 up to
+    resampling), whatever the reference says. ``inherited``: the source frame's own error
     carried over (its VP vs its reference, both through the same homography), i.e. the simulated
     set's error if the detector did exactly as well on every simulated frame as on its source;
     a crop/zoom makes it larger in % of the (narrower) width."""
-    from vcprep.build import list_dataset
     from vcprep.homography import apply_homography
-    from vcprep.simulate import SimulateParams, plan_simulation
+    from vcprep.simulate import recorded_homographies
 
-    recorded = json.loads((sim_dir / "simulate.json").read_text())
-    kw = {k: (tuple(v) if k == "size" else v) for k, v in recorded["parameters"].items()
-          if k not in ("label_format", "vps")}
-    plan = plan_simulation(list_dataset(source_dir), source_camera, SimulateParams(**kw),
-                           out_name=kw.get("name") or "simulated")
-    if not math.isclose(plan.zoom, recorded["zoom"], rel_tol=1e-9):
-        sys.exit(f"{sim_dir}: re-planned zoom {plan.zoom} != recorded {recorded['zoom']}; delete it and run again")
-    H = {it.job.id: it.out_H_src for it in plan.items}
+    H = recorded_homographies(sim_dir)
     cons, inh = [], []
     for iid, _, ref in sim_items:
         mapped = apply_homography(H[iid], np.array([source_vps[iid]], float))[0]
@@ -542,7 +532,7 @@ def main(argv=None) -> int:
                 val_items = items
     else:
         print(f"NOTE: {DATA} is absent: real-frame figures are NOT measured (synthetic only).", file=sys.stderr)
-    sims = {}  # simulated set -> (its folder, the source frames' folder, the source set, items, camera)
+    sims = {}  # simulated set -> (its folder, the source set, items, camera)
     if not args.no_other_cameras:
         if val_items:
             sim_split = "train" if args.dev else "val"
@@ -550,7 +540,7 @@ def main(argv=None) -> int:
             for name, cam, items in simulated_sets(val_items, wd, sim_split):
                 key = (f"sim/{name}" if not args.dev else f"sim-train/{name}") + f"@{cam.size[0]}x{cam.size[1]}"
                 sims[key] = (wd / "sim" / (name if sim_split == "val" else f"{sim_split}-{name}"),
-                             wd / f"{sim_split}_with_reference", f"camvid/{sim_split}@480x360", items, cam)
+                             f"camvid/{sim_split}@480x360", items, cam)
                 sets.append((key.split("@")[0], key.split("@")[1], items, cam))
         kcams, kitems, kskipped = kitti_set() if not args.dev else ([], [], 0)
         if kitems:
@@ -574,9 +564,8 @@ def main(argv=None) -> int:
     if sims:
         print("camera consistency (ours on the simulated frame vs ours on its source frame carried over exactly; "
               "% width): median p90 | inherited (the source frame's own error carried over): median p90")
-    for key, (sim_dir, src_dir, src_key, items, cam) in sims.items():
-        c = camera_consistency(S[src_key]["ours"]["vps"], items, S[key]["ours"]["vps"], sim_dir, src_dir, cam480,
-                               cam.size[0])
+    for key, (sim_dir, src_key, items, cam) in sims.items():
+        c = camera_consistency(S[src_key]["ours"]["vps"], items, S[key]["ours"]["vps"], sim_dir, cam.size[0])
         S[key]["ours"]["camera_consistency"] = c
         print(f"{key:<26} {c['consistency']['median_pct_width']!s:>7} {c['consistency']['p90_pct_width']!s:>7} | "
               f"{c['inherited']['median_pct_width']!s:>7} {c['inherited']['p90_pct_width']!s:>7}")

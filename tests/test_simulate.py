@@ -17,7 +17,8 @@ from vcprep.camera import PRESETS, Camera, load_camera
 from vcprep.errors import InputError
 from vcprep.homography import vp_from_pose
 from vcprep.labels import get_label_format
-from vcprep.simulate import (SimulateParams, covered, draw_offsets, plan_simulation, relative_rotation, simulate_arrays,
+from vcprep.simulate import (SimulateParams, covered, draw_offsets, plan_simulation, recorded_homographies,
+                             relative_rotation, simulate_arrays,
                              simulate_dataset)
 from vcprep.synthetic import RoadScene, render_road
 from vcprep.warp import source_coordinates
@@ -229,6 +230,45 @@ def test_given_vps_are_mapped_through_h(source, tmp_path):
     p = H @ [250.25, 170.5, 1.0]
     np.testing.assert_allclose(_read_csv(tmp_path / "o/vps.csv")["f_0001"], p[:2] / p[2], atol=1e-6)
     assert plan.items[0].vp_status == "given"
+
+
+def test_recorded_homographies_reproduce_every_written_label(source, tmp_path):
+    """The H recorded per item carries the source label onto the label simulate wrote, pixel for
+    pixel, jitter included; it is the plan's matrix exactly (JSON keeps every float)."""
+    d = source[0]
+    for k in range(2):  # a second frame, so each item has its own jittered H
+        cv2.imwrite(str(d / "images" / f"g_{k}.png"), source[1])
+        cv2.imwrite(str(d / "labels" / f"g_{k}.png"), np.where(source[2] == 1, 3, 0).astype(np.uint8))
+    try:
+        plan, _ = _simulate(source, tmp_path / "o", size=(320, 240), hfov=40.0, pan_jitter=6.0, tilt_jitter=3.0, seed=4)
+        rec = recorded_homographies(tmp_path / "o")
+        assert sorted(rec) == sorted(it.job.id for it in plan.items)
+        Hs = [rec[it.job.id] for it in plan.items]
+        assert not np.allclose(Hs[0], Hs[1])  # per-item draws
+        for it in plan.items:
+            np.testing.assert_array_equal(rec[it.job.id], it.out_H_src)
+            src_lab = cv2.imread(str(it.job.label), cv2.IMREAD_UNCHANGED)
+            mine = simulate_arrays(src_lab, src_lab, rec[it.job.id], plan.camera.size)[1]
+            written = cv2.imread(str(tmp_path / "o" / "labels" / it.job.label.name), cv2.IMREAD_UNCHANGED)
+            np.testing.assert_array_equal(mine, written)
+    finally:
+        for k in range(2):
+            (d / "images" / f"g_{k}.png").unlink()
+            (d / "labels" / f"g_{k}.png").unlink()
+
+
+def test_recorded_homographies_refuse_a_missing_or_unfinished_record(source, tmp_path):
+    with pytest.raises(InputError, match="no simulate.json"):
+        recorded_homographies(tmp_path)
+    _simulate(source, tmp_path / "o", size=(320, 240), hfov=40.0)
+    meta = tmp_path / "o" / "simulate.json"
+    doc = json.loads(meta.read_text())
+    meta.write_text(json.dumps({**doc, "complete": False}))
+    with pytest.raises(InputError, match="unfinished"):
+        recorded_homographies(tmp_path / "o")
+    meta.write_text("{not json")
+    with pytest.raises(InputError, match="unreadable"):
+        recorded_homographies(tmp_path / "o")
 
 
 def test_kitti_colour_labels_keep_their_names_and_colours(tmp_path):

@@ -73,6 +73,7 @@ __all__ = [
     "plan_simulation",
     "simulate_arrays",
     "simulate_dataset",
+    "recorded_homographies",
 ]
 
 SIM_ALGORITHM = "simulate-v1"  # bump when outputs of identical inputs would change
@@ -466,6 +467,25 @@ def _item_key(plan: SimPlan, item: SimItem, img_sha: str, lab_sha: str | None, f
              "H": [float(x) for x in item.out_H_src.ravel()], "image": img_sha, "label": lab_sha,
              "label_format": fmt.name if fmt else None}
     return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
+
+
+def recorded_homographies(out: str | Path) -> dict[str, np.ndarray]:
+    """{item id: out_H_src (3, 3)} of a finished ``vcprep simulate`` output folder, read from its
+    ``simulate.json``: the exact map from each source frame's pixels to its simulated frame's
+    (pixel centres, origin at the top-left pixel's centre), e.g. to carry anything computed on a
+    source frame (a prediction, a detected VP) into the simulated camera. A missing, unfinished or
+    unreadable record raises :class:`InputError`."""
+    meta = Path(out) / "simulate.json"
+    try:
+        doc = json.loads(meta.read_text())
+        if not doc.get("complete"):
+            raise InputError("the simulation is unfinished", meta, "run the same 'vcprep simulate' again")
+        return {str(r["id"]): np.asarray(r["out_H_src"], dtype=np.float64).reshape(3, 3) for r in doc["items"]}
+    except FileNotFoundError:
+        raise InputError("no simulate.json", meta, "give the folder of a 'vcprep simulate' output") from None
+    except (OSError, ValueError, KeyError, TypeError, AttributeError) as e:
+        raise InputError(f"unreadable simulation record ({e.__class__.__name__}: {e})", meta,
+                         "run the same 'vcprep simulate' again") from None
 
 
 def _prepare_out(out: Path) -> dict[str, dict]:
