@@ -70,7 +70,8 @@ simulated labels: the same frames and pixels with no camera change. The score on
 camera minus this is the cost of the camera change alone, per condition; within's no-change score
 minus resize's score is within - resize if the virtual camera removed the whole camera shift
 (``zero_cost``; over the other cameras with KITTI as measured): what these test sets allow at this
-network quality. The recorded homography must carry every source label onto its simulated label exactly (checked).
+network quality. The recorded homography must carry every source label onto its simulated label
+exactly (checked).
 Estimated VPs vs the exact pose (:func:`exact_vp_scores`): the within model on the simulated
 cameras' frames warped with each frame's exact camera pose (the simulation's vps.csv: the source
 camera's nominal pose carried through that frame's simulated rotation, i.e. what a perfect

@@ -538,10 +538,10 @@ def main(argv=None) -> int:
             sim_split = "train" if args.dev else "val"
             wd = Path(args.workdir)
             for name, cam, items in simulated_sets(val_items, wd, sim_split):
-                key = (f"sim/{name}" if not args.dev else f"sim-train/{name}") + f"@{cam.size[0]}x{cam.size[1]}"
-                sims[key] = (wd / "sim" / (name if sim_split == "val" else f"{sim_split}-{name}"),
-                             f"camvid/{sim_split}@480x360", items, cam)
-                sets.append((key.split("@")[0], key.split("@")[1], items, cam))
+                label, size = f"sim/{name}" if not args.dev else f"sim-train/{name}", f"{cam.size[0]}x{cam.size[1]}"
+                sims[f"{label}@{size}"] = (wd / "sim" / (name if sim_split == "val" else f"{sim_split}-{name}"),
+                                           f"camvid/{sim_split}@480x360", items, cam)
+                sets.append((label, size, items, cam))
         kcams, kitems, kskipped = kitti_set() if not args.dev else ([], [], 0)
         if kitems:
             w, h = kcams[0].size
