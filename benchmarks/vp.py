@@ -162,6 +162,7 @@ import argparse
 import json
 import math
 import platform
+import re
 import shutil
 import sys
 import time
@@ -177,11 +178,13 @@ sys.path.insert(0, str(ROOT))
 from vcprep.camera import PRESETS  # noqa: E402
 from vcprep.homography import vp_from_pose  # noqa: E402
 from vcprep.synthetic import RoadScene, render_road  # noqa: E402
-from vcprep.vanishing_point import VPConfig, apply_reliability, estimate_vp, prior_window, to_gray  # noqa: E402
+from vcprep.vanishing_point import (VPConfig, apply_reliability, estimate_vp, prior_window,  # noqa: E402
+                                    sequence_key, to_gray)
 
 DATA = ROOT.parent / "shared" / "data" / "camvid"
 KITTI = ROOT.parent / "shared" / "data" / "kitti_road" / "training"
 STATIC = np.array([0, 1, 4, 5, 7])  # classes whose border with road is a real road edge
+SCENE_GAP = 30  # frames of one sequence at most this many frame numbers apart are one scene (1 s at 30 fps)
 
 
 # ------------------------------------------------------------------------------- baseline
@@ -420,6 +423,51 @@ def _summary(e: np.ndarray) -> dict:
             "mean_pct_width": round(float(np.mean(e)), 3) if len(e) else None}
 
 
+_FRAME_RE = re.compile(r"^(.*?)(\d+)$")
+
+
+def scenes(ids, gap: int = SCENE_GAP) -> list[int]:
+    """Scene index of each frame id: frames of one sequence (:func:`sequence_key`) whose frame
+    numbers (the id's trailing digits) are at most ``gap`` apart, chained, are one scene (CamVid
+    is 30 fps: 30 = one second of driving); an id without a frame number is a scene of its own.
+    Consecutive frames of one drive see the same road, so their errors are not independent."""
+    keyed = []
+    for k, iid in enumerate(ids):
+        m = _FRAME_RE.match(iid.rsplit("_", 1)[-1]) if "_" in iid else None
+        keyed.append((sequence_key(iid), int(m.group(2)) if m else None, k))
+    out = [0] * len(ids)
+    scene, last = -1, None
+    for seq, num, k in sorted(keyed, key=lambda t: (t[0], -1 if t[1] is None else t[1], t[2])):
+        if num is None or last is None or seq != last[0] or num - last[1] > gap:
+            scene += 1
+        out[k] = scene
+        last = None if num is None else (seq, num)
+    return out
+
+
+def scene_bootstrap(ours: np.ndarray, base: np.ndarray, scene: list[int], n_boot: int = 2000,
+                    seed: int = 0) -> dict:
+    """Paired scene-block bootstrap (whole scenes resampled with replacement, ``n_boot`` draws,
+    seeded): 90 % intervals (5th-95th percentile) of the median and p90 error of ours, of the
+    baseline, and of their differences (ours - baseline; negative = ours better), in % width.
+    With few scenes the intervals are wide: that is what the set can say."""
+    scene = np.asarray(scene)
+    groups = [np.flatnonzero(scene == s) for s in np.unique(scene)]
+    rng = np.random.default_rng(seed)
+    stats = {k: [] for k in ("median", "p90", "baseline_median", "baseline_p90", "median_minus_baseline",
+                             "p90_minus_baseline")}
+    for _ in range(n_boot):
+        idx = np.concatenate([groups[g] for g in rng.integers(0, len(groups), len(groups))])
+        mo, po = np.median(ours[idx]), np.percentile(ours[idx], 90)
+        mb, pb = np.median(base[idx]), np.percentile(base[idx], 90)
+        for k, v in (("median", mo), ("p90", po), ("baseline_median", mb), ("baseline_p90", pb),
+                     ("median_minus_baseline", mo - mb), ("p90_minus_baseline", po - pb)):
+            stats[k].append(v)
+    ci = {k: [round(float(np.percentile(v, 5)), 3), round(float(np.percentile(v, 95)), 3)] for k, v in stats.items()}
+    return {"scenes": len(groups), "n_boot": n_boot, "seed": seed, "ci90": ci,
+            "frames_per_scene": [int(len(g)) for g in groups]}
+
+
 def evaluate(items, cams, cfg: VPConfig, repeats: int):
     """Errors (% width) and median ms/image for ours and the baseline, same images, same run;
     ``cams``: one camera per item (or one for all). For ours also the reliability rule's split:
@@ -452,6 +500,16 @@ def evaluate(items, cams, cfg: VPConfig, repeats: int):
                 "rejected_fallback": _summary(_errors([r.vp for r in final], items, cams)[~acc]),
                 "reasons": sorted({r.reason for r in out if r.status != "accepted"}),
             }
+    sc = scenes([iid for iid, _, _ in items])
+    e_o, e_b = np.array(res["ours"]["errors"]), np.array(res["baseline"]["errors"])
+    res["scenes"] = scene_bootstrap(e_o, e_b, sc)
+    ids = [iid for iid, _, _ in items]
+    res["scenes"]["per_scene"] = [
+        {"first": ids[g[0]], "last": ids[g[-1]], "n": int(len(g)),
+         "median_pct_width": round(float(np.median(e_o[g])), 3), "max_pct_width": round(float(e_o[g].max()), 3),
+         "baseline_median_pct_width": round(float(np.median(e_b[g])), 3),
+         "baseline_max_pct_width": round(float(e_b[g].max()), 3)}
+        for g in (np.flatnonzero(np.asarray(sc) == s) for s in sorted(set(sc)))]
     return res
 
 
@@ -561,6 +619,18 @@ def main(argv=None) -> int:
               f"{rel['rejected_fallback']['median_pct_width']}")
         print(_row(f"{name} baseline", size, r["baseline"]))
     S = results["sets"]
+    print("scenes (frames of one drive <= 1 s apart; paired scene-block bootstrap, 2000 draws, seed 0; 90 % "
+          "intervals, % width): p90 ours | p90 baseline | p90 ours - baseline | median ours - baseline")
+    for key, r in S.items():
+        c = r["scenes"]["ci90"]
+        print(f"{key:<26} {r['scenes']['scenes']:>3} scenes  [{c['p90'][0]}, {c['p90'][1]}] | "
+              f"[{c['baseline_p90'][0]}, {c['baseline_p90'][1]}] | [{c['p90_minus_baseline'][0]}, "
+              f"{c['p90_minus_baseline'][1]}] | [{c['median_minus_baseline'][0]}, {c['median_minus_baseline'][1]}]")
+    for key in [k for k in S if k.startswith("camvid/")]:
+        print(f"{key} per scene: first..last (n): ours median / max | baseline median / max")
+        for ps in S[key]["scenes"]["per_scene"]:
+            print(f"  {ps['first']}..{ps['last']} ({ps['n']}): {ps['median_pct_width']} / {ps['max_pct_width']} | "
+                  f"{ps['baseline_median_pct_width']} / {ps['baseline_max_pct_width']}")
     if sims:
         print("camera consistency (ours on the simulated frame vs ours on its source frame carried over exactly; "
               "% width): median p90 | inherited (the source frame's own error carried over): median p90")
@@ -590,6 +660,11 @@ def main(argv=None) -> int:
                         "accepted": v["ours"]["reliability"]["accepted"]["n"],
                         "accepted_median_pct_width": v["ours"]["reliability"]["accepted"]["median_pct_width"],
                         "accepted_p90_pct_width": v["ours"]["reliability"]["accepted"]["p90_pct_width"],
+                        "scenes": v["scenes"]["scenes"],
+                        "p90_ci90": v["scenes"]["ci90"]["p90"],
+                        "baseline_p90_ci90": v["scenes"]["ci90"]["baseline_p90"],
+                        "p90_minus_baseline_ci90": v["scenes"]["ci90"]["p90_minus_baseline"],
+                        "median_minus_baseline_ci90": v["scenes"]["ci90"]["median_minus_baseline"],
                         "rejected": v["ours"]["reliability"]["rejected_detection"]["n"],
                         "rejected_fallback_median_pct_width":
                             v["ours"]["reliability"]["rejected_fallback"]["median_pct_width"],
