@@ -74,6 +74,7 @@ __all__ = [
     "refine_segments",
     "prior_window",
     "estimate_vp",
+    "score_vps",
     "is_reliable",
     "apply_reliability",
     "sequence_key",
@@ -406,24 +407,37 @@ def is_reliable(cam: Camera, pan: float, tilt: float, n_support: int, cfg: VPCon
     return ""
 
 
-def estimate_vp(image: np.ndarray, cam: Camera, cfg: VPConfig = VPConfig(),
-                segments: np.ndarray | None = None) -> VPResult:
-    """The road VP of one image; ``cam`` must be calibrated for this image's size.
-
-    Returns status 'accepted', or 'rejected' with a ``reason`` and ``vp`` = the camera's
-    average-pose VP (the dataset rule :func:`apply_reliability` replaces it). ``segments``
-    (N, 4) may be given to skip line detection. Never raises on image content. A camera with
-    ``ego_rows`` (its own vehicle at the bottom) is read as the exact bottom crop without them:
-    no line of the rig votes, and the VP's coordinates are those of the whole frame.
-    """
+def _own_crop(image: np.ndarray, cam: Camera) -> tuple[np.ndarray, Camera]:
+    """Check the image size against ``cam``; a camera with ``ego_rows`` -> the exact bottom crop
+    without them and its camera (VP coordinates stay those of the whole frame)."""
     h, w = image.shape[:2]
     if (w, h) != tuple(cam.size):
         raise InputError(f"image is {w}x{h} but the camera is for {cam.size[0]}x{cam.size[1]}", None,
                          "use camera.for_image_size(...) first")
     if cam.ego_rows:
-        image, cam = image[: h - cam.ego_rows], cam.without_ego()
-        h = image.shape[0]
-    prior = vp_from_pose(cam)
+        return image[: h - cam.ego_rows], cam.without_ego()
+    return image, cam
+
+
+@dataclass(frozen=True)
+class _Voters:
+    """The segments that vote, strongest first: ``seg`` (K, 4) (sub-pixel re-fitted), their vote
+    weights ``wts``, lengths ``seg_len``, midpoints ``mid`` and unit directions ``dirs``; ``idx``
+    their rows in ``all_seg`` (every detected segment); ``box`` the prior window."""
+
+    all_seg: np.ndarray
+    idx: np.ndarray
+    seg: np.ndarray
+    wts: np.ndarray
+    seg_len: np.ndarray
+    mid: np.ndarray
+    dirs: np.ndarray
+    box: tuple[float, float, float, float]
+
+
+def _voters(image: np.ndarray, cam: Camera, cfg: VPConfig, segments: np.ndarray | None = None) -> _Voters:
+    """Steps 1-3 of the detector (module docstring): detect, filter, rank and re-fit segments."""
+    w = image.shape[1]
     gray = to_gray(image)
     seg = detect_segments(gray, cfg.work_width, cfg.lsd_scale, cfg.lsd_refine) if segments is None else np.asarray(segments, float).reshape(-1, 4)
     all_seg = seg
@@ -440,6 +454,45 @@ def estimate_vp(image: np.ndarray, cam: Camera, cfg: VPConfig = VPConfig(),
     # vote weight = length (the road-below-VP factor is applied per candidate in _votes)
     wts_all = length ** cfg.length_power
     idx = idx[np.argsort(-wts_all[idx], kind="stable")][: cfg.max_segments]
+    seg, wts, seg_len = seg[idx], wts_all[idx], length[idx]
+    if cfg.subpixel and len(seg) >= 2:
+        seg = refine_segments(gray, seg)
+    mid = 0.5 * (seg[:, 0:2] + seg[:, 2:4])
+    dirs = (seg[:, 2:4] - seg[:, 0:2]) / (np.hypot(*(seg[:, 2:4] - seg[:, 0:2]).T)[:, None] + 1e-12)
+    return _Voters(all_seg, idx, seg, wts, seg_len, mid, dirs, box)
+
+
+def score_vps(image: np.ndarray, cam: Camera, points, cfg: VPConfig = VPConfig()) -> np.ndarray:
+    """The detector's own score (the vote, two-sided factor and pose prior of step 5) at each of
+    ``points`` (M, 2) source pixels, from the same segments :func:`estimate_vp` votes with: (M,).
+
+    What it is for: telling a search miss from a disagreement of definitions. If a reference VP
+    scores higher than the detection, the search missed a better mode; if it scores lower, the
+    image's lines (as the detector weighs them) converge elsewhere than the reference says.
+    Zeros when fewer than 2 segments vote.
+    """
+    image, cam = _own_crop(image, cam)
+    pts = np.asarray(points, float).reshape(-1, 2)
+    v = _voters(image, cam, cfg)
+    if len(v.idx) < 2:
+        return np.zeros(len(pts))
+    return _scores(pts, v.mid, v.dirs, v.seg_len, v.wts, math.sin(math.radians(cfg.inlier_deg)), cam, cfg)
+
+
+def estimate_vp(image: np.ndarray, cam: Camera, cfg: VPConfig = VPConfig(),
+                segments: np.ndarray | None = None) -> VPResult:
+    """The road VP of one image; ``cam`` must be calibrated for this image's size.
+
+    Returns status 'accepted', or 'rejected' with a ``reason`` and ``vp`` = the camera's
+    average-pose VP (the dataset rule :func:`apply_reliability` replaces it). ``segments``
+    (N, 4) may be given to skip line detection. Never raises on image content. A camera with
+    ``ego_rows`` (its own vehicle at the bottom) is read as the exact bottom crop without them:
+    no line of the rig votes, and the VP's coordinates are those of the whole frame.
+    """
+    image, cam = _own_crop(image, cam)
+    prior = vp_from_pose(cam)
+    v = _voters(image, cam, cfg, segments)
+    all_seg, idx = v.all_seg, v.idx
     support_all = np.zeros(len(all_seg), bool)
 
     def rejected(reason, n=0, conf=0.0, detected=None):
@@ -447,11 +500,7 @@ def estimate_vp(image: np.ndarray, cam: Camera, cfg: VPConfig = VPConfig(),
 
     if len(idx) < 2:
         return rejected(f"too little support ({len(idx)} usable line segments)")
-    seg, wts, seg_len = seg[idx], wts_all[idx], length[idx]
-    if cfg.subpixel:
-        seg = refine_segments(gray, seg)
-    mid = 0.5 * (seg[:, 0:2] + seg[:, 2:4])
-    dirs = (seg[:, 2:4] - seg[:, 0:2]) / (np.hypot(*(seg[:, 2:4] - seg[:, 0:2]).T)[:, None] + 1e-12)
+    seg, wts, seg_len, mid, dirs, box = v.seg, v.wts, v.seg_len, v.mid, v.dirs, v.box
     tau = math.sin(math.radians(cfg.inlier_deg))
     # candidates: intersections of the strongest segments inside the (slightly enlarged) window
     u0, v0, u1, v1 = box
