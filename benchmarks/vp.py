@@ -179,11 +179,12 @@ from vcprep.camera import PRESETS  # noqa: E402
 from vcprep.homography import vp_from_pose  # noqa: E402
 from vcprep.synthetic import RoadScene, render_road  # noqa: E402
 from vcprep.vanishing_point import (VPConfig, apply_reliability, estimate_vp, prior_window,  # noqa: E402
-                                    sequence_key, to_gray)
+                                    score_vps, sequence_key, to_gray)
 
 DATA = ROOT.parent / "shared" / "data" / "camvid"
 KITTI = ROOT.parent / "shared" / "data" / "kitti_road" / "training"
 STATIC = np.array([0, 1, 4, 5, 7])  # classes whose border with road is a real road edge
+TAIL_PCT = 1.0  # the tail: errors above this (% width), split into search misses and lines-elsewhere
 SCENE_GAP = 30  # frames of one sequence at most this many frame numbers apart are one scene (1 s at 30 fps)
 
 
@@ -494,6 +495,17 @@ def evaluate(items, cams, cfg: VPConfig, repeats: int):
             acc = np.array([r.status == "accepted" for r in out], bool)
             final = apply_reliability(out, cams)
             det = [(r.detected or r.vp) for r in out]
+            # the tail, split by the detector's own score (score_vps): a reference VP scoring higher
+            # than the detection is a search miss; lower, the image's lines converge elsewhere
+            tail = np.flatnonzero(e > TAIL_PCT)
+            split = {"search_miss": [], "lines_elsewhere": []}
+            for k in tail:
+                (iid, im, ref), c = items[k], cams[k]
+                s_det, s_ref = score_vps(im, c, [out[k].detected or out[k].vp, ref], cfg)
+                split["search_miss" if s_ref > s_det else "lines_elsewhere"].append(
+                    {"id": iid, "error_pct_width": round(float(e[k]), 3),
+                     "score_reference_over_detection": round(float(s_ref / s_det), 3) if s_det > 0 else None})
+            res[name]["tail"] = {"threshold_pct_width": TAIL_PCT, "n": int(len(tail)), **split}
             res[name]["reliability"] = {
                 "accepted": _summary(e[acc]),
                 "rejected_detection": _summary(_errors(det, items, cams)[~acc]),
@@ -631,6 +643,15 @@ def main(argv=None) -> int:
         for ps in S[key]["scenes"]["per_scene"]:
             print(f"  {ps['first']}..{ps['last']} ({ps['n']}): {ps['median_pct_width']} / {ps['max_pct_width']} | "
                   f"{ps['baseline_median_pct_width']} / {ps['baseline_max_pct_width']}")
+    print(f"tail (errors > {TAIL_PCT} % width), split by the detector's own score (score_vps): n | search misses "
+          "(the reference scores higher: the search missed it) | lines elsewhere (the detection scores higher); "
+          "median score(reference) / score(detection)")
+    for key, r in S.items():
+        t = r["ours"]["tail"]
+        ratios = [x["score_reference_over_detection"] for x in t["search_miss"] + t["lines_elsewhere"]
+                  if x["score_reference_over_detection"] is not None]
+        print(f"{key:<26} {t['n']:>3} | {len(t['search_miss']):>3} | {len(t['lines_elsewhere']):>3} | "
+              f"{round(float(np.median(ratios)), 2) if ratios else None}")
     if sims:
         print("camera consistency (ours on the simulated frame vs ours on its source frame carried over exactly; "
               "% width): median p90 | inherited (the source frame's own error carried over): median p90")
@@ -665,6 +686,8 @@ def main(argv=None) -> int:
                         "baseline_p90_ci90": v["scenes"]["ci90"]["baseline_p90"],
                         "p90_minus_baseline_ci90": v["scenes"]["ci90"]["p90_minus_baseline"],
                         "median_minus_baseline_ci90": v["scenes"]["ci90"]["median_minus_baseline"],
+                        "tail_n": v["ours"]["tail"]["n"],
+                        "tail_search_misses": len(v["ours"]["tail"]["search_miss"]),
                         "rejected": v["ours"]["reliability"]["rejected_detection"]["n"],
                         "rejected_fallback_median_pct_width":
                             v["ours"]["reliability"]["rejected_fallback"]["median_pct_width"],
