@@ -153,8 +153,12 @@ lines-elsewhere (reference / detection score 0.61-0.67, median per set), one tel
 
 Round 3 (2026-11-24), development sets only, none kept (median / p90 % width, train | tele |
 band | dashcam | synthetic, from 0.78/2.37 | 1.86/12.3 | 0.94/3.84 | 1.72/10.8 | 0.10/0.23):
-CLAHE before LSD 0.68/2.34 | 1.83/5.54 | 0.98/9.34 | 1.65/9.92 | 0.11/13.5 (a global stretch or
-histogram equalisation alike: more segments, and ``min_support`` flips on synthetic and band);
+CLAHE before LSD (clip 2, 8x8 tiles) 0.68/2.34 | 1.83/5.54 | 0.98/9.34 | 1.65/9.92 | 0.11/13.5,
+(clip 1.5, 2x2) 0.67/2.16 | 1.72/4.00 | 0.88/9.45 | 1.52/10.9 | 0.10/9.31, (1.5, 4x4) 0.71/2.27 |
+1.71/6.44 | 0.93/6.98 | 1.50/15.0 | 0.13/3.49: it fixes the dusk frames (tele 0001TP 19-24 % ->
+0.4-1.9 %) but grass texture, shadows and parking-bay lines give new near-horizontal modes
+(synthetic syn000 0.1 -> 12.6 %, train 0006R0_f03900 1.0 -> 26.9 %); a global stretch or
+histogram equalisation alike;
 a tilt-only pose prior at 5 / 7.5 deg breaks synthetic (p90 39 / 34); refinement weight x
 1 / distance ** p, p = -1..3: within 0.03 of the medians, p90 unchanged or worse; max_angle_deg
 75 / 80 and min_angle_deg 15: no set better on both figures; an angular working resolution
