@@ -173,6 +173,11 @@ grey image; segments 15-75 deg from horizontal, longer than 15 px, midpoint in t
 the image; 500 seeded RANSAC pairs, each intersection scored by the summed length of segments
 whose line passes within 3 px; the best intersection, unrefined.
 
+Fallback, leave-one-out (``fallback_loo``, CamVid splits): the detector runs on every frame of the
+split; each referenced frame in turn is marked rejected and ``apply_reliability`` replaces it by
+its sequence's mean of accepted VPs (the tool's rule) or, as before, by the whole split's mean;
+both scored against the frame's reference. What a rejection costs, on real frames.
+
 Reliability (ours): ``estimate_vp`` accepts or rejects each VP (pose outside pan +/-20 / tilt
 +/-15 deg of the camera, or fewer than ``min_support`` segments); a rejected VP is replaced by
 the mean of the set's accepted VPs (``apply_reliability``, what ``vcprep warp`` does). Reported
@@ -524,7 +529,7 @@ def evaluate(items, cams, cfg: VPConfig, repeats: int):
                      "vps": {iid: [round(float(v[0]), 4), round(float(v[1]), 4)] for (iid, _, _), v in zip(items, vps)}}
         if name == "ours":
             acc = np.array([r.status == "accepted" for r in out], bool)
-            final = apply_reliability(out, cams)
+            final = apply_reliability(out, cams, [iid for iid, _, _ in items])
             det = [(r.detected or r.vp) for r in out]
             # the tail, split by the detector's own score (score_vps): a reference VP scoring higher
             # than the detection is a search miss; lower, the image's lines converge elsewhere
@@ -554,6 +559,29 @@ def evaluate(items, cams, cfg: VPConfig, repeats: int):
          "baseline_max_pct_width": round(float(e_b[g].max()), 3)}
         for g in (np.flatnonzero(np.asarray(sc) == s) for s in sorted(set(sc)))]
     return res
+
+
+def fallback_loo(split: str, cam, items, cfg: VPConfig) -> dict:
+    """What the reliability rule's fallback is worth on real frames, leave-one-out: the detector
+    runs on EVERY frame of the split (as ``vcprep warp --within estimate`` would), then each
+    referenced frame in turn is marked rejected and ``apply_reliability`` replaces it - with its
+    sequence's mean (ids given, the tool's rule) and with the whole split's mean (no ids, the
+    rule before) - and the replacement is scored against the frame's reference (% width)."""
+    paths = sorted((DATA / split).glob("*.png"))
+    ids = [p.stem for p in paths]
+    res = [estimate_vp(cv2.imread(str(p), cv2.IMREAD_COLOR), cam, cfg) for p in paths]
+    cams = [cam] * len(res)
+    where = {iid: k for k, iid in enumerate(ids)}
+    out = {"sequence": [], "dataset": []}
+    for iid, _, ref in items:
+        k = where[iid]
+        trial = list(res)
+        trial[k] = replace(res[k], status="rejected")
+        for name, fb in (("sequence", apply_reliability(trial, cams, ids)[k]),
+                         ("dataset", apply_reliability(trial, cams)[k])):
+            out[name].append(math.hypot(fb.vp[0] - ref[0], fb.vp[1] - ref[1]) / cam.size[0] * 100)
+    return {"frames_detected": len(res), "rejected_in_split": sum(r.status != "accepted" for r in res),
+            **{f"{k}_mean": _summary(np.array(v)) for k, v in out.items()}}
 
 
 def camera_consistency(source_vps: dict, sim_items, sim_vps: dict, sim_dir: Path, width: int) -> dict:
@@ -628,6 +656,13 @@ def main(argv=None) -> int:
                   f"p90 {ref_noise['p90_pct_width']} % of the width", file=sys.stderr)
             results.setdefault("reference_spread", {})[f"camvid/{split}"] = ref_noise
             sets.append((f"camvid/{split}", "480x360", items, cam480))
+            loo = fallback_loo(split, cam480, items, cfg)
+            results.setdefault("fallback_loo", {})[f"camvid/{split}"] = loo
+            print(f"camvid/{split}: fallback if each referenced frame were rejected (leave-one-out over the "
+                  f"{loo['frames_detected']} frames; {loo['rejected_in_split']} rejected in the split), median / "
+                  f"p90 % width: sequence mean {loo['sequence_mean']['median_pct_width']} / "
+                  f"{loo['sequence_mean']['p90_pct_width']}, whole-split mean {loo['dataset_mean']['median_pct_width']}"
+                  f" / {loo['dataset_mean']['p90_pct_width']}", file=sys.stderr)
             results.setdefault("skipped", {})[f"camvid/{split}"] = skipped
             if split == ("train" if args.dev else "val"):
                 val_items = items
@@ -705,6 +740,11 @@ def main(argv=None) -> int:
         "baseline_median_pct_width": head_src["baseline"]["median_pct_width"],
         "baseline_p90_pct_width": head_src["baseline"]["p90_pct_width"],
         "baseline_ms_per_image_480": head_src["baseline"]["ms_per_image"],
+        "fallback_loo": {k: {"sequence_median_pct_width": v["sequence_mean"]["median_pct_width"],
+                             "sequence_p90_pct_width": v["sequence_mean"]["p90_pct_width"],
+                             "dataset_median_pct_width": v["dataset_mean"]["median_pct_width"],
+                             "dataset_p90_pct_width": v["dataset_mean"]["p90_pct_width"]}
+                         for k, v in results.get("fallback_loo", {}).items()},
         "per_set": {k: {"n": v["ours"]["n"], "median_pct_width": v["ours"]["median_pct_width"],
                         "p90_pct_width": v["ours"]["p90_pct_width"],
                         "baseline_median_pct_width": v["baseline"]["median_pct_width"],

@@ -300,6 +300,62 @@ def test_fallback_is_mean_of_accepted_over_rays(camvid_half):
     assert "replaced by the mean of 2 accepted" in out[2].reason
 
 
+def _two_rigs(cam, n_b_accepted=3):
+    """Rig A at tilt 0, rig B looking 5 deg further down (its own mount), pans -2, 0, 2, 4 deg:
+    4 accepted VPs of A, ``n_b_accepted`` of B and one rejected frame of B."""
+    ids, res = [], []
+    for k, pan in enumerate((-2.0, 0.0, 2.0, 4.0)):
+        ids.append(f"A_{k:04d}"), res.append(_res(cam, vp_from_pose(cam, pan, 0.0)))
+    for k, pan in enumerate((-2.0, 0.0, 2.0, 4.0)[:n_b_accepted]):
+        ids.append(f"B_{k:04d}"), res.append(_res(cam, vp_from_pose(cam, pan, -5.0)))
+    ids.append("B_0099"), res.append(_res(cam, (10.0, 10.0), n=2, status="rejected"))
+    return ids, res
+
+
+def test_fallback_takes_the_sequence_mean(camvid_half):
+    """With ids, a rejected frame takes its own sequence's mean (over rays): rig B's tilt, not the
+    run's mix of both rigs; the reason names the sequence. Without ids: the run's mean."""
+    ids, res = _two_rigs(camvid_half)
+    cams = [camvid_half] * len(res)
+    seq = apply_reliability(res, cams, ids)[-1]
+    assert seq.status == "fallback" and "of sequence B" in seq.reason and "3 accepted" in seq.reason
+    rays = np.array([[(r.vp[0] - camvid_half.cx) / camvid_half.fx, (r.vp[1] - camvid_half.cy) / camvid_half.fy]
+                     for r in res[4:7]])
+    m = rays.mean(axis=0)
+    assert seq.vp == pytest.approx((camvid_half.cx + camvid_half.fx * m[0], camvid_half.cy + camvid_half.fy * m[1]))
+    assert seq.tilt_deg == pytest.approx(-5.0, abs=0.02) and seq.pan_deg == pytest.approx(0.0, abs=0.05)
+    run = apply_reliability(res, cams)[-1]
+    assert "of sequence" not in run.reason and "mean of 7 accepted" in run.reason
+    assert run.tilt_deg == pytest.approx(-5.0 * 3 / 7, abs=0.05)  # the mixed mean, 2.9 deg off rig B
+    assert apply_reliability(res, cams, ids)[:-1] == res[:-1]      # accepted ones pass through
+
+
+def test_fallback_with_too_few_in_the_sequence_takes_the_run_mean(camvid_half):
+    ids, res = _two_rigs(camvid_half, n_b_accepted=2)
+    out = apply_reliability(res, [camvid_half] * len(res), ids)[-1]
+    assert "mean of 6 accepted" in out.reason and "sequence" not in out.reason
+    with pytest.raises(ValueError):
+        apply_reliability(res, [camvid_half] * len(res), ids[:-1])
+
+
+def test_vp_command_falls_back_to_the_frame_s_own_sequence(tmp_path, camvid_half):
+    """`vcprep vp` on a folder mixing two rigs (file names A_..., B_...): the unusable frame of rig
+    B gets rig B's pose, estimated from its rendered frames."""
+    d = tmp_path / "imgs"
+    d.mkdir()
+    for rig, tilt in (("A", 0.0), ("B", -5.0)):
+        for k, pan in enumerate((-3.0, 0.0, 3.0)):
+            img, _ = render_road(camvid_half, RoadScene(texture_seed=k), pan=pan, tilt=tilt, supersample=1)
+            cv2.imwrite(str(d / f"{rig}_{k:04d}.png"), img)
+    cv2.imwrite(str(d / "B_0099.png"), np.full((360, 480, 3), 90, np.uint8))
+    proc = run_cli("vp", "--camera", "camvid", d, "--json", "-q")
+    assert proc.returncode == 0, proc.stderr
+    objs = {json.loads(line)["image"].rsplit("/", 1)[-1]: json.loads(line) for line in proc.stdout.splitlines()}
+    fb = objs["B_0099.png"]
+    assert fb["status"] == "fallback" and "of sequence B" in fb["reason"]
+    assert fb["tilt_deg"] == pytest.approx(-5.0, abs=0.3) and fb["pan_deg"] == pytest.approx(0.0, abs=0.5)
+
+
 def test_sequence_key_and_smoothing(camvid_half):
     assert sequence_key("0016E5_07959") == "0016E5"
     assert sequence_key("frame") == "frame"

@@ -602,6 +602,7 @@ def vp_cmd(images: List[Path] = typer.Argument(..., help="image files or folders
     """Detect the road vanishing point (VP) of each image, with the reliability rule:
     a VP whose implied pan is more than 20 deg (tilt 15 deg) from the camera's average pose,
     or with too few supporting line segments, is replaced by the mean of the accepted VPs of
+    its sequence (the id up to the first '_', e.g. 0016E5; when it has at least 3), else of
     this run (status 'fallback'; with none accepted, the camera's average-pose VP).
 
     Prints CSV (id,u,v,status,confidence,n_support,pan_deg,tilt_deg; u, v in source pixels)

@@ -42,9 +42,11 @@ Per image the result says how much it trusts the VP (``confidence`` = share of t
 that supports it, ``n_support`` = number of supporting segments). :func:`apply_reliability` then
 applies method.md's rule: implied pan more than 20° or tilt more than 15° from the camera's
 average pose, or fewer than ``min_support`` (7) supporting segments -> rejected and replaced by the
-mean of the dataset's accepted VPs (status ``fallback``). The mean is taken over normalised rays
-((u - cx)/fx, (v - cy)/fy), so images of different (uniformly rescaled) sizes average correctly.
-When no VP of the dataset is accepted, the camera's average-pose VP is the fallback.
+mean of the accepted VPs of its sequence (:func:`sequence_key`: one drive, one mount; when the
+sequence has at least 3), else of the dataset (status ``fallback``). Means are taken over
+normalised rays ((u - cx)/fx, (v - cy)/fy), so images of different (uniformly rescaled) sizes
+average correctly. When no VP of the dataset is accepted, the camera's average-pose VP is the
+fallback.
 """
 from __future__ import annotations
 
@@ -77,6 +79,7 @@ __all__ = [
     "score_vps",
     "is_reliable",
     "apply_reliability",
+    "MIN_SEQUENCE_ACCEPTED",
     "sequence_key",
     "smooth_sequences",
     "estimate_files",
@@ -552,21 +555,46 @@ def _from_ray(cam: Camera, r) -> tuple[float, float]:
     return float(cam.cx + cam.fx * r[0]), float(cam.cy + cam.fy * r[1])
 
 
-def apply_reliability(results: Sequence[VPResult], cams: Sequence[Camera]) -> list[VPResult]:
-    """Replace every non-accepted result by the mean of the accepted VPs (status 'fallback').
+#: a rejected VP falls back to its sequence's mean when the sequence has at least this many accepted VPs
+MIN_SEQUENCE_ACCEPTED = 3
 
-    ``cams[i]`` is the camera of image i at its own size. The mean is over normalised rays, so
-    it is the same direction for every image size. With no accepted VP at all, each image
-    falls back to its camera's average-pose VP (reason says so). 'given' results pass through.
+
+def apply_reliability(results: Sequence[VPResult], cams: Sequence[Camera],
+                      ids: Sequence[str] | None = None) -> list[VPResult]:
+    """Replace every non-accepted result by a mean of accepted VPs (status 'fallback').
+
+    ``cams[i]`` is the camera of image i at its own size. Means are over normalised rays, so
+    they are the same direction for every image size. With ``ids``, the images are grouped into
+    sequences (:func:`sequence_key`: one drive, one mount) and a rejected VP takes the mean of
+    its own sequence's accepted VPs when there are at least :data:`MIN_SEQUENCE_ACCEPTED`
+    (CamVid's 0001TP rig looks 4.3 deg further down than the other two: the dataset mean would
+    tilt its rejected frames by that much); otherwise, and without ``ids``, the mean of all
+    accepted VPs. With no accepted VP at all, each image falls back to its camera's
+    average-pose VP. The reason says which. 'given' results pass through and count as accepted.
     """
-    acc = [_ray(c, r.vp) for r, c in zip(results, cams) if r.status in ("accepted", "given")]
+    ok = [r.status in ("accepted", "given") for r in results]
+    rays = [_ray(c, r.vp) if k else None for r, c, k in zip(results, cams, ok)]
+    acc = [x for x in rays if x is not None]
     mean = np.mean(acc, axis=0) if acc else None
+    seq_mean: dict[str, tuple[np.ndarray, int]] = {}
+    if ids is not None:
+        if len(ids) != len(results):
+            raise ValueError(f"{len(ids)} ids for {len(results)} results")
+        groups: dict[str, list[np.ndarray]] = {}
+        for iid, x in zip(ids, rays):
+            if x is not None:
+                groups.setdefault(sequence_key(iid), []).append(x)
+        seq_mean = {k: (np.mean(v, axis=0), len(v)) for k, v in groups.items() if len(v) >= MIN_SEQUENCE_ACCEPTED}
     out = []
-    for r, c in zip(results, cams):
-        if r.status in ("accepted", "given"):
+    for i, (r, c) in enumerate(zip(results, cams)):
+        if ok[i]:
             out.append(r)
             continue
-        if mean is not None:
+        key = sequence_key(ids[i]) if ids is not None else None
+        if key in seq_mean:
+            m, n = seq_mean[key]
+            vp, why = _from_ray(c, m), f"mean of the {n} accepted VPs of sequence {key}"
+        elif mean is not None:
             vp, why = _from_ray(c, mean), f"mean of {len(acc)} accepted VPs"
         else:
             vp, why = vp_from_pose(c), "camera average pose (no accepted VP in the dataset)"
@@ -644,10 +672,10 @@ def estimate_files(images: Sequence[str | Path], camera: Camera, cfg: VPConfig =
         cams.append(cam)
         if on_image is not None:
             on_image(i)
-    results = apply_reliability(results, cams)
+    ids = list(ids) if ids is not None else [Path(p).stem for p in images]
+    results = apply_reliability(results, cams, ids)
     if smooth > 0:
-        results = smooth_sequences(list(ids) if ids is not None else [Path(p).stem for p in images],
-                                   results, cams, smooth)
+        results = smooth_sequences(ids, results, cams, smooth)
     return results
 
 
