@@ -482,14 +482,19 @@ def scenes(ids, gap: int = SCENE_GAP) -> list[int]:
     return out
 
 
-def scene_bootstrap(ours: np.ndarray, base: np.ndarray, scene: list[int], n_boot: int = 2000,
+def _scene_groups(scene: list[int]) -> list[np.ndarray]:
+    """Frame indices of each scene, in scene order."""
+    scene = np.asarray(scene)
+    return [np.flatnonzero(scene == s) for s in np.unique(scene)]
+
+
+def scene_bootstrap(ours: np.ndarray, base: np.ndarray, groups: list[np.ndarray], n_boot: int = 2000,
                     seed: int = 0) -> dict:
     """Paired scene-block bootstrap (whole scenes resampled with replacement, ``n_boot`` draws,
     seeded): 90 % intervals (5th-95th percentile) of the median and p90 error of ours, of the
     baseline, and of their differences (ours - baseline; negative = ours better), in % width.
-    With few scenes the intervals are wide: that is what the set can say."""
-    scene = np.asarray(scene)
-    groups = [np.flatnonzero(scene == s) for s in np.unique(scene)]
+    With few scenes the intervals are wide: that is what the set can say. ``groups``: the frame
+    indices of each scene (:func:`_scene_groups`)."""
     rng = np.random.default_rng(seed)
     stats = {k: [] for k in ("median", "p90", "baseline_median", "baseline_p90", "median_minus_baseline",
                              "p90_minus_baseline")}
@@ -511,6 +516,7 @@ def evaluate(items, cams, cfg: VPConfig, repeats: int):
     the error of the VPs it accepts, and of those it rejects (their detection, and the dataset
     mean of the accepted VPs that replaces them: what ``vcprep warp`` uses)."""
     cams = list(cams) if isinstance(cams, (list, tuple)) else [cams] * len(items)
+    ids = [iid for iid, _, _ in items]
     res = {}
     for name, fn in (("ours", lambda im, c: estimate_vp(im, c, cfg)),
                      ("baseline", lambda im, c: baseline_vp(im))):
@@ -529,7 +535,7 @@ def evaluate(items, cams, cfg: VPConfig, repeats: int):
                      "vps": {iid: [round(float(v[0]), 4), round(float(v[1]), 4)] for (iid, _, _), v in zip(items, vps)}}
         if name == "ours":
             acc = np.array([r.status == "accepted" for r in out], bool)
-            final = apply_reliability(out, cams, [iid for iid, _, _ in items])
+            final = apply_reliability(out, cams, ids)
             det = [(r.detected or r.vp) for r in out]
             # the tail, split by the detector's own score (score_vps): a reference VP scoring higher
             # than the detection is a search miss; lower, the image's lines converge elsewhere
@@ -548,16 +554,15 @@ def evaluate(items, cams, cfg: VPConfig, repeats: int):
                 "rejected_fallback": _summary(_errors([r.vp for r in final], items, cams)[~acc]),
                 "reasons": sorted({r.reason for r in out if r.status != "accepted"}),
             }
-    sc = scenes([iid for iid, _, _ in items])
     e_o, e_b = np.array(res["ours"]["errors"]), np.array(res["baseline"]["errors"])
-    res["scenes"] = scene_bootstrap(e_o, e_b, sc)
-    ids = [iid for iid, _, _ in items]
+    groups = _scene_groups(scenes(ids))
+    res["scenes"] = scene_bootstrap(e_o, e_b, groups)
     res["scenes"]["per_scene"] = [
         {"first": ids[g[0]], "last": ids[g[-1]], "n": int(len(g)),
          "median_pct_width": round(float(np.median(e_o[g])), 3), "max_pct_width": round(float(e_o[g].max()), 3),
          "baseline_median_pct_width": round(float(np.median(e_b[g])), 3),
          "baseline_max_pct_width": round(float(e_b[g].max()), 3)}
-        for g in (np.flatnonzero(np.asarray(sc) == s) for s in sorted(set(sc)))]
+        for g in groups]
     return res
 
 
