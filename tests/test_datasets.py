@@ -341,3 +341,64 @@ def test_resize_baseline_reads_a_nested_tree(city, tmp_path):
                    prog="vctrain")
     assert proc.returncode == 0, proc.stderr
     assert 0.0 <= json.loads(proc.stdout)["iou"] <= 1.0
+
+
+# -- IDD as shipped (issue 24.4) -------------------------------------------------------------------
+
+def write_idd_tree(root: Path, cam: Camera) -> dict[str, np.ndarray]:
+    """``leftImg8bit/train/<drive>/<id>_image.jpg`` + ``gtFine/train/<drive>/<id>_label.png`` with
+    IDD level-1 ids (0 drivable, 1 non-drivable, 6 sky, 255 void in the bottom rows); the same file
+    id in two drives, as IDD-Lite has. Returns item id -> the expected decoded label."""
+    want = {}
+    for d, (drive, fid) in enumerate([("0", "000123"), ("7", "000123"), ("7", "frame0005")]):
+        img, lab = render_road(cam, RoadScene(texture_seed=d, offset=0.3 * d), supersample=1)
+        ids = np.where(lab == 1, 0, 1).astype(np.uint8)
+        ids[:10] = 6
+        ids[-4:] = 255
+        for sub, name, arr in (("leftImg8bit", f"{fid}_image.jpg", img), ("gtFine", f"{fid}_label.png", ids)):
+            (root / sub / "train" / drive).mkdir(parents=True, exist_ok=True)
+            cv2.imwrite(str(root / sub / "train" / drive / name), arr)
+        want[f"{drive}_{fid}"] = np.where(ids == 0, 1, np.where(ids == 255, 255, 0)).astype(np.uint8)
+    return want
+
+
+def test_idd_tree_as_shipped(tmp_path):
+    from vcprep.build import list_dataset
+    from vcprep.labels import decode_label, get_label_format
+    from vcprep.vanishing_point import sequence_key
+
+    root = tmp_path / "idd"
+    want = write_idd_tree(root, KITTI)
+    fmt = get_label_format("idd")
+    jobs = list_dataset(root / "leftImg8bit" / "train", root / "gtFine" / "train", fmt)
+    # ids carry the drive (file ids repeat between drives); the drive is the id's sequence (one mount)
+    assert sorted(j.id for j in jobs) == sorted(want)
+    for j in jobs:
+        drive, fid = j.id.split("_", 1)
+        assert sequence_key(j.id) == drive
+        assert j.label == root / "gtFine" / "train" / drive / f"{fid}_label.png"
+        got = decode_label(cv2.imread(str(j.label), cv2.IMREAD_UNCHANGED), fmt, j.label)
+        np.testing.assert_array_equal(got, want[j.id])  # 0 drivable -> road, 255 void -> ignore, else not road
+    # the whole command: every item stored under its drive-prefixed id
+    out = tmp_path / "store"
+    proc = _warp("kitti", root / "leftImg8bit" / "train", out, root / "gtFine" / "train", "idd")
+    assert proc.returncode == 0, proc.stderr
+    assert sorted(_records(out)) == sorted(want)
+
+
+def test_idd_eval_finds_labels_by_item_id(tmp_path):
+    """Predictions named by item id (``<drive>_<id>``) meet their labels in the drive folders."""
+    root = tmp_path / "idd"
+    want = write_idd_tree(root, KITTI)
+    preds = tmp_path / "preds"
+    preds.mkdir()
+    tp = fp = fn = 0
+    for k, (iid, lab) in enumerate(sorted(want.items())):  # drive 7's frame0005 predicts no road at all
+        pred = np.where(lab == 1, 255, 0).astype(np.uint8) if k < 2 else np.zeros_like(lab)
+        cv2.imwrite(str(preds / f"{iid}_mask.png"), pred)
+        tp += int(((pred > 0) & (lab == 1)).sum())
+        fn += int(((pred == 0) & (lab == 1)).sum())
+    proc = run_cli("eval", preds, "--labels", root / "gtFine" / "train", "--label-format", "idd", "--json",
+                   prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    assert fn > 0 and json.loads(proc.stdout.strip().splitlines()[-1])["iou"] == pytest.approx(tp / (tp + fp + fn))

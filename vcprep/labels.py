@@ -27,7 +27,9 @@ class LabelFormat:
     ``kind`` is ``ids`` (single-channel class ids) or ``colours`` (BGR triples, read per channel).
     ``max_value`` bounds valid ids (None: any value; unlisted values are not road).
     ``image_suffix``/``label_suffix``: an image ``<stem><image_suffix>.<ext>`` has the label
-    ``<stem><label_suffix>.png``; ``label_infix`` (kitti) inserts ``_road`` after the category.
+    ``<stem><label_suffix>.png``; ``kitti_naming`` inserts ``_road`` after the category.
+    ``drive_in_id``: the image's folder (a drive) prefixes its id, ``<folder>_<stem>``, for
+    trees whose file names repeat from drive to drive (IDD); the drive is then the id's sequence.
     """
 
     name: str
@@ -39,6 +41,7 @@ class LabelFormat:
     image_suffix: str = ""
     label_suffix: str = ""
     kitti_naming: bool = False
+    drive_in_id: bool = False
     description: str = ""
     extra: dict = field(default_factory=dict)
 
@@ -57,6 +60,10 @@ LABEL_FORMATS: dict[str, LabelFormat] = {
                     description="Cityscapes labelIds: 7 road; 1 ego vehicle, 2 rectification border, 3 out of roi = ignore"),
         LabelFormat("bdd", "ids", road=(1, 2), max_value=2, label_suffix="_drivable_id",
                     description="BDD100K drivable ids: 1 direct, 2 alternative = road, 0 background"),
+        LabelFormat("idd", "ids", road=(0,), ignore=(255,), max_value=255, image_suffix="_image",
+                    label_suffix="_label", drive_in_id=True,
+                    description="IDD / IDD-Lite level-1 ids: 0 drivable = road, 255 void = ignore; drive folders, "
+                                "<id>_image.jpg <-> <id>_label.png, item id <drive>_<id>"),
     ]
 }
 
@@ -149,7 +156,15 @@ _KITTI_RE = re.compile(r"^(?P<cat>[a-z]+)_(?P<num>\d+)$")
 
 
 def image_id(image: Path, fmt: LabelFormat | None) -> str:
-    """The item id of an image: its stem, minus the format's image suffix (``_leftImg8bit``)."""
+    """The item id of an image: its stem, minus the format's image suffix (``_leftImg8bit``);
+    with ``drive_in_id`` (IDD) prefixed by its folder's name, the drive: ``<drive>_<stem>``."""
+    stem = _file_id(image, fmt)
+    if fmt is not None and fmt.drive_in_id:
+        return f"{image.parent.name}_{stem}"
+    return stem
+
+
+def _file_id(image: Path, fmt: LabelFormat | None) -> str:
     stem = image.stem
     if fmt is not None and fmt.image_suffix and stem.endswith(fmt.image_suffix):
         stem = stem[: -len(fmt.image_suffix)]
@@ -158,7 +173,7 @@ def image_id(image: Path, fmt: LabelFormat | None) -> str:
 
 def label_stem_for(image: Path, fmt: LabelFormat) -> str:
     """File stem of the label that belongs to ``image`` under ``fmt``'s naming rule."""
-    stem = image_id(image, fmt)
+    stem = _file_id(image, fmt)
     if fmt.kitti_naming:
         m = _KITTI_RE.match(stem)
         if m:

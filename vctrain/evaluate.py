@@ -3,7 +3,7 @@
 Predictions are ``<stem>_mask.png`` (0 / nonzero = road) and optionally ``<stem>_prob.png``
 (0-255), as written by ``vctrain predict``; ``<stem>`` is the image's file stem, and its label is
 found in the label folder or its subfolders by the label format's naming rule (e.g. KITTI
-``um_000000`` -> ``um_road_000000.png``). A stem with only a probability map is thresholded at 128 (P >= 0.5).
+``um_000000`` -> ``um_road_000000.png``; IDD ``<drive>_<id>`` -> ``<drive>/<id>_label.png``). A stem with only a probability map is thresholded at 128 (P >= 0.5).
 KITTI metrics are computed when every evaluated stem has a probability map.
 """
 from __future__ import annotations
@@ -54,6 +54,8 @@ def evaluate_folder(pred_dir: str | Path, labels: str | Path, fmt: LabelFormat,
     for p in find_images(labels, "label"):  # recursively: nested trees (Cityscapes gtFine/<split>/<city>/)
         if p.suffix.lower() == ".png":
             label_files.setdefault(p.stem, []).append(p)
+            if fmt.drive_in_id:  # IDD: predictions named by item id <drive>_<stem> (crossval) or by file stem
+                label_files.setdefault(f"{p.parent.name}_{p.stem}", []).append(p)
     road, kitti = RoadMetrics(), KittiMetrics()
     with_prob = all("prob" in v for v in stems.values())
     for stem, files in tqdm(stems.items(), desc="eval", unit="img", disable=None if progress else True, leave=False):
