@@ -374,3 +374,105 @@ def test_vp_estimation_ignores_lines_on_the_bonnet(camvid_half):
     assert np.abs(np.array(with_ego.vp) - truth).max() < 0.01 * w
     without = estimate_vp(img, camvid_half)  # the counter-check: the bonnet's lines move the VP
     assert np.abs(np.array(without.vp) - np.array(with_ego.vp)).max() > 0.01 * w
+
+
+# -- finding the own vehicle from labels (vcprep.ego; issue 24.2) ----------------------------------
+# Oracle: label sets drawn with a bonnet whose top row we choose, plus scene content that is
+# ignored in some frames only (never in >= 90 % of them), rims, and an ornament above a gap.
+
+def _label_set(n=12, size=(240, 160), bonnet=0, ornament=0, rims=0, seed=0, scene_ignore=True):
+    """n decoded labels (0 / 1 / 255): road below the horizon, random ignored blobs in each frame
+    (one frame in three also touching the bottom edge), a bonnet (an ellipse cap whose top is
+    ``bonnet`` rows above the bottom, widest at the bottom edge), an ornament 3 rows above it
+    ``ornament`` rows tall, and ignore rims ``rims`` columns wide up both sides."""
+    from vcprep.labels import IGNORE
+    w, h = size
+    rng = np.random.default_rng(seed)
+    out = []
+    for i in range(n):
+        lab = np.zeros((h, w), np.uint8)
+        lab[h // 2:] = 1
+        if scene_ignore:
+            for _ in range(3):
+                x, y = int(rng.integers(0, w)), int(rng.integers(0, h))
+                cv2.circle(lab, (x, y), int(rng.integers(3, 20)), IGNORE, -1)
+            if i % 3 == 0:
+                cv2.circle(lab, (int(rng.integers(0, w)), h - 1), 25, IGNORE, -1)
+        if bonnet:
+            cv2.ellipse(lab, (w // 2, h - 1), (w // 2 + 10, bonnet - 1), 0, 180, 360, IGNORE, -1)
+        if ornament:
+            top = h - bonnet - 3 - ornament
+            lab[top:top + ornament, w // 2 - 2:w // 2 + 3] = IGNORE
+        if rims:
+            lab[:, :rims] = IGNORE
+            lab[:, -rims:] = IGNORE
+        out.append(lab)
+    return out
+
+
+@pytest.mark.parametrize("bonnet", [12, 30, 57])
+def test_ego_rows_from_labels_is_the_bonnet_top(bonnet):
+    from vcprep.ego import ego_rows_from_labels
+    est = ego_rows_from_labels(_label_set(bonnet=bonnet, seed=bonnet))
+    assert est.rows == bonnet and est.size == (240, 160) and est.frames == 12
+    assert "bottom 57 of 160 rows" in ego_rows_from_labels(_label_set(bonnet=57)).describe()
+
+
+def test_no_own_vehicle_gives_0_despite_ignored_scene_content():
+    from vcprep.ego import ego_rows_from_labels
+    for seed in range(5):
+        est = ego_rows_from_labels(_label_set(n=20, seed=seed))
+        assert est.rows == 0, seed
+    assert "no own vehicle" in est.describe()
+
+
+def test_ornament_above_a_gap_and_rims_up_the_sides():
+    from vcprep.ego import ego_rows_from_labels
+    assert ego_rows_from_labels(_label_set(bonnet=20, ornament=6)).rows == 20 + 3 + 6  # the ornament counts
+    assert ego_rows_from_labels(_label_set(bonnet=20, rims=4)).rows == 20              # rims do not
+    assert ego_rows_from_labels(_label_set(rims=4)).rows == 0
+
+
+def test_the_vehicle_must_be_common_to_the_frames():
+    """A bonnet-shaped ignore region in fewer than 90 % of the frames is scene content."""
+    from vcprep.ego import ego_rows_from_labels
+    labs = _label_set(n=10, bonnet=30)[:8] + _label_set(n=2, scene_ignore=False)   # in 80 % of the frames
+    assert ego_rows_from_labels(labs).rows == 0
+    labs = _label_set(n=10, bonnet=30)[:9] + _label_set(n=1, scene_ignore=False)   # in 90 %
+    assert ego_rows_from_labels(labs).rows == 30
+
+
+def test_ego_detection_refuses_what_it_cannot_decide():
+    from vcprep.ego import ego_rows_from_labels
+    with pytest.raises(InputError, match="too few"):
+        ego_rows_from_labels(_label_set(n=4, bonnet=20))
+    with pytest.raises(InputError, match="two sizes"):
+        ego_rows_from_labels(_label_set(n=3) + _label_set(n=3, size=(120, 80)))
+    with pytest.raises(InputError, match="too tall"):
+        ego_rows_from_labels(_label_set(bonnet=100))
+
+
+def test_ego_rows_at_another_height_cover_the_vehicle():
+    from vcprep.ego import EgoEstimate, rows_at_height
+    est = EgoEstimate(36, (480, 360), 10, 0.5)
+    assert rows_at_height(est, 360) == 36 and rows_at_height(est, 720) == 72
+    assert rows_at_height(est, 100) == 10           # 36 * 100 / 360 = 10.0
+    assert rows_at_height(est, 101) == 11           # 10.1 -> 11: never less than the vehicle
+    assert rows_at_height(EgoEstimate(0, (480, 360), 10, 0.0), 720) == 0
+    # the camera's own scaling rule agrees
+    cam = replace(PRESETS["camvid"].for_image_size((480, 360)), ego_rows=36)
+    for hh in (100, 101, 180, 720):
+        assert cam.for_image_size((hh * 4 // 3, hh)).ego_rows == rows_at_height(est, hh)
+
+
+def test_ego_rows_from_label_files_read_with_the_format(tmp_path):
+    from vcprep.ego import ego_rows_from_label_files
+    from vcprep.labels import get_label_format
+    files = []
+    for i, lab in enumerate(_label_set(bonnet=25)):
+        ids = np.where(lab == 1, 3, np.where(lab == 255, 11, 0)).astype(np.uint8)  # CamVid ids
+        files.append(tmp_path / f"f{i}.png")
+        cv2.imwrite(str(files[-1]), ids)
+    assert ego_rows_from_label_files(files, get_label_format("camvid")).rows == 25
+    # read as a format where 11 is not ignore, nothing is common ignore
+    assert ego_rows_from_label_files(files, get_label_format("values:road=3")).rows == 0
