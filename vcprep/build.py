@@ -62,11 +62,42 @@ class BuildSummary:
     up_to_date: int = 0
     failed: list[str] = field(default_factory=list)  # ids of items that failed (with keep_going)
     errors: list[str] = field(default_factory=list)  # their error messages, in the same order
-    notes: list[str] = field(default_factory=list)  # per-item remarks for the user (e.g. VP outside)
+    notes: list[str] = field(default_factory=list)  # per-item remarks for the user, each with its verdict
+    off_vp: dict[str, int] = field(default_factory=lambda: {"fine": 0, "check": 0})  # see off_vp_note
 
-    def line(self) -> str:
-        return (f"{self.total} items: {self.built} built, {self.up_to_date} up to date, "
-                f"{len(self.failed)} failed")
+    def line(self, detail: str = "") -> str:
+        """The summary: counts, ``detail`` (e.g. " (store 688x350)"), items completed off their VP."""
+        text = (f"{self.total} item{'' if self.total == 1 else 's'}: {self.built} built, {self.up_to_date} up to date, "
+                f"{len(self.failed)} failed{detail}")
+        if any(self.off_vp.values()):
+            text += (f"; VP outside the covered region: {self.off_vp['fine']} fine as is (completion rays start "
+                     f"within {OFF_VP_FINE:.0%} of the width from it), {self.off_vp['check']} to check "
+                     f"(warnings below)")
+        return text
+
+
+# An item whose VP lies outside the covered region is completed from the covered point next to it
+# (vcprep.completion). How much that moves the filled-in labels, measured on the synthetic CamVid
+# road of tests/test_completion.py at 688x350 (ray centre moved d px across / along the road; the
+# completed labels' agreement with the true ones drops by): d = 5 px 0.2-0.6 points, 10 px 0.4-1.4,
+# 20 px 0.9-2.9, 50 px 2.9-7.3.
+# Up to 1 % of the store width (7 px at 688x350) the item is fine as is; farther, it is worth a look.
+OFF_VP_FINE = 0.01
+
+
+def off_vp_note(item_id: str, maps, vp_store: tuple[float, float], store_dir: Path) -> tuple[str | None, str | None]:
+    """(note, verdict) for an item built with ``maps``: (None, None) for a completion from the VP
+    itself; (None, 'fine') for one that starts within :data:`OFF_VP_FINE` of the store width
+    from it (counted in the summary only); else one line with the verdict and what to do, 'check'."""
+    if maps.method != "projective" or maps.vp_inside:
+        return None, None
+    d = float(np.hypot(maps.centre[0] - vp_store[0], maps.centre[1] - vp_store[1]))
+    if d <= OFF_VP_FINE * maps.size[0]:
+        return None, "fine"
+    return (f"{item_id}: VP outside the covered region; completion rays start {d:.0f} px from it, at "
+            f"({maps.centre[0]:.1f}, {maps.centre[1]:.1f}), so the filled-in pixels may bend (the real ones are "
+            f"exact). Look: vcprep figure completion {store_dir} {item_id} -o {item_id}.png; if the VP is right the "
+            f"item is usable as is, if not give the right one with --within vps.csv"), "check"
 
 
 def find_images(folder: str | Path, kind: str = "image", skip: Path | None = None) -> list[Path]:
@@ -264,6 +295,7 @@ class ItemResult:
     status: str
     record: dict[str, Any]
     note: str | None = None
+    off_vp: str | None = None  # VP outside the covered region: 'fine' or 'check' (off_vp_note)
 
 
 @dataclass(frozen=True)
@@ -381,7 +413,7 @@ def build_item(ctx: _WarpContext, task: _WarpTask) -> ItemResult:
         "tool_version": __version__,
     }
     rec["files_sha256"] = _write_item(ctx.root, rec, item, ctx.written)
-    return ItemResult(job.id, "built", rec, f"{job.id}: {item.maps.note}" if item.maps.note else None)
+    return ItemResult(job.id, "built", rec, *off_vp_note(job.id, item.maps, vp_store, ctx.root))
 
 
 def _build_loop(store: Store, fn, ctx: Any, tasks: list, ids: list[str], summary: BuildSummary, jobs: int,
@@ -412,6 +444,8 @@ def _build_loop(store: Store, fn, ctx: Any, tasks: list, ids: list[str], summary
             summary.built += 1
             if res.note:
                 summary.notes.append(res.note)
+            if res.off_vp:
+                summary.off_vp[res.off_vp] += 1
         else:
             summary.up_to_date += 1
         return True
@@ -538,7 +572,7 @@ def complete_item(ctx: _CompleteContext, rec: dict[str, Any]) -> ItemResult:
                 "valid": valid_path(H, (int(rec["size"][0]), int(rec["size"][1]) - ego), store_size)})
     new.pop("files_sha256", None)  # keep the field order of a record built by warp
     new["files_sha256"] = _write_item(ctx.root, new, item, ctx.written)
-    return ItemResult(rec["id"], "built", new, f"{rec['id']}: {item.maps.note}" if item.maps.note else None)
+    return ItemResult(rec["id"], "built", new, *off_vp_note(rec["id"], item.maps, vp_store, ctx.root))
 
 
 def complete_store(store_dir: str | Path, method: str = "projective", progress: bool = True, workers: int = 1,

@@ -8,7 +8,7 @@ import typer
 
 from . import __version__
 from .camera import PRESETS, Camera, camera_to_yaml, load_camera
-from .cliutil import emit_json, err, run_app
+from .cliutil import check_data_folders, count, emit_json, ensure_parent, err, run_app
 from .errors import InputError
 from .labels import LABEL_FORMATS, get_label_format
 from .parallel import default_jobs
@@ -54,10 +54,7 @@ def save_figure(out: Path, fig) -> None:
     """Write a figure PNG atomically and print its path (stdout is data)."""
     from .imageio import write_png
 
-    try:
-        write_png(out, fig, level=3)
-    except (FileNotFoundError, NotADirectoryError):
-        raise InputError("cannot write here (parent folder missing)", out, "create the folder first") from None
+    write_png(ensure_parent(out), fig, level=3)
     print(out)
 
 
@@ -138,10 +135,7 @@ def camera_design(cameras: List[str] = typer.Argument(..., help="physical camera
     from .imageio import write_bytes_atomic
 
     text = camera_to_yaml(design.camera) + design.report()
-    try:
-        write_bytes_atomic(out, text.encode())
-    except (FileNotFoundError, NotADirectoryError):
-        raise InputError("cannot write here (parent folder missing)", out, "create the folder first") from None
+    write_bytes_atomic(ensure_parent(out), text.encode())
     err(design.report().replace("# ", "").rstrip())
     print(out)
 
@@ -207,6 +201,7 @@ def warp_cmd(
     if labels is not None and label_format is None:
         raise InputError("--labels given without --label-format", labels, f"add --label-format ({', '.join(LABEL_FORMATS)})")
     fmt = get_label_format(label_format) if label_format else None
+    check_data_folders(images, labels)
     items = list_dataset(images, labels, fmt, id_prefix)
     cam = camera_for(camera, items[0].image)
     if not isinstance(cam, Camera) and within != "none":
@@ -260,16 +255,17 @@ def _finish(out: Path, summary, quiet: bool, extra: str = "", verb: str = "built
     for msg in summary.errors:
         err(f"failed: {msg}")
     if not quiet:
-        err(f"{out}: {summary.line().replace('built', verb)}{extra}")
+        err(f"{out}: {summary.line(extra).replace('built', verb, 1)}")
         _notes(summary)
     print(out)
     if summary.failed:
-        raise StoreError(f"{len(summary.failed)} of {summary.total} items failed (listed above)", out,
+        raise StoreError(f"{len(summary.failed)} of {count(summary.total, 'item')} failed (listed above)", out,
                          "fix or remove those files and run the same command again; finished items are kept")
 
 
 def _notes(summary, limit: int = 10) -> None:
-    """Per-item remarks (e.g. VP outside the covered region) on stderr, the first ``limit``."""
+    """Per-item remarks on stderr, each with its verdict and what to do (e.g. an item completed
+    far from its VP outside the covered region), the first ``limit``."""
     for n in summary.notes[:limit]:
         err(f"warning: {n}")
     if len(summary.notes) > limit:
@@ -321,7 +317,7 @@ def store_show(store: Path = typer.Argument(..., help="store directory"),
         else:
             print(f"{rec['id']}\t{rec['camera']}\t{rec['source']}")
     if not as_json:
-        err(f"{store}: {len(st)} items, {st.store_size[0]}x{st.store_size[1]} at scale {st.scale:g}")
+        err(f"{store}: {count(len(st), 'item')}, {st.store_size[0]}x{st.store_size[1]} at scale {st.scale:g}")
 
 
 @store_app.command("verify")
@@ -368,12 +364,12 @@ def store_verify(store: Path = typer.Argument(..., help="store directory"),
         bad = report.bad_items
         named = ", ".join(bad[:10]) + (f" and {len(bad) - 10} more" if len(bad) > 10 else "")
         if repair:
-            fix = (f"repaired: dropped {len(dropped)} items, deleted {removed} files; re-run the build command to "
+            fix = (f"repaired: dropped {count(len(dropped), 'item')}, deleted {count(removed, 'file')}; re-run the build command to "
                    "redo them")
         else:
             fix = "run 'vcprep store verify --repair STORE', then the build command again, to redo them"
-        raise StoreError(f"{len(bad)} bad items{': ' + named if bad else ''}; {len(report.orphans)} orphan or temp "
-                         f"files", store, fix)
+        raise StoreError(f"{count(len(bad), 'bad item')}{': ' + named if bad else ''}; "
+                         f"{count(len(report.orphans), 'orphan or temp file')}", store, fix)
 
 
 @store_app.command("info")
@@ -424,7 +420,7 @@ def store_merge(store: Path = typer.Argument(..., help="store directory"),
 
     st, n = merge_store(store, on_wait=None if quiet else say_on_stderr)
     if not quiet:
-        err(f"{store}: merged {n} part files; {len(st)} items")
+        err(f"{store}: merged {count(n, 'part file')}; {count(len(st), 'item')}")
     print(store)
 
 
@@ -447,7 +443,7 @@ def backproject_cmd(store: Path = typer.Argument(..., help="store the masks belo
 
     n = backproject_folder(store, masks, out, kind=kind, progress=not quiet)
     if not quiet:
-        err(f"{out}: {n} maps back-projected")
+        err(f"{out}: {count(n, 'map')} back-projected")
     print(out)
 
 
@@ -470,11 +466,11 @@ def prior_cmd(stores: List[Path] = typer.Argument(..., help="labelled stores of 
     opened = open_stores(stores)
     prior, n_unlabelled = compute_prior(opened)
     meta = prior_meta(opened, n_unlabelled)
-    write_prior(out, prior, meta)
+    write_prior(ensure_parent(out), prior, meta)
     if not quiet:
         w, h = opened[0].store_size
-        err(f"{out}: p_g over {meta['items']} labelled items of {len(opened)} stores ({w}x{h}); "
-            f"{n_unlabelled} pixels with no labelled item (set to 0)")
+        err(f"{out}: p_g over {count(meta['items'], 'labelled item')} of {count(len(opened), 'store')} ({w}x{h}); "
+            f"{count(n_unlabelled, 'pixel')} with no labelled item (set to 0)")
     print(out)
 
 
@@ -499,7 +495,7 @@ def figure_prior(stores: List[Path] = typer.Argument(..., help="labelled stores 
     opened = open_stores(stores)
     road, known, n = prior_counts(opened)
     prior = prior_from_counts(road, known)
-    caption = f"{n} labelled items, {int((known == 0).sum())} pixels unlabelled"
+    caption = f"{count(n, 'labelled item')}, {count(int((known == 0).sum()), 'pixel')} unlabelled"
     save_figure(out, prior_figure(prior, mean_image(opened), known == 0, (lo, hi), caption, width=width))
 
 
@@ -634,7 +630,7 @@ def vp_cmd(images: List[Path] = typer.Argument(..., help="image files or folders
     finally:
         bar.close()
     if out is not None:
-        write_vp_csv(out, ids, results)
+        write_vp_csv(ensure_parent(out), ids, results)
     if as_json:
         for f, i, r in zip(files, ids, results):
             emit_json({"image": str(f), "id": i, **r.to_dict()})
@@ -643,7 +639,7 @@ def vp_cmd(images: List[Path] = typer.Argument(..., help="image files or folders
     else:
         sys.stdout.write(format_vp_csv(ids, results))
     if not quiet:
-        err(f"{len(results)} images: {_vp_counts(results)}")
+        err(f"{count(len(results), 'image')}: {_vp_counts(results)}")
 
 
 @figure_app.command("vp")
@@ -661,19 +657,14 @@ def figure_vp(image: Path = typer.Argument(..., help="image file"),
       vcprep figure vp examples/camvid/images/0016E5_05280.png --camera camvid -o vp.png
     """
     from .figures import vp_figure
-    from .imageio import read_image, write_png
+    from .imageio import read_image
     from .vanishing_point import VPConfig, apply_reliability, estimate_vp, prior_window
 
     img = read_image(image).array
     cam = camera_for(camera, image, per_frame=False).for_image_size((img.shape[1], img.shape[0]), image)
     cfg = VPConfig()
     res = apply_reliability([estimate_vp(img, cam, cfg)], [cam])[0]
-    fig = vp_figure(img, res, cam, prior_window(cam, cfg.pan_range, cfg.tilt_range))
-    try:
-        write_png(out, fig, level=3)
-    except (FileNotFoundError, NotADirectoryError):
-        raise InputError("cannot write here (parent folder missing)", out, "create the folder first") from None
-    print(out)
+    save_figure(out, vp_figure(img, res, cam, prior_window(cam, cfg.pan_range, cfg.tilt_range)))
 
 
 @app.command("simulate")
@@ -742,6 +733,7 @@ def simulate_cmd(
         raise InputError("--labels given without --label-format", labels, f"add --label-format ({', '.join(LABEL_FORMATS)})")
     fmt = get_label_format(label_format) if label_format else None
     out_size = parse_size(size) if size is not None else None
+    check_data_folders(images, labels)
     jobs = list_dataset(images, labels, fmt)
     cam = camera_for(camera, jobs[0].image, per_frame=False)
     params = SimulateParams(size=out_size, hfov=hfov, zoom=zoom, pan=pan, tilt=tilt, roll=roll, pan_jitter=pan_jitter,

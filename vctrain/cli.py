@@ -6,7 +6,7 @@ from typing import Any, List, Optional
 
 import typer
 
-from vcprep.cliutil import emit_json, err, run_app
+from vcprep.cliutil import check_data_folders, count, emit_json, ensure_parent, err, run_app
 from vcprep.errors import InputError
 
 from . import __version__
@@ -91,7 +91,7 @@ def fit_cmd(
     lr: Optional[float] = typer.Option(None, "--lr", help="peak learning rate (paper: 0.005, cpu: 0.002)"),
     weight_decay: Optional[float] = typer.Option(None, "--weight-decay", help="weight decay (paper: 0.0005, cpu: 0.01)"),
     schedule: Optional[str] = typer.Option(None, "--schedule", help="'poly' (lr*(1-it/total)^0.9; paper), 'cosine' "
-                                                                    "(3 %% warm-up; cpu) or 'constant'"),
+                                                                    "(3 % warm-up; cpu) or 'constant'"),
     seed: int = typer.Option(0, "--seed", help="seeds init, validation split, order and augmentation"),
     device: str = typer.Option("auto", "--device", help="auto (cuda if present), cpu, cuda, cuda:N"),
     val_fraction: float = typer.Option(0.1, "--val-fraction", help="share of the training items held out for validation"),
@@ -132,6 +132,10 @@ def fit_cmd(
     """
     from .train import TrainConfig, fit
 
+    check_data_folders(images, labels)  # --baseline resize
+    ensure_parent(out)  # runs/vc.pt: runs/ is created, as warp and predict create their folders
+    if log is not None:
+        ensure_parent(log)
     cfg = TrainConfig(stores=[str(s) for s in stores or []], out=str(out), baseline=baseline,
                       images=str(images) if images else None, labels=str(labels) if labels else None,
                       label_format=label_format, recipe=recipe, arch=model, base_width=width, size=_parse_size(size),
@@ -144,7 +148,7 @@ def fit_cmd(
     summary = fit(cfg)
     if not quiet:
         best = summary["best_val_iou"]
-        err(f"{out}: {summary['model_args']['arch']}, {summary['epochs']} epochs, "
+        err(f"{out}: {summary['model_args']['arch']}, {count(summary['epochs'], 'epoch')}, "
             f"{summary['seconds_per_epoch']:.1f} s/epoch, {summary['train_images_per_s']:.1f} img/s"
             + (f", best val IoU {best:.4f} (epoch {summary['best_epoch']})" if best is not None else ""))
     if as_json:
@@ -222,7 +226,7 @@ def predict_cmd(
     for p in written:
         print(p)
     if not quiet:
-        err(f"{out}: {len(written)} images predicted ({'geometric prior' if prior else predictor.mode + ' model'})")
+        err(f"{out}: {count(len(written), 'image')} predicted ({'geometric prior' if prior else predictor.mode + ' model'})")
 
 
 @app.command("adapt")
@@ -272,11 +276,12 @@ def adapt_cmd(
     from .predict import collect_images
 
     cam = camera_for(camera, collect_images([images])[0].image)
+    ensure_parent(out)
     summary = adapt(checkpoint, images, cam, prior, out, lo=lo, hi=hi, combine=combine, epochs=epochs, lr=lr,
                     store=store, within=within, device=device, seed=seed, progress=not quiet)
     if not quiet:
         sh = summary["adapted"]["label_shares"]
-        err(f"{out}: adapted {checkpoint} on {len(summary['adapted']['images'])} images, {summary['epochs']} epochs at "
+        err(f"{out}: adapted {checkpoint} on {count(len(summary['adapted']['images']), 'image')}, {count(summary['epochs'], 'epoch')} at "
             f"lr {summary['adapted']['lr']:g}; surrogate labels {sh['road']:.1%} road, {sh['not_road']:.1%} not road, "
             f"{sh['ignore']:.1%} ignore")
     if as_json:
@@ -313,7 +318,7 @@ def eval_cmd(
         for k, v in result.items():
             print(f"{k:<16} {v:.4f}")
     if not quiet:
-        err(f"{pred_dir}: {n} images evaluated")
+        err(f"{pred_dir}: {count(n, 'image')} evaluated")
 
 
 @app.command("crossval")
