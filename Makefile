@@ -30,7 +30,7 @@ demo: $(STAMP)
 		--labels examples/kitti/gt_image_2 --label-format kitti --out $(OUT)/store --quiet
 	$(BIN)/vcprep store show $(OUT)/store
 	$(BIN)/vcprep figure warp $(OUT)/store -o $(OUT)/warp.png
-	@echo "demo: open $(OUT)/warp.png (original | virtual camera, road in green)"
+	@echo "demo: open $(OUT)/warp.png (original | virtual camera; road green, ignore dark, real pixels outlined in yellow, red + = the road vanishing point)"
 
 bench: $(STAMP)
 	$(PY) benchmarks/warp.py

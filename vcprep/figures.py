@@ -42,8 +42,15 @@ def _fit(img: np.ndarray, w: int, h: int) -> np.ndarray:
     return canvas
 
 
+VP_RED, COVERED_YELLOW = (0, 0, 255), (0, 255, 255)  # BGR
+# what the marks of warp_figure mean: (symbol, text), drawn in one line under the rows
+WARP_LEGEND = (("road", "road"), ("ignore", "ignore"), ("outline", "real pixels (outside: completed)"),
+               ("vp", "road vanishing point (every image's is mapped here)"))
+
+
 def warp_figure(store: Store, ids: list[str] | None = None, width: int = 1400, max_items: int = 6) -> np.ndarray:
-    """Rows of (original with label | virtual with label, covered region outlined in yellow)."""
+    """Rows of (original with label | virtual with label, covered region outlined in yellow, the
+    road vanishing point as a red +), and a legend line (:data:`WARP_LEGEND`) under them."""
     recs = [store.get(i) for i in ids] if ids else list(store)[:max_items]
     vw, vh = store.store_size
     col = width // 2
@@ -61,9 +68,9 @@ def warp_figure(store: Store, ids: list[str] | None = None, width: int = 1400, m
         right = overlay_label(vimg, vlab)
         valid = read_image(store.path(rec["valid"]), label=True).array
         contours, _ = cv2.findContours(valid.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
-        cv2.drawContours(right, contours, -1, (0, 255, 255), max(1, vw // 400))
-        u, v = store.virtual.cx, store.virtual.cy
-        cv2.drawMarker(right, (int(round(u)), int(round(v))), (0, 0, 255), cv2.MARKER_CROSS, max(8, vw // 40), 2)
+        cv2.drawContours(right, contours, -1, COVERED_YELLOW, max(1, vw // 400))
+        u, v = store.virtual.cx, store.virtual.cy  # H maps each item's road VP to the principal point
+        cv2.drawMarker(right, (int(round(u)), int(round(v))), VP_RED, cv2.MARKER_CROSS, max(8, vw // 40), 2)
         pair = np.hstack([_fit(left, col, row_h - 28), _fit(right, col, row_h - 28)])
         bar = np.full((28, width if pair.shape[1] == width else pair.shape[1], 3), 255, np.uint8)
         cv2.putText(bar, f"{rec['id']}  ({rec['camera']}, {rec['size'][0]}x{rec['size'][1]})", (8, 20),
@@ -71,7 +78,32 @@ def warp_figure(store: Store, ids: list[str] | None = None, width: int = 1400, m
         cv2.putText(bar, f"virtual camera {vw}x{vh}", (col + 8, 20), cv2.FONT_HERSHEY_SIMPLEX, 0.55, (0, 0, 0), 1,
                     cv2.LINE_AA)
         rows.append(np.vstack([bar, pair]))
+    rows.append(_warp_legend(rows[0].shape[1] if rows else width))
     return np.vstack(rows)
+
+
+def _warp_legend(width: int, h: int = 28) -> np.ndarray:
+    """One white line: a symbol and its meaning per :data:`WARP_LEGEND` entry, the font shrunk
+    to fit ``width``."""
+    font, gap, sym = cv2.FONT_HERSHEY_SIMPLEX, 18, 16
+    texts = [t for _, t in WARP_LEGEND]
+    natural = sum(cv2.getTextSize(t, font, 0.55, 1)[0][0] for t in texts) + len(texts) * (sym + 6 + gap) + 8
+    fs = 0.55 * min(1.0, (width - 8) / natural)
+    bar = np.full((h, width, 3), 255, np.uint8)
+    x, y = 8, h // 2
+    for kind, text in WARP_LEGEND:
+        if kind in ("road", "ignore"):
+            swatch = overlay_label(np.full((sym, sym, 3), 200, np.uint8),
+                                   np.full((sym, sym), ROAD if kind == "road" else IGNORE, np.uint8))
+            bar[y - sym // 2:y - sym // 2 + sym, x:x + sym] = swatch
+        elif kind == "outline":
+            cv2.rectangle(bar, (x, y - sym // 2), (x + sym - 1, y + sym // 2 - 1), COVERED_YELLOW, 2)
+        else:
+            cv2.drawMarker(bar, (x + sym // 2, y), VP_RED, cv2.MARKER_CROSS, sym, 2)
+        x += sym + 6
+        cv2.putText(bar, text, (x, y + 5), font, fs, (0, 0, 0), 1, cv2.LINE_AA)
+        x += cv2.getTextSize(text, font, fs, 1)[0][0] + gap
+    return bar
 
 
 def vp_figure(image: np.ndarray, result, cam=None, prior_box=None) -> np.ndarray:

@@ -66,7 +66,8 @@ def fit_cmd(
     stores: Optional[List[Path]] = typer.Argument(None, help="training stores built by 'vcprep warp' (one virtual camera and scale)"),
     out: Path = typer.Option(..., "--out", "-o", help="best checkpoint (by validation road IoU); OUT-stem.last.pt holds the latest epoch"),
     recipe: Optional[str] = typer.Option(None, "--recipe", help="defaults of every setting below: 'cpu' (resfpn, AdamW, "
-                                                                 "cosine, augmentation; converges in minutes) or "
+                                                                 "cosine, augmentation; CamVid train in 3.3 min on "
+                                                                 "2 cores at --size 344x176, 14.2 at 688x350) or "
                                                                  "'paper' (segnet, SGD 0.005, poly); default: paper "
                                                                  "on a GPU, cpu without"),
     model: Optional[str] = typer.Option(None, "--model", "-m",
@@ -116,15 +117,20 @@ def fit_cmd(
     """Train a road segmentation network on virtual-camera stores (or the resize baseline).
 
     Cross-entropy over not road / road, label 255 ignored. Two recipes set the defaults: 'cpu'
-    (without a GPU: resfpn, AdamW 0.002, cosine, flip/scale/shift/colour augmentation; a good
-    road model in minutes on 2 cores) and 'paper' (on a GPU: segnet, SGD 0.005 momentum 0.9,
+    (without a GPU: resfpn, AdamW 0.002, cosine, flip/scale/shift/colour augmentation, 20
+    epochs) and 'paper' (on a GPU: segnet, SGD 0.005 momentum 0.9,
     weight decay 0.0005, batch 8, poly decay); any option given wins. The checkpoint describes
     itself (model, training config, virtual camera, scale, completion, metrics), so predict and
-    eval need no repeated flags. Prints the checkpoint path. Launch with
-    'torchrun --nproc-per-node N' for data-parallel training.
+    eval need no repeated flags. Prints the checkpoint path; OUT's folder is created. Launch
+    with 'torchrun --nproc-per-node N' for data-parallel training.
+
+    Time, measured with the cpu recipe on 2 cores for CamVid train (367 images): 3.3 minutes
+    at --size 344x176 (half the default store's size), 14.2 minutes at the default store's
+    688x350.
 
     \b
     Example:
+      vctrain fit stores/camvid_train --size 344x176 --out runs/vc.pt    # 3.3 min on 2 cores
       vctrain fit stores/camvid_train --val-store stores/camvid_val --epochs 20 --out runs/vc.pt
       vctrain fit stores/camvid_train --baseline resize --size 344x176 --out runs/resize.pt
       vctrain fit stores/camvid_train --out runs/vc.pt --resume runs/vc.last.pt --epochs 40
