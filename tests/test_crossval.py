@@ -655,3 +655,54 @@ def test_bad_adapt_input_gives_one_error_line(tmp_path, edit, needle):
     proc = run_cli("crossval", study, "--out", out, prog="vctrain")
     assert_one_error_line(proc, needle)
     assert not out.exists()
+
+
+# -- the own vehicle, found from the labels (ego: auto; issue 24.2) --------------------------------
+
+def _ego_study(root: Path, ego=None) -> Path:
+    """camvid (role train, no own vehicle in its labels) and car (role test, the camvid camera; its
+    labels ignore the bottom 8 rows of every frame, as CamVid's 0001TP ignores its bonnet)."""
+    root.mkdir(parents=True, exist_ok=True)
+    (root / "camvid.yaml").write_text(camera_to_yaml(CAMS["camvid"]))
+    images, labels = write_synthetic_dataset(root / "car", CAMS["camvid"], n=6, bonnet_rows=8)
+    car = {"name": "car", "role": "test", "camera": "camvid.yaml", "label_format": "camvid",
+           "test": {"images": str(images.relative_to(root)), "labels": str(labels.relative_to(root))}}
+    if ego is not None:
+        car["ego"] = ego
+    datasets = [{"name": "camvid", "role": "train", "camera": "camvid.yaml", "label_format": "camvid",
+                 "train": _dataset(root, "camvid_train", CAMS["camvid"], 4, 0, False)}, car]
+    study = {"datasets": datasets, "conditions": ["between"], "store_width": 128,
+             "train": {"epochs": 1, "max_steps": 1, "batch_size": 2, "arch": "segnet-narrow", "base_width": 4,
+                       "val_fraction": 0}}
+    path = root / "study.yaml"
+    path.write_text(yaml.safe_dump(study, sort_keys=False))
+    return path
+
+
+def _store_ego_rows(out: Path, dataset: str) -> set:
+    from vcprep.store import Store
+    stores = [m.parent for m in (out / "stores" / dataset).rglob("manifest.jsonl")]
+    assert stores
+    return {r.get("ego_rows", 0) for s in stores for r in Store.open(s)}
+
+
+@pytest.mark.parametrize("ego, rows", [(None, 8), ("auto", 8), ("none", 0), (5, 5)])
+def test_the_own_vehicle_is_found_from_the_labels(tmp_path, ego, rows):
+    study = _ego_study(tmp_path / "data", ego)
+    out = tmp_path / "out"
+    proc = run_cli("crossval", study, "--out", out, "--json", prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    assert _store_ego_rows(out, "car") == {rows}          # every item of car is warped without its bonnet rows
+    assert _store_ego_rows(out, "camvid") == {0}          # nothing found where nothing is
+    found = json.loads((out / "study.json").read_text()).get("ego_found", {})
+    if ego in (None, "auto"):
+        assert found["car"]["ego_rows"] == 8 and found["car"]["frames"] == 6 and found["camvid"]["ego_rows"] == 0
+        assert "car: own vehicle in the bottom 8 of 180 rows" in proc.stderr
+    else:
+        assert "car" not in found and "own vehicle in the bottom" not in proc.stderr
+
+
+@pytest.mark.parametrize("ego", [-1, "maybe", True, 2.5])
+def test_a_bad_ego_value_is_one_error_line(tmp_path, ego):
+    proc = run_cli("crossval", _ego_study(tmp_path / "data", ego), "--out", tmp_path / "out", prog="vctrain")
+    assert_one_error_line(proc, "dataset 'car' has ego", "ego: auto")

@@ -70,7 +70,7 @@ import re
 import shutil
 import time
 from fnmatch import fnmatchcase
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
@@ -146,6 +146,7 @@ class Dataset:
     test: Split | None       # None for role 'train'
     role: str = "both"
     unlabelled: Split | None = None  # images without labels to adapt to (condition adapt; default: test images)
+    ego: str | int = "auto"  # own-vehicle rows: 'auto' (found from the labels, vcprep.ego), 'none' or a row count
 
     @property
     def trained(self) -> bool:
@@ -265,7 +266,7 @@ def load_study(path: str | Path) -> Study:
     datasets: list[Dataset] = []
     for i, r in enumerate(raw):
         r = _mapping(r, f"dataset #{i + 1}", path)
-        _keys(r, ("name", "camera", "label_format", "role", "train", "test", "unlabelled"),
+        _keys(r, ("name", "camera", "label_format", "role", "train", "test", "unlabelled", "ego"),
               ("name", "camera", "label_format"),
               f"dataset #{i + 1}", path)
         name = r["name"]
@@ -298,8 +299,13 @@ def load_study(path: str | Path) -> Study:
                              "remove 'unlabelled:' (it is what condition adapt adapts to on an evaluated dataset)")
         unlabelled = (_split(r["unlabelled"], f"dataset '{name}' unlabelled", path, labelled=False)
                       if r.get("unlabelled") is not None else None)
+        ego = r.get("ego", "auto")
+        if not (ego in ("auto", "none") or (isinstance(ego, int) and not isinstance(ego, bool) and ego >= 0)):
+            raise InputError(f"dataset '{name}' has ego {ego!r}", path,
+                             "write ego: auto (found from the labels), none, or the number of bottom rows that show "
+                             "your own vehicle")
         datasets.append(Dataset(name, cam, str(r["label_format"]), train, test if role != "train" else None, role,
-                                unlabelled))
+                                unlabelled, ego))
     trainable = [x for x in datasets if x.trained]
     if not trainable:
         raise InputError("no dataset may be trained on (every role is 'test')", path,
@@ -366,6 +372,7 @@ class _Builder:
     def __init__(self, study: Study, out: Path, progress: bool, jobs: int, say: Callable[[str], None]):
         self.study, self.out, self.progress, self.jobs, self.say = study, out, progress, jobs, say
         self._cams: dict[str, Camera] = {}
+        self.ego_found: dict[str, dict] = {}  # dataset -> what the own-vehicle search found (ego: auto)
         self._items: dict[tuple[str, str], list[Job]] = {}
         self._vps: dict[tuple[str, str], dict[str, ItemPose]] = {}
         self._virtual: Camera | None = None
@@ -398,10 +405,42 @@ class _Builder:
         return self._items[key]
 
     def camera(self, ds: Dataset) -> Camera | FrameCameras:
-        """The dataset's camera, or its per-frame calibration when ``camera:`` is a folder."""
+        """The dataset's camera, or its per-frame calibration when ``camera:`` is a folder; with
+        its own-vehicle rows (``ego``) when the camera file does not state them."""
         if ds.name not in self._cams:
-            self._cams[ds.name] = load_cameras(ds.camera, self.items(ds, ds.first_split)[0].image)
+            cam = load_cameras(ds.camera, self.items(ds, ds.first_split)[0].image)
+            if isinstance(cam, Camera) and not cam.ego_rows and ds.ego != "none":
+                cam = replace(cam, ego_rows=self._ego_rows(ds, cam))
+            self._cams[ds.name] = cam
         return self._cams[ds.name]
+
+    def _ego_rows(self, ds: Dataset, cam: Camera) -> int:
+        """``ego: N`` as given; ``ego: auto``: the own vehicle found from the dataset's labels
+        (every labelled split; :mod:`vcprep.ego`), at the camera's image size. Too few labelled
+        frames: none. What was found is in ``ego_found`` (said by :meth:`say_ego`)."""
+        if isinstance(ds.ego, int):
+            return ds.ego
+        from vcprep.ego import ego_rows_from_label_files, rows_at_height
+        labels = sorted({j.label for split in ("train", "test") if self.split(ds, split) is not None
+                         and self.split(ds, split).labels is not None for j in self.items(ds, split)})
+        try:
+            est = ego_rows_from_label_files(labels, get_label_format(ds.label_format), self.study.path)
+        except InputError as e:
+            self.ego_found[ds.name] = {"ego_rows": 0, "not_searched": e.problem}
+            return 0
+        rows = rows_at_height(est, cam.size[1])
+        self.ego_found[ds.name] = {**est.to_dict(), "ego_rows_at_camera_size": rows, "describe": est.describe()}
+        return rows
+
+    def say_ego(self) -> None:
+        """One line per dataset whose own vehicle was found, or could not be searched for."""
+        for name, f in self.ego_found.items():
+            if f.get("not_searched"):
+                self.say(f"{name}: own vehicle not searched for ({f['not_searched']}); write ego: N in the study if "
+                         "its frames show it")
+            elif f["ego_rows"]:
+                self.say(f"{name}: {f['describe']}; the camera's ego_rows: {f['ego_rows_at_camera_size']} (write "
+                         "ego: none in the study to warp them)")
 
     def nominal_camera(self, ds: Dataset) -> Camera:
         """One camera standing for the dataset (the virtual camera's design): per-frame
@@ -829,15 +868,23 @@ def run_study(study: Study, out: str | Path, conditions: Sequence[str] | None = 
         _check_adapt_targets(b, evaluated)  # also before anything is written
     out.mkdir(parents=True, exist_ok=True)
     virt = b.virtual()
+    for d in study.datasets:
+        b.camera(d)  # every camera before anything is written: the own vehicle is searched for now
+    b.say_ego()
     _atomic_json(out / "study.json", {"study": str(study.path), "virtual": virt.to_dict(), "scale": b.scale(),
                                       "conditions": conditions, "datasets": [d.name for d in study.datasets],
-                                      "roles": {d.name: d.role for d in study.datasets}, "train": training})
+                                      "roles": {d.name: d.role for d in study.datasets}, "train": training,
+                                      **({"ego_found": b.ego_found} if b.ego_found else {})})
     # what a run's result depends on (besides its datasets and condition): a finished run with
     # other settings is redone, never silently reused
     settings = {"virtual": virt.to_dict(), "scale": b.scale(), "pan_range": study.pan_range,
                 "tilt_range": study.tilt_range, "train": training, "resize_size": "source aspect, store pixels",
                 "datasets": [[d.name, d.role, d.camera, d.label_format, repr(d.train), repr(d.test)]
                              for d in study.datasets]}
+    ego = {d.name: b.camera(d).ego_rows for d in study.datasets
+           if isinstance(b.camera(d), Camera) and b.camera(d).ego_rows}
+    if ego:  # only when a camera sees its own vehicle: the settings of studies without one are as before
+        settings["ego_rows"] = ego
     settings_sha = hashlib.sha256(json.dumps(settings, sort_keys=True, default=str).encode()).hexdigest()[:16]
     runs = plan_runs(study, conditions, evaluated)
     rows: list[dict[str, Any]] = []
