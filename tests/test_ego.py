@@ -476,3 +476,32 @@ def test_ego_rows_from_label_files_read_with_the_format(tmp_path):
     assert ego_rows_from_label_files(files, get_label_format("camvid")).rows == 25
     # read as a format where 11 is not ignore, nothing is common ignore
     assert ego_rows_from_label_files(files, get_label_format("values:road=3")).rows == 0
+
+
+def test_vcprep_camera_ego_prints_and_writes_the_rows(tmp_path):
+    labels = tmp_path / "labels" / "drive1"
+    labels.mkdir(parents=True)
+    for i, lab in enumerate(_label_set(bonnet=25)):
+        cv2.imwrite(str(labels / f"f{i}.png"), np.where(lab == 1, 3, np.where(lab == 255, 11, 0)).astype(np.uint8))
+    proc = run_cli("camera", "ego", "--labels", tmp_path / "labels", "--label-format", "camvid")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "25" and "bottom 25 of 160 rows" in proc.stderr
+    # the camera at twice the labels' size gets the rows at its size, everything else as it was
+    cam = Camera("mine", (480, 320), 400.0, 400.0, 239.5, 159.5, 1.3, tilt=2.0)
+    (tmp_path / "mine.yaml").write_text(camera_to_yaml(cam))
+    out = tmp_path / "cams" / "mine-ego.yaml"
+    proc = run_cli("camera", "ego", "-l", tmp_path / "labels", "-f", "camvid", "-c", tmp_path / "mine.yaml", "-o", out,
+                   "--json")
+    assert proc.returncode == 0, proc.stderr
+    rep = json.loads(proc.stdout)
+    assert rep["ego_rows"] == 25 and rep["ego_rows_at_camera_size"] == 50 and rep["frames"] == 12
+    assert read_camera_yaml(out) == replace(cam, ego_rows=50)
+    # no vehicle: 0; too few frames and -o without a camera: one error line each
+    for f in list(labels.iterdir()):
+        cv2.imwrite(str(f), np.full((160, 240), 3, np.uint8))
+    assert run_cli("camera", "ego", "-l", tmp_path / "labels", "-f", "camvid").stdout.strip() == "0"
+    for f in list(labels.iterdir())[4:]:
+        f.unlink()
+    assert_one_error_line(run_cli("camera", "ego", "-l", tmp_path / "labels", "-f", "camvid"), "too few", "ego_rows")
+    assert_one_error_line(run_cli("camera", "ego", "-l", tmp_path / "labels", "-f", "camvid", "-o", out),
+                          "no --camera")

@@ -140,6 +140,50 @@ def camera_design(cameras: List[str] = typer.Argument(..., help="physical camera
     print(out)
 
 
+@camera_app.command("ego")
+def camera_ego(labels: Path = typer.Option(..., "--labels", "-l", help="folder of one camera's label images "
+                                           "(subfolders included; >= 5 frames)"),
+               label_format: str = typer.Option(..., "--label-format", "-f",
+                                                help=f"{', '.join(LABEL_FORMATS)} or values:road=3;ignore=11"),
+               camera: Optional[str] = typer.Option(None, "--camera", "-c", help="the camera to write with the rows "
+                                                    "found (preset or file; with -o)"),
+               out: Optional[Path] = typer.Option(None, "-o", "--out", help="camera YAML to write: --camera with "
+                                                  "ego_rows set to the rows found"),
+               as_json: bool = typer.Option(False, "--json", help="Print one JSON object instead of the row count."),
+               quiet: bool = typer.Option(False, "--quiet", "-q", help="no summary on stderr")):
+    """Find the bottom rows that show your own vehicle (bonnet) from the labels: the ignore region
+    common to >= 90 % of the frames that grows up from the bottom edge. Prints the row count (0: no
+    own vehicle); with --camera and -o writes that camera with ego_rows set.
+
+    \b
+    Example:
+      vcprep camera ego --labels data/camvid/trainannot --label-format camvid
+      vcprep camera ego -l cs/labels -f 'values:road=1;ignore=255;max=255' -c cs/camera.yaml -o cs/camera-ego.yaml
+    """
+    from dataclasses import replace
+
+    from .build import find_images
+    from .ego import ego_rows_from_label_files, rows_at_height
+    from .imageio import write_bytes_atomic
+
+    if out is not None and camera is None:
+        raise InputError("-o writes a camera, but no --camera was given", out, "add --camera CAM (preset or file)")
+    fmt = get_label_format(label_format)
+    files = find_images(labels, "label")
+    est = ego_rows_from_label_files(files, fmt, labels)
+    cam = load_camera(camera) if camera is not None else None
+    rows = rows_at_height(est, cam.size[1]) if cam is not None else est.rows
+    if not quiet:
+        err(f"{labels}: {est.describe()}" + (f"; at the camera's {cam.size[1]} rows: ego_rows {rows}"
+                                              if cam is not None and cam.size[1] != est.size[1] else ""))
+    if out is not None:
+        write_bytes_atomic(ensure_parent(out), camera_to_yaml(replace(cam, ego_rows=rows)).encode())
+    if as_json:
+        emit_json({**est.to_dict(), "ego_rows_at_camera_size": rows, **({"out": str(out)} if out else {})})
+    else:
+        print(out if out is not None else rows)
+
+
 @app.command("warp")
 def warp_cmd(
     camera: str = typer.Option(..., "--camera", "-c", help=FRAMES_HELP),
