@@ -184,6 +184,78 @@ def camera_ego(labels: Path = typer.Option(..., "--labels", "-l", help="folder o
         print(out if out is not None else rows)
 
 
+@camera_app.command("estimate")
+def camera_estimate_cmd(
+        images: List[Path] = typer.Argument(..., help="frames of ONE camera: files or folders (subfolders included)"),
+        out: Path = typer.Option(..., "-o", "--out", help="camera YAML to write (each value with how it was found)"),
+        labels: Optional[Path] = typer.Option(None, "--labels", "-l", help="label folder: finds the own vehicle "
+                                              "(ego_rows) from the ignore region common to the frames"),
+        label_format: Optional[str] = typer.Option(None, "--label-format", "-f",
+                                                   help=f"{', '.join(LABEL_FORMATS)} or values:road=3;ignore=11"),
+        fx: Optional[float] = typer.Option(None, "--fx", min=1.0, help="focal length in pixels, if you know it"),
+        hfov: Optional[float] = typer.Option(None, "--hfov", min=1.0, max=179.0,
+                                             help="horizontal field of view in degrees, if you know it"),
+        height: Optional[float] = typer.Option(None, "--height", min=0.05, help="mounting height in metres"),
+        source_size: Optional[str] = typer.Option(None, "--source-size", help="WxH the frames were resized from "
+                                                  "(non-square pixels), e.g. 2048x1024"),
+        name: str = typer.Option("estimated", "--name", help="name of the camera"),
+        vps: Optional[Path] = typer.Option(None, "--vps", help="also write each frame's road VP (the CSV "
+                                           "'vcprep warp --within FILE' reads): per-frame poses where the mount varies"),
+        as_json: bool = typer.Option(False, "--json", help="print one JSON report (values, how, how sure) instead "
+                                     "of the path"),
+        quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar or summary on stderr")):
+    """Estimate a camera nobody calibrated from its own frames: the horizon, tilt and pan from the
+    frames' road vanishing points, the own vehicle from labels. The focal length and the height
+    are not fixed by road frames: they come from --fx/--hfov, --height or the files' EXIF, else
+    they are ASSUMED (60 deg FOV, 1.4 m) and said so. Every value in the YAML carries how it was
+    found and how sure it is.
+
+    \b
+    Example:
+      vcprep camera estimate data/dashcam -o dashcam.yaml
+      vcprep camera estimate cs/images --source-size 2048x1024 --labels cs/labels -f 'values:road=1;ignore=255' -o cs.yaml
+    """
+    from tqdm import tqdm
+
+    from .camera_estimate import estimate_camera, estimate_to_yaml
+    from .cliutil import parse_size
+    from .imageio import write_bytes_atomic
+    from .vanishing_point import write_vp_csv
+
+    if fx is not None and hfov is not None:
+        raise InputError("--fx and --hfov both given", None, "give one of them")
+    if labels is not None and label_format is None:
+        raise InputError("--labels given without --label-format", labels, f"add --label-format ({', '.join(LABEL_FORMATS)})")
+    files = _image_files(images)
+    label_files = None
+    if labels is not None:
+        from .build import find_images
+
+        label_files = find_images(labels, "label")
+    bar = tqdm(total=len(files), desc="estimate", unit="img", disable=True if quiet else None, leave=False)
+    try:
+        est = estimate_camera(files, name=name, fx=fx, hfov=hfov, height=height,
+                              source_size=parse_size(source_size, "--source-size") if source_size else None,
+                              labels=label_files, label_format=get_label_format(label_format) if labels else None,
+                              on_image=lambda i: bar.update())
+    finally:
+        bar.close()
+    write_bytes_atomic(ensure_parent(out), estimate_to_yaml(est).encode())
+    if vps is not None:
+        write_vp_csv(ensure_parent(vps), est.ids, est.vps)
+    if as_json:
+        emit_json({**est.to_dict(), "out": str(out), **({"vps": str(vps)} if vps else {})})
+    else:
+        print(out)
+    if not quiet:
+        v = est.values
+        err(f"{out}: tilt {v['tilt'].value:g} +/- {v['tilt'].sure:g} deg, pan {v['pan'].value:g} deg, horizon row "
+            f"{v['horizon_row'].value:g} ({est.accepted} of {count(est.frames, 'frame')} with a road VP); "
+            f"ego_rows {est.camera.ego_rows}")
+        for w in est.warnings:
+            err(f"assumed {w}")
+
+
 @app.command("warp")
 def warp_cmd(
     camera: str = typer.Option(..., "--camera", "-c", help=FRAMES_HELP),
