@@ -4,8 +4,8 @@ Conventions are :mod:`vcprep.homography`'s (tilt > 0 looks down; pixel centres a
 
 * **Horizon, tilt, pan** -- fixed by the frames. Each frame's road vanishing point is found with
   :func:`vcprep.vanishing_point.estimate_vp` through a provisional camera (principal point at the
-  image centre, tilt and pan 0, the focal length below): the detector's window spans +/-20 deg pan
-  and +/-15 deg tilt around it. The camera's pose is the median of the accepted VPs' normalised
+  image centre, tilt and pan 0, the focal length below), its search window widened to the whole
+  frame (at least +/-20 deg pan and +/-15 deg tilt). The camera's pose is the median of the accepted VPs' normalised
   rays (robust to the frames whose VP is off); how sure: the spread of the per-frame poses
   (1.4826 MAD) over sqrt(n). The horizon row is measured in pixels and does not depend on the
   focal length; the tilt angle does, weakly (tan tilt = (cy - v_horizon) / fy).
@@ -175,7 +175,7 @@ def estimate_camera(images: Sequence[str | Path], *, name: str = "estimated", fx
     Raises :class:`InputError` with what is missing: too few frames, frames of several sizes,
     too few road VPs (say the tilt and pan instead, or give frames where the road runs ahead)."""
     from .imageio import image_size, read_image
-    from .vanishing_point import apply_reliability, estimate_vp
+    from .vanishing_point import VPConfig, apply_reliability, estimate_vp
 
     images = [Path(p) for p in images]
     if len(images) < MIN_FRAMES:
@@ -212,9 +212,13 @@ def estimate_camera(images: Sequence[str | Path], *, name: str = "estimated", fx
                                    "ego_rows by hand", "assumed")
     cam = Camera(name, size, float(f.value), float(values["fy"].value), float(values["cx"].value),
                  float(values["cy"].value), float(values["height"].value), ego_rows=int(ego))
+    # the road VP may be anywhere in the frame: the search window covers it whole (the usual +/-20 deg
+    # pan, +/-15 deg tilt around a known pose would cut off a steep tilt seen through an assumed focal length)
+    half_w, half_h = math.degrees(math.atan(w / 2 / cam.fx)), math.degrees(math.atan(h / 2 / cam.fy))
+    cfg = replace(VPConfig(), pan_range=max(VPConfig.pan_range, half_w), tilt_range=max(VPConfig.tilt_range, half_h))
     results, cams = [], []
     for i, p in enumerate(images):
-        results.append(estimate_vp(read_image(p).array, cam))
+        results.append(estimate_vp(read_image(p).array, cam, cfg))
         cams.append(cam)
         if on_image is not None:
             on_image(i)
