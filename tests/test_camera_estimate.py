@@ -147,3 +147,19 @@ def test_vcprep_camera_estimate_writes_a_camera_the_tools_read(tmp_path):
     assert_one_error_line(run_cli("camera", "estimate", tmp_path / "f", "-o", out, "--fx", "300", "--hfov", "60"),
                           "--fx and --hfov")
     assert_one_error_line(run_cli("camera", "estimate", tmp_path / "f" / "seq_0000.png", "-o", out), "too few")
+
+
+def test_warp_with_camera_estimate_equals_warp_with_the_estimated_camera(tmp_path):
+    cam = Camera("true", (320, 240), 277.128, 277.128, 159.5, 119.5, 1.4, tilt=2.0)
+    _frames(tmp_path / "f", cam)
+    proc = run_cli("warp", "--camera", "estimate", "--images", tmp_path / "f", "--out", tmp_path / "a",
+                   "--scale", "0.05", "--jobs", "1")
+    assert proc.returncode == 0, proc.stderr
+    assert "camera ESTIMATED from the frames" in proc.stderr and "assumed fx" in proc.stderr
+    est = tmp_path / "a" / "camera.estimated.yaml"
+    assert read_camera_yaml(est).tilt == pytest.approx(2.0, abs=0.3)
+    proc = run_cli("warp", "--camera", est, "--images", tmp_path / "f", "--out", tmp_path / "b", "--scale", "0.05",
+                   "--jobs", "1", "-q")
+    assert proc.returncode == 0, proc.stderr
+    for name in sorted((tmp_path / "a" / "images").iterdir()):
+        assert name.read_bytes() == (tmp_path / "b" / "images" / name.name).read_bytes()

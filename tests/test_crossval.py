@@ -706,3 +706,34 @@ def test_the_own_vehicle_is_found_from_the_labels(tmp_path, ego, rows):
 def test_a_bad_ego_value_is_one_error_line(tmp_path, ego):
     proc = run_cli("crossval", _ego_study(tmp_path / "data", ego), "--out", tmp_path / "out", prog="vctrain")
     assert_one_error_line(proc, "dataset 'car' has ego", "ego: auto")
+
+
+def test_camera_estimate_in_a_study(tmp_path):
+    """camera: estimate -- the test camera estimated from its own frames once, kept beside the
+    stores, said, noted in the table, and reused on a rerun (issue 25)."""
+    import math
+
+    from vcprep.camera import Camera, read_camera_yaml
+
+    f = 120 / math.tan(math.radians(30))  # the assumed 60-degree lens, so the estimated tilt is the true one
+    true = Camera("car", (240, 180), f, f, 119.5, 89.5, 1.4, tilt=3.0)
+    root = tmp_path / "data"
+    study = _ego_study(root)
+    d = yaml.safe_load(study.read_text())
+    images, labels = write_synthetic_dataset(root / "car_est", true, n=6, bonnet_rows=8,
+                                             poses=[(p, 3.0) for p in (0, 1, -1, 0.5, -0.5, 0)])
+    d["datasets"][1].update(camera="estimate", test={"images": str(images), "labels": str(labels)})
+    study.write_text(yaml.safe_dump(d, sort_keys=False))
+    out = tmp_path / "out"
+    proc = run_cli("crossval", study, "--out", out, "--json", prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    cam = read_camera_yaml(out / "cameras" / "car.yaml")
+    assert cam.tilt == pytest.approx(3.0, abs=0.3) and cam.ego_rows == 8 and cam.size == (240, 180)
+    assert "car: camera ESTIMATED from its frames" in proc.stderr and "fx assumed" in proc.stderr
+    assert "ASSUMED" in (out / "cameras" / "car.yaml").read_text()
+    assert json.loads((out / "study.json").read_text())["cameras_estimated"]["car"]["tilt"] == cam.tilt
+    assert "Camera of car ESTIMATED" in (out / "table.md").read_text()
+    assert _store_ego_rows(out, "car") == {8}
+    proc = run_cli("crossval", study, "--out", out, "--json", prog="vctrain")  # resumes: estimated once
+    assert proc.returncode == 0, proc.stderr
+    assert "estimating its camera" not in proc.stderr and "camera ESTIMATED" in proc.stderr

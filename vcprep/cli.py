@@ -258,7 +258,8 @@ def camera_estimate_cmd(
 
 @app.command("warp")
 def warp_cmd(
-    camera: str = typer.Option(..., "--camera", "-c", help=FRAMES_HELP),
+    camera: str = typer.Option(..., "--camera", "-c", help=FRAMES_HELP + ", or 'estimate': estimated from these "
+                               "frames (as 'vcprep camera estimate' does; written to STORE/camera.estimated.yaml)"),
     images: Path = typer.Option(..., "--images", "-i", help="folder of source images (subfolders included)"),
     out: Path = typer.Option(..., "--out", "-o", help="store directory (created, or updated in place)"),
     labels: Optional[Path] = typer.Option(None, "--labels", "-l", help="folder of label images, a tree mirroring "
@@ -319,7 +320,18 @@ def warp_cmd(
     fmt = get_label_format(label_format) if label_format else None
     check_data_folders(images, labels)
     items = list_dataset(images, labels, fmt, id_prefix)
-    cam = camera_for(camera, items[0].image)
+    estimate = None
+    if camera == "estimate":  # the camera from these frames (and the own vehicle from their labels)
+        from .camera_estimate import estimate_camera, estimate_to_yaml
+
+        if not quiet:
+            err(f"estimating the camera from {count(len(items), 'frame')}")
+        est_labels = [j.label for j in items if j.label is not None]
+        estimate = estimate_camera([j.image for j in items], name="estimated", ids=[j.id for j in items],
+                                   labels=est_labels if len(est_labels) >= 5 else None, label_format=fmt)
+        cam = estimate.camera
+    else:
+        cam = camera_for(camera, items[0].image)
     if not isinstance(cam, Camera) and within != "none":
         raise InputError("--within needs one camera; a per-frame calibration folder already gives every frame its "
                          "exact pose", camera, "drop --within, or give one camera file or preset")
@@ -328,6 +340,14 @@ def warp_cmd(
     poses = _within_poses(items, cam, within, vp_smooth, id_prefix, quiet)
     store, summary = warp_dataset(items, cam, virt, scale, out, fmt, progress=not quiet, completion=complete,
                                   poses=poses, workers=jobs or default_jobs(), shard=part, keep_going=keep_going)
+    if estimate is not None:
+        from .imageio import write_bytes_atomic
+
+        write_bytes_atomic(out / "camera.estimated.yaml", estimate_to_yaml(estimate).encode())
+        if not quiet:
+            v = estimate.values
+            err(f"camera ESTIMATED from the frames ({out / 'camera.estimated.yaml'}): tilt {v['tilt'].value:g} deg, "
+                f"pan {v['pan'].value:g} deg; " + "; ".join(f"assumed {w}" for w in estimate.warnings))
     _finish(out, summary, quiet, f" (store {store.store_size[0]}x{store.store_size[1]}"
                                  f"{f', shard {part}' if part else ''})")
 

@@ -113,6 +113,7 @@ ADAPT_COMBINE = {"adapt": "prior", "adapt-fuse": "fuse"}
 DEFAULT_CONDITIONS = ("resize", "between", "within", "within-gt", "zero")  # a study without 'conditions:'
 # the study file's `train:` section may set any TrainConfig field except these, which the study sets per run
 # (TRAIN_KEYS are checked without importing torch; another key is checked against TrainConfig itself)
+ESTIMATE_VERSION = 1  # bump when vcprep.camera_estimate changes what it estimates (cached estimates are redone)
 RUN_KEYS = ("stores", "out", "baseline", "images", "labels", "label_format", "size", "val_stores", "resume", "log",
             "progress")
 TRAIN_KEYS = ("epochs", "arch", "base_width", "batch_size", "lr", "momentum", "weight_decay", "schedule", "seed",
@@ -290,7 +291,7 @@ def load_study(path: str | Path) -> Study:
         except InputError as e:
             raise InputError(f"dataset '{name}': {e.problem}", path, e.fix) from None
         cam = str(r["camera"])
-        if not cam.isidentifier() or (path.parent / cam).exists():
+        if cam != "estimate" and (not cam.isidentifier() or (path.parent / cam).exists()):
             cam = str(path.parent / cam)
         train = _split(r["train"], f"dataset '{name}' train", path) if role != "test" else None
         test = _split(r["test"], f"dataset '{name}' test", path) if r.get("test") is not None else train
@@ -373,6 +374,7 @@ class _Builder:
         self.study, self.out, self.progress, self.jobs, self.say = study, out, progress, jobs, say
         self._cams: dict[str, Camera] = {}
         self.ego_found: dict[str, dict] = {}  # dataset -> what the own-vehicle search found (ego: auto)
+        self.estimated: dict[str, Any] = {}   # dataset -> its CameraEstimate (camera: estimate)
         self._items: dict[tuple[str, str], list[Job]] = {}
         self._vps: dict[tuple[str, str], dict[str, ItemPose]] = {}
         self._virtual: Camera | None = None
@@ -408,11 +410,65 @@ class _Builder:
         """The dataset's camera, or its per-frame calibration when ``camera:`` is a folder; with
         its own-vehicle rows (``ego``) when the camera file does not state them."""
         if ds.name not in self._cams:
-            cam = load_cameras(ds.camera, self.items(ds, ds.first_split)[0].image)
-            if isinstance(cam, Camera) and not cam.ego_rows and ds.ego != "none":
+            if ds.camera == "estimate":
+                cam = self._estimate(ds)
+            else:
+                cam = load_cameras(ds.camera, self.items(ds, ds.first_split)[0].image)
+            if isinstance(cam, Camera) and not cam.ego_rows and ds.ego != "none" and ds.camera != "estimate":
                 cam = replace(cam, ego_rows=self._ego_rows(ds, cam))
             self._cams[ds.name] = cam
         return self._cams[ds.name]
+
+    def _labelled_splits(self, ds: Dataset) -> list[str]:
+        return [s for s in ("train", "test") if self.split(ds, s) is not None and self.split(ds, s).labels is not None]
+
+    def _estimate(self, ds: Dataset) -> Camera:
+        """``camera: estimate``: the camera estimated from the dataset's own frames (every split's
+        images; the own vehicle from its labels unless ``ego: none``/``N``), once: kept in
+        ``OUT/cameras/<dataset>.yaml`` with the frames it came from, reused while they are the same."""
+        from vcprep.camera import read_camera_yaml
+        from vcprep.camera_estimate import estimate_camera, estimate_to_yaml
+
+        jobs = {j.image: j for split in ("train", "test") if self.split(ds, split) is not None
+                for j in self.items(ds, split)}
+        images = sorted(jobs)
+        from vcprep.ego import MIN_FRAMES as EGO_MIN_FRAMES
+
+        labels = sorted({jobs[i].label for i in images if jobs[i].label is not None}) if ds.ego == "auto" else []
+        labels = labels if len(labels) >= EGO_MIN_FRAMES else []
+        key = hashlib.sha256(json.dumps([ESTIMATE_VERSION, [str(i) for i in images], [str(x) for x in labels],
+                                         ds.label_format]).encode()).hexdigest()[:16]
+        path = self.out / "cameras" / f"{ds.name}.yaml"
+        record = path.with_suffix(".json")
+        if path.exists() and record.exists():
+            try:
+                rec = json.loads(record.read_text())
+                if rec.get("key") == key:
+                    self.estimated[ds.name] = rec
+                    return read_camera_yaml(path)
+            except (OSError, ValueError, InputError):
+                pass
+        self.say(f"{ds.name}: estimating its camera from {len(images)} frames")
+        est = estimate_camera(images, name=f"{ds.name}-estimated", ids=[jobs[i].id for i in images],
+                              labels=labels or None, label_format=get_label_format(ds.label_format))
+        cam = est.camera
+        if isinstance(ds.ego, int):
+            cam = replace(cam, ego_rows=ds.ego)
+        self.estimated[ds.name] = {"key": key, **est.to_dict(), "camera": cam.to_dict(), "yaml": estimate_to_yaml(est)}
+        return cam
+
+    def write_estimates(self) -> None:
+        """Each estimated camera beside the study's stores (OUT/cameras/), and one line saying so."""
+        for name, rec in self.estimated.items():
+            path = self.out / "cameras" / f"{name}.yaml"
+            if "yaml" in rec:
+                path.parent.mkdir(parents=True, exist_ok=True)
+                write_bytes_atomic(path, rec.pop("yaml").encode())
+                _atomic_json(path.with_suffix(".json"), rec)
+            v = rec["values"]
+            self.say(f"{name}: camera ESTIMATED from its frames ({path.relative_to(self.out)}): tilt {v['tilt']['value']} "
+                     f"deg, pan {v['pan']['value']} deg from {rec['accepted_vps']} of {rec['frames']} road VPs; "
+                     f"fx {v['fx']['source']}, height {v['height']['source']}, ego_rows {rec['camera'].get('ego_rows', 0)}")
 
     def _ego_rows(self, ds: Dataset, cam: Camera) -> int:
         """``ego: N`` as given; ``ego: auto``: the own vehicle found from the dataset's labels
@@ -421,8 +477,7 @@ class _Builder:
         if isinstance(ds.ego, int):
             return ds.ego
         from vcprep.ego import ego_rows_from_label_files, rows_at_height
-        labels = sorted({j.label for split in ("train", "test") if self.split(ds, split) is not None
-                         and self.split(ds, split).labels is not None for j in self.items(ds, split)})
+        labels = sorted({j.label for split in self._labelled_splits(ds) for j in self.items(ds, split)})
         try:
             est = ego_rows_from_label_files(labels, get_label_format(ds.label_format), self.study.path)
         except InputError as e:
@@ -871,10 +926,13 @@ def run_study(study: Study, out: str | Path, conditions: Sequence[str] | None = 
     for d in study.datasets:
         b.camera(d)  # every camera before anything is written: the own vehicle is searched for now
     b.say_ego()
+    b.write_estimates()
     _atomic_json(out / "study.json", {"study": str(study.path), "virtual": virt.to_dict(), "scale": b.scale(),
                                       "conditions": conditions, "datasets": [d.name for d in study.datasets],
                                       "roles": {d.name: d.role for d in study.datasets}, "train": training,
-                                      **({"ego_found": b.ego_found} if b.ego_found else {})})
+                                      **({"ego_found": b.ego_found} if b.ego_found else {}),
+                                      **({"cameras_estimated": {k: v["camera"] for k, v in b.estimated.items()}}
+                                         if b.estimated else {})})
     # what a run's result depends on (besides its datasets and condition): a finished run with
     # other settings is redone, never silently reused
     settings = {"virtual": virt.to_dict(), "scale": b.scale(), "pan_range": study.pan_range,
@@ -885,6 +943,8 @@ def run_study(study: Study, out: str | Path, conditions: Sequence[str] | None = 
            if isinstance(b.camera(d), Camera) and b.camera(d).ego_rows}
     if ego:  # only when a camera sees its own vehicle: the settings of studies without one are as before
         settings["ego_rows"] = ego
+    if b.estimated:  # a changed estimate redoes the runs
+        settings["cameras_estimated"] = {k: v["camera"] for k, v in b.estimated.items()}
     settings_sha = hashlib.sha256(json.dumps(settings, sort_keys=True, default=str).encode()).hexdigest()[:16]
     runs = plan_runs(study, conditions, evaluated)
     rows: list[dict[str, Any]] = []
@@ -892,7 +952,9 @@ def run_study(study: Study, out: str | Path, conditions: Sequence[str] | None = 
         rows += _execute(run, b, settings_sha, overrides, f"[{k}/{len(runs)}]")
     order = {(h, c): i for i, (h, c) in enumerate((h, c) for h in evaluated for c in conditions)}
     rows.sort(key=lambda r: order[r["heldout"], r["condition"]])
-    write_tables(out, rows, evaluated, conditions)
+    notes = [f"Camera of {k} ESTIMATED from its frames (cameras/{k}.yaml: what was estimated, given and assumed)."
+             for k in b.estimated]
+    write_tables(out, rows, evaluated, conditions, notes)
     return rows
 
 
@@ -923,9 +985,11 @@ def format_table(rows: Sequence[dict[str, Any]], heldout: Sequence[str], conditi
     return "\n".join(lines) + "\n"
 
 
-def write_tables(out: Path, rows: Sequence[dict[str, Any]], heldout: Sequence[str], conditions: Sequence[str]) -> None:
+def write_tables(out: Path, rows: Sequence[dict[str, Any]], heldout: Sequence[str], conditions: Sequence[str],
+                 notes: Sequence[str] = ()) -> None:
     write_bytes_atomic(out / "results.jsonl", "".join(json.dumps(r, sort_keys=True) + "\n" for r in rows).encode())
     write_bytes_atomic(out / "table.md", ("Road IoU (%) on each evaluated dataset's test images (never "
-                                          "trained on), scored in its own camera.\n\n" + format_table(rows, heldout, conditions)).encode())
+                                          "trained on), scored in its own camera.\n\n" + format_table(rows, heldout, conditions)
+                                          + "".join(f"\n{n}\n" for n in notes)).encode())
     write_bytes_atomic(out / "table.csv", format_table(rows, heldout, conditions, "csv").encode())
     _atomic_json(out / "summary.json", summary_of(rows, conditions))
