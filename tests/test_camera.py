@@ -127,3 +127,14 @@ def test_unknown_camera_spec():
 def test_shipped_camera_template_is_valid():
     cam = read_camera_yaml(EXAMPLES / "camera_template.yaml")
     assert cam.name == "mycam" and cam.size == (1280, 720) and cam.cx == 639.5
+
+
+@pytest.mark.parametrize("name", ["true", "no", "1.5", "null", "cam #2", "a: b", "mycam"])
+def test_camera_names_that_yaml_would_misread_round_trip(tmp_path, name):
+    from dataclasses import replace as _replace
+
+    from vcprep.camera import PRESETS, camera_to_yaml, read_camera_yaml
+
+    cam = _replace(PRESETS["camvid"], name=name)
+    (tmp_path / "c.yaml").write_text(camera_to_yaml(cam))
+    assert read_camera_yaml(tmp_path / "c.yaml") == cam

@@ -163,3 +163,22 @@ def test_warp_with_camera_estimate_equals_warp_with_the_estimated_camera(tmp_pat
     assert proc.returncode == 0, proc.stderr
     for name in sorted((tmp_path / "a" / "images").iterdir()):
         assert name.read_bytes() == (tmp_path / "b" / "images" / name.name).read_bytes()
+
+
+def test_figure_camera_draws_the_horizon_where_the_camera_puts_it(tmp_path):
+    cam = Camera("true", (320, 240), 300.0, 300.0, 159.5, 119.5, 1.4, tilt=5.0, ego_rows=20)
+    files = _frames(tmp_path / "f", cam, n=2)
+    (tmp_path / "cam.yaml").write_text(__import__("vcprep.camera", fromlist=["camera_to_yaml"]).camera_to_yaml(cam))
+    out = tmp_path / "fig" / "cam.png"
+    proc = run_cli("figure", "camera", tmp_path / "cam.yaml", *files, "-o", out, "--width", "640", "--samples", "2")
+    assert proc.returncode == 0, proc.stderr
+    fig = cv2.imread(str(proc.stdout.strip()))
+    assert fig.shape[1] == 640
+    s = 320 / 320  # two columns of 320 px: frames at their own scale
+    row = 56 + round((vp_from_pose(cam)[1] + 0.5) * s - 0.5)       # under the 56-px caption
+    cyan = (fig[:, :, 0] > 200) & (fig[:, :, 1] > 200) & (fig[:, :, 2] < 80)
+    assert cyan[row].mean() > 0.9                                    # the horizon, across both frames
+    assert cyan[row - 3].mean() < 0.1 and cyan[row + 3].mean() < 0.1   # and nowhere near it
+    ego = fig[56 + 240 - 10, :, 2].astype(int) - fig[56 + 240 - 10, :, 0]   # the ego band is tinted red
+    top = fig[56 + 10, :, 2].astype(int) - fig[56 + 10, :, 0]
+    assert ego.mean() > top.mean() + 40

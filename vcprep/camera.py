@@ -271,11 +271,24 @@ def read_camera_yaml(path: str | Path) -> Camera:
     return camera_from_dict(d, path, default_name=path.stem)
 
 
+def yaml_name(name: str) -> str:
+    """``name`` as a YAML scalar that reads back as this string (quoted where YAML would read a
+    bool, number or null: a camera named 'true' or '1.5')."""
+    import yaml
+
+    try:
+        if yaml.safe_load(name) == name and "#" not in name and ": " not in name:
+            return name
+    except yaml.YAMLError:
+        pass
+    return json.dumps(name)
+
+
 def camera_to_yaml(cam: Camera) -> str:
     d = cam.to_dict()
     lines = [
         "# vcprep camera (pixels: origin at the centre of the top-left pixel)",
-        f"name: {d['name']}",
+        f"name: {yaml_name(d['name'])}",
         f"image_size: [{d['image_size'][0]}, {d['image_size'][1]}]   # width, height in pixels",
         f"fx: {d['fx']:.10g}   # focal lengths in pixels",
         f"fy: {d['fy']:.10g}",

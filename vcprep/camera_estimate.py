@@ -39,7 +39,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from .camera import Camera
+from .camera import Camera, yaml_name
 from .errors import InputError
 from .homography import pose_from_vp
 
@@ -273,7 +273,7 @@ def estimate_to_yaml(est: CameraEstimate) -> str:
            "ego_rows": c.ego_rows}
     lines = [f"# vcprep camera estimate: {est.frames} frames, {est.accepted} road VPs accepted. ESTIMATED values "
              "come from the frames, GIVEN from you, ASSUMED ones are guesses: replace them when you know better.",
-             f"name: {c.name}", f"image_size: [{c.size[0]}, {c.size[1]}]"]
+             f"name: {yaml_name(c.name)}", f"image_size: [{c.size[0]}, {c.size[1]}]"]
     for k in _KEYS:
         if k == "ego_rows" and not c.ego_rows:
             lines.append(f"# ego_rows: 0   # {v[k].note()}")

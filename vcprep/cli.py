@@ -778,6 +778,33 @@ def vp_cmd(images: List[Path] = typer.Argument(..., help="image files or folders
         err(f"{count(len(results), 'image')}: {_vp_counts(results)}")
 
 
+@figure_app.command("camera")
+def figure_camera(camera: str = typer.Argument(..., help=CAMERA_HELP),
+                  images: List[Path] = typer.Argument(..., help="frames of this camera: files or folders"),
+                  out: Path = typer.Option(..., "-o", "--out", help="PNG to write"),
+                  vps: Optional[Path] = typer.Option(None, "--vps", help="CSV of the frames' road VPs (vcprep vp, "
+                                                     "vcprep camera estimate --vps): drawn as red +"),
+                  samples: int = typer.Option(4, "--samples", min=1, max=32, help="frames drawn, evenly spread"),
+                  width: int = typer.Option(1400, "--width", min=200, help="figure width in pixels")):
+    """Draw a camera on sample frames to see in one look whether it is right: the horizon and
+    the camera's average road VP (cyan), each frame's own road VP (red +, with --vps), the own
+    vehicle's rows (red band), the principal point (white dot).
+
+    \b
+    Example:
+      vcprep camera estimate data/dashcam -o dashcam.yaml --vps dashcam_vps.csv
+      vcprep figure camera dashcam.yaml data/dashcam --vps dashcam_vps.csv -o dashcam.png
+    """
+    from .figures import camera_figure
+    from .vanishing_point import read_vp_csv
+
+    files = _image_files(images)
+    n = min(samples, len(files))
+    pick = [files[round(i * (len(files) - 1) / max(1, n - 1))] for i in range(n)]
+    cam = camera_for(camera, pick[0], per_frame=False)
+    save_figure(out, camera_figure(pick, cam, read_vp_csv(vps) if vps else None, width=width))
+
+
 @figure_app.command("vp")
 def figure_vp(image: Path = typer.Argument(..., help="image file"),
               camera: str = typer.Option(..., "--camera", "-c", help=CAMERA_HELP),

@@ -323,3 +323,53 @@ def prior_figure(prior: np.ndarray, mean: np.ndarray, unknown: np.ndarray | None
     text = f"road prior p_g; contours {levels[0]:g} (dark), {levels[1]:g} (white)" + (f"; {caption}" if caption else "")
     cv2.putText(bar, text, (x1 + 16, 28), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 0), 1, cv2.LINE_AA)
     return np.vstack([out, bar])
+
+
+CAMERA_LEGEND = "cyan line: horizon | cyan +: the camera's average road VP | red +: this frame's road VP | " \
+                "red band: own vehicle (ego_rows) | white dot: principal point"
+
+
+def camera_figure(images: list, camera, vps: dict | None = None, width: int = 1400, columns: int = 2) -> np.ndarray:
+    """A camera drawn on sample frames, to see in one look whether it is right: the horizon
+    (the row of the camera's average road VP; roll 0), that VP, each frame's own road VP from
+    ``vps`` (id -> (u, v), source pixels), the own-vehicle rows shaded, the principal point, and
+    a caption with the pose and focal length. ``images``: paths (ids = file stems)."""
+    from .homography import vp_from_pose
+
+    tiles = []
+    cw = width // columns
+    for p in images:
+        img = to_bgr8(read_image(p).array)
+        h, w = img.shape[:2]
+        cam = camera.for_image_size((w, h), p)
+        s = cw / w
+        t = cv2.resize(img, (cw, max(1, int(round(h * s)))), interpolation=cv2.INTER_AREA)
+        if cam.ego_rows:
+            y0 = int(round((h - cam.ego_rows) * s))
+            band = t[y0:].copy()
+            band[..., 2] = np.maximum(band[..., 2], 200)
+            t[y0:] = cv2.addWeighted(t[y0:], 0.5, band, 0.5, 0)
+            cv2.line(t, (0, y0), (cw - 1, y0), VP_RED, 1, cv2.LINE_AA)
+        u, v = vp_from_pose(cam)
+        pt = lambda x, y: (int(round((x + 0.5) * s - 0.5)), int(round((y + 0.5) * s - 0.5)))
+        cv2.line(t, (0, pt(u, v)[1]), (cw - 1, pt(u, v)[1]), (255, 255, 0), 1, cv2.LINE_AA)
+        cv2.drawMarker(t, pt(u, v), (255, 255, 0), cv2.MARKER_CROSS, 22, 2, cv2.LINE_AA)
+        own = (vps or {}).get(p.stem) if hasattr(p, "stem") else None
+        if own is not None:
+            cv2.drawMarker(t, pt(*own), VP_RED, cv2.MARKER_CROSS, 16, 2, cv2.LINE_AA)
+        cv2.circle(t, pt(cam.cx, cam.cy), 3, (255, 255, 255), -1, cv2.LINE_AA)
+        tiles.append(t)
+    th = max(t.shape[0] for t in tiles)
+    rows = []
+    for i in range(0, len(tiles), columns):
+        row = [np.pad(t, ((0, th - t.shape[0]), (0, 0), (0, 0))) for t in tiles[i:i + columns]]
+        row += [np.zeros((th, cw, 3), np.uint8)] * (columns - len(row))
+        rows.append(np.hstack(row))
+    cam0 = camera.for_image_size(read_image(images[0]).size, images[0])
+    hf, vf = cam0.fov_deg()
+    head = np.full((56, columns * cw, 3), 255, np.uint8)
+    cv2.putText(head, f"{camera.name}: tilt {camera.tilt:.2f} deg, pan {camera.pan:.2f} deg, fx {cam0.fx:.0f} fy "
+                      f"{cam0.fy:.0f} px ({hf:.0f} x {vf:.0f} deg), height {camera.height:g} m, ego_rows {cam0.ego_rows}",
+                (10, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 1, cv2.LINE_AA)
+    cv2.putText(head, CAMERA_LEGEND, (10, 46), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (60, 60, 60), 1, cv2.LINE_AA)
+    return np.vstack([head] + rows)
