@@ -182,3 +182,17 @@ def test_figure_camera_draws_the_horizon_where_the_camera_puts_it(tmp_path):
     ego = fig[56 + 240 - 10, :, 2].astype(int) - fig[56 + 240 - 10, :, 0]   # the ego band is tinted red
     top = fig[56 + 10, :, 2].astype(int) - fig[56 + 10, :, 0]
     assert ego.mean() > top.mean() + 40
+
+
+def test_camera_estimate_wherever_frames_are_given(tmp_path):
+    """vcprep vp --camera estimate gives the VPs of the estimated camera; a command without frames
+    to estimate from says what to do instead."""
+    cam = Camera("true", (320, 240), 277.128, 277.128, 159.5, 119.5, 1.4, tilt=2.0)
+    _frames(tmp_path / "f", cam)
+    a = run_cli("vp", "--camera", "estimate", tmp_path / "f")
+    assert a.returncode == 0, a.stderr
+    assert "camera ESTIMATED from 6 frames" in a.stderr
+    assert run_cli("camera", "estimate", tmp_path / "f", "-o", tmp_path / "c.yaml", "-q").returncode == 0
+    b = run_cli("vp", "--camera", tmp_path / "c.yaml", tmp_path / "f")
+    assert a.stdout == b.stdout
+    assert_one_error_line(run_cli("camera", "show", "estimate"), "not a camera preset")

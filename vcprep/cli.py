@@ -26,6 +26,7 @@ app.add_typer(figure_app, name="figure")
 COMPLETE_HELP = ("fill uncovered virtual pixels: projective (paper §4.3: rays from the VP), zero (image 0, label "
                  "not road), replicate (nearest covered pixel) or none (image 0, label ignore)")
 CAMERA_HELP = f"camera preset ({', '.join(PRESETS)}) or file (.yaml camera, .txt KITTI calib, .json Cityscapes)"
+ESTIMATE_HELP = ", or 'estimate': estimated from these frames (as 'vcprep camera estimate' does)"
 FRAMES_HELP = (CAMERA_HELP + ", or a folder of per-frame calibration files matched to the images by stem (KITTI "
                "calib/<stem>.txt, Cityscapes camera/.../<stem>_camera.json): each image gets its own camera and pose")
 WITHIN_HELP = ("within-camera correction: 'none' (camera's average pose), 'estimate' (detect each image's road "
@@ -58,12 +59,27 @@ def save_figure(out: Path, fig) -> None:
     print(out)
 
 
-def camera_for(spec: str, sample_image: Path | None = None, per_frame: bool = True):
+def camera_for(spec: str, sample_image: Path | None = None, per_frame: bool = True,
+               frames: "list[Path] | None" = None, quiet: bool = False):
     """Load ``spec`` (:func:`vcprep.camera.load_cameras`): calibration files (.txt/.json) carry
     no image size, so it is taken from a frame; a folder is per-frame calibration
-    (:class:`~vcprep.camera.FrameCameras`) where ``per_frame``, else an error."""
+    (:class:`~vcprep.camera.FrameCameras`) where ``per_frame``, else an error. ``estimate``:
+    the camera estimated from ``frames`` (:mod:`vcprep.camera_estimate`; said on stderr)."""
     from .camera import load_cameras
 
+    if spec == "estimate":
+        if frames is None:
+            raise InputError("this command cannot estimate a camera", None,
+                             "run 'vcprep camera estimate FRAMES -o cam.yaml' and give --camera cam.yaml")
+        from .camera_estimate import estimate_camera
+
+        est = estimate_camera(frames, name="estimated")
+        if not quiet:
+            v = est.values
+            err(f"camera ESTIMATED from {count(len(frames), 'frame')}: tilt {v['tilt'].value:g} deg, pan "
+                f"{v['pan'].value:g} deg; " + "; ".join(f"assumed {w}" for w in est.warnings)
+                + " (write it out with 'vcprep camera estimate')")
+        return est.camera
     return load_cameras(spec, sample_image, per_frame=per_frame)
 
 
@@ -726,7 +742,7 @@ def _image_files(paths: List[Path]) -> list[Path]:
 
 @app.command("vp")
 def vp_cmd(images: List[Path] = typer.Argument(..., help="image files or folders of images"),
-           camera: str = typer.Option(..., "--camera", "-c", help=CAMERA_HELP),
+           camera: str = typer.Option(..., "--camera", "-c", help=CAMERA_HELP + ESTIMATE_HELP),
            out: Optional[Path] = typer.Option(None, "-o", "--out", help="CSV 'id,u,v,status,...' to write"),
            as_json: bool = typer.Option(False, "--json", help="one JSON object per image on stdout"),
            smooth: int = typer.Option(0, "--smooth", min=0, help=SMOOTH_HELP),
@@ -759,7 +775,7 @@ def vp_cmd(images: List[Path] = typer.Argument(..., help="image files or folders
         if i in seen:
             raise InputError(f"duplicate image id '{i}' (also {seen[i]})", f, "VP files are keyed by file stem: give each image a unique name")
         seen[i] = f
-    cam = camera_for(camera, files[0], per_frame=False)
+    cam = camera_for(camera, files[0], per_frame=False, frames=files, quiet=quiet)
     bar = tqdm(total=len(files), desc="vp", unit="img", disable=True if quiet else None, leave=False)
     try:
         results = estimate_files(files, cam, smooth=smooth, ids=ids, on_image=lambda i: bar.update())
@@ -779,7 +795,7 @@ def vp_cmd(images: List[Path] = typer.Argument(..., help="image files or folders
 
 
 @figure_app.command("camera")
-def figure_camera(camera: str = typer.Argument(..., help=CAMERA_HELP),
+def figure_camera(camera: str = typer.Argument(..., help=CAMERA_HELP + ESTIMATE_HELP),
                   images: List[Path] = typer.Argument(..., help="frames of this camera: files or folders"),
                   out: Path = typer.Option(..., "-o", "--out", help="PNG to write"),
                   vps: Optional[Path] = typer.Option(None, "--vps", help="CSV of the frames' road VPs (vcprep vp, "
@@ -801,7 +817,7 @@ def figure_camera(camera: str = typer.Argument(..., help=CAMERA_HELP),
     files = _image_files(images)
     n = min(samples, len(files))
     pick = [files[round(i * (len(files) - 1) / max(1, n - 1))] for i in range(n)]
-    cam = camera_for(camera, pick[0], per_frame=False)
+    cam = camera_for(camera, pick[0], per_frame=False, frames=files)
     save_figure(out, camera_figure(pick, cam, read_vp_csv(vps) if vps else None, width=width))
 
 

@@ -170,7 +170,8 @@ def predict_cmd(
     out: Path = typer.Option(..., "--out", "-o", help="output folder (created)"),
     camera: Optional[str] = typer.Option(None, "--camera", "-c",
                                          help="camera of the images: preset or file (.yaml, KITTI .txt, Cityscapes .json), "
-                                              "or a folder of per-frame calibration files matched by stem; a .yaml "
+                                              "or a folder of per-frame calibration files matched by stem, or "
+                                              "'estimate' (from these images, as 'vcprep camera estimate' does); a .yaml "
                                               "camera's ego_rows (its own vehicle) are never warped; the prediction there "
                                               "continues the scene above them"),
     prior: Optional[Path] = typer.Option(None, "--prior", help="no model: segment with the geometric prior written by "
@@ -223,7 +224,8 @@ def predict_cmd(
         if camera is not None:
             from vcprep.cli import camera_for
 
-            cam = camera_for(camera, collect_images(images)[0].image)
+            cam = camera_for(camera, collect_images(images)[0].image,
+                             frames=[j.image for j in collect_images(images)], quiet=quiet)
         elif predictor.mode == "virtual":
             raise InputError("a virtual-camera model needs the camera of the images", predictor.path,
                              "add --camera (preset or calibration file)")
@@ -241,7 +243,8 @@ def adapt_cmd(
     images: Path = typer.Option(..., "--images", "-i", help="folder (or file) of UNLABELLED target images"),
     camera: str = typer.Option(..., "--camera", "-c", help="camera of the target images: preset or file (.yaml, "
                                                            "KITTI .txt, Cityscapes .json), or a folder of per-frame "
-                                                           "calibration files (every frame its exact pose)"),
+                                                           "calibration files (every frame its exact pose), or "
+                                                           "'estimate' (from these images)"),
     prior: Path = typer.Option(..., "--prior", help="geometric prior written by 'vcprep prior' (.npy or .png) in the "
                                                     "model's virtual camera and scale"),
     out: Path = typer.Option(..., "--out", "-o", help="adapted checkpoint; OUT-stem.last.pt and OUT-stem.log.jsonl "
@@ -281,7 +284,8 @@ def adapt_cmd(
     from .adapt import adapt
     from .predict import collect_images
 
-    cam = camera_for(camera, collect_images([images])[0].image)
+    cam = camera_for(camera, collect_images([images])[0].image, frames=[j.image for j in collect_images([images])],
+                     quiet=quiet)
     ensure_parent(out)
     summary = adapt(checkpoint, images, cam, prior, out, lo=lo, hi=hi, combine=combine, epochs=epochs, lr=lr,
                     store=store, within=within, device=device, seed=seed, progress=not quiet)
