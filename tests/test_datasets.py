@@ -402,3 +402,14 @@ def test_idd_eval_finds_labels_by_item_id(tmp_path):
                    prog="vctrain")
     assert proc.returncode == 0, proc.stderr
     assert fn > 0 and json.loads(proc.stdout.strip().splitlines()[-1])["iou"] == pytest.approx(tp / (tp + fp + fn))
+
+
+def test_list_dataset_names_the_missing_images_before_the_labels(tmp_path):
+    """A caller that skips the CLI's check (a study) is told about the images folder first."""
+    from vcprep.build import list_dataset
+    from vcprep.errors import InputError
+    from vcprep.labels import get_label_format
+
+    with pytest.raises(InputError) as e:
+        list_dataset(tmp_path / "no_images", tmp_path / "no_labels", get_label_format("camvid"))
+    assert e.value.file == tmp_path / "no_images" or str(e.value.file) == str(tmp_path / "no_images")

@@ -150,6 +150,8 @@ def list_dataset(images: str | Path, labels: str | Path | None = None, fmt: Labe
     A missing label is an error; ids are file stems, and two images with one id are an error."""
     images = Path(images)
     label_dir = Path(labels) if labels is not None else None
+    if not images.is_dir():  # the images first: with both folders missing, the images are what to fix first
+        find_images(images)
     if label_dir is not None:
         if fmt is None:
             raise InputError("labels given without a label format", label_dir, "add --label-format (e.g. camvid)")
