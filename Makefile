@@ -8,7 +8,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= out/demo
 
-.PHONY: install test demo bench clean fuzz
+.PHONY: install test demo bench clean fuzz docs
 
 # torch==2.13.0 first: it resolves to the local CPU build; the package's own range (torch>=2.1,<3)
 # is then already satisfied, so pip never pulls a multi-GB CUDA build.
@@ -34,6 +34,10 @@ demo: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) benchmarks/warp.py
+
+# docs/results.md and the README's headline, generated from benchmarks/results/*.json (tests/test_docs.py checks them)
+docs: $(STAMP)
+	$(PY) benchmarks/results_page.py
 
 clean:
 	rm -rf $(VENV) out *.egg-info
