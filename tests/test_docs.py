@@ -1,0 +1,372 @@
+"""Docs that cannot rot (issue 26): README.md and docs/*.md against the code and the results.
+
+* docs/results.md and the README's headline block are exactly what benchmarks/results_page.py makes
+  of benchmarks/results/*.json;
+* every command line shown in a fenced code block (and every ``vcprep``/``vctrain`` command in an
+  inline code span) names a real command whose flags appear in that command's ``--help``; fenced
+  commands also take the number of arguments the command takes; ``make`` targets and benchmark
+  scripts (and their flags) exist;
+* the cheap fenced commands whose inputs exist (the shipped examples, presets) are run for real,
+  in document order, in a scratch folder that holds ``examples/``;
+* every relative Markdown link resolves to a file, and its ``#anchor`` to a heading.
+
+No network, nothing from ../shared.
+"""
+from __future__ import annotations
+
+import glob
+import importlib.util
+import os
+import re
+import shlex
+import subprocess
+from functools import lru_cache
+from pathlib import Path
+
+import pytest
+from typer.testing import CliRunner
+
+from conftest import BIN
+
+ROOT = Path(__file__).resolve().parent.parent
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+SHELL_LANGS = {"", "sh", "bash", "shell", "console"}
+PATH_SUFFIXES = {".yaml", ".yml", ".txt", ".json", ".png", ".jpg", ".csv", ".npy", ".pt", ".md"}
+OUTPUT_OPTIONS = {"-o", "--out"}
+# (prog, subcommand path) run for real when every input they name exists: fast, on a few frames
+RUNNABLE = {("vcprep", ("cameras",)), ("vcprep", ("camera", "show")), ("vcprep", ("camera", "design")),
+            ("vcprep", ("warp",)), ("vcprep", ("complete",)), ("vcprep", ("vp",)),
+            ("vcprep", ("store", "show")), ("vcprep", ("store", "info")), ("vcprep", ("store", "verify")),
+            ("vcprep", ("figure", "warp")), ("vcprep", ("figure", "completion")), ("vcprep", ("figure", "vp")),
+            ("vcprep", ("figure", "fov")), ("vcprep", ("figure", "footprints"))}
+
+
+def _results_page():
+    spec = importlib.util.spec_from_file_location("results_page", ROOT / "benchmarks" / "results_page.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+# ---------------------------------------------------------------- generated results
+
+
+def test_results_page_matches_the_json():
+    rp = _results_page()
+    assert (ROOT / "docs" / "results.md").read_text() == rp.render_page(), \
+        "docs/results.md differs from benchmarks/results/*.json: run `make docs`"
+
+
+def test_readme_headline_matches_the_json():
+    rp = _results_page()
+    readme = (ROOT / "README.md").read_text()
+    assert rp.with_headline(readme, rp.render_headline()) == readme, \
+        "README.md's headline differs from benchmarks/results/real_cameras.json: run `make docs`"
+
+
+def test_results_page_lists_every_json_with_its_facts():
+    page = (ROOT / "docs" / "results.md").read_text()
+    for p in sorted((ROOT / "benchmarks" / "results").glob("*.json")):
+        assert f"\n## {p.stem}\n" in page
+        section = page.split(f"\n## {p.stem}\n", 1)[1].split("\n## ", 1)[0]
+        for fact in ("| command |", "| date |", "| machine |"):
+            assert fact in section, (p.name, fact)
+
+
+def test_results_page_generator_is_deterministic_and_generic(tmp_path):
+    """A JSON the generator has no table for gets one from its headline, with its recorded facts."""
+    rp = _results_page()
+    (tmp_path / "newbench.json").write_text('{"headline": {"ratio": 1.25, "n": 3}, "date": "2026-01-02", '
+                                            '"command": "benchmarks/newbench.py --x 1", "machine": "x86_64, 2 cores"}')
+    page = rp.render_page(tmp_path)
+    assert page == rp.render_page(tmp_path)
+    assert "| ratio | 1.2500 |" in page and "| n | 3 |" in page
+    assert "| date | 2026-01-02 |" in page and "`benchmarks/newbench.py --x 1`" in page and "x86_64, 2 cores" in page
+
+
+# ---------------------------------------------------------------- command lines in the docs
+
+
+def fenced_blocks(text: str) -> list[tuple[str, str]]:
+    """(language, body) of every fenced code block."""
+    return [(m.group(1).strip(), m.group(2)) for m in re.finditer(r"^```([^\n]*)\n(.*?)^```", text, re.S | re.M)]
+
+
+def command_lines(body: str) -> list[str]:
+    """Shell lines of a block with ``\\`` continuations joined."""
+    out, cur = [], ""
+    for line in body.splitlines():
+        if line.rstrip().endswith("\\"):
+            cur += line.rstrip()[:-1] + " "
+            continue
+        out.append(cur + line)
+        cur = ""
+    return [ln.strip() for ln in out + ([cur] if cur else []) if ln.strip()]
+
+
+def pipeline(line: str) -> list[list[str]]:
+    """The simple commands of a line (split at |, &&, ||, ;), comments dropped."""
+    try:
+        tokens = shlex.split(line, comments=True)
+    except ValueError:
+        return []
+    cmds, cur = [], []
+    for t in tokens:
+        if t in ("|", "&&", "||", ";"):
+            cmds.append(cur)
+            cur = []
+        else:
+            cur.append(t)
+    return [c for c in cmds + [cur] if c]
+
+
+def shown_commands() -> list[tuple[str, str, list[str], bool]]:
+    """(page, line, argv, fenced) of every vcprep/vctrain/make/benchmark command shown."""
+    found = []
+    for page in PAGES:
+        text = page.read_text()
+        for lang, body in fenced_blocks(text):
+            if lang not in SHELL_LANGS:
+                continue
+            for line in command_lines(body):
+                for argv in pipeline(line):
+                    found.append((page.name, line, argv, True))
+        prose = re.sub(r"^```.*?^```", "", text, flags=re.S | re.M)
+        for span in re.findall(r"`([^`\n]+)`", prose):
+            if re.match(r"(vcprep|vctrain) ", span):
+                for argv in pipeline(span):
+                    found.append((page.name, span, argv, False))
+    return found
+
+
+COMMANDS = shown_commands()
+
+
+@lru_cache(maxsize=None)
+def help_of(prog: str, path: tuple[str, ...]) -> str:
+    if prog == "vcprep":
+        from vcprep.cli import app
+    else:
+        from vctrain.cli import app
+    res = CliRunner().invoke(app, [*path, "--help"], env={"COLUMNS": "200"}, prog_name=prog)
+    assert res.exit_code == 0, (prog, path, res.output)
+    return res.output
+
+
+def section(help_text: str, name: str) -> list[str]:
+    lines, inside = [], False
+    for ln in help_text.splitlines():
+        if re.match(r"^\S.*:$", ln):
+            inside = ln.strip() == f"{name}:"
+            continue
+        if inside:
+            lines.append(ln)
+    return lines
+
+
+def resolve(prog: str, args: list[str]) -> tuple[tuple[str, ...], list[str]]:
+    """The subcommand path named by ``args`` (checked against --help) and the arguments after it."""
+    path: tuple[str, ...] = ()
+    while True:
+        names = [m.group(1) for ln in section(help_of(prog, path), "Commands")
+                 if (m := re.match(r"^\s{2}(\S+)\s", ln + " "))]
+        if not names:
+            return path, args
+        if args and is_placeholder(args[0]):  # `vcprep figure …`: a family of commands
+            return path, []
+        assert args and args[0] in names, f"'{prog} {' '.join(path)}' has no command '{args[0] if args else ''}'"
+        path, args = path + (args[0],), args[1:]
+
+
+@lru_cache(maxsize=None)
+def signature(prog: str, path: tuple[str, ...]) -> tuple[dict[str, bool], list[tuple[str, bool, bool]]]:
+    """``{option: takes a value}`` and ``[(argument, variadic, required)]`` from the command's --help."""
+    text = help_of(prog, path)
+    options: dict[str, bool] = {"--help": False}
+    for ln in section(text, "Options"):
+        m = re.match(r"^\s{2}(-[^\s<].*?)(?:\s{2,}|$)", ln)
+        if not m:
+            continue
+        head = m.group(1)
+        takes = "<" in head
+        for name in re.findall(r"(?<![\w-])(--?[A-Za-z][\w-]*)", head.split("<")[0]):
+            options[name] = takes
+    arguments, cur = [], None
+    for ln in section(text, "Arguments"):
+        m = re.match(r"^\s{2}(\w[\w-]*)(\.\.\.)?\s", ln)
+        if m:
+            cur = [m.group(1), bool(m.group(2)), False]
+            arguments.append(cur)
+        if cur is not None and "[required]" in ln:
+            cur[2] = True
+    return options, [tuple(a) for a in arguments]
+
+
+def split_args(options: dict[str, bool], args: list[str], where: str,
+               fenced: bool = True) -> tuple[list[tuple[str, str | None]], list[str]]:
+    """(options used with their values, positionals); an unknown option fails naming ``where``. Prose
+    may name an option alone (`vctrain predict --prior`); a command line must give its value."""
+    used, positional, i = [], [], 0
+    while i < len(args):
+        a = args[i].strip("[]")
+        if a.startswith("-") and len(a) > 1 and not re.match(r"-\d", a):
+            name, _, inline = a.partition("=")
+            assert name in options, f"{where}: '{name}' is not an option of this command (see its --help)"
+            value = inline or None
+            if options[name] and not inline:
+                assert i + 1 < len(args) or not fenced, f"{where}: '{name}' needs a value"
+                value = args[i + 1] if i + 1 < len(args) else None
+                i += 1
+            used.append((name, value))
+        elif a:
+            positional.append(a)
+        i += 1
+    return used, positional
+
+
+def is_placeholder(token: str) -> bool:
+    return "..." in token or "…" in token or bool(re.fullmatch(r"[A-Z][A-Z_]*", token)) or token.startswith("$")
+
+
+def check_cli(prog: str, argv: list[str], fenced: bool, where: str) -> tuple[tuple[str, ...], list, list[str]]:
+    path, rest = resolve(prog, argv)
+    options, arguments = signature(prog, path)
+    used, positional = split_args(options, rest, where, fenced)
+    if fenced and not any(is_placeholder(t) for t in rest):
+        n_min = sum(1 for _, _, req in arguments if req)
+        variadic = any(v for _, v, _ in arguments)
+        assert len(positional) >= n_min, f"{where}: {len(positional)} arguments, the command needs {n_min}"
+        assert variadic or len(positional) <= len(arguments), \
+            f"{where}: {len(positional)} arguments, the command takes {len(arguments)}"
+    return path, used, positional
+
+
+def make_targets(makefile: Path) -> set[str]:
+    targets = set()
+    for ln in makefile.read_text().splitlines():
+        m = re.match(r"^([\w./%$()-][\w./%$() -]*?)\s*:(?!=)", ln)
+        if m and not ln.startswith("\t"):
+            targets.update(m.group(1).split())
+    return targets
+
+
+def check_make(argv: list[str], where: str) -> None:
+    makefile, targets, i = ROOT / "Makefile", [], 1
+    while i < len(argv):
+        a = argv[i]
+        if a == "-f":
+            makefile = ROOT / argv[i + 1]
+            i += 1
+        elif a.startswith("-") or "=" in a:
+            pass
+        else:
+            targets.append(a)
+        i += 1
+    assert makefile.is_file(), f"{where}: no {makefile.relative_to(ROOT)}"
+    known = make_targets(makefile)
+    for t in targets:
+        assert t in known, f"{where}: {makefile.relative_to(ROOT)} has no target '{t}'"
+
+
+def check_benchmark(argv: list[str], where: str) -> None:
+    script = ROOT / argv[1]
+    assert script.is_file(), f"{where}: no {argv[1]}"
+    source = script.read_text()
+    for a in argv[2:]:
+        if a.startswith("--"):
+            assert f'"{a.split("=")[0]}"' in source, f"{where}: {argv[1]} has no option {a}"
+
+
+@pytest.mark.parametrize("page,line,argv,fenced", COMMANDS, ids=[f"{c[0]}:{' '.join(c[2])[:60]}" for c in COMMANDS])
+def test_shown_command_parses(page, line, argv, fenced):
+    where = f"{page}: `{line}`"
+    prog = Path(argv[0]).name
+    if prog in ("vcprep", "vctrain"):
+        check_cli(prog, argv[1:], fenced, where)
+    elif prog == "make" and fenced:
+        check_make(argv, where)
+    elif prog.startswith("python") and len(argv) > 1 and argv[1].startswith("benchmarks/"):
+        check_benchmark(argv, where)
+
+
+def test_docs_show_commands():
+    """The scan finds the commands (a broken scanner would pass every check above vacuously)."""
+    progs = {Path(a[0]).name for _, _, a, _ in COMMANDS}
+    assert {"vcprep", "vctrain", "make"} <= progs
+    assert sum(1 for c in COMMANDS if c[3]) > 50
+
+
+def runnable(prog: str, path: tuple[str, ...], used, positional, cwd: Path) -> bool:
+    if (prog, path) not in RUNNABLE:
+        return False
+    inputs = positional + [v for name, v in used if v is not None and name not in OUTPUT_OPTIONS]
+    for t in inputs:
+        if is_placeholder(t):
+            return False
+        if "*" in t:
+            if not glob.glob(str(cwd / t)):
+                return False
+        elif ("/" in t or Path(t).suffix.lower() in PATH_SUFFIXES) and not (cwd / t).exists():
+            return False
+    return True
+
+
+@pytest.mark.parametrize("page", PAGES, ids=[p.name for p in PAGES])
+def test_cheap_commands_run_on_the_examples(page, tmp_path):
+    """Each page's runnable fenced commands, in order, in a folder holding examples/ (a link)."""
+    (tmp_path / "examples").symlink_to(ROOT / "examples")
+    ran = 0
+    for name, line, argv, fenced in COMMANDS:
+        prog = Path(argv[0]).name
+        if name != page.name or not fenced or prog not in ("vcprep", "vctrain"):
+            continue
+        path, used, positional = check_cli(prog, argv[1:], True, f"{name}: `{line}`")
+        if not runnable(prog, path, used, positional, tmp_path):
+            continue
+        args = []
+        for a in argv[1:]:
+            args += sorted(os.path.relpath(p, tmp_path) for p in glob.glob(str(tmp_path / a))) if "*" in a else [a]
+        proc = subprocess.run([str(BIN / prog), *args], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+        assert proc.returncode == 0, f"{name}: `{line}` failed:\n{proc.stderr[-2000:]}"
+        ran += 1
+    if page.name == "README.md":
+        assert ran >= 5  # the quick start on the shipped examples
+
+
+# ---------------------------------------------------------------- links
+
+
+def anchors(page: Path) -> set[str]:
+    """GitHub's heading anchors: lower case, punctuation but - and _ dropped, spaces to -, repeats -1, -2."""
+    text = re.sub(r"^```.*?^```", "", page.read_text(), flags=re.S | re.M)
+    seen: dict[str, int] = {}
+    out = set()
+    for title in re.findall(r"^#{1,6}\s+(.*?)\s*#*\s*$", text, re.M):
+        a = re.sub(r"[^\w\- ]", "", title.strip().lower()).replace(" ", "-")
+        n = seen.get(a, 0)
+        seen[a] = n + 1
+        out.add(a if n == 0 else f"{a}-{n}")
+    return out
+
+
+LINKS = [(page, target) for page in PAGES
+         for target in re.findall(r"\[[^\]]*\]\(([^)\s]+)\)",
+                                  re.sub(r"^```.*?^```", "", page.read_text(), flags=re.S | re.M))
+         if not re.match(r"[a-z]+:", target)]
+
+
+@pytest.mark.parametrize("page,target", LINKS, ids=[f"{p.name}->{t}" for p, t in LINKS])
+def test_link_resolves(page, target):
+    file, _, anchor = target.partition("#")
+    dest = (page.parent / file).resolve() if file else page
+    assert dest.exists(), f"{page.name}: link to {target}: no such file"
+    assert ROOT in dest.parents or dest == ROOT, f"{page.name}: link to {target} leaves the repository"
+    if anchor and dest.suffix == ".md":
+        assert anchor in anchors(dest), f"{page.name}: link to {target}: no heading with that anchor"
+
+
+def test_docs_have_links_and_readme_is_short():
+    assert len(LINKS) > 20
+    assert (ROOT / "README.md").stat().st_size <= 15_000
+    readme = (ROOT / "README.md").read_text().splitlines()
+    assert readme[3].startswith("make demo") and readme[4].startswith("make test")
