@@ -323,6 +323,8 @@ def render_page(results: Path = RESULTS) -> str:
     out += [f"- [{p.stem}](#{anchor(p.stem)})" for p in files] + [""]
     for p in files:
         d = json.loads(p.read_text())
+        if not isinstance(d, dict):  # a bare list or value: say what it is
+            d = {"headline": {"entries": len(d) if isinstance(d, list) else d}}
         out += [f"## {p.stem}", ""]
         out += table(["", ""], run_facts(p.stem, d))
         out += RENDER.get(p.stem, r_generic)(d)

@@ -334,7 +334,7 @@ def eval_cmd(
 @app.command("crossval")
 def crossval_cmd(
     study: Path = typer.Argument(..., help="study YAML: datasets (camera, label format, role, train/test images and "
-                                           "labels, optional VPs) and settings; schema in the README"),
+                                           "labels, optional VPs) and settings; schema in docs/studies.md"),
     out: Path = typer.Option(..., "--out", "-o", help="study folder (created; an existing one is resumed)"),
     conditions: Optional[str] = typer.Option(None, "--conditions",
                                              help="comma-separated subset of resize,between,within,within-gt,zero,"
