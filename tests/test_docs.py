@@ -80,7 +80,7 @@ def test_results_page_generator_is_deterministic_and_generic(tmp_path):
                                             '"command": "benchmarks/newbench.py --x 1", "machine": "x86_64, 2 cores"}')
     page = rp.render_page(tmp_path)
     assert page == rp.render_page(tmp_path)
-    assert "| ratio | 1.2500 |" in page and "| n | 3 |" in page
+    assert "| ratio | 1.25 |" in page and "| n | 3 |" in page
     assert "| date | 2026-01-02 |" in page and "`benchmarks/newbench.py --x 1`" in page and "x86_64, 2 cores" in page
 
 
