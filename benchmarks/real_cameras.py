@@ -425,7 +425,7 @@ def exact_vp_scores(sd: Path, wd: Path, sets: list[str], threads: int) -> dict:
     perfect per-frame calibration gives) instead of its estimated road VP, into the same virtual
     camera and scale (stores under ``exact_vp/<set>``). Kept in runs/_all/within/exact_vp.json
     (keyed by the training and the VP files)."""
-    from vcprep.build import ItemPose, list_dataset, warp_dataset
+    from vcprep.build import ItemPose, WarpSettings, list_dataset, warp_dataset
     from vcprep.camera import camera_from_dict, load_camera
     from vcprep.labels import get_label_format
     from vcprep.vanishing_point import vps_for_items
@@ -451,8 +451,8 @@ def exact_vp_scores(sd: Path, wd: Path, sets: list[str], threads: int) -> dict:
         vps = vps_for_items([j.image for j in jobs], [j.id for j in jobs], cam, str(d / "vps.csv"))
         poses = {j.id: ItemPose((r.vp[0], r.vp[1]), r.status) for j, r in zip(jobs, vps)}
         store = sd / "exact_vp" / n
-        warp_dataset(jobs, cam, virtual, study["scale"], store, fmt, progress=False, poses=poses,
-                     completion="projective", workers=threads)
+        warp_dataset(jobs, store, WarpSettings(cam, virtual, study["scale"], fmt, completion="projective", poses=poses,
+                                               workers=threads, progress=False))
         res[n] = evaluate_heldout(run_dir / "model.pt", store)
     cache.write_text(json.dumps({"key": key, "results": res}, indent=1) + "\n")
     return res

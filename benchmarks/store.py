@@ -58,7 +58,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from vcprep.build import Job, list_dataset, warp_dataset  # noqa: E402
+from vcprep.build import Job, WarpSettings, list_dataset, warp_dataset  # noqa: E402
 from vcprep.camera import PRESETS  # noqa: E402
 from vcprep.imageio import write_bytes_atomic, write_png  # noqa: E402
 from vcprep.labels import LABEL_FORMATS  # noqa: E402
@@ -158,8 +158,8 @@ def main() -> None:
         def build(workers: int, run: int) -> float:
             out = tmp / f"store-{workers}-{run}"
             t = time.perf_counter()
-            store, summary = warp_dataset(jobs, cam, virtual, args.scale, out, fmt, progress=False,
-                                          completion="projective", workers=workers)
+            store, summary = warp_dataset(jobs, out, WarpSettings(cam, virtual, args.scale, fmt, completion="projective",
+                                                                  workers=workers, progress=False))
             dt = time.perf_counter() - t
             assert summary.built == len(jobs), summary.line()
             shutil.rmtree(out)

@@ -18,7 +18,7 @@ import torch
 from typer.testing import CliRunner
 
 from conftest import assert_one_error_line, run_cli
-from vcprep.build import list_dataset, warp_dataset
+from vcprep.build import WarpSettings, list_dataset, warp_dataset
 from vcprep.camera import PRESETS, camera_to_yaml
 from vcprep.homography import virt_H_src, virtual_at_scale
 from vcprep.imageio import read_image, write_png
@@ -72,8 +72,8 @@ def world(tmp_path_factory):
     target camera's unlabelled adaptation frames and labelled test frames."""
     root = tmp_path_factory.mktemp("adapt")
     _render(root / "src", SRC, 6, seed=0)
-    store, _ = warp_dataset(list_dataset(root / "src/images", root / "src/labels", FMT), SRC, PRESETS["virtual"],
-                            SCALE, root / "store", FMT, progress=False)
+    store, _ = warp_dataset(list_dataset(root / "src/images", root / "src/labels", FMT), root / "store",
+                            WarpSettings(SRC, PRESETS["virtual"], SCALE, FMT, progress=False))
     prior, n_unl = compute_prior([store])
     write_prior(root / "prior.npy", prior, prior_meta([store], n_unl))
     fit(_train_config(stores=[str(root / "store")], out=str(root / "model.pt"), arch="segnet-narrow", base_width=8,

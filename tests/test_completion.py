@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 import pytest
 
-from vcprep.build import ItemPose, list_dataset, warp_dataset
+from vcprep.build import ItemPose, WarpSettings, list_dataset, warp_dataset
 from vcprep.camera import PRESETS
 from vcprep.completion import (LABEL_RIM, METHODS, TABLE_ARC, CompletionMaps, border_ignore, check_method, complete_maps,
                                completion_maps, exit_points_rectangle, label_exit_points, store_vp)
@@ -184,8 +184,9 @@ def test_vp_outside_is_recorded_in_the_store(tmp_path, camvid_half):
     images, labels = write_synthetic_dataset(tmp_path / "ds", camvid_half, n=1)
     jobs = list_dataset(images, labels, LABEL_FORMATS["camvid"])
     poses = {jobs[0].id: ItemPose((240.0, -40.0), "given")}  # VP above the image
-    store, summary = warp_dataset(jobs, PRESETS["camvid"], PRESETS["virtual"], 0.125, tmp_path / "st",
-                                  LABEL_FORMATS["camvid"], progress=False, poses=poses, completion="projective")
+    store, summary = warp_dataset(jobs, tmp_path / "st", WarpSettings(
+        PRESETS["camvid"], PRESETS["virtual"], 0.125, LABEL_FORMATS["camvid"], completion="projective", poses=poses,
+        progress=False))
     rec = store.get(jobs[0].id)
     assert rec["completion"] == "projective" and rec["completion_vp_inside"] is False
     assert summary.notes and "VP outside" in summary.notes[0]

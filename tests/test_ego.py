@@ -268,7 +268,7 @@ def test_a_record_without_ego_rows_backprojects_as_before(stores):
 @pytest.fixture(scope="module")
 def tiny_model(tmp_path_factory):
     """A tiny virtual-camera checkpoint (2 epochs, width 4) on synthetic 96x72 CamVid-camera frames."""
-    from vcprep.build import list_dataset, warp_dataset
+    from vcprep.build import WarpSettings, list_dataset, warp_dataset
     from vcprep.labels import get_label_format
     from vctrain.train import TrainConfig, fit
 
@@ -281,8 +281,8 @@ def tiny_model(tmp_path_factory):
         cv2.imwrite(str(root / "images" / f"t{i}.png"), img)
         cv2.imwrite(str(root / "labels" / f"t{i}.png"), lab)
     fmt = get_label_format("values:road=1")
-    warp_dataset(list_dataset(root / "images", root / "labels", fmt), cam, PRESETS["virtual"], 0.02, root / "store",
-                 fmt, progress=False)
+    warp_dataset(list_dataset(root / "images", root / "labels", fmt), root / "store",
+                 WarpSettings(cam, PRESETS["virtual"], 0.02, fmt, progress=False))
     fit(TrainConfig(stores=[str(root / "store")], out=str(root / "model.pt"), base_width=4, epochs=2, batch_size=2,
                     val_fraction=0, progress=False, device="cpu"))
     return root / "model.pt"

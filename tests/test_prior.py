@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from conftest import assert_one_error_line, run_cli, write_synthetic_dataset
-from vcprep.build import list_dataset, warp_dataset
+from vcprep.build import WarpSettings, list_dataset, warp_dataset
 from vcprep.camera import PRESETS
 from vcprep.errors import InputError
 from vcprep.imageio import read_image, write_png
@@ -24,7 +24,8 @@ FMT = get_label_format("camvid")
 def _store(root, name, n, scale=0.02, labels=True, prefix=""):
     img, lab = write_synthetic_dataset(root / f"src_{name}", CAM, n=n)
     jobs = list_dataset(img, lab if labels else None, FMT if labels else None, id_prefix=prefix)
-    store, _ = warp_dataset(jobs, CAM, PRESETS["virtual"], scale, root / name, FMT if labels else None, progress=False)
+    store, _ = warp_dataset(jobs, root / name, WarpSettings(CAM, PRESETS["virtual"], scale, FMT if labels else None,
+                                                         progress=False))
     return store
 
 

@@ -13,7 +13,7 @@ import pytest
 import torch
 from typer.testing import CliRunner
 
-from vcprep.build import list_dataset, warp_dataset
+from vcprep.build import WarpSettings, list_dataset, warp_dataset
 from vcprep.camera import PRESETS
 from vcprep.errors import InputError
 from vcprep.imageio import read_image, write_png
@@ -303,8 +303,8 @@ def trained(tmp_path_factory):
     cam = PRESETS["camvid"].resized(0.1)  # 96x72
     _render_set(root / "src", cam, 6)
     fmt = get_label_format(FMT)
-    store, _ = warp_dataset(list_dataset(root / "src/images", root / "src/labels", fmt), cam, PRESETS["virtual"],
-                            0.02, root / "store", fmt, progress=False)
+    store, _ = warp_dataset(list_dataset(root / "src/images", root / "src/labels", fmt), root / "store",
+                            WarpSettings(cam, PRESETS["virtual"], 0.02, fmt, progress=False))
     cfg = TrainConfig(stores=[str(root / "store")], out=str(root / "model.pt"), base_width=8, epochs=20,
                       batch_size=2, val_fraction=0, progress=False, device="cpu")
     summary = fit(cfg)

@@ -1,7 +1,9 @@
 """Building a store: pair images with labels, warp each item into the virtual camera, record it.
 
 Three layers (style.md): :func:`list_dataset` (files -> jobs), :func:`warp_item` (one item,
-in memory), :func:`warp_dataset` (the loop: up-to-date check, atomic writes, manifest, progress).
+in memory), :func:`warp_dataset` (the loop: up-to-date check, atomic writes, manifest, progress),
+which takes its settings whole as one :class:`WarpSettings` (cameras, scale, labels, completion,
+poses, workers, shard, keep_going, progress).
 :func:`build_item` / :func:`complete_item` are the per-item steps of ``warp`` / ``complete``;
 both run in the one loop :func:`_build_loop` (serial or a process pool, :mod:`vcprep.parallel`).
 """
@@ -28,9 +30,9 @@ from .store import VALID_PREFIX, Shard, Store, store_lock, temp_files
 from .completion import border_ignore, check_method, completion_maps
 from .warp import warp_image, warp_label
 
-__all__ = ["Job", "ItemPose", "BuildSummary", "item_maps", "warp_item", "find_images", "list_dataset", "store_params", "item_geometry", "warp_dataset",
-           "WarpedItem", "warp_item_full", "complete_store", "record_key", "ItemResult", "build_item",
-           "complete_item"]
+__all__ = ["Job", "ItemPose", "WarpSettings", "BuildSummary", "item_maps", "warp_item", "find_images", "list_dataset",
+           "store_params", "item_geometry", "warp_dataset", "WarpedItem", "warp_item_full", "complete_store",
+           "record_key", "ItemResult", "build_item", "complete_item"]
 
 WARP_ALGORITHM = "warp-v1"  # bump when stored outputs of identical inputs would change
 
@@ -53,6 +55,26 @@ class ItemPose:
 
     vp: tuple[float, float]
     status: str
+
+
+@dataclass(frozen=True)
+class WarpSettings:
+    """How a store is built: everything :func:`warp_dataset` needs besides the items and the
+    store folder. Built once by the caller (``vcprep warp``, a crossval study, ``vctrain
+    predict``) and passed whole; the store's own parameters are ``virtual`` and ``scale``
+    (:func:`store_params`), the rest says how its items are made and how the build runs."""
+
+    camera: Camera | FrameCameras        # source camera of every image, or per-frame calibration (a folder)
+    virtual: Camera                      # the virtual camera the store is in (full size; no ego_rows)
+    scale: float                         # store scale of the full virtual camera (1/8: 688x350 for 'virtual')
+    label_format: LabelFormat | None = None  # how the source labels are decoded; None: no labels
+    completion: str = "none"             # fills uncovered store pixels: 'projective', 'zero' or 'none'
+    poses: Mapping[str, ItemPose] | None = None  # within-camera correction: item id -> its own VP pose;
+                                         # items without one (or None) take the camera's average pose
+    workers: int = 1                     # worker processes building items (results identical to 1)
+    shard: Shard | None = None           # build only this shard's items, into its own part file
+    keep_going: bool = False             # skip (and list) bad items instead of stopping at the first
+    progress: bool = True                # tqdm bar and lock-wait messages on stderr
 
 
 @dataclass
@@ -464,39 +486,39 @@ def _build_loop(store: Store, fn, ctx: Any, tasks: list, ids: list[str], summary
         raise first_error[0]
 
 
-def warp_dataset(jobs: list[Job], camera: Camera | FrameCameras, virtual: Camera, scale: float, out: str | Path,
-                 fmt: LabelFormat | None = None, progress: bool = True,
-                 poses: Mapping[str, ItemPose] | None = None,
-                 completion: str = "none", workers: int = 1, shard: Shard | None = None,
-                 keep_going: bool = False) -> tuple[Store, BuildSummary]:
-    """Warp ``jobs`` from ``camera`` into ``virtual`` at ``scale`` into the store ``out``.
+def warp_dataset(jobs: list[Job], out: str | Path, settings: WarpSettings) -> tuple[Store, BuildSummary]:
+    """Warp ``jobs`` from ``settings.camera`` into ``settings.virtual`` at ``settings.scale`` into
+    the store ``out``.
 
-    ``camera``: one :class:`Camera` for every image, or :class:`FrameCameras` (per-frame
+    ``settings.camera``: one :class:`Camera` for every image, or :class:`FrameCameras` (per-frame
     calibration: each image its own camera and pose, ``vp_status`` 'calibrated', the file in the
     record's ``camera_file``; an image without a file fails as a bad item).
 
-    ``poses`` maps item ids to a per-image VP pose (within-camera correction); items without
-    one use the camera's average pose (``vp_status`` 'camera'). ``completion`` names the
-    method that fills uncovered store pixels ('none': left 0 / label 255).
+    ``settings.poses`` maps item ids to a per-image VP pose (within-camera correction); items
+    without one use the camera's average pose (``vp_status`` 'camera'). ``settings.completion``
+    names the method that fills uncovered store pixels ('none': left 0 / label 255).
     Items whose inputs and parameters are unchanged (same key, files present) are skipped.
 
-    ``workers`` processes build items in parallel (results byte-identical to 1); ``shard``
-    builds only that shard's items and records them in its own part file. On a bad input the
-    store keeps every item finished so far and the error propagates; with ``keep_going`` bad
-    items are skipped and listed in the summary instead.
+    ``settings.workers`` processes build items in parallel (results byte-identical to 1);
+    ``settings.shard`` builds only that shard's items and records them in its own part file. On a
+    bad input the store keeps every item finished so far and the error propagates; with
+    ``settings.keep_going`` bad items are skipped and listed in the summary instead.
     """
-    check_method(completion)
-    params = store_params(virtual, scale)
+    check_method(settings.completion)
+    params = store_params(settings.virtual, settings.scale)
+    shard = settings.shard
     if shard is not None:
         jobs = [j for j in jobs if shard.contains(j.id)]
     summary = BuildSummary(total=len(jobs))
+    poses = settings.poses or {}
     # the store is read after the lock is held: a writer that finished meanwhile is seen
-    with store_lock(out, shared=shard is not None, on_wait=say_on_stderr if progress else None):
+    with store_lock(out, shared=shard is not None, on_wait=say_on_stderr if settings.progress else None):
         store = Store.open_or_create(out, params, shard=shard)
-        ctx = _WarpContext(store.root, camera, store.virtual, store.params, fmt, completion)
-        tasks = [_WarpTask(j, poses.get(j.id) if poses else None, store.items.get(j.id)) for j in jobs]
-        _build_loop(store, build_item, ctx, tasks, [j.id for j in jobs], summary, workers, progress, keep_going,
-                    "warp")
+        ctx = _WarpContext(store.root, settings.camera, store.virtual, store.params, settings.label_format,
+                           settings.completion)
+        tasks = [_WarpTask(j, poses.get(j.id), store.items.get(j.id)) for j in jobs]
+        _build_loop(store, build_item, ctx, tasks, [j.id for j in jobs], summary, settings.workers, settings.progress,
+                    settings.keep_going, "warp")
     return store, summary
 
 

@@ -327,7 +327,7 @@ def warp_cmd(
       vcprep warp --camera cityscapes/camera/train --images cityscapes/leftImg8bit/train \\
           --labels cityscapes/gtFine/train --label-format cityscapes --out stores/cs   # nested city folders
     """
-    from .build import list_dataset, warp_dataset
+    from .build import WarpSettings, list_dataset, warp_dataset
     from .store import Shard
 
     part = Shard.parse(shard) if shard else None
@@ -354,8 +354,9 @@ def warp_cmd(
     virt = load_camera(virtual)
     # VPs over all frames even for one shard: the fallback VP and smoothing depend on the whole run
     poses = _within_poses(items, cam, within, vp_smooth, id_prefix, quiet)
-    store, summary = warp_dataset(items, cam, virt, scale, out, fmt, progress=not quiet, completion=complete,
-                                  poses=poses, workers=jobs or default_jobs(), shard=part, keep_going=keep_going)
+    settings = WarpSettings(camera=cam, virtual=virt, scale=scale, label_format=fmt, completion=complete, poses=poses,
+                            workers=jobs or default_jobs(), shard=part, keep_going=keep_going, progress=not quiet)
+    store, summary = warp_dataset(items, out, settings)
     if estimate is not None:
         from .imageio import write_bytes_atomic
 
@@ -376,7 +377,7 @@ def _vp_counts(results) -> str:
 
 
 def _within_poses(jobs, cam: Camera, within: str, smooth: int, id_prefix: str, quiet: bool):
-    """The ``poses`` mapping for warp_dataset from ``--within`` (None for 'none')."""
+    """The ``poses`` mapping of :class:`vcprep.build.WarpSettings` from ``--within`` (None for 'none')."""
     if within == "none":
         if smooth:
             raise InputError("--vp-smooth needs --within estimate", None, "add --within estimate or drop --vp-smooth")

@@ -76,7 +76,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from vcprep.build import ItemPose, Job, list_dataset, warp_dataset
+from vcprep.build import ItemPose, Job, WarpSettings, list_dataset, warp_dataset
 from vcprep.camera import Camera, FrameCameras, load_camera, load_cameras
 from vcprep.errors import InputError
 from vcprep.imageio import image_size, read_image, read_text, write_bytes_atomic
@@ -576,15 +576,21 @@ class _Builder:
             self.say(f"{root.relative_to(self.out)}: built for another virtual camera or scale; building it afresh")
             shutil.rmtree(root)
 
+    def warp_settings(self, ds: Dataset, split: str, geometry: str) -> WarpSettings:
+        """How the store of ``ds``'s ``split`` in ``geometry`` is built: the dataset's camera into
+        the study's virtual camera and scale, with the geometry's poses and completion."""
+        source, completion = GEOMETRIES[geometry]
+        return WarpSettings(camera=self.camera(ds), virtual=self.virtual(), scale=self.scale(),
+                            label_format=get_label_format(ds.label_format), completion=completion,
+                            poses=self.poses(ds, split, source), workers=self.jobs, progress=self.progress)
+
     def store(self, ds: Dataset, split: str, geometry: str) -> Path:
         """The store of ``ds``'s ``split`` in ``geometry`` (built or brought up to date)."""
-        source, completion = GEOMETRIES[geometry]
         root = self.out / "stores" / ds.name / split / geometry
         jobs = self.items(ds, split)
-        poses = self.poses(ds, split, source)
+        settings = self.warp_settings(ds, split, geometry)
         self._drop_if_other_virtual(root)
-        warp_dataset(jobs, self.camera(ds), self.virtual(), self.scale(), root, get_label_format(ds.label_format),
-                     progress=self.progress, poses=poses, completion=completion, workers=self.jobs)
+        warp_dataset(jobs, root, settings)
         return root
 
 

@@ -25,7 +25,7 @@ import torch
 from tqdm import tqdm
 
 from vcprep.backproject import backproject_array
-from vcprep.build import Job, find_images, warp_dataset
+from vcprep.build import Job, WarpSettings, find_images, warp_dataset
 from vcprep.camera import Camera, FrameCameras, camera_from_dict, camera_of_image, scale_matrix
 from vcprep.errors import InputError
 from vcprep.homography import vp_from_pose
@@ -215,6 +215,7 @@ def warp_like_training(data: dict[str, Any], path: str | Path, jobs: list[Job], 
 
         res = vps_for_items([j.image for j in jobs], [j.id for j in jobs], camera, within)
         poses = {j.id: ItemPose((r.vp[0], r.vp[1]), r.status) for j, r in zip(jobs, res)}
-    store, _ = warp_dataset(jobs, camera, virtual, float(sp["scale"]), root, None, progress=progress,
-                            completion=completion, poses=poses)
+    settings = WarpSettings(camera=camera, virtual=virtual, scale=float(sp["scale"]), completion=completion,
+                            poses=poses, progress=progress)
+    store, _ = warp_dataset(jobs, root, settings)
     return store
