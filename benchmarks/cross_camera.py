@@ -116,7 +116,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--epochs", type=int, default=6, help="training epochs per run (default 6)")
     ap.add_argument("--store-width", type=int, default=288, help="working width of the virtual stores (px)")
-    from vctrain.crossval import CONDITIONS as AVAILABLE
+    from vctrain.study import CONDITIONS as AVAILABLE
 
     ap.add_argument("--conditions", default=",".join(CONDITIONS),
                     help=f"comma-separated, from {','.join(AVAILABLE)} (default: {','.join(CONDITIONS)})")

@@ -345,7 +345,7 @@ def test_mixed_study_resumes_and_reuses_a_trained_model(mixed_run, tmp_path):
 
 
 def test_split_selection_globs():
-    from vctrain.crossval import Split
+    from vctrain.study import Split
 
     s = Split(Path("i"), Path("l"), include=("0016E5_*", "0006R0_*"), exclude=("0016E5_0800*",))
     assert s.selects("0016E5_07959") and s.selects("0006R0_f01000")
@@ -355,7 +355,7 @@ def test_split_selection_globs():
 
 
 def test_study_train_section_takes_any_trainconfig_field(tmp_path):
-    from vctrain.crossval import load_study
+    from vctrain.study import load_study
 
     study = _mixed_study(tmp_path / "data")
     d = yaml.safe_load(study.read_text())

@@ -373,7 +373,9 @@ def crossval_cmd(
       vctrain crossval study.yaml --out studies/cams --json | tail -n 1
       vctrain crossval study.yaml --out studies/seed1 --seed 1
     """
-    from .crossval import check_conditions, evaluated_datasets, format_table, load_study, run_study, summary_of
+    from .crossval import run_study
+    from .report import format_table, summary_of
+    from .study import check_conditions, evaluated_datasets, load_study
 
     st = load_study(study)
     conds = check_conditions([c.strip() for c in conditions.split(",") if c.strip()]) if conditions else st.conditions

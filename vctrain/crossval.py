@@ -1,6 +1,7 @@
 """Cross-camera study: leave one dataset out (paper Tables 4 and 7), and test-only datasets.
 
-Given named datasets, each taken with its own camera, and for every *condition*:
+Given a study (:mod:`vctrain.study`: named datasets, each taken with its own camera, and the
+conditions to compare), for every *condition*:
 
 * each dataset of role ``both`` (the default) is held out in turn: train on every other dataset
   that may be trained on (role ``train`` or ``both``), test on the held-out one;
@@ -8,28 +9,9 @@ Given named datasets, each taken with its own camera, and for every *condition*:
   "will my model work on camera X?"), one more model per condition is trained on ALL trainable
   datasets and tested on every test-role dataset.
 
-==========  ==========================================================================
-resize      the baseline: original images simply resized to the working size
-between     virtual camera, each dataset's average pose (between-camera correction)
-within      virtual camera, each image's pose from its ESTIMATED road VP (within-camera)
-within-gt   as within, with the GIVEN VPs of the study file (where every dataset has them)
-zero        as within, uncovered virtual pixels zero-padded instead of projective completion
-prior       no training: the geometric prior p_g of the training datasets' ``within`` stores
-            (their mean road label in the virtual camera), segmentation p_g >= 0.5 (Table 5
-            "Geo-Prior"); ``runs/<run>/prior/prior.npy`` (+ its description) is the prior
-adapt       the ``within`` model (the within run's own checkpoint, never a second training)
-            fine-tuned by :func:`vctrain.adapt.adapt` on the evaluated dataset's UNLABELLED images
-            (its ``unlabelled:`` split, else its test images without their labels) with
-            surrogate labels from the training datasets' prior; one adapted model per evaluated
-            dataset (``runs/<heldout>/adapt/`` or ``runs/_all/adapt/<dataset>/``); the
-            surrogate labels are the prior's tri-mask alone (paper §4.5)
-adapt-fuse  as adapt, the surrogate labels from the prior FUSED with the within model's own
-            prediction on each image (``vctrain adapt --combine fuse``, GeoSeg-like: a
-            confident network decides where the prior is unsure, and vice versa)
-==========  ==========================================================================
-
-A study's default conditions are the first five (:data:`DEFAULT_CONDITIONS`); ``prior``,
-``adapt`` and ``adapt-fuse`` run when asked for (study ``conditions:`` or ``--conditions``).
+This module is the run plan (:func:`plan_runs`) and its execution (:func:`run_study`): the stores
+each run needs, the trainings, the adapted models and the scores; the conditions are defined in
+:mod:`vctrain.study` and the tables written by :mod:`vctrain.report`.
 
 Everything runs through the real tools: stores are built with :func:`vcprep.build.warp_dataset`
 (one per dataset, split and geometry, shared by all folds), models with :func:`vctrain.train.fit`,
@@ -56,314 +38,37 @@ Layout under OUT: ``stores/<dataset>/<split>/<geometry>/`` (vcprep stores), ``vp
 (the estimated VPs), ``runs/<heldout>/<condition>/`` (checkpoint, training log, ``train.json``,
 ``result.json``) and, with test-role datasets, ``runs/_all/<condition>/`` (one model,
 ``result-<dataset>.json`` per test-role dataset), ``results.jsonl`` (one row per evaluated dataset and
-condition), ``table.md``, ``table.csv``, ``summary.json``. A finished result is not redone, and a
-finished training is not repeated for a missing evaluation, so an interrupted study resumes where it
-stopped; a run finished with other settings (effective training config, virtual camera, datasets)
-is redone.
+condition), ``table.md``, ``table.csv``, ``summary.json`` (:mod:`vctrain.report`). A finished result is
+not redone, and a finished training is not repeated for a missing evaluation, so an interrupted study
+resumes where it stopped; a run finished with other settings (effective training config, virtual
+camera, datasets) is redone.
 """
 from __future__ import annotations
 
 import hashlib
-import math
 import json
-import re
+import math
 import shutil
 import time
-from fnmatch import fnmatchcase
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any, Callable, Sequence
-
-import numpy as np
 
 from vcprep.build import ItemPose, Job, WarpSettings, list_dataset, warp_dataset
 from vcprep.camera import Camera, FrameCameras, load_camera, load_cameras
 from vcprep.errors import InputError
-from vcprep.imageio import image_size, read_image, read_text, write_bytes_atomic
+from vcprep.imageio import image_size, read_image, write_bytes_atomic
 from vcprep.labels import decode_label, get_label_format
 from vcprep.store import Store
 
-__all__ = ["CONDITIONS", "DEFAULT_CONDITIONS", "GEOMETRIES", "ROLES", "Split", "Dataset", "Study", "load_study",
-           "evaluated_datasets",
-           "plan_runs", "training_settings", "run_study", "format_table", "summary_of"]
+from .report import write_json, write_tables
+from .study import (ADAPT_COMBINE, CONDITIONS, GEOMETRIES, RUN_KEYS, Dataset, Split, Study, check_conditions,
+                    evaluated_datasets)
 
-# geometry name -> (VP source, completion); one store per dataset, split and geometry
-GEOMETRIES: dict[str, tuple[str, str]] = {
-    "between": ("none", "projective"),
-    "within": ("estimate", "projective"),
-    "within-gt": ("given", "projective"),
-    "zero": ("estimate", "zero"),
-}
-# condition -> (geometry of its stores, how its predictor comes about): a `vctrain fit` baseline
-# ('none': virtual camera, 'resize'), 'prior' (no training: the training stores' prior p_g) or
-# 'adapt' (the within run's model adapted to the evaluated dataset's unlabelled images)
-CONDITIONS: dict[str, tuple[str, str]] = {
-    "resize": ("between", "resize"),  # the resize baseline reads the original images the store records
-    "between": ("between", "none"),
-    "within": ("within", "none"),
-    "within-gt": ("within-gt", "none"),
-    "zero": ("zero", "none"),
-    "prior": ("within", "prior"),
-    "adapt": ("within", "adapt"),
-    "adapt-fuse": ("within", "adapt"),
-}
-# adaptation condition -> how its surrogate labels are made (vctrain.adapt.COMBINE): the prior's
-# tri-mask alone (paper §4.5), or the prior fused with the within model's own prediction (GeoSeg-like)
-ADAPT_COMBINE = {"adapt": "prior", "adapt-fuse": "fuse"}
-DEFAULT_CONDITIONS = ("resize", "between", "within", "within-gt", "zero")  # a study without 'conditions:'
-# the study file's `train:` section may set any TrainConfig field except these, which the study sets per run
-# (TRAIN_KEYS are checked without importing torch; another key is checked against TrainConfig itself)
+__all__ = ["plan_runs", "training_settings", "run_study", "evaluate_heldout", "score_store"]
+
 ESTIMATE_VERSION = 1  # bump when vcprep.camera_estimate changes what it estimates (cached estimates are redone)
-RUN_KEYS = ("stores", "out", "baseline", "images", "labels", "label_format", "size", "val_stores", "resume", "log",
-            "progress")
-TRAIN_KEYS = ("epochs", "arch", "base_width", "batch_size", "lr", "momentum", "weight_decay", "schedule", "seed",
-              "val_fraction", "class_weights", "hflip", "greyscale", "device", "workers", "max_steps", "crop")
-# role -> (trained on, evaluated); 'both' = held out in turn (leave one out)
-ROLES: dict[str, tuple[bool, bool]] = {"both": (True, True), "train": (True, False), "test": (False, True)}
 ALL_RUN = "_all"  # runs/_all/<condition>/: trained on every trainable dataset, scored on the test-role ones
-_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
-
-
-@dataclass(frozen=True)
-class Split:
-    images: Path
-    labels: Path | None         # None: an unlabelled split (adaptation images)
-    vps: Path | None = None
-    include: tuple[str, ...] = ()  # keep only items whose id (file stem) matches one of these globs (empty: all)
-    exclude: tuple[str, ...] = ()  # then drop items whose id matches one of these globs
-
-    def selects(self, item_id: str) -> bool:
-        """Whether the item ``item_id`` belongs to this split (globs are case-sensitive, fnmatch)."""
-        return ((not self.include or any(fnmatchcase(item_id, g) for g in self.include))
-                and not any(fnmatchcase(item_id, g) for g in self.exclude))
-
-
-@dataclass(frozen=True)
-class Dataset:
-    name: str
-    camera: str
-    label_format: str
-    train: Split | None      # None for role 'test'
-    test: Split | None       # None for role 'train'
-    role: str = "both"
-    unlabelled: Split | None = None  # images without labels to adapt to (condition adapt; default: test images)
-    ego: str | int = "auto"  # own-vehicle rows: 'auto' (found from the labels, vcprep.ego), 'none' or a row count
-
-    @property
-    def trained(self) -> bool:
-        return ROLES[self.role][0]
-
-    @property
-    def evaluated(self) -> bool:
-        return ROLES[self.role][1]
-
-    @property
-    def first_split(self) -> str:
-        """The split whose first image stands for the camera's image size."""
-        return "train" if self.train is not None else "test"
-
-
-@dataclass
-class Study:
-    """A parsed study file (schema in the README, section 'Cross-camera study')."""
-
-    path: Path
-    datasets: list[Dataset]
-    conditions: list[str] = field(default_factory=lambda: list(DEFAULT_CONDITIONS))
-    virtual: str = "design"         # 'design' (from the datasets' cameras), a preset or a camera file
-    pan_range: float = 10.0         # pose variation the designed virtual camera must hold (degrees)
-    tilt_range: float = 5.0
-    store_width: int = 320          # working width (px) of the virtual stores (unless store_pixels)
-    store_pixels: int | None = None  # pixel budget of the virtual stores (sets the scale; wins over store_width)
-    above: float | None = None      # designed virtual camera cropped to this many degrees above the horizon
-    train: dict[str, Any] = field(default_factory=dict)  # TrainConfig overrides
-
-    def dataset(self, name: str) -> Dataset:
-        for d in self.datasets:
-            if d.name == name:
-                return d
-        raise InputError(f"no dataset named '{name}'", self.path, f"use one of {', '.join(d.name for d in self.datasets)}")
-
-
-# -- the study file ------------------------------------------------------------------------------
-def _mapping(v: Any, what: str, path: Path) -> dict:
-    if not isinstance(v, dict):
-        raise InputError(f"{what} must be a mapping", path, "see the study schema in the README")
-    return v
-
-
-def _keys(d: dict, allowed: Sequence[str], required: Sequence[str], what: str, path: Path) -> None:
-    unknown = sorted(set(map(str, d)) - set(allowed))
-    if unknown:
-        raise InputError(f"unknown key '{unknown[0]}' in {what}", path, f"allowed keys: {', '.join(allowed)}")
-    for k in required:
-        if k not in d:
-            raise InputError(f"missing key '{k}' in {what}", path, "see the study schema in the README")
-
-
-def _globs(v: Any, key: str, what: str, path: Path) -> tuple[str, ...]:
-    if v is None:
-        return ()
-    globs = [v] if isinstance(v, str) else v
-    if not isinstance(globs, list) or not globs or not all(isinstance(g, str) and g for g in globs):
-        raise InputError(f"'{key}' in {what} must be a glob or a list of globs on file stems", path,
-                         f"e.g. {key}: ['0016E5_*', '0006R0_*']")
-    return tuple(globs)
-
-
-def _split(d: Any, what: str, path: Path, labelled: bool = True) -> Split:
-    """A split's mapping; ``labelled=False``: images only (an ``unlabelled:`` split)."""
-    d = _mapping(d, what, path)
-    if labelled:
-        _keys(d, ("images", "labels", "vps", "include", "exclude"), ("images", "labels"), what, path)
-    else:
-        _keys(d, ("images", "include", "exclude"), ("images",), what, path)
-    base = path.parent
-
-    def p(key: str) -> Path:
-        v = d[key]
-        if not isinstance(v, str) or not v:
-            raise InputError(f"'{key}' in {what} must be a path", path, "write a folder path (relative to the study file)")
-        q = base / v
-        if not q.exists():
-            raise InputError(f"'{key}' of {what} not found: {q}", path, "check the path (relative to the study file)")
-        return q
-
-    return Split(p("images"), p("labels") if labelled else None, p("vps") if d.get("vps") is not None else None,
-                 _globs(d.get("include"), "include", what, path), _globs(d.get("exclude"), "exclude", what, path))
-
-
-def _check_train_keys(t: dict, path: Path) -> None:
-    """Keys of the study's ``train:`` section: TrainConfig fields the study does not set per run."""
-    unknown = sorted(set(map(str, t)) - set(TRAIN_KEYS))
-    if not unknown:
-        return
-    from .train import TrainConfig  # imports torch: only when a key is not one of the usual ones
-
-    allowed = [f.name for f in fields(TrainConfig) if f.name not in RUN_KEYS]
-    bad = [k for k in unknown if k not in allowed]
-    if bad:
-        raise InputError(f"unknown key '{bad[0]}' in 'train'", path, f"allowed keys: {', '.join(allowed)}")
-
-
-def load_study(path: str | Path) -> Study:
-    """Read and check a study YAML file; paths in it are relative to the file."""
-    import yaml
-
-    path = Path(path)
-    text = read_text(path, "study file", "give the study YAML file")
-    try:
-        d = yaml.safe_load(text)
-    except yaml.YAMLError:
-        raise InputError("not valid YAML", path, "fix the syntax; see the study schema in the README") from None
-    d = _mapping(d, "the study file", path)
-    _keys(d, ("datasets", "conditions", "virtual", "pan_range", "tilt_range", "store_width", "store_pixels", "above",
-              "train"), ("datasets",),
-          "the study file", path)
-    raw = d["datasets"]
-    if not isinstance(raw, list) or len(raw) < 2:
-        raise InputError("'datasets' must list at least two datasets", path,
-                         "a study trains on some datasets and tests on others")
-    datasets: list[Dataset] = []
-    for i, r in enumerate(raw):
-        r = _mapping(r, f"dataset #{i + 1}", path)
-        _keys(r, ("name", "camera", "label_format", "role", "train", "test", "unlabelled", "ego"),
-              ("name", "camera", "label_format"),
-              f"dataset #{i + 1}", path)
-        name = r["name"]
-        if not isinstance(name, str) or not _NAME.match(name):
-            raise InputError(f"dataset #{i + 1} has a bad name {name!r}", path, "use letters, digits, '_', '-', '.'")
-        role = r.get("role", "both")
-        if role not in ROLES:
-            raise InputError(f"dataset '{name}' has an unknown role {role!r}", path, f"use one of {', '.join(ROLES)}")
-        # a test-role dataset is never trained on (only 'test:'); a train-role one never tested ('train:')
-        need, unused = {"both": ("train", None), "train": ("train", "test"), "test": ("test", "train")}[role]
-        if r.get(need) is None:
-            raise InputError(f"missing key '{need}' in dataset '{name}' (role {role})", path,
-                             f"add '{need}: {{images: ..., labels: ...}}'")
-        if unused is not None and r.get(unused) is not None:
-            raise InputError(f"dataset '{name}' has role {role}, so its '{unused}' split would never be used", path,
-                             f"remove '{unused}:', or use role: both")
-        if any(x.name == name for x in datasets):
-            raise InputError(f"two datasets named '{name}'", path, "give each dataset its own name")
-        try:
-            get_label_format(str(r["label_format"]))
-        except InputError as e:
-            raise InputError(f"dataset '{name}': {e.problem}", path, e.fix) from None
-        cam = str(r["camera"])
-        if cam != "estimate" and (not cam.isidentifier() or (path.parent / cam).exists()):
-            cam = str(path.parent / cam)
-        train = _split(r["train"], f"dataset '{name}' train", path) if role != "test" else None
-        test = _split(r["test"], f"dataset '{name}' test", path) if r.get("test") is not None else train
-        if role == "train" and r.get("unlabelled") is not None:
-            raise InputError(f"dataset '{name}' has role train, so its 'unlabelled' split would never be used", path,
-                             "remove 'unlabelled:' (it is what condition adapt adapts to on an evaluated dataset)")
-        unlabelled = (_split(r["unlabelled"], f"dataset '{name}' unlabelled", path, labelled=False)
-                      if r.get("unlabelled") is not None else None)
-        ego = r.get("ego", "auto")
-        if not (ego in ("auto", "none") or (isinstance(ego, int) and not isinstance(ego, bool) and ego >= 0)):
-            raise InputError(f"dataset '{name}' has ego {ego!r}", path,
-                             "write ego: auto (found from the labels), none, or the number of bottom rows that show "
-                             "your own vehicle")
-        datasets.append(Dataset(name, cam, str(r["label_format"]), train, test if role != "train" else None, role,
-                                unlabelled, ego))
-    trainable = [x for x in datasets if x.trained]
-    if not trainable:
-        raise InputError("no dataset may be trained on (every role is 'test')", path,
-                         "give at least one dataset role: train or both")
-    if not any(x.evaluated for x in datasets):
-        raise InputError("no dataset is tested on (every role is 'train')", path,
-                         "give at least one dataset role: test or both")
-    if len(trainable) == 1 and trainable[0].role == "both":
-        raise InputError(f"dataset '{trainable[0].name}' is the only one that may be trained on, so it cannot be held "
-                         "out", path, "give it role: train (trained on, never tested), or add a training dataset")
-    study = Study(path, datasets)
-    if "conditions" in d:
-        conds = d["conditions"]
-        if not isinstance(conds, list) or not conds:
-            raise InputError("'conditions' must be a list", path, f"choose from {', '.join(CONDITIONS)}")
-        study.conditions = check_conditions([str(c) for c in conds], path)
-    if "virtual" in d:
-        study.virtual = str(d["virtual"])
-        if study.virtual != "design" and (path.parent / study.virtual).exists():
-            study.virtual = str(path.parent / study.virtual)
-    for key in ("pan_range", "tilt_range"):
-        if key in d:
-            v = d[key]
-            if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v < 60:
-                raise InputError(f"'{key}' must be degrees in [0, 60), got {v!r}", path, "e.g. pan_range: 10")
-            setattr(study, key, float(v))
-    if "store_width" in d:
-        v = d["store_width"]
-        if isinstance(v, bool) or not isinstance(v, int) or not 64 <= v <= 8192:
-            raise InputError(f"'store_width' must be a whole number of pixels in 64..8192, got {v!r}", path,
-                             "e.g. store_width: 320")
-        study.store_width = v
-    if "store_pixels" in d:
-        v = d["store_pixels"]
-        if isinstance(v, bool) or not isinstance(v, int) or not 4096 <= v <= 64_000_000:
-            raise InputError(f"'store_pixels' must be a whole number of pixels in 4096..64000000, got {v!r}", path,
-                             "e.g. store_pixels: 76800 (the pixels of 320x240)")
-        study.store_pixels = v
-    if "above" in d:
-        v = d["above"]
-        if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v < 60):
-            raise InputError(f"'above' must be degrees in [0, 60), got {v!r}", path, "e.g. above: 8")
-        if v is not None and study.virtual != "design":
-            raise InputError("'above' crops a designed virtual camera", path, "use it with virtual: design")
-        study.above = None if v is None else float(v)
-    if "train" in d:
-        t = _mapping(d["train"], "'train'", path)
-        _check_train_keys(t, path)
-        study.train = dict(t)
-    return study
-
-
-def check_conditions(conds: Sequence[str], file: Path | None = None) -> list[str]:
-    for c in conds:
-        if c not in CONDITIONS:
-            raise InputError(f"unknown condition '{c}'", file, f"choose from {', '.join(CONDITIONS)}")
-    return list(dict.fromkeys(conds))
 
 
 # -- stores --------------------------------------------------------------------------------------
@@ -464,7 +169,7 @@ class _Builder:
             if "yaml" in rec:
                 path.parent.mkdir(parents=True, exist_ok=True)
                 write_bytes_atomic(path, rec.pop("yaml").encode())
-                _atomic_json(path.with_suffix(".json"), rec)
+                write_json(path.with_suffix(".json"), rec)
             v = rec["values"]
             self.say(f"{name}: camera ESTIMATED from its frames ({path.relative_to(self.out)}): tilt {v['tilt']['value']} "
                      f"deg, pan {v['pan']['value']} deg from {rec['accepted_vps']} of {rec['frames']} road VPs; "
@@ -649,10 +354,6 @@ def score_store(predictor, store_dir: Path, progress: bool = False) -> dict[str,
     return {**m.result(), "test_items": n}
 
 
-def _atomic_json(path: Path, obj: Any) -> None:
-    write_bytes_atomic(path, (json.dumps(obj, indent=1, sort_keys=True) + "\n").encode())
-
-
 @dataclass(frozen=True)
 class _Run:
     """One model: ``condition`` trained on ``train``, scored on each dataset of ``tests``."""
@@ -664,18 +365,6 @@ class _Run:
 
     def result_file(self, run_dir: Path, ds: Dataset) -> Path:
         return run_dir / ("result.json" if ds.name == self.name else f"result-{ds.name}.json")
-
-
-def evaluated_datasets(study: Study, names: Sequence[str] | None = None) -> list[str]:
-    """The datasets a study scores (role both or test; ``names`` picks some of them), in file order."""
-    if not names:
-        return [d.name for d in study.datasets if d.evaluated]
-    chosen = [study.dataset(n) for n in names]
-    for d in chosen:
-        if not d.evaluated:
-            raise InputError(f"dataset '{d.name}' has role train: it is never tested", study.path,
-                             "pick datasets of role both or test")
-    return [d.name for d in study.datasets if d in chosen]
 
 
 def plan_runs(study: Study, conditions: Sequence[str], evaluated: Sequence[str]) -> list[_Run]:
@@ -752,7 +441,7 @@ def _result(run: _Run, b: _Builder, ds: Dataset, metrics: dict[str, Any], info: 
     """Write and return the result row of ``ds`` in ``run``."""
     row = {"heldout": ds.name, "condition": run.condition, "role": ds.role, "run": run.name, **metrics,
            **{k: info[k] for k in _INFO}, **extra, "total_seconds": round(seconds, 1), "settings_sha": sha}
-    _atomic_json(run.result_file(b.out / "runs" / run.name / run.condition, ds), row)
+    write_json(run.result_file(b.out / "runs" / run.name / run.condition, ds), row)
     b.say(f"{_what(run, ds, tag)}: road IoU {row['iou']:.3f} ({row['total_seconds']:.0f} s)")
     return row
 
@@ -788,7 +477,7 @@ def _trained(run: _Run, b: _Builder, sha: str, overrides: dict[str, Any], tag: s
                 "train_seconds": round(time.perf_counter() - t0, 1),
                 "train_images_per_s": summary["train_images_per_s"], "model_args": summary["model_args"],
                 "settings_sha": sha}
-        _atomic_json(trained, info)
+        write_json(trained, info)
     return cfg, info
 
 
@@ -895,7 +584,7 @@ def _execute_adapt(run: _Run, b: _Builder, sha: str, overrides: dict[str, Any], 
                     "target_items": len(jobs), "adapt_seconds": round(time.perf_counter() - t0, 1),
                     "label_shares": summary["adapted"]["label_shares"], "epochs": summary["adapted"]["epochs"],
                     "lr": summary["adapted"]["lr"]}
-            _atomic_json(record, done)
+            write_json(record, done)
         t0 = time.perf_counter()
         metrics = evaluate_heldout(model, b.store(ds, "test", CONDITIONS["adapt"][0]), b.progress)
         rows.append(_result(run, b, ds, metrics, info,
@@ -933,7 +622,7 @@ def run_study(study: Study, out: str | Path, conditions: Sequence[str] | None = 
         b.camera(d)  # every camera before anything is written: the own vehicle is searched for now
     b.say_ego()
     b.write_estimates()
-    _atomic_json(out / "study.json", {"study": str(study.path), "virtual": virt.to_dict(), "scale": b.scale(),
+    write_json(out / "study.json", {"study": str(study.path), "virtual": virt.to_dict(), "scale": b.scale(),
                                       "conditions": conditions, "datasets": [d.name for d in study.datasets],
                                       "roles": {d.name: d.role for d in study.datasets}, "train": training,
                                       **({"ego_found": b.ego_found} if b.ego_found else {}),
@@ -962,40 +651,3 @@ def run_study(study: Study, out: str | Path, conditions: Sequence[str] | None = 
              for k in b.estimated]
     write_tables(out, rows, evaluated, conditions, notes)
     return rows
-
-
-# -- tables --------------------------------------------------------------------------------------
-def summary_of(rows: Sequence[dict[str, Any]], conditions: Sequence[str]) -> dict[str, float]:
-    """Condition -> mean road IoU over the evaluated datasets that have a result for it."""
-    out = {}
-    for c in conditions:
-        v = [r["iou"] for r in rows if r["condition"] == c]
-        if v:
-            out[c] = float(np.mean(v))
-    return out
-
-
-def format_table(rows: Sequence[dict[str, Any]], heldout: Sequence[str], conditions: Sequence[str],
-                 fmt: str = "md") -> str:
-    """Rows: evaluated (held-out or test-role) dataset + mean; columns: conditions; cells: road IoU x 100
-    ('-' = no run)."""
-    cell = {(r["heldout"], r["condition"]): r["iou"] for r in rows}
-    mean = summary_of(rows, conditions)
-    body = [[h] + [f"{100 * cell[h, c]:.1f}" if (h, c) in cell else "-" for c in conditions] for h in heldout]
-    body.append(["mean"] + [f"{100 * mean[c]:.1f}" if c in mean else "-" for c in conditions])
-    header = ["held out"] + list(conditions)
-    if fmt == "csv":
-        return "\n".join(",".join(r) for r in [header] + body) + "\n"
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(r) + " |" for r in body]
-    return "\n".join(lines) + "\n"
-
-
-def write_tables(out: Path, rows: Sequence[dict[str, Any]], heldout: Sequence[str], conditions: Sequence[str],
-                 notes: Sequence[str] = ()) -> None:
-    write_bytes_atomic(out / "results.jsonl", "".join(json.dumps(r, sort_keys=True) + "\n" for r in rows).encode())
-    write_bytes_atomic(out / "table.md", ("Road IoU (%) on each evaluated dataset's test images (never "
-                                          "trained on), scored in its own camera.\n\n" + format_table(rows, heldout, conditions)
-                                          + "".join(f"\n{n}\n" for n in notes)).encode())
-    write_bytes_atomic(out / "table.csv", format_table(rows, heldout, conditions, "csv").encode())
-    _atomic_json(out / "summary.json", summary_of(rows, conditions))
