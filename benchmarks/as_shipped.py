@@ -46,7 +46,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from camvid_cameras import BIN, DATA, ROOT, SHARED_DATA, native_camera, run
+from measure import BIN, DATA, ROOT, SHARED_DATA, native_camera, run
 
 CITYSCAPES = SHARED_DATA / "cityscapes_pix2pix"
 CS_FORMAT = "values:road=1;ignore=255;max=255"

@@ -49,7 +49,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from camvid_cameras import BIN, DATA, ROOT, SHARED_DATA, run
+from measure import BIN, DATA, ROOT, SHARED_DATA, run
 
 sys.path.insert(0, str(ROOT))
 import vcprep.vanishing_point as vpmod  # noqa: E402
@@ -123,7 +123,7 @@ def _synthetic(wd: Path, frames: int) -> dict[str, tuple[list[Path], Camera, dic
 
 
 def _camvid_sim(wd: Path, quick: bool) -> dict[str, tuple[list[Path], Camera, dict]]:
-    from camvid_cameras import native_camera
+    from measure import native_camera
 
     native = native_camera(wd)
     images, labels = DATA / "val", DATA / "valannot"

@@ -48,7 +48,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from camvid_cameras import BIN, DATA, ROOT, SIMULATED, bar_plot as _bars, native_camera, run, simulate
+from measure import BIN, DATA, ROOT, SIMULATED, bar_plot as _bars, native_camera, run, simulate
 
 CONDITIONS = ["resize", "between", "within", "within-gt", "zero"]  # the default; --conditions may add prior,
                                                                     # adapt, adapt-fuse

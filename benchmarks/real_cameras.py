@@ -5,6 +5,8 @@
 
 One ``vctrain crossval`` study, run once per seed (``--seed k``) into WORKDIR/seed<k>/; every run
 resumes (crossval skips finished runs), so an interrupted benchmark continues where it stopped.
+This script sets the study up, runs it and reports; the measuring code (statistics over seeds, the
+reference training step, the camera change alone, tables and plot) is in ``measure.py``.
 
 Data (../shared/data; nothing is tuned on a test set):
 
@@ -23,7 +25,7 @@ Data (../shared/data; nothing is tuned on a test set):
   as a row of its own (not in the headline). Other folders found in ../shared/data are listed as
   not used.
 * **simulated other cameras**: CamVid val through ``tele``, ``band`` and ``dashcam``, made by
-  ``vcprep simulate`` exactly as benchmarks/cross_camera.py makes them (camvid_cameras.py).
+  ``vcprep simulate`` exactly as benchmarks/cross_camera.py makes them (measure.py).
 
 Every test set has role test: per condition ONE model is trained on CamVid train and scored on each
 test set in its own camera (back-projected, ignore excluded; road IoU = sum TP / sum (TP+FP+FN) over
@@ -63,7 +65,7 @@ right after each seed's training (same model args, batch, working size, memory f
 device and threads; kept in runs/_all/<condition>/reference.json, so a resumed benchmark reuses the
 reference of the training it belongs to).
 
-The camera change alone (simulated cameras, :func:`no_shift_reference`): every trained model's
+The camera change alone (simulated cameras, :func:`measure.no_shift_reference`): every trained model's
 prediction on the simulations' source frames (CamVid val; ``--dev``: 0006R0) in their own camera,
 carried into each simulated camera by the simulation's exact homography and scored against the
 simulated labels: the same frames and pixels with no camera change. The score on the simulated
@@ -72,7 +74,7 @@ minus resize's score is within - resize if the virtual camera removed the whole 
 (``zero_cost``; over the other cameras with KITTI as measured): what these test sets allow at this
 network quality. The recorded homography must carry every source label onto its simulated label
 exactly (checked).
-Estimated VPs vs the exact pose (:func:`exact_vp_scores`): the within model on the simulated
+Estimated VPs vs the exact pose (:func:`measure.exact_vp_scores`): the within model on the simulated
 cameras' frames warped with each frame's exact camera pose (the simulation's vps.csv: the source
 camera's nominal pose carried through that frame's simulated rotation, i.e. what a perfect
 per-frame calibration gives) instead of its estimated road VP.
@@ -93,22 +95,20 @@ stdout line is one JSON object with ``within_minus_resize``, ``in_domain_within`
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
 import os
 import platform
-import shutil
 import sys
 import time
-from dataclasses import replace
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from camvid_cameras import BIN, DATA, DESCRIPTION, ROOT, SHARED_DATA, SIMULATED, bar_plot, native_camera, run, simulate
+from measure import (BIN, DATA, DESCRIPTION, KITTI, ROOT, SHARED_DATA, SIM, UNTRAINED, aggregate, bar_plot,
+                     collect_seed, ego_camera, exact_vp_scores, kitti_datasets, link_files, native_camera,
+                     no_shift_reference, run, seed_table, shift_costs, shift_table, simulate, vp_costs)
 
-KITTI = SHARED_DATA / "kitti_road" / "training"
 UNSEEN = "0001TP"                         # the CamVid sequence held out of training
 # The 0001TP rig shows its ego-vehicle: a bonnet up to 36 rows high at the bottom of every frame
 # (the height of its ego-vehicle mask, CamVid class 11 connected to the bottom edge; the training
@@ -120,25 +120,13 @@ EGO_ROWS = 36
 DEV_TRAIN, DEV_TEST = "0016E5", "0006R0"  # --dev: train on one CamVid train sequence, score on the other
 IN_DOMAIN = ["camvid-val", f"camvid-{UNSEEN}"]
 REAL = ["kitti"]
-SIM = list(SIMULATED)
 OTHER = REAL + SIM                        # the other-camera test sets of the headline
 CONDITIONS = ["resize", "between", "within"]     # the default; --conditions may add within-gt, zero, prior,
                                                  # adapt, adapt-fuse
-UNTRAINED = ("prior", "adapt", "adapt-fuse")     # no model of their own (no convergence or in-domain target)
-ADAPTED = ("adapt", "adapt-fuse")                # reported as paired differences to within
 QUICK_TRAIN = {"epochs": 1, "max_steps": 2}
 
 
 # -- the study -----------------------------------------------------------------------------------
-def _link(names: list[str], src: Path, dest: Path) -> Path:
-    if dest.exists():
-        shutil.rmtree(dest)
-    dest.mkdir(parents=True)
-    for n in names:
-        (dest / n).symlink_to(src / n)
-    return dest
-
-
 def camvid_folders(wd: Path, quick: bool) -> dict[str, Path]:
     """CamVid's train/val image and label folders (quick: a few frames of each sequence, linked)."""
     full = {k: DATA / k for k in ("train", "trainannot", "val", "valannot")}
@@ -148,34 +136,10 @@ def camvid_folders(wd: Path, quick: bool) -> dict[str, Path]:
     pick = [n for seq in ("0016E5", "0006R0") for n in [m for m in train if m.startswith(seq)][:3]]
     pick += [n for n in train if n.startswith(UNSEEN)][:2]
     val = sorted(p.name for p in full["val"].glob("*.png"))[:3]
-    return {"train": _link(pick, full["train"], wd / "src" / "train"),
-            "trainannot": _link(pick, full["trainannot"], wd / "src" / "trainannot"),
-            "val": _link(val, full["val"], wd / "src" / "val"),
-            "valannot": _link(val, full["valannot"], wd / "src" / "valannot")}
-
-
-def ego_camera(wd: Path, rows: int) -> Path:
-    """wd/native-ego.yaml: the native camera with its bottom ``rows`` rows marked as the rig's own
-    vehicle (``ego_rows``: every tool reads the frames as their exact bottom crop)."""
-    from vcprep.camera import PRESETS, camera_to_yaml
-
-    path = wd / "native-ego.yaml"
-    path.write_text(camera_to_yaml(replace(PRESETS["camvid"].for_image_size((480, 360)), ego_rows=rows)))
-    return path
-
-
-def kitti_datasets() -> list[dict]:
-    """The KITTI road frames with road ground truth, twice: ``kitti`` with every frame's own
-    calibration (calib/: P2 and that frame's Tr_cam_to_road, the exact pose; what a user with
-    KITTI's files gets), and ``kitti-vp`` with one camera (the first frame's file) and poses from
-    estimated road VPs (the method without calibration; a row of its own, not in the headline)."""
-    images = sorted((KITTI / "image_2").glob("*.png")) if (KITTI / "image_2").is_dir() else []
-    if not images:
-        return []
-    test = {"images": str(KITTI / "image_2"), "labels": str(KITTI / "gt_image_2")}
-    return [{"name": "kitti", "role": "test", "camera": str(KITTI / "calib"), "label_format": "kitti", "test": test},
-            {"name": "kitti-vp", "role": "test", "camera": str(KITTI / "calib" / f"{images[0].stem}.txt"),
-             "label_format": "kitti", "test": test}]
+    return {"train": link_files(pick, full["train"], wd / "src" / "train"),
+            "trainannot": link_files(pick, full["trainannot"], wd / "src" / "trainannot"),
+            "val": link_files(val, full["val"], wd / "src" / "val"),
+            "valannot": link_files(val, full["valannot"], wd / "src" / "valannot")}
 
 
 def dev_datasets(wd: Path, f: dict[str, Path], cam: Path, camvid) -> tuple[list[dict], dict]:
@@ -185,8 +149,8 @@ def dev_datasets(wd: Path, f: dict[str, Path], cam: Path, camvid) -> tuple[list[
     'other cameras' group). KITTI joins the study only so the virtual camera is designed exactly
     as in the benchmark; its rows are dropped from the dev report."""
     names = sorted(p.name for p in f["train"].glob(f"{DEV_TEST}_*.png"))
-    images = _link(names, f["train"], wd / "src" / "dev" / "images")
-    labels = _link(names, f["trainannot"], wd / "src" / "dev" / "labels")
+    images = link_files(names, f["train"], wd / "src" / "dev" / "images")
+    labels = link_files(names, f["trainannot"], wd / "src" / "dev" / "labels")
     datasets = [camvid("camvid", "train", f["train"], f["trainannot"], include=f"{DEV_TRAIN}_*"),
                 camvid(f"camvid-{DEV_TEST}", "test", images, labels)]
     datasets += kitti_datasets()
@@ -255,361 +219,16 @@ def unused_data() -> list[str]:
     return sorted(p.name for p in SHARED_DATA.iterdir() if p.is_dir() and p.name not in ("camvid", "kitti_road"))
 
 
-# -- measurements --------------------------------------------------------------------------------
-def reference_images_per_s(ck: dict, threads: int, seconds: float, min_steps: int) -> float:
-    """Images/s of a pure training step (forward, cross-entropy, backward, optimiser step) on random
-    tensors shaped like the checkpoint's training batches: the same model args, batch, working size,
-    memory format, optimiser and device as ``vctrain fit`` used, no data loading."""
-    import torch
-    from torch.nn import functional as F
-
-    from vctrain.model import build_model
-    from vctrain.train import resolve_device
-
-    torch.set_num_threads(threads)
-    cfg, margs = ck["config"], ck["model_args"]
-    device = resolve_device(cfg.get("device") or "auto")
-    w, h = ck["data"].get("crop_size") or ck["data"]["input_size"]  # the training batches' shape
-    batch = int(cfg.get("batch_size") or 8)
-    fmt = torch.channels_last if margs["arch"] == "resfpn" else torch.contiguous_format
-    torch.manual_seed(0)
-    model = build_model(margs).to(device, memory_format=fmt).train()
-    lr, wd, mom = cfg.get("lr") or 1e-3, cfg.get("weight_decay") or 0.0, cfg.get("momentum") or 0.9
-    if cfg.get("optimizer") == "adamw":
-        opt = torch.optim.AdamW(model.parameters(), lr=lr, betas=(mom, 0.999), weight_decay=wd)
-    else:
-        opt = torch.optim.SGD(model.parameters(), lr=lr, momentum=mom, weight_decay=wd)
-    x = torch.randn(batch, margs["in_channels"], h, w, device=device).contiguous(memory_format=fmt)
-    y = torch.randint(0, margs["num_classes"], (batch, h, w), device=device)
-
-    def step() -> None:
-        loss = F.cross_entropy(model(x), y, ignore_index=255)
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        opt.step()
-
-    for _ in range(2):  # warm-up (allocator, kernels)
-        step()
-    n, t0 = 0, time.perf_counter()
-    while n < min_steps or time.perf_counter() - t0 < seconds:
-        step()
-        n += 1
-    if device.type == "cuda":
-        torch.cuda.synchronize()
-    return batch * n / (time.perf_counter() - t0)
-
-
-def convergence(log: list[dict], epochs: int, best_epoch: int) -> tuple[bool, str]:
-    """Converged: the best epoch is not the last, or the validation IoU plateaued (the last quarter
-    of the epochs, at least 2, improves the best before it by < 0.5 IoU points)."""
-    if 0 < best_epoch < epochs:
-        return True, f"best epoch {best_epoch} of {epochs}"
-    vals = [r["val_iou"] for r in log if "val_iou" in r]
-    k = max(2, len(vals) // 4)
-    if len(vals) < k + 2:
-        return False, f"best epoch is the last of {epochs}; too few epochs to see a plateau"
-    gain = max(vals[-k:]) - max(vals[:-k])
-    if gain < 0.005:
-        return True, f"plateau: the last {k} epochs gain {100 * gain:.2f} IoU points"
-    return False, f"still improving: the last {k} epochs gain {100 * gain:.2f} IoU points"
-
-
-def collect_seed(sd: Path, conditions: list[str], threads: int, quick: bool) -> tuple[dict, list[dict]]:
-    """{(test set, condition): row} and one record per model (timings, convergence, pipeline ratio)."""
-    import torch
-
-    rows = {(r["heldout"], r["condition"]): r
-            for r in map(json.loads, (sd / "results.jsonl").read_text().splitlines())}
-    models, refs = [], {}
-    for c in conditions:
-        run_dir = sd / "runs" / "_all" / c
-        if not (run_dir / "train.json").exists():
-            continue
-        tj = json.loads((run_dir / "train.json").read_text())
-        ck = torch.load(run_dir / "model.pt", map_location="cpu", weights_only=False)
-        log = [json.loads(line) for line in (run_dir / "model.log.jsonl").read_text().splitlines()]
-        shape = json.dumps([ck["model_args"], ck["data"].get("crop_size") or ck["data"]["input_size"],
-                            ck["config"].get("batch_size"),
-                            ck["config"].get("optimizer"), ck["config"].get("device"), threads], sort_keys=True)
-        # the reference is measured right after the training it belongs to and kept with it, so a
-        # resumed benchmark reuses it; one per distinct shape (resize and virtual share the working size)
-        cache = run_dir / "reference.json"
-        key = hashlib.sha256(((run_dir / "train.json").read_text() + shape).encode()).hexdigest()[:16]
-        old = json.loads(cache.read_text()) if cache.exists() else {}
-        if old.get("key") == key:
-            ref = old["images_per_s"]
-        else:
-            if shape not in refs:
-                refs[shape] = reference_images_per_s(ck, threads, 2.0 if quick else 20.0, 3 if quick else 10)
-            ref = refs[shape]
-            cache.write_text(json.dumps({"key": key, "images_per_s": ref}) + "\n")
-        ok, why = convergence(log, tj["epochs"], tj["best_epoch"])
-        models.append({"condition": c, "train_minutes": tj["train_seconds"] / 60, "epochs": tj["epochs"],
-                       "best_epoch": tj["best_epoch"], "best_val_iou": tj["best_val_iou"],
-                       "train_items": tj["train_items"], "val_items": tj["val_items"],
-                       "input_size": tj["input_size"], "crop_size": ck["data"].get("crop_size"),
-                       "model_args": ck["model_args"],
-                       "batch_size": ck["config"].get("batch_size"), "optimizer": ck["config"].get("optimizer"),
-                       "train_images_per_s": tj["train_images_per_s"], "reference_images_per_s": ref,
-                       "pipeline_ratio": tj["train_images_per_s"] / ref, "converged": ok,
-                       "convergence": why, "val_iou_per_epoch": [r.get("val_iou") for r in log]})
-    return rows, models
-
-
-# -- the camera change alone ---------------------------------------------------------------------
-def no_shift_reference(sd: Path, wd: Path, source: dict, conditions: list[str], sets: list[str]) -> dict:
-    """{(simulated set, condition): {"iou", "test_items"}}: each trained model's prediction on the
-    simulations' SOURCE frames in their own camera (the in-domain test set, e.g. CamVid val),
-    carried into the simulated camera by the simulation's exact homography (each frame's
-    ``out_H_src`` as the simulation recorded it, :func:`vcprep.simulate.recorded_homographies`;
-    P(road) bilinear, like the images) and scored against the simulated labels. Same frames, same
-    pixels, no camera change: the score the model would get on that camera if the change cost
-    nothing, so (simulated score - this) is the cost of the camera change alone. Checked against
-    the files: every source label carried over must equal the simulated label, or the benchmark
-    stops. Kept in runs/_all/<condition>/no_shift.json (keyed by the training and the simulations)."""
-    from vcprep.build import list_dataset
-    from vcprep.imageio import read_image
-    from vcprep.labels import decode_label, get_label_format
-    from vcprep.simulate import recorded_homographies, simulate_arrays
-    from vcprep.store import Store
-    from vctrain.crossval import CONDITIONS as MODES
-    from vctrain.metrics import RoadMetrics
-    from vctrain.predict import Predictor
-
-    sims = [n for n in SIM if n in sets]
-    fmt = get_label_format("camvid")
-    jobs = {j.id: j for j in list_dataset(source["images"], source["labels"], fmt)}
-    Hs, sizes, labels = {}, {}, {}
-    for n in sims:
-        Hs[n] = recorded_homographies(wd / "sim" / n)
-        sizes[n] = tuple(json.loads((wd / "sim" / n / "simulate.json").read_text())["camera"]["image_size"])
-        for iid in Hs[n]:  # the exact-geometry check: the recorded H reproduces the simulated label
-            raw = read_image(jobs[iid].label, label=True).array
-            mine = simulate_arrays(raw, raw, Hs[n][iid], sizes[n])[1]
-            sim_file = wd / "sim" / n / "labels" / jobs[iid].label.name
-            theirs = read_image(sim_file, label=True).array
-            if not np.array_equal(mine, theirs):
-                sys.exit(f"{sim_file}: the recorded homography does not reproduce this label; "
-                         f"delete {wd / 'sim'} and run again")
-            labels[n, iid] = decode_label(theirs, fmt, sim_file)
-    out: dict[tuple[str, str], dict] = {}
-    key_sims = json.dumps({n: (wd / "sim" / n / "simulate.json").read_text() for n in sims}, sort_keys=True)
-    for c in conditions:
-        run_dir = sd / "runs" / "_all" / c
-        if c in UNTRAINED or not (run_dir / "train.json").exists():
-            continue
-        key = hashlib.sha256(((run_dir / "train.json").read_text() + key_sims).encode()).hexdigest()[:16]
-        cache = run_dir / "no_shift.json"
-        old = json.loads(cache.read_text()) if cache.exists() else {}
-        if old.get("key") != key:
-            store = Store.open(sd / "stores" / source["dataset"] / "test" / MODES[c][0])
-            pred = Predictor(run_dir / "model.pt", device="cpu")
-            probs = {rec["id"]: pred.store_item(store, rec).astype(np.float32) for rec in store}
-            res = {}
-            for n in sims:
-                m = RoadMetrics()
-                for iid, H in Hs[n].items():
-                    m.add(simulate_arrays(probs[iid], None, H, sizes[n])[0] >= 0.5, labels[n, iid])
-                res[n] = {**m.result(), "test_items": len(Hs[n])}
-            old = {"key": key, "results": res}
-            cache.write_text(json.dumps(old, indent=1) + "\n")
-        for n, r in old["results"].items():
-            out[n, c] = r
-    return out
-
-
-def exact_vp_scores(sd: Path, wd: Path, sets: list[str], threads: int) -> dict:
-    """{simulated set: {"iou", "test_items"}}: the seed's within model on each simulated camera's
-    test frames warped with each frame's EXACT camera pose (the simulation's vps.csv, status
-    'given': the source camera's nominal pose through the frame's simulated rotation, what a
-    perfect per-frame calibration gives) instead of its estimated road VP, into the same virtual
-    camera and scale (stores under ``exact_vp/<set>``). Kept in runs/_all/within/exact_vp.json
-    (keyed by the training and the VP files)."""
-    from vcprep.build import ItemPose, WarpSettings, list_dataset, warp_dataset
-    from vcprep.camera import camera_from_dict, load_camera
-    from vcprep.labels import get_label_format
-    from vcprep.vanishing_point import vps_for_items
-    from vctrain.crossval import evaluate_heldout
-
-    run_dir = sd / "runs" / "_all" / "within"
-    sims = [n for n in SIM if n in sets]
-    if not sims or not (run_dir / "train.json").exists():
-        return {}
-    key = hashlib.sha256(((run_dir / "train.json").read_text() + json.dumps(
-        {n: (wd / "sim" / n / "vps.csv").read_text() for n in sims}, sort_keys=True)).encode()).hexdigest()[:16]
-    cache = run_dir / "exact_vp.json"
-    old = json.loads(cache.read_text()) if cache.exists() else {}
-    if old.get("key") == key:
-        return old["results"]
-    study = json.loads((sd / "study.json").read_text())
-    virtual, fmt = camera_from_dict(study["virtual"]), get_label_format("camvid")
-    res = {}
-    for n in sims:
-        d = wd / "sim" / n
-        jobs = list_dataset(d / "images", d / "labels", fmt)
-        cam = load_camera(str(d / "camera.yaml"))
-        vps = vps_for_items([j.image for j in jobs], [j.id for j in jobs], cam, str(d / "vps.csv"))
-        poses = {j.id: ItemPose((r.vp[0], r.vp[1]), r.status) for j, r in zip(jobs, vps)}
-        store = sd / "exact_vp" / n
-        warp_dataset(jobs, store, WarpSettings(cam, virtual, study["scale"], fmt, completion="projective", poses=poses,
-                                               workers=threads, progress=False))
-        res[n] = evaluate_heldout(run_dir / "model.pt", store)
-    cache.write_text(json.dumps({"key": key, "results": res}, indent=1) + "\n")
-    return res
-
-
-# -- aggregation ---------------------------------------------------------------------------------
-def stats(v: list[float]) -> dict:
-    a = np.asarray(v, float)
-    return {"mean": float(a.mean()) if len(a) else None, "std": float(a.std(ddof=1)) if len(a) > 1 else 0.0,
-            "per_seed": [float(x) for x in a]}
-
-
-def fmt(s: dict | None, scale: float = 100.0, signed: bool = False) -> str:
-    if not s or s["mean"] is None:
-        return "-"
-    return f"{scale * s['mean']:{'+' if signed else ''}.1f} ± {scale * s['std']:.1f}"
-
-
-def paired(per_seed: dict[int, dict], sets: list[str], groups: dict[str, list[str]], a: str, b: str) -> dict:
-    """Paired differences a - b of road IoU per seed (mean, std, per seed), per test set and group
-    (a group's difference per seed is the mean over its members)."""
-    seeds = sorted(per_seed)
-    diff: dict[str, dict] = {}
-    for s in sets:
-        diff[s] = stats([per_seed[k][s, a]["iou"] - per_seed[k][s, b]["iou"] for k in seeds
-                         if (s, a) in per_seed[k] and (s, b) in per_seed[k]])
-    for g, members in groups.items():
-        if members:
-            diff[g] = stats([float(np.mean([per_seed[k][m, a]["iou"] - per_seed[k][m, b]["iou"] for m in members]))
-                             for k in seeds if all((m, c) in per_seed[k] for m in members for c in (a, b))])
-    return diff
-
-
-def aggregate(per_seed: dict[int, dict], sets: list[str], conditions: list[str]) -> dict:
-    """Cells (mean, std, per seed) and paired within - resize (and adapt - within) differences, per
-    test set and group."""
-    seeds = sorted(per_seed)
-    others = [s for s in OTHER if s in sets]
-    groups = {"other cameras": others, "kitti (real)": [s for s in REAL if s in sets],
-              "simulated": [s for s in SIM if s in sets]}
-    cells: dict[str, dict[str, dict]] = {}
-    for s in sets:
-        cells[s] = {c: stats([per_seed[k][s, c]["iou"] for k in seeds if (s, c) in per_seed[k]]) for c in conditions}
-    for g, members in groups.items():
-        if members:
-            cells[g] = {c: stats([float(np.mean([per_seed[k][m, c]["iou"] for m in members])) for k in seeds
-                                  if all((m, c) in per_seed[k] for m in members)]) for c in conditions}
-    diff = paired(per_seed, sets, groups, "within", "resize") if {"within", "resize"} <= set(conditions) else {}
-    adapt = {c: paired(per_seed, sets, groups, c, "within") for c in ADAPTED if {c, "within"} <= set(conditions)}
-    vp = paired(per_seed, sets, groups, "within", "between") if {"within", "between"} <= set(conditions) else {}
-    return {"cells": cells, "within_minus_resize": diff, "adapt_minus_within": adapt, "within_minus_between": vp,
-            "groups": groups}
-
-
-def shift_costs(per_seed: dict[int, dict], no_shift: dict[int, dict], sets: list[str], conditions: list[str]) -> dict:
-    """The camera change alone, per simulated set and condition (mean, std, per seed): ``reference``
-    (:func:`no_shift_reference`: the same pixels seen by the model in the source camera), ``cost``
-    = score on the simulated camera - reference (and per group), and ``zero_cost``: within -
-    resize if the within model lost nothing to the camera change (within's reference - resize's
-    score; what these test sets allow at this network quality), per simulated set, over the
-    simulated sets, and over the other cameras with the real ones (no reference) as measured."""
-    seeds = [k for k in sorted(per_seed) if no_shift.get(k)]
-    sims = [n for n in SIM if n in sets]
-    trained = [c for c in conditions if c not in UNTRAINED]
-    ref: dict[str, dict] = {n: {} for n in sims}
-    cost: dict[str, dict] = {n: {} for n in sims}
-    for n in sims:
-        for c in trained:
-            ks = [k for k in seeds if (n, c) in no_shift[k] and (n, c) in per_seed[k]]
-            if ks:
-                ref[n][c] = stats([no_shift[k][n, c]["iou"] for k in ks])
-                cost[n][c] = stats([per_seed[k][n, c]["iou"] - no_shift[k][n, c]["iou"] for k in ks])
-    if sims:
-        cost["simulated"] = {c: stats([float(np.mean([per_seed[k][n, c]["iou"] - no_shift[k][n, c]["iou"]
-                                                       for n in sims])) for k in seeds])
-                             for c in trained if all(c in cost[n] for n in sims)}
-    zero: dict[str, dict] = {}
-    if {"within", "resize"} <= set(trained) and sims and all("within" in ref[n] for n in sims):
-        def gap(k: int, n: str) -> float:
-            if n in sims:
-                return no_shift[k][n, "within"]["iou"] - per_seed[k][n, "resize"]["iou"]
-            return per_seed[k][n, "within"]["iou"] - per_seed[k][n, "resize"]["iou"]
-
-        for n in sims:
-            zero[n] = stats([gap(k, n) for k in seeds])
-        zero["simulated"] = stats([float(np.mean([gap(k, n) for n in sims])) for k in seeds])
-        others = [n for n in OTHER if n in sets]
-        if all((n, c) in per_seed[k] for k in seeds for n in others for c in ("within", "resize")):
-            zero["other cameras"] = stats([float(np.mean([gap(k, n) for n in others])) for k in seeds])
-    return {"reference": ref, "cost": cost, "zero_cost": zero, "seeds": seeds}
-
-
-def vp_costs(per_seed: dict[int, dict], exact: dict[int, dict]) -> dict:
-    """Per simulated set (and their mean): within with each frame's exact pose (``exact``, mean,
-    std, per seed) and ``cost`` = within with estimated road VPs - that."""
-    seeds = [k for k in sorted(exact) if exact[k]]
-    sims = [n for n in SIM if all(n in exact[k] and (n, "within") in per_seed[k] for k in seeds)] if seeds else []
-    out = {n: {"exact": stats([exact[k][n]["iou"] for k in seeds]),
-               "cost": stats([per_seed[k][n, "within"]["iou"] - exact[k][n]["iou"] for k in seeds])} for n in sims}
-    if sims:
-        out["simulated"] = {"exact": stats([float(np.mean([exact[k][n]["iou"] for n in sims])) for k in seeds]),
-                            "cost": stats([float(np.mean([per_seed[k][n, "within"]["iou"] - exact[k][n]["iou"]
-                                                          for n in sims])) for k in seeds])}
-    return out
-
-
-def shift_table(shift: dict, conditions: list[str]) -> list[str]:
-    """Markdown lines: the camera change alone (empty without simulated sets)."""
-    sims = [n for n in shift["reference"] if shift["reference"][n]]
-    if not sims:
-        return []
-    trained = [c for c in conditions if c not in UNTRAINED and all(c in shift["reference"][n] for n in sims)]
-    lines = ["The camera change alone: each model's prediction on the simulations' source frames in their own "
-             "camera, carried into the simulated camera by the exact simulation homography and scored there "
-             "(same frames, same pixels, no camera change), and the cost of the change = the score on the "
-             "camera − that (road IoU points, mean ± std over seeds):", "",
-             "| simulated set | " + " | ".join(f"{c}: no change | {c}: cost" for c in trained) + " |",
-             "|---|" + "---|---|" * len(trained)]
-    for n in sims + (["simulated"] if "simulated" in shift["cost"] else []):
-        row = [n if n in sims else "**simulated** (mean)"]
-        for c in trained:
-            row += [fmt(shift["reference"][n].get(c)) if n in sims else "",
-                    fmt(shift["cost"][n].get(c), signed=True)]
-        lines.append("| " + " | ".join(row) + " |")
-    b = shift["zero_cost"]
-    if b:
-        parts = [f"{n} {fmt(b[n], signed=True)}" for n in sims if n in b]
-        lines += ["", "within − resize if the within model lost nothing to the camera change (within's no-change "
-                  "score − resize's score; what these test sets allow at this network quality): " + ", ".join(parts)
-                  + (f"; simulated mean **{fmt(b['simulated'], signed=True)}**" if "simulated" in b else "")
-                  + (f"; other cameras (KITTI as measured) **{fmt(b['other cameras'], signed=True)}**"
-                     if "other cameras" in b else "") + "."]
-    v = shift.get("exact_vp") or {}
-    if v:
-        lines += ["", "within with each frame's EXACT camera pose (the simulation's, as a perfect per-frame "
-                  "calibration gives) instead of its estimated road VP (same model, same virtual camera): " + ", ".join(f"{n} {fmt(v[n]['exact'])} (estimated − exact: {fmt(v[n]['cost'], signed=True)})"
-                                                  for n in v) + "."]
-    return lines + [""]
-
-
-def table(agg: dict, sets: list[str], conditions: list[str], items: dict[str, int]) -> str:
-    diff, adapt = bool(agg["within_minus_resize"]), list(agg["adapt_minus_within"])
-    header = (["test set", "frames"] + conditions + (["within − resize"] if diff else [])
-              + [f"{c} − within" for c in adapt])
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    for s in sets + [g for g in agg["groups"] if agg["groups"][g]]:
-        row = [s if s in sets else f"**{s}** (mean)", str(items.get(s, "")) if s in sets else ""]
-        row += [fmt(agg["cells"][s][c]) for c in conditions]
-        if diff:
-            row.append(fmt(agg["within_minus_resize"].get(s), signed=True))
-        for c in adapt:
-            row.append(fmt(agg["adapt_minus_within"][c].get(s), signed=True))
-        lines.append("| " + " | ".join(row) + " |")
-    return "\n".join(lines) + "\n"
+# -- results -------------------------------------------------------------------------------------
+def report_groups(sets: list[str]) -> dict[str, list[str]]:
+    """The groups of test sets reported as means: the other cameras (the headline), KITTI, the
+    simulated cameras (each: those of ``sets``)."""
+    return {"other cameras": [s for s in OTHER if s in sets], "kitti (real)": [s for s in REAL if s in sets],
+            "simulated": [s for s in SIM if s in sets]}
 
 
 def targets(agg: dict, models: list[dict], conditions: list[str]) -> dict:
+    """The benchmark's targets (module docstring), each with ``pass`` and the values it was judged on."""
     cells, diff = agg["cells"], agg["within_minus_resize"]
     in_dom = {f"{s} {c}": cells[s][c]["mean"] for s in IN_DOMAIN if s in cells for c in conditions
               if c not in UNTRAINED and cells[s][c]["mean"] is not None}
@@ -646,7 +265,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", default=None, help="comma-separated training seeds (default 0,1,2; --quick: 0)")
     ap.add_argument("--epochs", type=int, default=None, help="training epochs (default: vctrain fit's recipe)")
-    from vctrain.crossval import CONDITIONS as AVAILABLE
+    from vctrain.study import CONDITIONS as AVAILABLE
 
     ap.add_argument("--conditions", default=",".join(CONDITIONS),
                     help=f"comma-separated, from {','.join(AVAILABLE)} (default: {','.join(CONDITIONS)})")
@@ -712,10 +331,11 @@ def main() -> None:
         no_shift[k] = no_shift_reference(sd, wd, source, conditions, sets)
         exact[k] = exact_vp_scores(sd, wd, sets, T) if "within" in conditions else {}
     total = time.perf_counter() - t0
-    shift = shift_costs(per_seed, no_shift, sets, conditions)
+    groups = report_groups(sets)
+    shift = shift_costs(per_seed, no_shift, sets, conditions, groups["other cameras"])
     shift["exact_vp"] = vp_costs(per_seed, exact)
 
-    agg = aggregate(per_seed, sets, conditions)
+    agg = aggregate(per_seed, sets, conditions, groups)
     items = {s: per_seed[seeds[0]][s, conditions[0]]["test_items"] for s in sets if (s, conditions[0]) in per_seed[seeds[0]]}
     tg = targets(agg, models, conditions)
     diff, cells = agg["within_minus_resize"], agg["cells"]
@@ -752,7 +372,7 @@ def main() -> None:
     md = ["# Real new cameras: train on CamVid, test on other cameras (benchmarks/real_cameras.py)", "",
           f"Road IoU (%) on each test set in its own camera, mean ± std over {len(seeds)} seeds {seeds}"
           + (" (QUICK SMOKE RUN: numbers mean nothing)" if args.quick else "") + ".", "",
-          table(agg, sets, conditions, items),
+          seed_table(agg, sets, conditions, items),
           *shift_table(shift, conditions),
           "Targets (reported, not asserted):", ""]
     md += [f"- {name}: {'PASS' if t['pass'] else 'FAIL'} "
@@ -797,7 +417,7 @@ def main() -> None:
          "test_frames": items, "targets": tg, "models": models, "seeds": seeds, "conditions": conditions,
          "threads": T, "study": study, "virtual": virt, "scale": study_json["scale"],
          "train_settings": study_json["train"], "wall_minutes": total / 60}, indent=1, default=str) + "\n")
-    print(table(agg, sets, conditions, items), file=sys.stderr)
+    print(seed_table(agg, sets, conditions, items), file=sys.stderr)
     print(json.dumps(headline))
 
 

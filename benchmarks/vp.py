@@ -7,6 +7,9 @@ Run (one thread, as the figures below are stated):
     .venv/bin/python benchmarks/vp.py --n-synthetic 40 --repeats 3
     .venv/bin/python benchmarks/vp.py --dev           # development sets only (see "Development")
 
+This script runs the measurement and writes its results; the measuring code (the baseline, the
+reference rule, the sets, the errors and the scene bootstrap) is in ``measure.py``.
+
 Data
 ----
 * **synthetic**: ``vcprep.synthetic.render_road`` through the camvid camera at 480x360 (and a
@@ -83,7 +86,7 @@ Data
   development; ``val`` was run once at the end.
 
 * **other cameras** (issue 17): the CamVid ``val`` frames that have a reference VP, through the
-  simulated cameras of the cross-camera benchmarks (``camvid_cameras.SIMULATED``: ``tele`` 35 deg
+  simulated cameras of the cross-camera benchmarks (``measure.SIMULATED``: ``tele`` 35 deg
   HFOV tilted 3 deg down, 320x240; ``band`` 480x146; ``dashcam`` 40 deg, 400x225, per-image pan
   +/-8 and tilt +/-4 deg), made by ``vcprep simulate --vps`` so that each frame's reference VP is
   moved by the same exact homography as its pixels (in ``--workdir``). The detector gets the
@@ -196,419 +199,19 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import platform
-import re
-import shutil
 import sys
-import time
 from dataclasses import asdict, replace
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from vcprep.camera import PRESETS  # noqa: E402
-from vcprep.homography import vp_from_pose  # noqa: E402
-from vcprep.synthetic import RoadScene, render_road  # noqa: E402
-from vcprep.vanishing_point import (VPConfig, apply_reliability, estimate_vp, prior_window,  # noqa: E402
-                                    score_vps, sequence_key, to_gray)
-
-DATA = ROOT.parent / "shared" / "data" / "camvid"
-KITTI = ROOT.parent / "shared" / "data" / "kitti_road" / "training"
-STATIC = np.array([0, 1, 4, 5, 7])  # classes whose border with road is a real road edge
-TAIL_PCT = 1.0  # the tail: errors above this (% width), split into search misses and lines-elsewhere
-SCENE_GAP = 30  # frames of one sequence at most this many frame numbers apart are one scene (1 s at 30 fps)
-
-
-# ------------------------------------------------------------------------------- baseline
-
-def baseline_vp(image: np.ndarray, iters: int = 500, min_len_px: float = 15.0, lower: float = 0.6,
-                min_deg: float = 15.0, max_deg: float = 75.0, band_px: float = 3.0,
-                seed: int = 0) -> tuple[float, float]:
-    """The plain baseline of issue 17: OpenCV's LSD (default settings) on the grey image; segments
-    kept if 15-75 deg from horizontal, longer than 15 px and with their midpoint in the lower 60 %
-    of the image; ``iters`` RANSAC pairs (seeded), each pair's intersection scored by the summed
-    length of the kept segments whose line passes within ``band_px`` px of it; the best
-    intersection, unrefined. No prior, no camera. (Image centre if fewer than 2 segments.)"""
-    h, w = image.shape[:2]
-    lines = cv2.createLineSegmentDetector().detect(to_gray(image))[0]
-    seg = np.zeros((0, 4)) if lines is None else lines.reshape(-1, 4).astype(np.float64)
-    d = seg[:, 2:4] - seg[:, 0:2]
-    L = np.hypot(d[:, 0], d[:, 1])
-    ang = np.degrees(np.arctan2(np.abs(d[:, 1]), np.abs(d[:, 0])))
-    mid_y = 0.5 * (seg[:, 1] + seg[:, 3])
-    keep = (L > min_len_px) & (ang >= min_deg) & (ang <= max_deg) & (mid_y >= (1 - lower) * h)
-    seg, L = seg[keep], L[keep]
-    if len(seg) < 2:
-        return (w / 2 - 0.5, h / 2 - 0.5)
-    hom = np.cross(np.c_[seg[:, :2], np.ones(len(seg))], np.c_[seg[:, 2:], np.ones(len(seg))])
-    hom /= np.linalg.norm(hom[:, :2], axis=1, keepdims=True)          # a u + b v + c = 0, (a, b) unit
-    rng = np.random.default_rng(seed)
-    i = rng.integers(0, len(seg), iters)
-    j = rng.integers(0, len(seg), iters)
-    X = np.cross(hom[i], hom[j])
-    ok = (i != j) & (np.abs(X[:, 2]) > 1e-12)
-    if not ok.any():
-        return (w / 2 - 0.5, h / 2 - 0.5)
-    X = X[ok, :2] / X[ok, 2:3]
-    dist = np.abs(X @ hom[:, :2].T + hom[None, :, 2])                  # (candidates, segments) px
-    score = (dist < band_px).astype(np.float64) @ L
-    best = X[int(np.argmax(score))]
-    return float(best[0]), float(best[1])
-
-
-# ------------------------------------------------------------------------------- references
-
-def _fit_side(ys: np.ndarray, xs: np.ndarray, band: float = 2.0, gate: bool = True):
-    """RANSAC + LSQ line x = a*y + b; returns (a, b) or None if the fit is not good (rule 3).
-    ``band``: RANSAC inlier band in px (the rule uses 2); ``gate=False`` skips the goodness
-    tests. Both only serve to measure the reference's own sensitivity (camvid_set)."""
-    n = len(ys)
-    if n < 25:
-        return None
-    i, j = np.triu_indices(n, 1)
-    if len(i) > 4000:
-        sel = np.linspace(0, len(i) - 1, 4000).astype(int)
-        i, j = i[sel], j[sel]
-    dy = ys[j] - ys[i]
-    ok = np.abs(dy) >= 10
-    i, j, dy = i[ok], j[ok], dy[ok]
-    if len(i) == 0:
-        return None
-    a = (xs[j] - xs[i]) / dy
-    b = xs[i] - a * ys[i]
-    res = np.abs(xs[None, :] - (a[:, None] * ys[None, :] + b[:, None]))
-    cnt = (res < band).sum(1)
-    k = int(np.argmax(cnt))
-    inl = res[k] < band
-    A = np.c_[ys[inl], np.ones(inl.sum())]
-    a, b = np.linalg.lstsq(A, xs[inl], rcond=None)[0]
-    r = xs[inl] - (a * ys[inl] + b)
-    span = ys[inl].max() - ys[inl].min()
-    if gate and (inl.sum() < 25 or inl.mean() < 0.6 or span < 40 or math.sqrt(np.mean(r ** 2)) > 1.2):
-        return None
-    return float(a), float(b), float(ys[inl].min())
-
-
-def reference_vp(label: np.ndarray, cam, band: float = 2.0, gate: bool = True) -> tuple[float, float] | None:
-    """Reference road VP of a CamVid label image (rule in the module docstring), or None.
-    ``band`` (rule 3's inlier band, 2 px) and ``gate`` (rule 3's goodness tests) are changed
-    only to measure the reference's spread on frames the rule accepted."""
-    return reference_from_masks(label == 3, np.isin(label, STATIC), cam, band, gate)
-
-
-def kitti_reference_vp(gt: np.ndarray, cam) -> tuple[float, float] | None:
-    """The same rule on a KITTI road ground truth (BGR colours): road = magenta; a road edge
-    counts where the pixel outside is red (evaluated not-road), never black (outside the
-    evaluated area)."""
-    b, g, r = (gt[..., k].astype(int) for k in range(3))
-    road = (r > 127) & (b > 127) & (g < 128)
-    not_road = (r > 127) & (b < 128) & (g < 128)
-    return reference_from_masks(road, not_road, cam)
-
-
-def reference_from_masks(road: np.ndarray, edge_ok: np.ndarray, cam, band: float = 2.0,
-                         gate: bool = True) -> tuple[float, float] | None:
-    """Rule steps 1-4 on a road mask; ``edge_ok`` marks the pixels whose border with the road is
-    a real road edge (static classes), so occluders never give boundary points."""
-    road = road.astype(np.uint8)
-    n, comp, stats, _ = cv2.connectedComponentsWithStats(road, connectivity=8)
-    if n < 2:
-        return None
-    big = 1 + int(np.argmax(stats[1:, cv2.CC_STAT_AREA]))
-    road = comp == big
-    h, w = road.shape
-    rows = np.flatnonzero(road.any(1))
-    top = rows.min() + 0.15 * (rows.max() - rows.min())
-    pts = {"l": ([], []), "r": ([], [])}
-    for y in rows:
-        if y < top:
-            continue
-        xs = np.flatnonzero(road[y])
-        xl, xr = xs[0], xs[-1]
-        if xr - xl < 12:
-            continue
-        if xl >= 3 and edge_ok[y, xl - 1]:
-            pts["l"][0].append(y), pts["l"][1].append(xl - 0.5)
-        if xr <= w - 4 and edge_ok[y, xr + 1]:
-            pts["r"][0].append(y), pts["r"][1].append(xr + 0.5)
-    fits = [_fit_side(np.array(pts[s][0], float), np.array(pts[s][1], float), band, gate) for s in ("l", "r")]
-    if fits[0] is None or fits[1] is None:
-        return None
-    (al, bl, yl), (ar, br, yr) = fits
-    ang = abs(math.degrees(math.atan(al) - math.atan(ar)))
-    if ang < 8 or abs(al - ar) < 1e-9:
-        return None
-    y = (br - bl) / (al - ar)
-    x = al * y + bl
-    u0, v0, u1, v1 = prior_window(cam)
-    if y >= min(yl, yr) or not (u0 <= x <= u1 and v0 <= y <= v1):
-        return None
-    return float(x), float(y)
-
-
-# ------------------------------------------------------------------------------- data sets
-
-def synthetic_set(n: int, cam, seed: int = 0):
-    rng = np.random.default_rng(seed)
-    out = []
-    W, H = cam.size
-    for k in range(n):
-        pan, tilt = rng.uniform(-20, 20), rng.uniform(-15, 15)
-        scene = RoadScene(offset=float(rng.uniform(-3, 3)), width=float(rng.uniform(6, 12)),
-                          lanes=int(rng.integers(1, 4)), texture_seed=k)
-        img, _ = render_road(cam, scene, pan=pan, tilt=tilt, supersample=2)
-        img = img.astype(np.float64) + rng.normal(0, 5, img.shape)
-        for c in range(10):
-            p = rng.uniform([0, 0], [W, H])
-            ang = rng.uniform(85, 95) if c < 3 else rng.uniform(0, 180)  # 3 "poles", 7 random
-            ln = rng.uniform(20, 160) * W / 480
-            q = p + ln * np.array([math.cos(math.radians(ang)), -math.sin(math.radians(ang))])
-            cv2.line(img, tuple(int(v) for v in p), tuple(int(v) for v in q),
-                     tuple(float(v) for v in rng.uniform(0, 255, 3)), int(rng.integers(1, 4)))
-        img = np.clip(np.rint(img), 0, 255).astype(np.uint8)
-        out.append((f"syn{k:03d}", img, vp_from_pose(cam, pan, tilt)))
-    return out
-
-
-def camvid_set(split: str, cam):
-    """(id, image, reference VP) of the frames the rule accepts, the number skipped, and the
-    reference's own spread per kept frame: |VP(band 1.5 px) - VP(band 3 px)| in % of the width,
-    both fitted to the same boundary points without rule 3's goodness tests (the frame already
-    passed them; nan if either intersection is invalid) - how far the reference moves under an
-    equally reasonable choice of its own parameter: a floor under any detector's measured error."""
-    img_dir, lab_dir = DATA / split, DATA / f"{split}annot"
-    out, skipped, spread = [], 0, []
-    for p in sorted(img_dir.glob("*.png")):
-        lab = cv2.imread(str(lab_dir / p.name), cv2.IMREAD_UNCHANGED)
-        ref = reference_vp(lab, cam) if lab is not None else None
-        if ref is None:
-            skipped += 1
-            continue
-        out.append((p.stem, cv2.imread(str(p), cv2.IMREAD_COLOR), ref))
-        a, b = reference_vp(lab, cam, 1.5, gate=False), reference_vp(lab, cam, 3.0, gate=False)
-        spread.append(math.hypot(a[0] - b[0], a[1] - b[1]) / cam.size[0] * 100 if a and b else float("nan"))
-    return out, skipped, spread
-
-
-def simulated_sets(split_items, workdir: Path, split: str = "val"):
-    """CamVid frames of ``split`` that have a reference VP, through the simulated cameras of the
-    cross-camera benchmarks (``vcprep simulate``: crop/zoom and rotation about the optical centre
-    are exact), each frame's reference VP mapped exactly by the same homography (``--vps``).
-    Returns [(name, camera, [(id, image, reference VP)])]; the camera is the simulated camera at
-    its nominal pose (per-image pan/tilt jitter is what the detector must find); the source
-    camera is CamVid's (the camvid preset at 480x360). ``split='train'`` builds the development
-    sets of ``--dev`` (same cameras, same seeds, other frames)."""
-    from camvid_cameras import BIN, SIMULATED, native_camera, run
-    from vcprep.camera import load_camera
-
-    src = workdir / f"{split}_with_reference"
-    shutil.rmtree(src, ignore_errors=True)
-    src.mkdir(parents=True)
-    rows = ["id,u,v"]
-    for iid, _, ref in split_items:
-        (src / f"{iid}.png").symlink_to(DATA / split / f"{iid}.png")
-        rows.append(f"{iid},{ref[0]:.9f},{ref[1]:.9f}")
-    (workdir / f"{split}_reference_vps.csv").write_text("\n".join(rows) + "\n")
-    native = native_camera(workdir)
-    out = []
-    for name, args in SIMULATED.items():
-        dst = workdir / "sim" / (name if split == "val" else f"{split}-{name}")
-        run(BIN / "vcprep", "simulate", "--camera", native, "--images", src, "--out", dst, "--name", name,
-            "--vps", workdir / f"{split}_reference_vps.csv", "--quiet", *args)
-        refs = {r[0]: (float(r[1]), float(r[2])) for r in
-                (line.split(",") for line in (dst / "vps.csv").read_text().splitlines()[1:])}
-        items = [(iid, cv2.imread(str(dst / "images" / f"{iid}.png"), cv2.IMREAD_COLOR), refs[iid])
-                 for iid, _, _ in split_items]
-        out.append((name, load_camera(str(dst / "camera.yaml")), items))
-    return out
-
-
-def kitti_set():
-    """The KITTI road frames shipped in ../shared/data whose ground truth the rule accepts, each
-    with its own calibration file; (camera, items, skipped)."""
-    from vcprep.camera import load_camera
-
-    items, cams, skipped = [], [], 0
-    for p in sorted((KITTI / "image_2").glob("*.png")) if (KITTI / "image_2").is_dir() else []:
-        prefix, _, num = p.stem.partition("_")
-        gt = cv2.imread(str(KITTI / "gt_image_2" / f"{prefix}_road_{num}.png"), cv2.IMREAD_COLOR)
-        img = cv2.imread(str(p), cv2.IMREAD_COLOR)
-        cam = load_camera(str(KITTI / "calib" / f"{p.stem}.txt")).for_image_size((img.shape[1], img.shape[0]))
-        ref = kitti_reference_vp(gt, cam) if gt is not None else None
-        if ref is None:
-            skipped += 1
-            continue
-        items.append((p.stem, img, ref))
-        cams.append(cam)
-    return cams, items, skipped
-
-
-# ------------------------------------------------------------------------------- evaluation
-
-def _errors(vps, items, cams) -> np.ndarray:
-    return np.array([math.hypot(v[0] - r[0], v[1] - r[1]) / c.size[0] * 100 for v, (_, _, r), c in zip(vps, items, cams)])
-
-
-def _summary(e: np.ndarray) -> dict:
-    return {"n": int(len(e)), "median_pct_width": round(float(np.median(e)), 3) if len(e) else None,
-            "p90_pct_width": round(float(np.percentile(e, 90)), 3) if len(e) else None,
-            "mean_pct_width": round(float(np.mean(e)), 3) if len(e) else None}
-
-
-_FRAME_RE = re.compile(r"^(.*?)(\d+)$")
-
-
-def scenes(ids, gap: int = SCENE_GAP) -> list[int]:
-    """Scene index of each frame id: frames of one sequence (:func:`sequence_key`) whose frame
-    numbers (the id's trailing digits) are at most ``gap`` apart, chained, are one scene (CamVid
-    is 30 fps: 30 = one second of driving); an id without a frame number is a scene of its own.
-    Consecutive frames of one drive see the same road, so their errors are not independent."""
-    keyed = []
-    for k, iid in enumerate(ids):
-        m = _FRAME_RE.match(iid.rsplit("_", 1)[-1]) if "_" in iid else None
-        keyed.append((sequence_key(iid), int(m.group(2)) if m else None, k))
-    out = [0] * len(ids)
-    scene, last = -1, None
-    for seq, num, k in sorted(keyed, key=lambda t: (t[0], -1 if t[1] is None else t[1], t[2])):
-        if num is None or last is None or seq != last[0] or num - last[1] > gap:
-            scene += 1
-        out[k] = scene
-        last = None if num is None else (seq, num)
-    return out
-
-
-def _scene_groups(scene: list[int]) -> list[np.ndarray]:
-    """Frame indices of each scene, in scene order."""
-    scene = np.asarray(scene)
-    return [np.flatnonzero(scene == s) for s in np.unique(scene)]
-
-
-def scene_bootstrap(ours: np.ndarray, base: np.ndarray, groups: list[np.ndarray], n_boot: int = 2000,
-                    seed: int = 0) -> dict:
-    """Paired scene-block bootstrap (whole scenes resampled with replacement, ``n_boot`` draws,
-    seeded): 90 % intervals (5th-95th percentile) of the median and p90 error of ours, of the
-    baseline, and of their differences (ours - baseline; negative = ours better), in % width.
-    With few scenes the intervals are wide: that is what the set can say. ``groups``: the frame
-    indices of each scene (:func:`_scene_groups`)."""
-    rng = np.random.default_rng(seed)
-    stats = {k: [] for k in ("median", "p90", "baseline_median", "baseline_p90", "median_minus_baseline",
-                             "p90_minus_baseline")}
-    for _ in range(n_boot):
-        idx = np.concatenate([groups[g] for g in rng.integers(0, len(groups), len(groups))])
-        mo, po = np.median(ours[idx]), np.percentile(ours[idx], 90)
-        mb, pb = np.median(base[idx]), np.percentile(base[idx], 90)
-        for k, v in (("median", mo), ("p90", po), ("baseline_median", mb), ("baseline_p90", pb),
-                     ("median_minus_baseline", mo - mb), ("p90_minus_baseline", po - pb)):
-            stats[k].append(v)
-    ci = {k: [round(float(np.percentile(v, 5)), 3), round(float(np.percentile(v, 95)), 3)] for k, v in stats.items()}
-    return {"scenes": len(groups), "n_boot": n_boot, "seed": seed, "ci90": ci,
-            "frames_per_scene": [int(len(g)) for g in groups]}
-
-
-def evaluate(items, cams, cfg: VPConfig, repeats: int):
-    """Errors (% width) and median ms/image for ours and the baseline, same images, same run;
-    ``cams``: one camera per item (or one for all). For ours also the reliability rule's split:
-    the error of the VPs it accepts, and of those it rejects (their detection, and the dataset
-    mean of the accepted VPs that replaces them: what ``vcprep warp`` uses)."""
-    cams = list(cams) if isinstance(cams, (list, tuple)) else [cams] * len(items)
-    ids = [iid for iid, _, _ in items]
-    res = {}
-    for name, fn in (("ours", lambda im, c: estimate_vp(im, c, cfg)),
-                     ("baseline", lambda im, c: baseline_vp(im))):
-        per_pass, out = [], []
-        for rep in range(repeats):
-            t0 = time.perf_counter()
-            got = [fn(im, c) for (_, im, _), c in zip(items, cams)]
-            per_pass.append((time.perf_counter() - t0) * 1000 / max(1, len(items)))
-            if rep == 0:
-                out = got
-        vps = [r.vp for r in out] if name == "ours" else out
-        e = _errors(vps, items, cams)
-        res[name] = {**_summary(e), "ms_per_image": round(float(np.median(per_pass)), 2),
-                     "ms_spread": [round(float(min(per_pass)), 2), round(float(max(per_pass)), 2)],
-                     "errors": [round(float(x), 4) for x in e],
-                     "vps": {iid: [round(float(v[0]), 4), round(float(v[1]), 4)] for (iid, _, _), v in zip(items, vps)}}
-        if name == "ours":
-            acc = np.array([r.status == "accepted" for r in out], bool)
-            final = apply_reliability(out, cams, ids)
-            det = [(r.detected or r.vp) for r in out]
-            # the tail, split by the detector's own score (score_vps): a reference VP scoring higher
-            # than the detection is a search miss; lower, the image's lines converge elsewhere
-            tail = np.flatnonzero(e > TAIL_PCT)
-            split = {"search_miss": [], "lines_elsewhere": []}
-            for k in tail:
-                (iid, im, ref), c = items[k], cams[k]
-                s_det, s_ref = score_vps(im, c, [out[k].detected or out[k].vp, ref], cfg)
-                split["search_miss" if s_ref > s_det else "lines_elsewhere"].append(
-                    {"id": iid, "error_pct_width": round(float(e[k]), 3),
-                     "score_reference_over_detection": round(float(s_ref / s_det), 3) if s_det > 0 else None})
-            res[name]["tail"] = {"threshold_pct_width": TAIL_PCT, "n": int(len(tail)), **split}
-            res[name]["reliability"] = {
-                "accepted": _summary(e[acc]),
-                "rejected_detection": _summary(_errors(det, items, cams)[~acc]),
-                "rejected_fallback": _summary(_errors([r.vp for r in final], items, cams)[~acc]),
-                "reasons": sorted({r.reason for r in out if r.status != "accepted"}),
-            }
-    e_o, e_b = np.array(res["ours"]["errors"]), np.array(res["baseline"]["errors"])
-    groups = _scene_groups(scenes(ids))
-    res["scenes"] = scene_bootstrap(e_o, e_b, groups)
-    res["scenes"]["per_scene"] = [
-        {"first": ids[g[0]], "last": ids[g[-1]], "n": int(len(g)),
-         "median_pct_width": round(float(np.median(e_o[g])), 3), "max_pct_width": round(float(e_o[g].max()), 3),
-         "baseline_median_pct_width": round(float(np.median(e_b[g])), 3),
-         "baseline_max_pct_width": round(float(e_b[g].max()), 3)}
-        for g in groups]
-    return res
-
-
-def fallback_loo(split: str, cam, items, cfg: VPConfig) -> dict:
-    """What the reliability rule's fallback is worth on real frames, leave-one-out: the detector
-    runs on EVERY frame of the split (as ``vcprep warp --within estimate`` would), then each
-    referenced frame in turn is marked rejected and ``apply_reliability`` replaces it - with its
-    sequence's mean (ids given, the tool's rule) and with the whole split's mean (no ids, the
-    rule before) - and the replacement is scored against the frame's reference (% width)."""
-    paths = sorted((DATA / split).glob("*.png"))
-    ids = [p.stem for p in paths]
-    res = [estimate_vp(cv2.imread(str(p), cv2.IMREAD_COLOR), cam, cfg) for p in paths]
-    cams = [cam] * len(res)
-    where = {iid: k for k, iid in enumerate(ids)}
-    out = {"sequence": [], "dataset": []}
-    for iid, _, ref in items:
-        k = where[iid]
-        trial = list(res)
-        trial[k] = replace(res[k], status="rejected")
-        for name, fb in (("sequence", apply_reliability(trial, cams, ids)[k]),
-                         ("dataset", apply_reliability(trial, cams)[k])):
-            out[name].append(math.hypot(fb.vp[0] - ref[0], fb.vp[1] - ref[1]) / cam.size[0] * 100)
-    return {"frames_detected": len(res), "rejected_in_split": sum(r.status != "accepted" for r in res),
-            **{f"{k}_mean": _summary(np.array(v)) for k, v in out.items()}}
-
-
-def camera_consistency(source_vps: dict, sim_items, sim_vps: dict, sim_dir: Path, width: int) -> dict:
-    """Reference-free camera independence of our detector on one simulated set: its VP on each
-    simulated frame vs its VP on the SOURCE frame carried into the simulated camera by that
-    frame's exact homography (``out_H_src`` recorded by the simulation), in % of the simulated
-    width. A camera-independent detector finds the same road direction in both (0 up to
-    resampling), whatever the reference says. ``inherited``: the source frame's own error
-    carried over (its VP vs its reference, both through the same homography), i.e. the simulated
-    set's error if the detector did exactly as well on every simulated frame as on its source;
-    a crop/zoom makes it larger in % of the (narrower) width."""
-    from vcprep.homography import apply_homography
-    from vcprep.simulate import recorded_homographies
-
-    H = recorded_homographies(sim_dir)
-    cons, inh = [], []
-    for iid, _, ref in sim_items:
-        mapped = apply_homography(H[iid], np.array([source_vps[iid]], float))[0]
-        cons.append(math.hypot(*(np.asarray(sim_vps[iid]) - mapped)) / width * 100)
-        inh.append(math.hypot(mapped[0] - ref[0], mapped[1] - ref[1]) / width * 100)
-    return {"consistency": _summary(np.array(cons)), "inherited": _summary(np.array(inh)),
-            "consistency_errors": [round(x, 4) for x in cons]}
+# measure first: it puts the repository (ROOT) first on sys.path
+from measure import (DATA, KITTI, ROOT, TAIL_PCT, camera_consistency, camvid_vp_set, evaluate_vps, fallback_loo,
+                     kitti_vp_set, simulated_vp_sets, synthetic_vp_set)
+from vcprep.camera import PRESETS
+from vcprep.vanishing_point import VPConfig
 
 
 def _row(label, size, r):
@@ -645,13 +248,13 @@ def main(argv=None) -> int:
     results = {"config": asdict(cfg), "threads": 1, "opencv": cv2.__version__, "python": platform.python_version(),
                "seed": 0, "sets": {}}
     print(f"threads: 1 (cv2.setNumThreads(1)); opencv {cv2.__version__}; repeats {args.repeats}", file=sys.stderr)
-    sets = [("synthetic", "480x360", synthetic_set(args.n_synthetic, cam480), cam480)]
+    sets = [("synthetic", "480x360", synthetic_vp_set(args.n_synthetic, cam480), cam480)]
     if args.n_synthetic_960:
-        sets.append(("synthetic", "960x720", synthetic_set(args.n_synthetic_960, cam960, seed=1), cam960))
+        sets.append(("synthetic", "960x720", synthetic_vp_set(args.n_synthetic_960, cam960, seed=1), cam960))
     val_items = None
     if DATA.is_dir():
         for split in args.splits.split(","):
-            items, skipped, spread = camvid_set(split, cam480)
+            items, skipped, spread = camvid_vp_set(split, cam480)
             sp = np.array(spread)
             sp = sp[np.isfinite(sp)]
             ref_noise = {"n": int(len(sp)), "median_pct_width": round(float(np.median(sp)), 3) if len(sp) else None,
@@ -678,12 +281,12 @@ def main(argv=None) -> int:
         if val_items:
             sim_split = "train" if args.dev else "val"
             wd = Path(args.workdir)
-            for name, cam, items in simulated_sets(val_items, wd, sim_split):
+            for name, cam, items in simulated_vp_sets(val_items, wd, sim_split):
                 label, size = f"sim/{name}" if not args.dev else f"sim-train/{name}", f"{cam.size[0]}x{cam.size[1]}"
                 sims[f"{label}@{size}"] = (wd / "sim" / (name if sim_split == "val" else f"{sim_split}-{name}"),
                                            f"camvid/{sim_split}@480x360", items, cam)
                 sets.append((label, size, items, cam))
-        kcams, kitems, kskipped = kitti_set() if not args.dev else ([], [], 0)
+        kcams, kitems, kskipped = kitti_vp_set() if not args.dev else ([], [], 0)
         if kitems:
             w, h = kcams[0].size
             sets.append(("kitti", f"{w}x{h}", kitems, kcams))
@@ -693,7 +296,7 @@ def main(argv=None) -> int:
     print(f"{'set':<26} {'size':>8} {'n':>4}  {'med %w':>7} {'p90 %w':>7} {'ms/img':>8}   accepted: n med p90 | "
           "rejected: n, detection med, fallback med")
     for name, size, items, cam in sets:
-        r = evaluate(items, cam, cfg, args.repeats)
+        r = evaluate_vps(items, cam, cfg, args.repeats)
         results["sets"][f"{name}@{size}"] = r
         rel = r["ours"]["reliability"]
         print(_row(f"{name} ours", size, r["ours"]) +
