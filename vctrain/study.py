@@ -126,7 +126,7 @@ class Dataset:
 
 @dataclass
 class Study:
-    """A parsed study file (schema in the README, section 'Cross-camera study')."""
+    """A parsed study file (schema: docs/studies.md, 'The study file')."""
 
     path: Path
     datasets: list[Dataset]
