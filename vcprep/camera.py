@@ -36,6 +36,8 @@ from .imageio import read_text
 __all__ = [
     "Camera",
     "PRESETS",
+    "PRESET_PREFIX",
+    "preset_name",
     "scale_matrix",
     "load_camera",
     "camera_from_dict",
@@ -189,7 +191,7 @@ def _number(d: dict, key: str, file, default=None) -> float:
     if key not in d:
         if default is not None:
             return default
-        raise InputError(f"missing key '{key}'", file, f"add '{key}:' (see the camera schema in the README)")
+        raise InputError(f"missing key '{key}'", file, f"add '{key}:' (see the camera schema in docs/cameras.md)")
     v = d[key]
     if isinstance(v, bool) or not isinstance(v, (int, float)):
         raise InputError(f"key '{key}' must be a number, got {v!r}", file, "write a plain number")
@@ -202,7 +204,7 @@ def _number(d: dict, key: str, file, default=None) -> float:
 def camera_from_dict(d: Any, file: str | Path | None = None, default_name: str = "camera") -> Camera:
     """Build and validate a :class:`Camera` from a parsed YAML/JSON mapping (schema in README)."""
     if not isinstance(d, dict):
-        raise InputError("camera file must be a mapping of keys to values", file, "see the camera schema in the README")
+        raise InputError("camera file must be a mapping of keys to values", file, "see the camera schema in docs/cameras.md")
     unknown = sorted(set(map(str, d)) - set(_REQUIRED) - set(_OPTIONAL))
     if unknown:
         raise InputError(f"unknown key '{unknown[0]}'", file,
@@ -265,9 +267,9 @@ def read_camera_yaml(path: str | Path) -> Camera:
     except yaml.YAMLError as e:
         mark = getattr(e, "problem_mark", None)
         where = f" at line {mark.line + 1}" if mark is not None else ""
-        raise InputError(f"not valid YAML{where}", path, "fix the syntax; see the camera schema in the README") from None
+        raise InputError(f"not valid YAML{where}", path, "fix the syntax; see the camera schema in docs/cameras.md") from None
     except (ValueError, RecursionError, OverflowError):
-        raise InputError("not valid YAML", path, "fix the syntax; see the camera schema in the README") from None
+        raise InputError("not valid YAML", path, "fix the syntax; see the camera schema in docs/cameras.md") from None
     return camera_from_dict(d, path, default_name=path.stem)
 
 
@@ -379,12 +381,40 @@ def read_cityscapes_camera(path: str | Path, image_size: tuple[int, int] = (2048
     return camera_from_dict(cam, path)
 
 
-def load_camera(spec: str | Path, image_size: tuple[int, int] | None = None) -> Camera:
-    """A preset name, or a file: ``.yaml``/``.yml`` (our schema), ``.txt`` (KITTI calibration),
-    ``.json`` (Cityscapes camera). ``image_size`` is used for calibration files, which carry none."""
+PRESET_PREFIX = "preset:"
+
+
+def preset_name(spec: str | Path) -> str | None:
+    """The one rule for a camera spec that may be a preset or a path: ``preset:NAME`` is the
+    preset; a bare preset name is the preset unless a file or folder of that name exists where
+    it is read (the current folder; a study: the study file's folder) -- then it is ambiguous, an
+    error naming both readings; a name with a path separator (``./kitti``, ``cams/kitti``) or any
+    other name is a path. Returns the preset's name, or None for a path."""
+    if isinstance(spec, Path):
+        return None
     s = str(spec)
+    if s.startswith(PRESET_PREFIX):
+        name = s[len(PRESET_PREFIX):]
+        if name not in PRESETS:
+            raise InputError(f"unknown camera preset '{name}'", s, f"use one of {', '.join(PRESETS)}")
+        return name
     if s in PRESETS:
-        return PRESETS[s]
+        if os.path.lexists(s):
+            kind = "folder" if os.path.isdir(s) else "file"
+            raise InputError(f"'{s}' is both the camera preset {s} and the {kind} ./{s}", s,
+                             f"write preset:{s} for the preset, or ./{s} for the {kind}")
+        return s
+    return None
+
+
+def load_camera(spec: str | Path, image_size: tuple[int, int] | None = None) -> Camera:
+    """A preset (see :func:`preset_name`), or a file: ``.yaml``/``.yml`` (our schema), ``.txt``
+    (KITTI calibration), ``.json`` (Cityscapes camera). ``image_size`` is used for calibration
+    files, which carry none."""
+    s = str(spec)
+    preset = preset_name(spec)
+    if preset is not None:
+        return PRESETS[preset]
     path = Path(s)
     if not path.exists():
         raise InputError("not a camera preset and no such file", s,
@@ -480,13 +510,15 @@ def load_cameras(spec: str | Path, sample_image: str | Path | None = None,
     size of ``sample_image`` is used), or, with ``per_frame``, a folder of per-frame calibration
     files (:class:`FrameCameras`)."""
     s = str(spec)
-    if s not in PRESETS and Path(s).is_dir():
+    if preset_name(spec) is not None:
+        return load_camera(spec)
+    if Path(s).is_dir():
         if not per_frame:
             raise InputError("is a folder of per-frame calibration files; this command needs one camera", s,
                              "give one camera file or preset (per-frame folders work in warp, predict and crossval)")
         return FrameCameras.from_folder(s)
     size = None
-    if sample_image is not None and s not in PRESETS and Path(s).suffix.lower() in (".txt", ".json"):
+    if sample_image is not None and Path(s).suffix.lower() in (".txt", ".json"):
         from .imageio import image_size_from_header
 
         try:

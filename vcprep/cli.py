@@ -25,7 +25,8 @@ app.add_typer(figure_app, name="figure")
 
 COMPLETE_HELP = ("fill uncovered virtual pixels: projective (paper §4.3: rays from the VP), zero (image 0, label "
                  "not road), replicate (nearest covered pixel) or none (image 0, label ignore)")
-CAMERA_HELP = f"camera preset ({', '.join(PRESETS)}) or file (.yaml camera, .txt KITTI calib, .json Cityscapes)"
+CAMERA_HELP = (f"camera preset ({', '.join(PRESETS)}; write preset:NAME where a file or folder of that name exists: "
+               "a bare name that is both is an error) or file (.yaml camera, .txt KITTI calib, .json Cityscapes)")
 ESTIMATE_HELP = ", or 'estimate': estimated from these frames (as 'vcprep camera estimate' does)"
 FRAMES_HELP = (CAMERA_HELP + ", or a folder of per-frame calibration files matched to the images by stem (KITTI "
                "calib/<stem>.txt, Cityscapes camera/.../<stem>_camera.json): each image gets its own camera and pose")
