@@ -737,3 +737,33 @@ def test_camera_estimate_in_a_study(tmp_path):
     proc = run_cli("crossval", study, "--out", out, "--json", prog="vctrain")  # resumes: estimated once
     assert proc.returncode == 0, proc.stderr
     assert "estimating its camera" not in proc.stderr and "camera ESTIMATED" in proc.stderr
+
+
+def test_a_study_camera_that_is_both_a_preset_and_a_folder_is_an_error_naming_both(tmp_path):
+    """The one naming rule in a study (issue 26.5): a dataset folder kitti/ next to the study and
+    camera: kitti is an error naming both readings; preset:kitti is the preset, ./kitti the folder."""
+    from vctrain.study import load_study
+
+    study = _study(tmp_path / "data")
+    d = yaml.safe_load(study.read_text())
+    (tmp_path / "data" / "kitti").mkdir()
+    d["datasets"][1]["camera"] = "kitti"
+    study.write_text(yaml.safe_dump(d))
+    proc = run_cli("crossval", study, "--out", tmp_path / "out", prog="vctrain")
+    assert_one_error_line(proc, "dataset 'kitti' camera 'kitti' is both the camera preset kitti and the folder",
+                          "preset:kitti", "./kitti")
+    assert not (tmp_path / "out").exists()
+    d["datasets"][1]["camera"] = "preset:kitti"
+    study.write_text(yaml.safe_dump(d))
+    assert load_study(study).datasets[1].camera == "preset:kitti"
+    d["datasets"][1]["camera"] = "./kitti"
+    study.write_text(yaml.safe_dump(d))
+    assert load_study(study).datasets[1].camera == str(tmp_path / "data" / "kitti")
+    (tmp_path / "data" / "kitti").rmdir()
+    d["datasets"][1]["camera"] = "kitti"          # no such folder: the preset
+    study.write_text(yaml.safe_dump(d))
+    assert load_study(study).datasets[1].camera == "preset:kitti"
+    d["datasets"][1]["camera"] = "preset:nope"
+    study.write_text(yaml.safe_dump(d))
+    assert_one_error_line(run_cli("crossval", study, "--out", tmp_path / "out", prog="vctrain"),
+                          "unknown camera preset 'nope'")

@@ -55,7 +55,7 @@ from pathlib import Path
 from typing import Any, Callable, Sequence
 
 from vcprep.build import ItemPose, Job, WarpSettings, list_dataset, warp_dataset
-from vcprep.camera import Camera, FrameCameras, load_camera, load_cameras
+from vcprep.camera import PRESET_PREFIX, Camera, FrameCameras, load_camera, load_cameras
 from vcprep.errors import InputError
 from vcprep.imageio import image_size, read_image, write_bytes_atomic
 from vcprep.labels import decode_label, get_label_format
@@ -632,7 +632,9 @@ def run_study(study: Study, out: str | Path, conditions: Sequence[str] | None = 
     # other settings is redone, never silently reused
     settings = {"virtual": virt.to_dict(), "scale": b.scale(), "pan_range": study.pan_range,
                 "tilt_range": study.tilt_range, "train": training, "resize_size": "source aspect, store pixels",
-                "datasets": [[d.name, d.role, d.camera, d.label_format, repr(d.train), repr(d.test)]
+                # (a preset is written preset:NAME since the one naming rule; bare, as before, in the settings)
+                "datasets": [[d.name, d.role, d.camera.removeprefix(PRESET_PREFIX), d.label_format, repr(d.train),
+                              repr(d.test)]
                              for d in study.datasets]}
     ego = {d.name: b.camera(d).ego_rows for d in study.datasets
            if isinstance(b.camera(d), Camera) and b.camera(d).ego_rows}

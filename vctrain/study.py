@@ -37,12 +37,14 @@ defaults. How a study runs: :mod:`vctrain.crossval`; its tables: :mod:`vctrain.r
 """
 from __future__ import annotations
 
+import os
 import re
 from dataclasses import dataclass, field, fields
 from fnmatch import fnmatchcase
 from pathlib import Path
 from typing import Any, Sequence
 
+from vcprep.camera import PRESET_PREFIX, PRESETS, preset_name
 from vcprep.errors import InputError
 from vcprep.imageio import read_text
 from vcprep.labels import get_label_format
@@ -149,7 +151,7 @@ class Study:
 # -- the study file ------------------------------------------------------------------------------
 def _mapping(v: Any, what: str, path: Path) -> dict:
     if not isinstance(v, dict):
-        raise InputError(f"{what} must be a mapping", path, "see the study schema in the README")
+        raise InputError(f"{what} must be a mapping", path, "see the study schema in docs/studies.md")
     return v
 
 
@@ -159,7 +161,7 @@ def _keys(d: dict, allowed: Sequence[str], required: Sequence[str], what: str, p
         raise InputError(f"unknown key '{unknown[0]}' in {what}", path, f"allowed keys: {', '.join(allowed)}")
     for k in required:
         if k not in d:
-            raise InputError(f"missing key '{k}' in {what}", path, "see the study schema in the README")
+            raise InputError(f"missing key '{k}' in {what}", path, "see the study schema in docs/studies.md")
 
 
 def _globs(v: Any, key: str, what: str, path: Path) -> tuple[str, ...]:
@@ -207,6 +209,27 @@ def _check_train_keys(t: dict, path: Path) -> None:
         raise InputError(f"unknown key '{bad[0]}' in 'train'", path, f"allowed keys: {', '.join(allowed)}")
 
 
+def camera_spec(spec: str, path: Path, what: str) -> str:
+    """A camera named in the study file ``path``, by the one rule of :func:`vcprep.camera.preset_name`
+    read from the study file's folder: ``preset:NAME`` -> the preset; a bare preset name -> the
+    preset, or an error naming both readings when a file or folder of that name is next to the
+    study file; anything else -> a path relative to the study file."""
+    if spec.startswith(PRESET_PREFIX):
+        try:
+            preset_name(spec)
+        except InputError as e:
+            raise InputError(f"{what}: {e.problem}", path, e.fix) from None
+        return spec
+    if spec in PRESETS:
+        beside = path.parent / spec
+        if os.path.lexists(beside):
+            kind = "folder" if beside.is_dir() else "file"
+            raise InputError(f"{what} '{spec}' is both the camera preset {spec} and the {kind} {beside}", path,
+                             f"write '{PRESET_PREFIX}{spec}' for the preset, or './{spec}' for the {kind}")
+        return PRESET_PREFIX + spec
+    return str(path.parent / spec)
+
+
 def load_study(path: str | Path) -> Study:
     """Read and check a study YAML file; paths in it are relative to the file."""
     import yaml
@@ -216,7 +239,7 @@ def load_study(path: str | Path) -> Study:
     try:
         d = yaml.safe_load(text)
     except yaml.YAMLError:
-        raise InputError("not valid YAML", path, "fix the syntax; see the study schema in the README") from None
+        raise InputError("not valid YAML", path, "fix the syntax; see the study schema in docs/studies.md") from None
     d = _mapping(d, "the study file", path)
     _keys(d, ("datasets", "conditions", "virtual", "pan_range", "tilt_range", "store_width", "store_pixels", "above",
               "train"), ("datasets",),
@@ -252,8 +275,8 @@ def load_study(path: str | Path) -> Study:
         except InputError as e:
             raise InputError(f"dataset '{name}': {e.problem}", path, e.fix) from None
         cam = str(r["camera"])
-        if cam != "estimate" and (not cam.isidentifier() or (path.parent / cam).exists()):
-            cam = str(path.parent / cam)
+        if cam != "estimate":
+            cam = camera_spec(cam, path, f"dataset '{name}' camera")
         train = _split(r["train"], f"dataset '{name}' train", path) if role != "test" else None
         test = _split(r["test"], f"dataset '{name}' test", path) if r.get("test") is not None else train
         if role == "train" and r.get("unlabelled") is not None:
@@ -286,8 +309,8 @@ def load_study(path: str | Path) -> Study:
         study.conditions = check_conditions([str(c) for c in conds], path)
     if "virtual" in d:
         study.virtual = str(d["virtual"])
-        if study.virtual != "design" and (path.parent / study.virtual).exists():
-            study.virtual = str(path.parent / study.virtual)
+        if study.virtual != "design":
+            study.virtual = camera_spec(study.virtual, path, "virtual")
     for key in ("pan_range", "tilt_range"):
         if key in d:
             v = d[key]
