@@ -43,7 +43,8 @@ def _study(root: Path, vps_for=("camvid", "kitti", "cityscapes")) -> Path:
         datasets.append({"name": name, "camera": f"{name}.yaml", "label_format": "camvid",
                          "train": _dataset(root, f"{name}_train", cam, 4, 0, name in vps_for),
                          "test": _dataset(root, f"{name}_test", cam, 2, 4, name in vps_for)})
-    study = {"datasets": datasets, "store_width": 128, "pan_range": 5, "tilt_range": 3,
+    # tiny stores: the design uncropped (above: null), unlike a study's 8-degree default
+    study = {"datasets": datasets, "store_width": 128, "above": None, "pan_range": 5, "tilt_range": 3,
              "train": {"epochs": 1, "max_steps": 2, "batch_size": 2, "arch": "segnet-narrow", "base_width": 4,
                        "val_fraction": 0, "seed": 0}}
     path = root / "study.yaml"
@@ -226,7 +227,7 @@ def _mixed_study(root: Path) -> Path:
         {"name": "camvid2", "role": "test", "camera": "camvid.yaml", "label_format": "camvid",
          "test": _dataset(root, "camvid2_test", CAMS["camvid"], 3, 1, False)},
     ]
-    study = {"datasets": datasets, "conditions": MIXED_CONDS, "store_width": 128, "pan_range": 5, "tilt_range": 3,
+    study = {"datasets": datasets, "conditions": MIXED_CONDS, "store_width": 128, "above": None, "pan_range": 5, "tilt_range": 3,
              "train": {"epochs": 1, "max_steps": 2, "batch_size": 2, "arch": "segnet-narrow", "base_width": 4,
                        "val_fraction": 0}}
     path = root / "study.yaml"
@@ -671,7 +672,7 @@ def _ego_study(root: Path, ego=None) -> Path:
         car["ego"] = ego
     datasets = [{"name": "camvid", "role": "train", "camera": "camvid.yaml", "label_format": "camvid",
                  "train": _dataset(root, "camvid_train", CAMS["camvid"], 4, 0, False)}, car]
-    study = {"datasets": datasets, "conditions": ["between"], "store_width": 128,
+    study = {"datasets": datasets, "conditions": ["between"], "store_width": 128, "above": None,
              "train": {"epochs": 1, "max_steps": 1, "batch_size": 2, "arch": "segnet-narrow", "base_width": 4,
                        "val_fraction": 0}}
     path = root / "study.yaml"
@@ -767,3 +768,38 @@ def test_a_study_camera_that_is_both_a_preset_and_a_folder_is_an_error_naming_bo
     study.write_text(yaml.safe_dump(d))
     assert_one_error_line(run_cli("crossval", study, "--out", tmp_path / "out", prog="vctrain"),
                           "unknown camera preset 'nope'")
+
+
+def test_a_study_that_sets_nothing_gets_the_measured_design(tmp_path):
+    """No store_width/store_pixels/above/crop: the 172800-px budget, the virtual camera cropped to
+    8 deg above the horizon and full-height 4/9-width training windows (issue 24's measured best);
+    store_width alone still sets the scale, 'above: null' leaves the design uncropped, and an
+    explicit crop wins over the default."""
+    import math
+
+    from vctrain.crossval import _Builder, training_settings
+    from vctrain.study import DEFAULT_ABOVE, DEFAULT_STORE_PIXELS, load_study
+
+    study = _study(tmp_path / "data")
+    d = yaml.safe_load(study.read_text())
+    del d["store_width"], d["above"]
+    d["train"].pop("crop", None)
+    study.write_text(yaml.safe_dump(d))
+    s = load_study(study)
+    assert s.above == DEFAULT_ABOVE == 8.0 and s.store_pixels is None and s.store_width is None
+    b = _Builder(s, tmp_path / "out", False, 1, lambda m: None)
+    v = b.virtual()
+    f = v.K[0][0]
+    # rows above the horizon: f (tan 8 deg + tan tilt_range 3 deg)
+    assert v.K[1][2] + 0.5 == pytest.approx(f * (math.tan(math.radians(8)) + math.tan(math.radians(3))), rel=1e-6)
+    w, h = v.size
+    assert (w * b.scale()) * (h * b.scale()) == pytest.approx(DEFAULT_STORE_PIXELS, rel=1e-9)
+    assert training_settings(s)["crop"] == pytest.approx([4 / 9, 1.0])
+
+    d["store_width"], d["above"], d["train"]["crop"] = 200, None, 0.5
+    study.write_text(yaml.safe_dump(d))
+    s = load_study(study)
+    b = _Builder(s, tmp_path / "out2", False, 1, lambda m: None)
+    assert s.above is None and b.scale() == pytest.approx(200 / b.virtual().size[0])
+    assert b.virtual().size[1] > v.size[1]  # uncropped: taller than the 8-degree design
+    assert training_settings(s)["crop"] == 0.5

@@ -62,8 +62,8 @@ from vcprep.labels import decode_label, get_label_format
 from vcprep.store import Store
 
 from .report import write_json, write_tables
-from .study import (ADAPT_COMBINE, CONDITIONS, GEOMETRIES, RUN_KEYS, Dataset, Split, Study, check_conditions,
-                    evaluated_datasets)
+from .study import (ADAPT_COMBINE, CONDITIONS, DEFAULT_STORE_PIXELS, DEFAULT_TRAIN, GEOMETRIES, RUN_KEYS, Dataset,
+                    Split, Study, check_conditions, evaluated_datasets)
 
 __all__ = ["plan_runs", "training_settings", "run_study", "evaluate_heldout", "score_store"]
 
@@ -225,9 +225,9 @@ class _Builder:
 
     def scale(self) -> float:
         w, h = self.virtual().size
-        if self.study.store_pixels:
-            return math.sqrt(self.study.store_pixels / (w * h))
-        return self.study.store_width / w
+        if self.study.store_width and not self.study.store_pixels:
+            return self.study.store_width / w
+        return math.sqrt((self.study.store_pixels or DEFAULT_STORE_PIXELS) / (w * h))
 
     def resize_size(self, datasets: Sequence[Dataset], store_size: tuple[int, int]) -> tuple[int, int]:
         """The resize baseline's working size: the virtual store's pixel count at the aspect of
@@ -309,7 +309,7 @@ def _train_config(study: Study, stores: list[Path], out: Path, baseline: str, si
     cfg = TrainConfig(stores=[str(s) for s in stores], out=str(out / "model.pt"), baseline=baseline, size=size,
                       progress=progress)
     names = {f.name for f in fields(TrainConfig)}
-    for k, v in {**study.train, **overrides}.items():
+    for k, v in {**DEFAULT_TRAIN, **study.train, **overrides}.items():
         if k in names and v is not None:
             setattr(cfg, k, v)
     try:
