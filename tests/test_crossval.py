@@ -738,6 +738,18 @@ def test_camera_estimate_in_a_study(tmp_path):
     proc = run_cli("crossval", study, "--out", out, "--json", prog="vctrain")  # resumes: estimated once
     assert proc.returncode == 0, proc.stderr
     assert "estimating its camera" not in proc.stderr and "camera ESTIMATED" in proc.stderr
+    assert "building it afresh" not in proc.stderr and "training on" not in proc.stderr
+    # the first estimate is the camera as its YAML reads back (not the unrounded one), so a resumed
+    # study designs the very same virtual camera and its finished stores stay finished
+    from vctrain.crossval import _Builder
+    from vctrain.study import load_study
+
+    fresh = tmp_path / "fresh"
+    first, again = (_Builder(load_study(study), fresh, False, 1, lambda m: None) for _ in range(2))
+    car = load_study(study).dataset("car")
+    cam1 = first.camera(car)
+    assert cam1 == again.camera(car) == read_camera_yaml(fresh / "cameras" / "car.yaml")
+    assert first.virtual() == again.virtual()
 
 
 def test_a_study_camera_that_is_both_a_preset_and_a_folder_is_an_error_naming_both(tmp_path):

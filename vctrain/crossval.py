@@ -145,31 +145,38 @@ class _Builder:
                                          ds.label_format]).encode()).hexdigest()[:16]
         path = self.out / "cameras" / f"{ds.name}.yaml"
         record = path.with_suffix(".json")
+        rec = None
         if path.exists() and record.exists():
             try:
                 rec = json.loads(record.read_text())
-                if rec.get("key") == key:
-                    self.estimated[ds.name] = rec
-                    return read_camera_yaml(path)
+                rec = rec if rec.get("key") == key and read_camera_yaml(path) else None
             except (OSError, ValueError, InputError):
-                pass
-        self.say(f"{ds.name}: estimating its camera from {len(images)} frames")
-        est = estimate_camera(images, name=f"{ds.name}-estimated", ids=[jobs[i].id for i in images],
-                              labels=labels or None, label_format=get_label_format(ds.label_format))
-        cam = est.camera
+                rec = None  # unreadable: estimated again
+        if rec is None:
+            self.say(f"{ds.name}: estimating its camera from {len(images)} frames")
+            est = estimate_camera(images, name=f"{ds.name}-estimated", ids=[jobs[i].id for i in images],
+                                  labels=labels or None, label_format=get_label_format(ds.label_format))
+            # written at once, and the camera taken as its YAML reads back: the first run and every
+            # resumed one design the same virtual camera (so finished stores stay finished)
+            path.parent.mkdir(parents=True, exist_ok=True)
+            write_bytes_atomic(path, estimate_to_yaml(est).encode())
+            rec = {"key": key, **est.to_dict()}
+        try:
+            cam = read_camera_yaml(path)
+        except InputError:
+            raise InputError(f"dataset '{ds.name}': its estimated camera {path} cannot be read", self.study.path,
+                             f"delete {path.parent} and run the study again") from None
         if isinstance(ds.ego, int):
             cam = replace(cam, ego_rows=ds.ego)
-        self.estimated[ds.name] = {"key": key, **est.to_dict(), "camera": cam.to_dict(), "yaml": estimate_to_yaml(est)}
+        rec["camera"] = cam.to_dict()
+        write_json(record, rec)
+        self.estimated[ds.name] = rec
         return cam
 
     def write_estimates(self) -> None:
         """Each estimated camera beside the study's stores (OUT/cameras/), and one line saying so."""
         for name, rec in self.estimated.items():
             path = self.out / "cameras" / f"{name}.yaml"
-            if "yaml" in rec:
-                path.parent.mkdir(parents=True, exist_ok=True)
-                write_bytes_atomic(path, rec.pop("yaml").encode())
-                write_json(path.with_suffix(".json"), rec)
             v = rec["values"]
             self.say(f"{name}: camera ESTIMATED from its frames ({path.relative_to(self.out)}): tilt {v['tilt']['value']} "
                      f"deg, pan {v['pan']['value']} deg from {rec['accepted_vps']} of {rec['frames']} road VPs; "
