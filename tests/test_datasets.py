@@ -272,7 +272,7 @@ def study_run(kitti, city, tmp_path_factory):
          "train": {"images": str(kroot / "image_2"), "labels": str(kroot / "gt_image_2")}},
         {"name": "city", "camera": str(croot / "camera" / "train"), "label_format": "cityscapes",
          "train": {"images": str(croot / "leftImg8bit" / "train"), "labels": str(croot / "gtFine" / "train")}}],
-        "conditions": ["resize", "between", "within"], "store_width": 96, "pan_range": 5, "tilt_range": 5,
+        "conditions": ["resize", "between", "within"], "store_width": 96, "above": None, "pan_range": 5, "tilt_range": 5,
         "train": {"epochs": 1, "max_steps": 2, "batch_size": 2, "arch": "segnet-narrow", "base_width": 4,
                   "val_fraction": 0, "seed": 0}}
     root = tmp_path_factory.mktemp("study")
