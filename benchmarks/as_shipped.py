@@ -65,7 +65,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from measure import BIN, DATA, KITTI, ROOT, SHARED_DATA, native_camera, run
+from measure import BIN, DATA, KITTI, ROOT, SHARED_DATA, format_stat, link_files, native_camera, run, seed_stats
 
 CITYSCAPES = SHARED_DATA / "cityscapes_pix2pix"
 CS_FORMAT = "values:road=1;ignore=255;max=255"
@@ -86,10 +86,7 @@ TARGET_GAIN, TARGET_WORST, TARGET_IN_DOMAIN, TARGET_MINUTES = 10.0, -2.0, 85.0, 
 def _subset(src: Path, dst: Path, n: int, sub=("images", "labels")) -> tuple[str, str]:
     """dst/{images,labels}: links to the first ``n`` files of each folder of ``src`` (a smoke run)."""
     for s in sub:
-        (dst / s).mkdir(parents=True, exist_ok=True)
-        for f in sorted((src / s).iterdir())[:n]:
-            if not (dst / s / f.name).exists():
-                (dst / s / f.name).symlink_to(f)
+        link_files([f.name for f in sorted((src / s).iterdir())[:n]], src / s, dst / s)
     return str(dst / sub[0]), str(dst / sub[1])
 
 
@@ -178,14 +175,12 @@ def run_study(study: Path, out: Path, conds: list[str], seed: int, threads: int)
 
 
 def stat(v: list[float] | None) -> dict | None:
-    if not v:
-        return None
-    return {"mean": round(float(np.mean(v)), 2), "std": round(float(np.std(v, ddof=1)) if len(v) > 1 else 0.0, 2),
-            "per_seed": [round(float(x), 2) for x in v]}
+    """:func:`measure.seed_stats` of IoU points (None without values)."""
+    return seed_stats(v) if v else None
 
 
 def fmt(s: dict | None, signed: bool = False) -> str:
-    return "-" if not s else f"{s['mean']:{'+' if signed else ''}.1f} ± {s['std']:.1f}"
+    return format_stat(s, scale=1.0, signed=signed)
 
 
 def main() -> None:
@@ -232,34 +227,35 @@ def main() -> None:
                 loo_minutes.append(r["train_seconds"] / 60)  # one model per fold and condition
 
     c = lambda t, k="within": cell.get((t, k))
+    r2 = lambda x: round(float(x), 2)
     diff = lambda x, y: [p - q for p, q in zip(x, y)] if x and y and len(x) == len(y) else None
     head: dict = {}
     # within - resize over the real other cameras: per seed the mean over cameras, then over seeds
     per_cam = {t: diff(c(t), c(t, "resize")) for t in REAL_OTHER}
     if all(per_cam.values()):
         real = stat([float(np.mean(v)) for v in zip(*per_cam.values())])
-        head["real_within_minus_resize"], head["real_within_minus_resize_std"] = real["mean"], real["std"]
+        head["real_within_minus_resize"], head["real_within_minus_resize_std"] = r2(real["mean"]), r2(real["std"])
     for t, v in per_cam.items():
-        head[f"real_within_minus_resize_{t}"] = stat(v)["mean"] if v else None
+        head[f"real_within_minus_resize_{t}"] = r2(stat(v)["mean"]) if v else None
     lo = {t: diff(loo.get((t, "within")), loo.get((t, "resize"))) for t in LOO}
     if loo and all(lo.values()):
         s = stat([float(np.mean(v)) for v in zip(*lo.values())])
-        head["loo_within_minus_resize"], head["loo_within_minus_resize_std"] = s["mean"], s["std"]
+        head["loo_within_minus_resize"], head["loo_within_minus_resize_std"] = r2(s["mean"]), r2(s["std"])
         for t, v in lo.items():
-            head[f"loo_within_minus_resize_{t}"] = stat(v)["mean"]
+            head[f"loo_within_minus_resize_{t}"] = r2(stat(v)["mean"])
     for k in conds:
-        head[f"in_domain_{k}"] = stat(c("camvid-val", k))["mean"] if c("camvid-val", k) else None
-        head[f"in_domain_0001TP_{k}"] = stat(c("camvid-0001TP", k))["mean"] if c("camvid-0001TP", k) else None
+        head[f"in_domain_{k}"] = r2(stat(c("camvid-val", k))["mean"]) if c("camvid-val", k) else None
+        head[f"in_domain_0001TP_{k}"] = r2(stat(c("camvid-0001TP", k))["mean"]) if c("camvid-0001TP", k) else None
     for cam in EGO:
         g = diff(c(cam), c(cam + "-noego"))
-        head[f"ego_gain_{cam}"] = stat(g)["mean"] if g else None
+        head[f"ego_gain_{cam}"] = r2(stat(g)["mean"]) if g else None
     head["ego_rows_found"] = {k: found.get(k, {}).get("ego_rows_at_camera_size", found.get(k, {}).get("ego_rows"))
                               for k in EGO + ["camvid-val"]}
     for cam in ESTIMATED:
         e = diff(c(cam + "-est"), c(cam))
         w = diff(c(cam + "-est"), c(cam, "resize"))
-        head[f"estimated_minus_given_{cam}"] = stat(e)["mean"] if e else None
-        head[f"within_estimated_minus_resize_{cam}"] = stat(w)["mean"] if w else None
+        head[f"estimated_minus_given_{cam}"] = r2(stat(e)["mean"]) if e else None
+        head[f"within_estimated_minus_resize_{cam}"] = r2(stat(w)["mean"]) if w else None
     all_minutes = minutes + loo_minutes
     head["minutes_per_model"] = round(float(np.mean(all_minutes)), 2) if all_minutes else None
     head["minutes_per_model_max"] = round(float(np.max(all_minutes)), 2) if all_minutes else None

@@ -145,14 +145,14 @@ class _Builder:
                                          ds.label_format]).encode()).hexdigest()[:16]
         path = self.out / "cameras" / f"{ds.name}.yaml"
         record = path.with_suffix(".json")
-        rec = None
+        rec, cam = None, None
         if path.exists() and record.exists():
             try:
                 rec = json.loads(record.read_text())
-                rec = rec if rec.get("key") == key and read_camera_yaml(path) else None
-            except (OSError, ValueError, InputError):
-                rec = None  # unreadable: estimated again
-        if rec is None:
+                cam = read_camera_yaml(path) if rec.get("key") == key else None
+            except (OSError, ValueError, AttributeError, InputError):
+                cam = None  # unreadable: estimated again
+        if cam is None:
             self.say(f"{ds.name}: estimating its camera from {len(images)} frames")
             est = estimate_camera(images, name=f"{ds.name}-estimated", ids=[jobs[i].id for i in images],
                                   labels=labels or None, label_format=get_label_format(ds.label_format))
@@ -160,12 +160,7 @@ class _Builder:
             # resumed one design the same virtual camera (so finished stores stay finished)
             path.parent.mkdir(parents=True, exist_ok=True)
             write_bytes_atomic(path, estimate_to_yaml(est).encode())
-            rec = {"key": key, **est.to_dict()}
-        try:
-            cam = read_camera_yaml(path)
-        except InputError:
-            raise InputError(f"dataset '{ds.name}': its estimated camera {path} cannot be read", self.study.path,
-                             f"delete {path.parent} and run the study again") from None
+            rec, cam = {"key": key, **est.to_dict()}, read_camera_yaml(path)
         if isinstance(ds.ego, int):
             cam = replace(cam, ego_rows=ds.ego)
         rec["camera"] = cam.to_dict()
