@@ -462,6 +462,118 @@ def test_bad_budget_and_crop_give_one_error_line(tmp_path, edit, needle):
     assert_one_error_line(proc, needle)
 
 
+# -- canvas: footprint (the training rectangle holds the trainable cameras; a test camera extends it) --
+def _footprint_study(root: Path) -> Path:
+    """camvid trains; kitti (81 deg wide, against camvid's 58) and camvid2 (camvid's camera) are
+    test-only, so kitti's canvas must extend the training rectangle and camvid2's must not."""
+    root.mkdir(parents=True, exist_ok=True)
+    for name in ("camvid", "kitti"):
+        (root / f"{name}.yaml").write_text(camera_to_yaml(CAMS[name]))
+    datasets = [
+        {"name": "camvid", "role": "train", "camera": "camvid.yaml", "label_format": "camvid",
+         "train": _dataset(root, "camvid_train", CAMS["camvid"], 4, 0, False)},
+        {"name": "kitti", "role": "test", "camera": "kitti.yaml", "label_format": "camvid",
+         "test": _dataset(root, "kitti_test", CAMS["kitti"], 2, 4, False)},
+        {"name": "camvid2", "role": "test", "camera": "camvid.yaml", "label_format": "camvid",
+         "test": _dataset(root, "camvid2_test", CAMS["camvid"], 2, 1, False)},
+    ]
+    study = {"datasets": datasets, "conditions": ["resize", "within"], "canvas": "footprint", "store_pixels": 6000,
+             "above": 6, "pan_range": 5, "tilt_range": 3,
+             "train": {"epochs": 1, "max_steps": 2, "batch_size": 2, "arch": "segnet-narrow", "base_width": 4,
+                       "val_fraction": 0, "seed": 0}}
+    path = root / "study.yaml"
+    path.write_text(yaml.safe_dump(study, sort_keys=False))
+    return path
+
+
+def test_footprint_canvas_keeps_the_budget_for_training_and_covers_every_test_pixel(tmp_path):
+    """canvas: footprint -- the pixel budget sizes the rectangle that holds the TRAINING camera
+    (not the union with a wider test camera); a wider test-only camera gets the same virtual
+    camera extended to its own footprint, so its frames are predicted where the training
+    rectangle would cut them off (and score them 'not road'), and the model runs there unresized."""
+    import math
+
+    import cv2
+    import numpy as np
+
+    from vcprep.backproject import backproject_array
+    from vcprep.camera import camera_from_dict
+    from vcprep.homography import virt_H_src
+    from vcprep.labels import decode_label, get_label_format
+    from vcprep.virtual_camera import design_virtual_camera, same_camera_other_canvas
+    from vctrain.predict import Predictor
+
+    study = _footprint_study(tmp_path / "data")
+    out = tmp_path / "out"
+    proc = run_cli("crossval", study, "--out", out, "--json", prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    stores = {n: Store.open(out / "stores" / n / s / "within")
+              for n, s in (("camvid", "train"), ("kitti", "test"), ("camvid2", "test"))}
+    train, kitti, camvid2 = stores["camvid"], stores["kitti"], stores["camvid2"]
+    # the budget sizes the training rectangle; the same camera's test canvas of the same camera is that rectangle
+    w, h = train.store_size
+    assert abs(w * h - 6000) < 0.02 * 6000
+    assert camvid2.params["virtual"] == train.params["virtual"]
+    # independent oracle: the canvas a design of camvid alone gives, at the study's focal length and height
+    tv = camera_from_dict(train.params["virtual"])
+    alone = design_virtual_camera([CAMS["camvid"].without_ego()], 5, 3, above=6, f=tv.fx, height=tv.height).camera
+    assert alone.size == tv.size and alone.cy == pytest.approx(tv.cy)
+    # kitti: one camera, another rectangle: wider, same top edge, same scale
+    kv = camera_from_dict(kitti.params["virtual"])
+    assert same_camera_other_canvas(kitti.params["virtual"], train.params["virtual"])
+    assert kitti.params["scale"] == train.params["scale"]
+    assert kv.size[0] > tv.size[0] * 1.2 and kv.cy == pytest.approx(tv.cy)
+    kvs = camera_from_dict(kitti.params["virtual_scaled"])
+    tvs = camera_from_dict(train.params["virtual_scaled"])
+    for rec in kitti:
+        label = decode_label(cv2.imread(rec["label_source"], cv2.IMREAD_UNCHANGED), get_label_format("camvid"))
+        # what the design holds of every camera: the labelled lower half of the frame (bonnet rows excluded)
+        held = np.zeros(label.shape, bool)
+        held[label.shape[0] // 2 + 1:] = True
+        held &= label != 255
+        assert (held & (label == 1)).sum() > 0
+        src = camera_from_dict(rec["camera_params"])
+        # in the training rectangle some of it would fall outside (and be scored 'not road') ...
+        H = virt_H_src(src, tvs, rec["pan_deg"], rec["tilt_deg"])
+        ys, xs = np.nonzero(held)
+        p = H @ np.stack([xs, ys, np.ones_like(xs)]).astype(float)
+        u = p[0] / p[2]
+        assert ((u < -0.5) | (u > tvs.size[0] - 0.5)).mean() > 0.05
+        # ... in kitti's own canvas it is inside the virtual image (all but the few pixels at the
+        # frame's edge that a 4-deg pan moves further than the design's first-order 'shift' margin)
+        cover = backproject_array(np.full(tuple(reversed(kvs.size)), 255, np.uint8), rec, "mask") > 0
+        assert cover[held].mean() > 0.99
+    # the model runs on the wider canvas at the training's pixels per degree (no resize)
+    pred = Predictor(out / "runs" / "_all" / "within" / "model.pt", device="cpu")
+    assert pred.working_size(tuple(kitti.store_size)) == tuple(kitti.store_size)
+    assert pred.working_size(tuple(train.store_size)) == tuple(pred.size)
+    rec = next(iter(kitti))
+    assert pred.store_item(kitti, rec).shape == tuple(reversed(rec["size"]))
+    rows = _rows(out)
+    assert {(r["heldout"], r["condition"]) for r in rows} == {(n, c) for n in ("kitti", "camvid2")
+                                                              for c in ("resize", "within")}
+    assert all(0.0 <= r["iou"] <= 1.0 for r in rows)
+    info = json.loads((out / "study.json").read_text())
+    assert info["canvas"] == "footprint" and info["canvases"]["kitti"] == list(kv.size)
+    assert math.isclose(info["scale"], train.params["scale"])
+
+
+@pytest.mark.parametrize("edit, needle", [
+    (lambda d: d.update(canvas="round"), "'canvas' must be one of shared, footprint"),
+    (lambda d: d.update(canvas="footprint", virtual="virtual", above=None), "'canvas' sizes a designed virtual camera"),
+    (lambda d: d.update(canvas="footprint", conditions=["prior"]), "conditions prior, adapt and adapt-fuse"),
+])
+def test_bad_canvas_gives_one_error_line(tmp_path, edit, needle):
+    study = _study(tmp_path / "data")
+    d = yaml.safe_load(study.read_text())
+    edit(d)
+    study.write_text(yaml.safe_dump(d))
+    out = tmp_path / "out"
+    proc = run_cli("crossval", study, "--out", out, prog="vctrain")
+    assert_one_error_line(proc, needle)
+    assert not out.exists()
+
+
 # -- conditions prior (Table 5 "Geo-Prior") and adapt (the within model adapted without labels) ----
 GEO_CONDS = ["prior", "adapt"]
 

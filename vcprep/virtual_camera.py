@@ -34,7 +34,7 @@ from .camera import Camera, camera_from_dict
 from .errors import InputError
 from .homography import apply_homography, virt_H_src
 
-__all__ = ["VirtualDesign", "design_virtual_camera"]
+__all__ = ["VirtualDesign", "design_virtual_camera", "same_camera_other_canvas"]
 
 
 @dataclass(frozen=True)
@@ -64,7 +64,12 @@ def _lower_half_corners(cam: Camera) -> np.ndarray:
 
 def design_virtual_camera(cameras: list[Camera], pan_range: float = 20.0, tilt_range: float = 15.0,
                           rule: str = "shift", name: str = "virtual", multiple: int = 2,
-                          above: float | None = None) -> VirtualDesign:
+                          above: float | None = None, f: float | None = None,
+                          height: float | None = None) -> VirtualDesign:
+    """The virtual camera holding ``cameras`` (module docstring). ``f`` and ``height`` fix the focal
+    length and height instead of the rule's (a *canvas*: the same virtual camera, sized to hold
+    only these cameras; its rectangle differs from another canvas of the same ``f``, ``height``,
+    ranges and ``above`` only by ``cx``, ``cy`` and the size: an exact crop or extension)."""
     if not cameras:
         raise InputError("no cameras given", None, "name at least one camera")
     if rule not in ("shift", "exact"):
@@ -73,8 +78,8 @@ def design_virtual_camera(cameras: list[Camera], pan_range: float = 20.0, tilt_r
         raise InputError("pose ranges must be in [0, 60) degrees", None, "e.g. --pan-range 20 --tilt-range 15")
     if above is not None and not 0 <= above < 60:
         raise InputError(f"'above' must be degrees in [0, 60), got {above}", None, "e.g. --above 8")
-    height = float(np.mean([c.height for c in cameras]))
-    f = float(max(max(c.fx, c.fy) for c in cameras))
+    height = float(np.mean([c.height for c in cameras])) if height is None else float(height)
+    f = float(max(max(c.fx, c.fy) for c in cameras)) if f is None else float(f)
     # a virtual camera centred at the origin: extents are read off directly
     probe = Camera("probe", (1, 1), f, f, 0.0, 0.0, height)
     mx = my = bottom = 0.0
@@ -102,3 +107,15 @@ def design_virtual_camera(cameras: list[Camera], pan_range: float = 20.0, tilt_r
     virt = camera_from_dict({"name": name, "image_size": [W, H], "fx": f, "fy": f, "cx": (W - 1) / 2.0,
                              "cy": cy, "height": height, "tilt": 0.0, "pan": 0.0})
     return VirtualDesign(virt, (mx, my), rule, pan_range, tilt_range, tuple(c.name for c in cameras), above)
+
+
+def same_camera_other_canvas(a: dict | None, b: dict | None) -> bool:
+    """Whether two virtual cameras (``Camera.to_dict()``) are one camera with two rectangles: the
+    same focal lengths, height and pose, only the principal point and size differ (canvases of
+    :func:`design_virtual_camera` with one ``f`` and ``height``). Their images differ by a shift
+    and a crop or extension, so a model trained in one runs unchanged in the other."""
+    if not a or not b:
+        return False
+    keys = ("fx", "fy", "height", "tilt", "pan")
+    return all(abs(float(a.get(k, 0.0)) - float(b.get(k, 0.0))) <= 1e-9 * max(1.0, abs(float(b.get(k, 0.0))))
+               for k in keys) and not a.get("ego_rows") and not b.get("ego_rows")

@@ -83,6 +83,7 @@ class _Builder:
         self._items: dict[tuple[str, str], list[Job]] = {}
         self._vps: dict[tuple[str, str], dict[str, ItemPose]] = {}
         self._virtual: Camera | None = None
+        self._canvas: dict[str, Camera] = {}  # virtual_for: the canvases of canvas: footprint
 
     def split(self, ds: Dataset, split: str) -> Split:
         return {"train": ds.train, "test": ds.test, "unlabelled": ds.unlabelled}[split]
@@ -225,8 +226,35 @@ class _Builder:
                 self._virtual = load_camera(self.study.virtual)
         return self._virtual
 
+    def virtual_for(self, ds: Dataset) -> Camera:
+        """The virtual camera of ``ds``'s stores. ``canvas: shared`` (or a given virtual camera):
+        :meth:`virtual` for every dataset. ``canvas: footprint``: :meth:`virtual`'s focal length,
+        height, level pose and top edge, its rectangle sized to hold the trainable datasets'
+        cameras (every trainable dataset's stores, so a model's training images share one size),
+        and for a test-only dataset also its own camera (an extension of the training rectangle:
+        the network runs on it at the training's pixels per degree)."""
+        if self.study.virtual != "design" or self.study.canvas == "shared":
+            return self.virtual()
+        key = "\0train" if ds.role != "test" else ds.name
+        if key not in self._canvas:
+            from vcprep.virtual_camera import design_virtual_camera
+
+            ref = self.virtual()
+            cams = [self.nominal_camera(d) for d in self.study.datasets if d.role != "test"]
+            if ds.role == "test":
+                cams.append(self.nominal_camera(ds))
+            self._canvas[key] = design_virtual_camera(cams, self.study.pan_range, self.study.tilt_range,
+                                                      name="study-virtual", above=self.study.above, f=ref.fx,
+                                                      height=ref.height).camera
+        return self._canvas[key]
+
+    def training_virtual(self) -> Camera:
+        """The virtual camera of every trainable dataset's stores (what the pixel budget sizes)."""
+        trainable = [d for d in self.study.datasets if d.role != "test"]
+        return self.virtual_for(trainable[0]) if trainable else self.virtual()
+
     def scale(self) -> float:
-        w, h = self.virtual().size
+        w, h = self.training_virtual().size
         if self.study.store_width and not self.study.store_pixels:
             return self.study.store_width / w
         return math.sqrt((self.study.store_pixels or DEFAULT_STORE_PIXELS) / (w * h))
@@ -270,14 +298,14 @@ class _Builder:
             self._vps[key] = {i: ItemPose((r.vp[0], r.vp[1]), r.status) for i, r in zip(ids, res)}
         return self._vps[key]
 
-    def _drop_if_other_virtual(self, root: Path) -> None:
+    def _drop_if_other_virtual(self, root: Path, virtual: Camera) -> None:
         """The study's stores are its own derived data: one built for another virtual camera or
         scale (the study's datasets or settings changed since) is removed, to be built afresh."""
         if not (root / "store.json").exists():
             return
         from vcprep.build import store_params
 
-        want = store_params(self.virtual(), self.scale())
+        want = store_params(virtual, self.scale())
         have = Store.open(root).params
         if any(have.get(k) != want[k] for k in ("virtual", "scale", "store_size")):
             self.say(f"{root.relative_to(self.out)}: built for another virtual camera or scale; building it afresh")
@@ -287,7 +315,7 @@ class _Builder:
         """How the store of ``ds``'s ``split`` in ``geometry`` is built: the dataset's camera into
         the study's virtual camera and scale, with the geometry's poses and completion."""
         source, completion = GEOMETRIES[geometry]
-        return WarpSettings(camera=self.camera(ds), virtual=self.virtual(), scale=self.scale(),
+        return WarpSettings(camera=self.camera(ds), virtual=self.virtual_for(ds), scale=self.scale(),
                             label_format=get_label_format(ds.label_format), completion=completion,
                             poses=self.poses(ds, split, source), workers=self.jobs, progress=self.progress)
 
@@ -296,7 +324,7 @@ class _Builder:
         root = self.out / "stores" / ds.name / split / geometry
         jobs = self.items(ds, split)
         settings = self.warp_settings(ds, split, geometry)
-        self._drop_if_other_virtual(root)
+        self._drop_if_other_virtual(root, settings.virtual)
         warp_dataset(jobs, root, settings)
         return root
 
@@ -618,6 +646,9 @@ def run_study(study: Study, out: str | Path, conditions: Sequence[str] | None = 
     b = _Builder(study, out, progress, jobs, say)
     if any(CONDITIONS[c][1] == "adapt" for c in conditions):
         _check_adapt_targets(b, evaluated)  # also before anything is written
+    if study.canvas != "shared" and any(CONDITIONS[c][1] in ("prior", "adapt") for c in conditions):
+        raise InputError("conditions prior, adapt and adapt-fuse need every store in one rectangle", study.path,
+                         "drop 'canvas: footprint' from the study, or those conditions")
     out.mkdir(parents=True, exist_ok=True)
     virt = b.virtual()
     for d in study.datasets:
@@ -627,6 +658,9 @@ def run_study(study: Study, out: str | Path, conditions: Sequence[str] | None = 
     write_json(out / "study.json", {"study": str(study.path), "virtual": virt.to_dict(), "scale": b.scale(),
                                       "conditions": conditions, "datasets": [d.name for d in study.datasets],
                                       "roles": {d.name: d.role for d in study.datasets}, "train": training,
+                                      "canvas": study.canvas,
+                                      **({"canvases": {d.name: list(b.virtual_for(d).size) for d in study.datasets}}
+                                         if study.canvas != "shared" else {}),
                                       **({"ego_found": b.ego_found} if b.ego_found else {}),
                                       **({"cameras_estimated": {k: v["camera"] for k, v in b.estimated.items()}}
                                          if b.estimated else {})})
@@ -640,6 +674,8 @@ def run_study(study: Study, out: str | Path, conditions: Sequence[str] | None = 
                              for d in study.datasets]}
     ego = {d.name: b.camera(d).ego_rows for d in study.datasets
            if isinstance(b.camera(d), Camera) and b.camera(d).ego_rows}
+    if study.canvas != "shared":  # (shared: the settings, and so the finished runs, are as before)
+        settings["canvas"] = {d.name: b.virtual_for(d).to_dict() for d in study.datasets}
     if ego:  # only when a camera sees its own vehicle: the settings of studies without one are as before
         settings["ego_rows"] = ego
     if b.estimated:  # a changed estimate redoes the runs

@@ -57,24 +57,37 @@ class Predictor:
         return self.data["mode"]
 
     @torch.no_grad()
-    def road_probability(self, image: np.ndarray, vp: tuple[float, float] | None = None) -> np.ndarray:
-        """P(road) float32 at the size of ``image`` (any size; resized to the working size and
-        back). ``vp`` (image pixels) is needed for models with the VP channel."""
+    def road_probability(self, image: np.ndarray, vp: tuple[float, float] | None = None,
+                         size: tuple[int, int] | None = None) -> np.ndarray:
+        """P(road) float32 at the size of ``image`` (any size; resized to the working size, or to
+        ``size`` (w, h), and back). ``vp`` (image pixels) is needed for models with the VP channel."""
         h0, w0 = image.shape[:2]
-        img, _ = resize_pair(image, None, self.size)
+        size = tuple(size) if size is not None else self.size
+        img, _ = resize_pair(image, None, size)
         x = to_input(img, greyscale=self.greyscale)
         if self.vp_channel:
             if vp is None:
                 raise InputError("this model needs the road vanishing point of each image (VP channel)", self.path,
                                  "give --camera so the VP follows from its pose, or predict a store")
-            S = scale_matrix(self.size[0] / w0, self.size[1] / h0)
+            S = scale_matrix(size[0] / w0, size[1] / h0)
             v = S @ np.array([vp[0], vp[1], 1.0])
-            x = np.concatenate([x, vp_proximity(self.size, (v[0], v[1]))[None]], axis=0)
+            x = np.concatenate([x, vp_proximity(size, (v[0], v[1]))[None]], axis=0)
         logits = self.model(torch.from_numpy(x)[None].to(self.device))
         prob = torch.softmax(logits.float(), dim=1)[0, 1].cpu().numpy().astype(np.float32)
-        if (w0, h0) != self.size:
+        if (w0, h0) != size:
             prob = cv2.resize(prob, (w0, h0), interpolation=cv2.INTER_LINEAR)
         return prob
+
+    def working_size(self, store_size: tuple[int, int]) -> tuple[int, int]:
+        """The working size for a store image of ``store_size``: the training store's own size
+        gives the model's input size; a larger canvas of the same virtual camera (a test camera's
+        footprint, :func:`vcprep.virtual_camera.same_camera_other_canvas`) keeps the training's
+        pixels per degree, so the network runs on the whole canvas unresized (fully convolutional)."""
+        trained = (self.data.get("store_params") or {}).get("store_size")
+        if not trained or tuple(trained) == tuple(store_size):
+            return self.size
+        return (max(1, int(round(store_size[0] * self.size[0] / trained[0]))),
+                max(1, int(round(store_size[1] * self.size[1] / trained[1]))))
 
     def store_item(self, store: Store, rec: dict[str, Any]) -> np.ndarray:
         """P(road) in the item's ORIGINAL camera (source size), for either model mode."""
@@ -82,7 +95,7 @@ class Predictor:
             img = read_image(rec["source"]).array
             return self.road_probability(img, tuple(rec["vp"]) if rec.get("vp") else None)
         img = read_image(store.path(rec["image"])).array
-        prob = self.road_probability(img, vp_in_store(rec, store))
+        prob = self.road_probability(img, vp_in_store(rec, store), self.working_size((img.shape[1], img.shape[0])))
         return np.clip(backproject_array(prob, rec, kind="prob"), 0.0, 1.0)
 
 
@@ -141,11 +154,16 @@ def predict_store(predictor: Predictor, store: Store, out: str | Path, progress:
     ``<id>_prob.png`` at the source image size. Returns the mask paths."""
     out = _out_dir(out)
     if predictor.mode == "virtual":
+        from vcprep.virtual_camera import same_camera_other_canvas
+
         sp = predictor.data.get("store_params") or {}
-        for k in ("virtual", "scale"):
-            if store.params.get(k) != sp.get(k):
-                raise InputError(f"store has another {k} than the model's training store", store.root,
-                                 "predict from the images with --camera (they are warped as the model expects)")
+        if store.params.get("scale") != sp.get("scale"):
+            raise InputError("store has another scale than the model's training store", store.root,
+                             "predict from the images with --camera (they are warped as the model expects)")
+        if store.params.get("virtual") != sp.get("virtual") and not same_camera_other_canvas(
+                store.params.get("virtual"), sp.get("virtual")):
+            raise InputError("store has another virtual camera than the model's training store", store.root,
+                             "predict from the images with --camera (they are warped as the model expects)")
     written = []
     recs = list(store) if ids is None else [store.get(i) for i in ids]
     for rec in tqdm(recs, desc="predict", unit="img", disable=None if progress else True, leave=False):

@@ -49,7 +49,8 @@ from vcprep.errors import InputError
 from vcprep.imageio import read_text
 from vcprep.labels import get_label_format
 
-__all__ = ["CONDITIONS", "DEFAULT_CONDITIONS", "DEFAULT_STORE_PIXELS", "DEFAULT_ABOVE", "DEFAULT_TRAIN", "GEOMETRIES",
+__all__ = ["CONDITIONS", "DEFAULT_CONDITIONS", "DEFAULT_STORE_PIXELS", "DEFAULT_ABOVE", "DEFAULT_TRAIN", "CANVASES",
+           "DEFAULT_CANVAS", "GEOMETRIES",
            "ROLES", "ADAPT_COMBINE", "RUN_KEYS", "TRAIN_KEYS", "Split", "Dataset", "Study", "load_study", "check_conditions", "evaluated_datasets"]
 
 # geometry name -> (VP source, completion); one store per dataset, split and geometry
@@ -81,6 +82,15 @@ DEFAULT_CONDITIONS = ("resize", "between", "within", "within-gt", "zero")  # a s
 # no crop above the horizon and whole-image training): the defaults of a study that sets nothing.
 DEFAULT_STORE_PIXELS = 172800          # the pixels of 480x360 per virtual store image
 DEFAULT_ABOVE = 8.0                    # degrees of the designed virtual camera kept above the horizon
+# How the designed virtual camera's rectangle is sized per store (vctrain.crossval._Builder.virtual_for):
+# 'shared' -- one rectangle holding every dataset's camera (the paper's rule); 'footprint' -- the same
+# virtual camera (focal length, height, level pose, top edge), its rectangle holding only the trainable
+# datasets' cameras for their stores, and also the dataset's own camera for a test-only dataset's
+# stores; the pixel budget sizes the training rectangle, so a wide or steep test camera no longer
+# shrinks the training images (the network, fully convolutional, runs on the larger test rectangle at
+# the training's pixels per degree).
+CANVASES = ("shared", "footprint")
+DEFAULT_CANVAS = "shared"
 DEFAULT_TRAIN = {"crop": (4 / 9, 1.0)}  # full-height training windows of 4/9 of the width (76800 px a step)
 # the study file's `train:` section may set any TrainConfig field except these, which the study sets per run
 # (TRAIN_KEYS are checked without importing torch; another key is checked against TrainConfig itself)
@@ -147,6 +157,9 @@ class Study:
                                      # given: DEFAULT_STORE_PIXELS
     above: float | None = DEFAULT_ABOVE  # designed virtual camera cropped to this many degrees above the horizon
                                      # (None: not cropped)
+    canvas: str = DEFAULT_CANVAS     # 'shared': one designed rectangle for every store; 'footprint': the
+                                     # training stores hold the trainable datasets' cameras, a test-only
+                                     # dataset's stores also its own (CANVASES)
     train: dict[str, Any] = field(default_factory=dict)  # TrainConfig overrides
 
     def dataset(self, name: str) -> Dataset:
@@ -250,7 +263,7 @@ def load_study(path: str | Path) -> Study:
         raise InputError("not valid YAML", path, "fix the syntax; see the study schema in docs/studies.md") from None
     d = _mapping(d, "the study file", path)
     _keys(d, ("datasets", "conditions", "virtual", "pan_range", "tilt_range", "store_width", "store_pixels", "above",
-              "train"), ("datasets",),
+              "canvas", "train"), ("datasets",),
           "the study file", path)
     raw = d["datasets"]
     if not isinstance(raw, list) or len(raw) < 2:
@@ -344,6 +357,13 @@ def load_study(path: str | Path) -> Study:
         if v is not None and study.virtual != "design":
             raise InputError("'above' crops a designed virtual camera", path, "use it with virtual: design")
         study.above = None if v is None else float(v)
+    if "canvas" in d:
+        v = d["canvas"]
+        if v not in CANVASES:
+            raise InputError(f"'canvas' must be one of {', '.join(CANVASES)}, got {v!r}", path, "e.g. canvas: footprint")
+        if v != "shared" and study.virtual != "design":
+            raise InputError("'canvas' sizes a designed virtual camera", path, "use it with virtual: design")
+        study.canvas = v
     if "train" in d:
         t = _mapping(d["train"], "'train'", path)
         _check_train_keys(t, path)
