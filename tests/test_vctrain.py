@@ -397,6 +397,35 @@ def test_predict_store_and_resize_baseline(trained, tmp_path):
     assert read_image(tmp_path / "rp" / f"{img.stem}_mask.png", label=True).array.shape == (72, 96)
 
 
+def test_predict_store_in_a_wider_canvas_of_the_models_virtual_camera(trained, tmp_path):
+    """A store of the model's virtual camera with a larger rectangle (crossval's canvas: footprint)
+    is predicted at the training's pixels per degree, whole; a store of another virtual camera
+    (another focal length) is refused in one line."""
+    from dataclasses import replace
+
+    from vctrain.predict import Predictor
+
+    root, store, _ = trained
+    cam, v = PRESETS["camvid"].resized(0.1), PRESETS["virtual"]
+    jobs = list_dataset(root / "src/images", root / "src/labels", get_label_format(FMT))
+    wide, _ = warp_dataset(jobs, tmp_path / "wide", WarpSettings(
+        cam, replace(v, size=(v.size[0] + 1000, v.size[1]), cx=v.cx + 500), 0.02, get_label_format(FMT),
+        progress=False))
+    assert wide.store_size[0] == store.store_size[0] + 20 and wide.store_size[1] == store.store_size[1]
+    pred = Predictor(root / "model.pt", device="cpu")
+    assert pred.working_size(tuple(wide.store_size)) == tuple(wide.store_size)
+    r = runner.invoke(app, ["predict", str(root / "model.pt"), "--store", str(tmp_path / "wide"),
+                            "--out", str(tmp_path / "wp"), "--quiet"])
+    assert r.exit_code == 0, r.output
+    masks = sorted((tmp_path / "wp").glob("*_mask.png"))
+    assert len(masks) == 6 and all(read_image(m, label=True).array.shape == (72, 96) for m in masks)
+    warp_dataset(jobs, tmp_path / "other", WarpSettings(cam, replace(v, fx=v.fx * 1.1, fy=v.fy * 1.1), 0.02,
+                                                        get_label_format(FMT), progress=False))
+    r = runner.invoke(app, ["predict", str(root / "model.pt"), "--store", str(tmp_path / "other"),
+                            "--out", str(tmp_path / "op"), "--quiet"])
+    assert r.exit_code != 0 and "another virtual camera than the model's training store" in str(r.exception)
+
+
 def test_fit_on_crops_predicts_on_the_whole_image(trained, tmp_path):
     """--crop trains on windows (the checkpoint records both sizes) and validation and prediction
     run on the whole working image (fully convolutional), so masks keep the source size."""
