@@ -34,7 +34,7 @@ from .camera import Camera, camera_from_dict
 from .errors import InputError
 from .homography import apply_homography, virt_H_src
 
-__all__ = ["VirtualDesign", "design_virtual_camera", "same_camera_other_canvas"]
+__all__ = ["VirtualDesign", "design_virtual_camera", "same_camera_other_canvas", "extend_canvas"]
 
 
 @dataclass(frozen=True)
@@ -119,3 +119,28 @@ def same_camera_other_canvas(a: dict | None, b: dict | None) -> bool:
     keys = ("fx", "fy", "height", "tilt", "pan")
     return all(abs(float(a.get(k, 0.0)) - float(b.get(k, 0.0))) <= 1e-9 * max(1.0, abs(float(b.get(k, 0.0))))
                for k in keys) and not a.get("ego_rows") and not b.get("ego_rows")
+
+
+def extend_canvas(virtual: Camera, views: list[tuple[Camera, float, float]], multiple: int = 2) -> Camera:
+    """``virtual`` with its rectangle extended, left, right and down (never up: the rows above the
+    horizon stay the training's), until it holds the lower half of every view's image (the own
+    vehicle's rows cut off) -- ``views``: (camera, pan, tilt) of each frame at its own pose, mapped
+    exactly. Focal lengths, height and pose are unchanged (:func:`same_camera_other_canvas`): a
+    model trained in ``virtual`` runs on the result at the same pixels per degree, and a camera
+    wider or steeper than the training cameras is no longer cut off. Unchanged when it holds them."""
+    W, H = virtual.size
+    left, right, bottom = -0.5, W - 0.5, H - 0.5
+    for cam, pan, tilt in views:
+        c = cam.without_ego()
+        p = apply_homography(virt_H_src(c, virtual, pan, tilt), _lower_half_corners(c))
+        if not np.all(np.isfinite(p)) or np.abs(p).max() > 8 * max(W, H):
+            continue  # a view whose lower half reaches the horizon: the warp refuses it (folded), nothing to hold
+        left, right, bottom = min(left, p[:, 0].min()), max(right, p[:, 0].max()), max(bottom, p[:, 1].max())
+    grow_l = int(math.ceil((-0.5 - left) / multiple - 1e-9) * multiple)
+    grow_r = int(math.ceil((right - (W - 0.5)) / multiple - 1e-9) * multiple)
+    grow_b = int(math.ceil((bottom - (H - 0.5)) / multiple - 1e-9) * multiple)
+    if not (grow_l or grow_r or grow_b):
+        return virtual
+    d = virtual.to_dict()
+    d.update(image_size=[W + grow_l + grow_r, H + grow_b], cx=virtual.cx + grow_l)
+    return camera_from_dict(d)

@@ -674,8 +674,9 @@ def run_study(study: Study, out: str | Path, conditions: Sequence[str] | None = 
                              for d in study.datasets]}
     ego = {d.name: b.camera(d).ego_rows for d in study.datasets
            if isinstance(b.camera(d), Camera) and b.camera(d).ego_rows}
-    if study.canvas != "shared":  # (shared: the settings, and so the finished runs, are as before)
-        settings["canvas"] = {d.name: b.virtual_for(d).to_dict() for d in study.datasets}
+    canvases = {d.name: b.virtual_for(d).to_dict() for d in study.datasets}
+    if any(c != virt.to_dict() for c in canvases.values()):  # (every store in the shared rectangle: as before)
+        settings["canvas"] = canvases
     if ego:  # only when a camera sees its own vehicle: the settings of studies without one are as before
         settings["ego_rows"] = ego
     if b.estimated:  # a changed estimate redoes the runs

@@ -203,6 +203,26 @@ def predict_images(predictor: Predictor, images: Iterable[str | Path], out: str 
         return predict_store(predictor, store, out, progress, ids=[j.id for j in jobs], overlay=overlay)
 
 
+def _canvas_for(virtual: Camera, jobs: list[Job], camera: Camera | FrameCameras,
+                poses: dict | None) -> Camera:
+    """The training's virtual camera, its rectangle extended to hold every frame of ``jobs`` at the
+    pose it is warped with (:func:`vcprep.virtual_camera.extend_canvas`): a camera wider or
+    steeper than the training cameras is predicted whole, at the training's pixels per degree."""
+    from vcprep.homography import pose_from_vp
+    from vcprep.imageio import image_size
+    from vcprep.virtual_camera import extend_canvas
+
+    views, seen = [], set()
+    for j in jobs:
+        cam = camera_of_image(camera, j.image, image_size(j.image))
+        pan, tilt = pose_from_vp(cam, poses[j.id].vp) if poses else (cam.pan, cam.tilt)
+        key = (cam, round(pan, 3), round(tilt, 3))
+        if key not in seen:
+            seen.add(key)
+            views.append((cam, pan, tilt))
+    return extend_canvas(virtual, views)
+
+
 def warp_like_training(data: dict[str, Any], path: str | Path, jobs: list[Job], camera: Camera | FrameCameras,
                        root: str | Path,
                        within: str = "auto", progress: bool = True) -> Store:
@@ -233,6 +253,7 @@ def warp_like_training(data: dict[str, Any], path: str | Path, jobs: list[Job], 
 
         res = vps_for_items([j.image for j in jobs], [j.id for j in jobs], camera, within)
         poses = {j.id: ItemPose((r.vp[0], r.vp[1]), r.status) for j, r in zip(jobs, res)}
+    virtual = _canvas_for(virtual, jobs, camera, poses)
     settings = WarpSettings(camera=camera, virtual=virtual, scale=float(sp["scale"]), completion=completion,
                             poses=poses, progress=progress)
     store, _ = warp_dataset(jobs, root, settings)
