@@ -376,6 +376,42 @@ def test_predict_other_camera_lands_on_road(trained, tmp_path):
     assert res["iou"] > 0.6
 
 
+def test_predict_a_wider_steeper_camera_predicts_its_whole_frame(trained, tmp_path):
+    """A camera wider and steeper than the virtual camera the model was trained in: the kept store's virtual camera is the training's extended (same focal
+    length and height), so every pixel of the frame's lower half is inside it: none is scored
+    'not road' for falling outside. (How well a model does there is the benchmarks' question.)"""
+    from dataclasses import replace as dc_replace
+
+    from vcprep.backproject import backproject_array
+    from vcprep.camera import Camera, camera_to_yaml
+    from vcprep.homography import virt_H_src
+    from vcprep.store import Store
+    from vcprep.virtual_camera import same_camera_other_canvas
+
+    root, store, _ = trained
+    # 110 x 94 deg, tilted 12 deg down: beyond the paper's virtual camera (101 x 64 deg) on every side
+    cam = Camera("wide", (160, 120), 56.0, 56.0, 79.5, 59.5, 1.3, tilt=12.0)
+    _render_set(tmp_path / "new", cam, 2, seed=5)
+    (tmp_path / "cam.yaml").write_text(camera_to_yaml(cam))
+    r = runner.invoke(app, ["predict", str(root / "model.pt"), "--camera", str(tmp_path / "cam.yaml"), "--within",
+                            "none", str(tmp_path / "new/images"), "--out", str(tmp_path / "pred"), "--keep-store",
+                            str(tmp_path / "kept"), "--quiet"])
+    assert r.exit_code == 0, r.output
+    kept = Store.open(tmp_path / "kept")
+    assert same_camera_other_canvas(kept.params["virtual"], store.params["virtual"])
+    assert kept.store_size[0] > store.store_size[0] and kept.store_size[1] > store.store_size[1]
+    # (in the training's rectangle a third of the lower half would fall outside)
+    ys, xs = np.mgrid[60:120, 0:160]
+    p = virt_H_src(cam, PRESETS["virtual"].resized(0.02)) @ np.stack([xs.ravel(), ys.ravel(), np.ones(xs.size)])
+    u, v = p[0] / p[2], p[1] / p[2]
+    assert ((u < -0.5) | (u > store.store_size[0] - 0.5) | (v > store.store_size[1] - 0.5)).mean() > 0.3
+    for rec in kept:
+        w, h = rec["size"]
+        cover = backproject_array(np.full(tuple(reversed(kept.store_size)), 255, np.uint8), rec, "mask") > 0
+        assert cover[(h - 1) // 2 + 1:].all()
+        assert read_image(tmp_path / "pred" / f"{rec['id']}_mask.png", label=True).array.shape == (h, w)
+
+
 def test_predict_store_and_resize_baseline(trained, tmp_path):
     root, store, _ = trained
     r = runner.invoke(app, ["predict", str(root / "model.pt"), "--store", str(root / "store"),
