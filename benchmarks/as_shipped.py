@@ -59,6 +59,7 @@ import json
 import math
 import os
 import platform
+import sys
 import time
 from pathlib import Path
 
@@ -66,6 +67,9 @@ import numpy as np
 import yaml
 
 from measure import BIN, DATA, KITTI, ROOT, SHARED_DATA, format_stat, link_files, native_camera, run, seed_stats
+
+sys.path.insert(0, str(ROOT))
+from vctrain.study import CANVASES, DEFAULT_CANVAS  # noqa: E402
 
 CITYSCAPES = SHARED_DATA / "cityscapes_pix2pix"
 CS_FORMAT = "values:road=1;ignore=255;max=255"
@@ -109,14 +113,17 @@ def _folders(wd: Path, quick: bool) -> dict[str, dict]:
     return f
 
 
-def _write(wd: Path, name: str, datasets: list[dict], train: dict) -> Path:
+def _write(wd: Path, name: str, datasets: list[dict], train: dict, extra: dict | None = None) -> Path:
     path = wd / name
-    path.write_text(yaml.safe_dump({"datasets": datasets, **({"train": train} if train else {})}, sort_keys=False))
+    path.write_text(yaml.safe_dump({"datasets": datasets, **(extra or {}), **({"train": train} if train else {})},
+                                   sort_keys=False))
     return path
 
 
-def study_file(wd: Path, quick: bool, epochs: int | None) -> Path:
-    """Study 1: one model per condition trained on CamVid minus 0001TP, every other set a test."""
+def study_file(wd: Path, quick: bool, epochs: int | None, canvas: str = "shared") -> Path:
+    """Study 1: one model per condition trained on CamVid minus 0001TP, every other set a test, in
+    the virtual camera's rectangle rule ``canvas`` (written out: the study is the same whatever
+    crossval's default)."""
     cam, f = native_camera(wd), _folders(wd, quick)
     d = lambda name, camera, fmt, split, **kw: {"name": name, "role": "test", "camera": str(camera),
                                                  "label_format": fmt, "test": split, **kw}
@@ -137,7 +144,8 @@ def study_file(wd: Path, quick: bool, epochs: int | None) -> Path:
         d("bdd-est", "estimate", "bdd", f["bdd"]),
     ]
     train_cfg = {"epochs": 1, "max_steps": 2} if quick else ({"epochs": epochs} if epochs else {})
-    return _write(wd, "study.yaml", datasets, train_cfg)
+    return _write(wd, "study.yaml" if canvas == "shared" else f"study-{canvas}.yaml", datasets, train_cfg,
+                  {"canvas": canvas})
 
 
 def camvid_steps_per_epoch() -> int:
@@ -188,6 +196,9 @@ def main() -> None:
     ap.add_argument("--seeds", default="0,1,2", help="seeds of study 1 (trained on CamVid)")
     ap.add_argument("--loo-seeds", default="0,1,2", help="seeds of study 2 (leave one real dataset out); '' skips it")
     ap.add_argument("--conditions", default="within,resize")
+    ap.add_argument("--canvases", default="shared,footprint",
+                    help="the virtual camera's rectangle rules compared (crossval's 'canvas'); the headline is "
+                         f"crossval's default ({DEFAULT_CANVAS})")
     ap.add_argument("--epochs", type=int, default=None)
     ap.add_argument("--workdir", type=Path, default=ROOT / "benchmarks" / "out" / "as_shipped")
     ap.add_argument("--threads", type=int, default=os.cpu_count() or 1)
@@ -199,21 +210,40 @@ def main() -> None:
     seeds = [0] if a.quick else [int(s) for s in a.seeds.split(",") if s]
     loo_seeds = [0] if a.quick else [int(s) for s in a.loo_seeds.split(",") if s]
     conds = a.conditions.split(",")
+    canvases = a.canvases.split(",")
+    if "shared" not in canvases or any(c not in CANVASES for c in canvases):
+        raise SystemExit(f"--canvases: 'shared' (it holds the resize baseline) and any of {', '.join(CANVASES)}")
     a.workdir.mkdir(parents=True, exist_ok=True)
 
-    # -- study 1: trained on CamVid ------------------------------------------------------------
-    study = study_file(a.workdir, a.quick, a.epochs)
+    # -- study 1: trained on CamVid, in each rectangle rule ('canvas') -----------------------------
+    # the shared rectangle's study (WORKDIR/seed<k>) runs every condition, resize included; another
+    # canvas's (WORKDIR/<canvas>/seed<k>) only the virtual-camera conditions (resize reads the frames
+    # as they are: no rectangle touches it). cell[(test, cond)] is crossval's DEFAULT canvas;
+    # cell[(test, cond@canvas)] every canvas's.
     cell: dict[tuple[str, str], list[float]] = {}
     minutes: list[float] = []
     found, estimated = {}, {}
-    for seed in seeds:
-        rows, info = run_study(study, a.workdir / f"seed{seed}", conds, seed, a.threads)
-        trained: dict[str, float] = {}
-        for r in rows:
-            cell.setdefault((r["heldout"], r["condition"]), []).append(100 * r["iou"])
-            trained[r["condition"]] = r["train_seconds"] / 60  # one model per condition: every row repeats it
-        minutes += trained.values()
-        found, estimated = info.get("ego_found", {}), info.get("cameras_estimated", {})
+    for canvas in canvases:
+        study = study_file(a.workdir, a.quick, a.epochs, canvas)
+        wd = a.workdir if canvas == "shared" else a.workdir / canvas
+        cc = conds if canvas == "shared" else [k for k in conds if k != "resize"]
+        for seed in seeds:
+            if canvas != "shared" and seed != seeds[0]:  # the stores do not depend on the seed: build them once
+                for sub in ("stores", "cameras"):
+                    link = wd / f"seed{seed}" / sub
+                    if not link.exists() and (wd / f"seed{seeds[0]}" / sub).exists():
+                        link.parent.mkdir(parents=True, exist_ok=True)
+                        link.symlink_to(Path("..") / f"seed{seeds[0]}" / sub)
+            rows, info = run_study(study, wd / f"seed{seed}", cc, seed, a.threads)
+            trained: dict[str, float] = {}
+            for r in rows:
+                k = r["condition"]
+                cell.setdefault((r["heldout"], f"{k}@{canvas}"), []).append(100 * r["iou"])
+                if canvas == DEFAULT_CANVAS or k == "resize":
+                    cell.setdefault((r["heldout"], k), []).append(100 * r["iou"])
+                trained[k] = r["train_seconds"] / 60  # one model per condition: every row repeats it
+            minutes += trained.values()
+            found, estimated = info.get("ego_found", {}), info.get("cameras_estimated", {})
 
     # -- study 2: leave one real dataset out -----------------------------------------------------
     loo: dict[tuple[str, str], list[float]] = {}
@@ -246,6 +276,20 @@ def main() -> None:
     for k in conds:
         head[f"in_domain_{k}"] = r2(stat(c("camvid-val", k))["mean"]) if c("camvid-val", k) else None
         head[f"in_domain_0001TP_{k}"] = r2(stat(c("camvid-0001TP", k))["mean"]) if c("camvid-0001TP", k) else None
+    head["canvas_default"] = DEFAULT_CANVAS
+    for canvas in canvases:  # every canvas against the resize baseline, and footprint against shared
+        pc = {t: diff(c(t, f"within@{canvas}"), c(t, "resize")) for t in REAL_OTHER}
+        if all(pc.values()):
+            head[f"real_within_minus_resize@{canvas}"] = r2(stat([float(np.mean(v)) for v in zip(*pc.values())])["mean"])
+        if canvas != "shared":
+            pd = {t: diff(c(t, f"within@{canvas}"), c(t, "within@shared")) for t in REAL_OTHER + ["camvid-val",
+                                                                                                   "camvid-0001TP"]}
+            real = [pd[t] for t in REAL_OTHER]
+            if all(real):
+                s_ = stat([float(np.mean(v)) for v in zip(*real)])
+                head[f"real_{canvas}_minus_shared"], head[f"real_{canvas}_minus_shared_std"] = r2(s_["mean"]), r2(s_["std"])
+            for t, v in pd.items():
+                head[f"{canvas}_minus_shared_{t}"] = r2(stat(v)["mean"]) if v else None
     for cam in EGO:
         g = diff(c(cam), c(cam + "-noego"))
         head[f"ego_gain_{cam}"] = r2(stat(g)["mean"]) if g else None
@@ -274,14 +318,21 @@ def main() -> None:
     }
 
     # -- the tables ----------------------------------------------------------------------------
+    others = [f"{k}@{cv}" for cv in canvases if cv != DEFAULT_CANVAS for k in conds if k != "resize"]
     lines = [f"Road IoU (%), mean ± std over seeds {seeds}; one model per condition trained on CamVid train minus "
              f"0001TP with `vctrain crossval`'s defaults, scored in each test set's own camera.", "",
-             "| test set | " + " | ".join(conds) + " | within − resize |", "|---|" + "---|" * (len(conds) + 1)]
+             f"`within` is crossval's default rectangle ('canvas: {DEFAULT_CANVAS}'); `within@<canvas>` the others.", "",
+             "| test set | " + " | ".join(conds + others) + " | within − resize |",
+             "|---|" + "---|" * (len(conds) + len(others) + 1)]
     for t in TESTS:
         res = "resize" if not t.endswith(("-noego", "-est")) else None
         base = t.rsplit("-", 1)[0] if t.endswith(("-noego", "-est")) else t
-        lines.append(f"| {t} | " + " | ".join(fmt(stat(c(t, k))) for k in conds) + " | "
+        lines.append(f"| {t} | " + " | ".join(fmt(stat(c(t, k))) for k in conds + others) + " | "
                      + fmt(stat(diff(c(t), c(base if res is None else t, "resize"))), signed=True) + " |")
+    for canvas in canvases:
+        if canvas != "shared" and f"real_{canvas}_minus_shared" in head:
+            lines += ["", f"Rectangle '{canvas}' against 'shared' (within, paired per seed), real other cameras: "
+                          f"{head[f'real_{canvas}_minus_shared']:+.1f} ± {head[f'real_{canvas}_minus_shared_std']:.1f}."]
     if "real_within_minus_resize" in head:
         lines += ["", f"Real other cameras ({', '.join(REAL_OTHER)}): within − resize "
                       f"{head['real_within_minus_resize']:+.1f} ± {head['real_within_minus_resize_std']:.1f} "
@@ -304,11 +355,13 @@ def main() -> None:
         {"headline": head, "targets": targets, "cells": {f"{t}|{k}": v for (t, k), v in cell.items()},
          "loo_cells": {f"{t}|{k}": v for (t, k), v in loo.items()}, "ego_found": found,
          "cameras_estimated": estimated, "seeds": seeds, "loo_seeds": loo_seeds, "conditions": conds,
+         "canvases": canvases,
          "loo_steps_per_epoch": camvid_steps_per_epoch(), "epochs": a.epochs, "threads": a.threads,
          "machine": f"{platform.machine()}, {os.cpu_count()} cores", "date": time.strftime("%Y-%m-%d"),
          "command": "benchmarks/as_shipped.py " + " ".join(f"--{k} {v}" for k, v in
                                                             (("seeds", a.seeds), ("loo-seeds", a.loo_seeds),
-                                                             ("conditions", a.conditions)))},
+                                                             ("conditions", a.conditions),
+                                                             ("canvases", a.canvases)))},
         indent=1))
     print(json.dumps(head))
 

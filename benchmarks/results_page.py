@@ -349,6 +349,17 @@ def r_as_shipped(d: dict) -> list[str]:
     real = _real_mean(c, AS_SHIPPED_REAL)
     out += [f"Real other cameras ({', '.join(AS_SHIPPED_REAL)}), within − resize, per seed the mean over them: "
             f"**{_mean_std(real, signed=True)}**.", ""]
+    default = d["headline"].get("canvas_default", "shared")
+    for cv in d.get("canvases", []):
+        key = f"within@{cv}"
+        if cv == default or not any(k.endswith("|" + key) for k in c):
+            continue
+        out += [f"The virtual camera's rectangle (`canvas`): crossval's default `{default}` against `{cv}` "
+                "(within, paired per seed):", ""]
+        out += table(["test set", f"within ({default})", f"within ({cv})", f"{default} − {cv}"],
+                     [[t, _mean_std(c.get(f"{t}|within")), _mean_std(c.get(f"{t}|{key}")),
+                       _mean_std(_diff(c.get(f"{t}|within"), c.get(f"{t}|{key}")), signed=True)]
+                      for t, _ in AS_SHIPPED_ROWS])
     loo = d.get("loo_cells") or {}
     if loo:
         out += [f"Leave one real dataset out (trained on the other two at the CamVid model's "

@@ -648,6 +648,14 @@ def test_prior_condition_equals_an_independent_computation(geo_run):
         assert np.abs(saved - prior).max() < 1e-6
 
 
+def test_prior_and_adapt_put_every_store_in_one_rectangle(geo_run):
+    """The prior is an image of the training rectangle: a study with prior/adapt that does not set
+    'canvas' gets the shared rectangle (said in study.json), every store the same size."""
+    _, out = geo_run[:2]
+    assert json.loads((out / "study.json").read_text())["canvas"] == "shared"
+    assert len({tuple(Store.open(p).store_size) for p in (out / "stores").glob("*/*/*")}) == 1
+
+
 def test_adapt_reuses_the_within_model_and_never_reads_test_labels(geo_run):
     import numpy as np
     import torch
@@ -898,14 +906,15 @@ def test_a_study_camera_that_is_both_a_preset_and_a_folder_is_an_error_naming_bo
 
 
 def test_a_study_that_sets_nothing_gets_the_measured_design(tmp_path):
-    """No store_width/store_pixels/above/crop: the 172800-px budget, the virtual camera cropped to
-    8 deg above the horizon and full-height 4/9-width training windows (issue 24's measured best);
+    """No store_width/store_pixels/above/crop/canvas: the 172800-px budget, the virtual camera cropped
+    to 8 deg above the horizon, its rectangle sized by the trainable cameras (canvas: footprint) and
+    full-height 4/9-width training windows (issue 24's measured best);
     store_width alone still sets the scale, 'above: null' leaves the design uncropped, and an
     explicit crop wins over the default."""
     import math
 
     from vctrain.crossval import _Builder, training_settings
-    from vctrain.study import DEFAULT_ABOVE, DEFAULT_STORE_PIXELS, load_study
+    from vctrain.study import DEFAULT_ABOVE, DEFAULT_CANVAS, DEFAULT_STORE_PIXELS, load_study
 
     study = _study(tmp_path / "data")
     d = yaml.safe_load(study.read_text())
@@ -914,7 +923,9 @@ def test_a_study_that_sets_nothing_gets_the_measured_design(tmp_path):
     study.write_text(yaml.safe_dump(d))
     s = load_study(study)
     assert s.above == DEFAULT_ABOVE == 8.0 and s.store_pixels is None and s.store_width is None
+    assert s.canvas is None and DEFAULT_CANVAS == "footprint"
     b = _Builder(s, tmp_path / "out", False, 1, lambda m: None)
+    assert b.canvas == "footprint"
     v = b.virtual()
     f = v.K[0][0]
     # rows above the horizon: f (tan 8 deg + tan tilt_range 3 deg)

@@ -62,8 +62,8 @@ from vcprep.labels import decode_label, get_label_format
 from vcprep.store import Store
 
 from .report import write_json, write_tables
-from .study import (ADAPT_COMBINE, CONDITIONS, DEFAULT_STORE_PIXELS, DEFAULT_TRAIN, GEOMETRIES, RUN_KEYS, Dataset,
-                    Split, Study, check_conditions, evaluated_datasets)
+from .study import (ADAPT_COMBINE, CONDITIONS, DEFAULT_CANVAS, DEFAULT_STORE_PIXELS, DEFAULT_TRAIN, GEOMETRIES,
+                    RUN_KEYS, Dataset, Split, Study, check_conditions, evaluated_datasets)
 
 __all__ = ["plan_runs", "training_settings", "run_study", "evaluate_heldout", "score_store"]
 
@@ -84,6 +84,7 @@ class _Builder:
         self._vps: dict[tuple[str, str], dict[str, ItemPose]] = {}
         self._virtual: Camera | None = None
         self._canvas: dict[str, Camera] = {}  # virtual_for: the canvases of canvas: footprint
+        self.canvas = study.canvas or DEFAULT_CANVAS  # the rectangle rule (run_study may choose 'shared')
 
     def split(self, ds: Dataset, split: str) -> Split:
         return {"train": ds.train, "test": ds.test, "unlabelled": ds.unlabelled}[split]
@@ -233,7 +234,7 @@ class _Builder:
         cameras (every trainable dataset's stores, so a model's training images share one size),
         and for a test-only dataset also its own camera (an extension of the training rectangle:
         the network runs on it at the training's pixels per degree)."""
-        if self.study.virtual != "design" or self.study.canvas == "shared":
+        if self.study.virtual != "design" or self.canvas == "shared":
             return self.virtual()
         key = "\0train" if ds.role != "test" else ds.name
         if key not in self._canvas:
@@ -646,9 +647,12 @@ def run_study(study: Study, out: str | Path, conditions: Sequence[str] | None = 
     b = _Builder(study, out, progress, jobs, say)
     if any(CONDITIONS[c][1] == "adapt" for c in conditions):
         _check_adapt_targets(b, evaluated)  # also before anything is written
-    if study.canvas != "shared" and any(CONDITIONS[c][1] in ("prior", "adapt") for c in conditions):
-        raise InputError("conditions prior, adapt and adapt-fuse need every store in one rectangle", study.path,
-                         "drop 'canvas: footprint' from the study, or those conditions")
+    if any(CONDITIONS[c][1] in ("prior", "adapt") for c in conditions):
+        # the prior is an image of the training rectangle: every store must share it
+        if study.canvas == "footprint":
+            raise InputError("conditions prior, adapt and adapt-fuse need every store in one rectangle", study.path,
+                             "drop 'canvas: footprint' from the study, or those conditions")
+        b.canvas = "shared"
     out.mkdir(parents=True, exist_ok=True)
     virt = b.virtual()
     for d in study.datasets:
@@ -658,9 +662,9 @@ def run_study(study: Study, out: str | Path, conditions: Sequence[str] | None = 
     write_json(out / "study.json", {"study": str(study.path), "virtual": virt.to_dict(), "scale": b.scale(),
                                       "conditions": conditions, "datasets": [d.name for d in study.datasets],
                                       "roles": {d.name: d.role for d in study.datasets}, "train": training,
-                                      "canvas": study.canvas,
+                                      "canvas": b.canvas,
                                       **({"canvases": {d.name: list(b.virtual_for(d).size) for d in study.datasets}}
-                                         if study.canvas != "shared" else {}),
+                                         if b.canvas != "shared" else {}),
                                       **({"ego_found": b.ego_found} if b.ego_found else {}),
                                       **({"cameras_estimated": {k: v["camera"] for k, v in b.estimated.items()}}
                                          if b.estimated else {})})
