@@ -2,12 +2,13 @@
 nothing set by hand (issues 24 and 25)?
 
     .venv/bin/python benchmarks/as_shipped.py [--seeds 0,1,2] [--loo-seeds 0,1,2] [--conditions within,resize]
-                                              [--epochs N] [--workdir benchmarks/out/as_shipped] [--threads 2]
-                                              [--quick]
+                                              [--canvases shared,footprint] [--epochs N]
+                                              [--workdir benchmarks/out/as_shipped] [--threads 2] [--quick]
 
 Two ``vctrain crossval`` studies, each run once per seed (``--seed k``; an interrupted run resumes),
 both with crossval's defaults (the measured best design: 172800-px stores, the virtual camera kept
-to 8 deg above the horizon, full-height 4/9 training windows; nothing set but ``--epochs`` when given):
+to 8 deg above the horizon, full-height 4/9 training windows; nothing set but ``--epochs`` when given,
+and study 1's rectangle rule, below):
 
 **1. Trained on CamVid** (WORKDIR/seed<k>/): per condition ONE model trained on CamVid train minus
 sequence 0001TP (0016E5 + 0006R0, 305 frames, no own vehicle in view), scored in each test set's own
@@ -26,6 +27,12 @@ camera (back-projected; road IoU = sum TP / sum (TP+FP+FN) over the set, ignore 
   warped as road surface, what a user got before) against ``cityscapes`` and ``camvid-0001TP``
   (CamVid's unseen sequence 0001TP, 62 frames, bonnet up to 36 rows, found from the labels);
 * in domain: ``camvid-val`` (101 frames, no own vehicle: the search must find none).
+
+Study 1 runs once per rectangle rule of the virtual camera (crossval's ``canvas``, ``--canvases``):
+``shared`` (one rectangle holding every camera of the study, the paper's rule; WORKDIR/seed<k>/, with
+the resize baseline) and ``footprint`` (the rectangle holds the training camera, each test camera's
+stores extend it; WORKDIR/footprint/seed<k>/, the virtual-camera conditions only). The headline rows
+are crossval's default rule; the other is reported beside it, paired per seed.
 
 **2. Leave one real dataset out** (the paper's Table 4 protocol over real cameras; WORKDIR/loo/seed<k>/):
 CamVid (train 367 frames; tested on val), Cityscapes (400) and IDD-Lite (1,403), each ``role: both``:
@@ -46,8 +53,9 @@ The last stdout line is one JSON object: ``real_within_minus_resize`` (and ``_st
 ``real_within_minus_resize_<camera>``, ``loo_within_minus_resize`` (and ``_std``, and
 ``loo_within_minus_resize_<dataset>``), ``in_domain_within``/``in_domain_resize`` (camvid-val),
 ``in_domain_0001TP_within``/``_resize``, ``ego_gain_<camera>``, ``ego_rows_found``,
-``estimated_minus_given_<camera>``, ``within_estimated_minus_resize_<camera>`` and
-``minutes_per_model``. Outputs: benchmarks/results/as_shipped.{md,json} (``--quick``: a smoke run, a
+``estimated_minus_given_<camera>``, ``within_estimated_minus_resize_<camera>``, ``minutes_per_model``,
+``canvas_default``, ``real_within_minus_resize@<canvas>`` and ``real_footprint_minus_shared`` (and
+``_std``, and ``footprint_minus_shared_<test set>``). Outputs: benchmarks/results/as_shipped.{md,json} (``--quick``: a smoke run, a
 few frames, 1 seed, 2 steps, into WORKDIR/results). Nothing is tuned on a test set: the own-vehicle
 search and the camera estimate have no parameter fitted to these frames, the checkpoints are chosen
 on the training frames' validation share.

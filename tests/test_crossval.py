@@ -192,6 +192,9 @@ def test_within_gt_is_skipped_without_given_vps(tmp_path):
     (lambda d: d.update(store_width=10), "store_width"),
     (lambda d: d["train"].update(learning_rate=1), "unknown key 'learning_rate'"),
     (lambda d: d.update(extra=1), "unknown key 'extra'"),
+    (lambda d: d.update(canvas="round"), "'canvas' must be one of shared, footprint"),
+    (lambda d: d.update(canvas="footprint", virtual="virtual", above=None), "'canvas' sizes a designed virtual camera"),
+    (lambda d: d.update(canvas="footprint", conditions=["prior"]), "conditions prior, adapt and adapt-fuse"),
 ])
 def test_bad_study_files_give_one_error_line(tmp_path, edit, needle):
     study = _study(tmp_path / "data")
@@ -556,22 +559,6 @@ def test_footprint_canvas_keeps_the_budget_for_training_and_covers_every_test_pi
     info = json.loads((out / "study.json").read_text())
     assert info["canvas"] == "footprint" and info["canvases"]["kitti"] == list(kv.size)
     assert math.isclose(info["scale"], train.params["scale"])
-
-
-@pytest.mark.parametrize("edit, needle", [
-    (lambda d: d.update(canvas="round"), "'canvas' must be one of shared, footprint"),
-    (lambda d: d.update(canvas="footprint", virtual="virtual", above=None), "'canvas' sizes a designed virtual camera"),
-    (lambda d: d.update(canvas="footprint", conditions=["prior"]), "conditions prior, adapt and adapt-fuse"),
-])
-def test_bad_canvas_gives_one_error_line(tmp_path, edit, needle):
-    study = _study(tmp_path / "data")
-    d = yaml.safe_load(study.read_text())
-    edit(d)
-    study.write_text(yaml.safe_dump(d))
-    out = tmp_path / "out"
-    proc = run_cli("crossval", study, "--out", out, prog="vctrain")
-    assert_one_error_line(proc, needle)
-    assert not out.exists()
 
 
 # -- conditions prior (Table 5 "Geo-Prior") and adapt (the within model adapted without labels) ----
