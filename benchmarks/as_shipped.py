@@ -55,7 +55,7 @@ The last stdout line is one JSON object: ``real_within_minus_resize`` (and ``_st
 ``in_domain_0001TP_within``/``_resize``, ``ego_gain_<camera>``, ``ego_rows_found``,
 ``estimated_minus_given_<camera>``, ``within_estimated_minus_resize_<camera>``, ``minutes_per_model``,
 ``canvas_default``, ``real_within_minus_resize@<canvas>`` and ``real_footprint_minus_shared`` (and
-``_std``, and ``footprint_minus_shared_<test set>``). Outputs: benchmarks/results/as_shipped.{md,json} (``--quick``: a smoke run, a
+``_std``, and ``footprint_minus_shared_<test set>``). Outputs: benchmarks/results/as_shipped.{md,json,png} (``--quick``: a smoke run, a
 few frames, 1 seed, 2 steps, into WORKDIR/results). Nothing is tuned on a test set: the own-vehicle
 search and the camera estimate have no parameter fitted to these frames, the checkpoints are chosen
 on the training frames' validation share.
@@ -74,7 +74,10 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from measure import BIN, DATA, KITTI, ROOT, SHARED_DATA, format_stat, link_files, native_camera, run, seed_stats
+import cv2
+
+from measure import (BIN, DATA, KITTI, ROOT, SHARED_DATA, bar_plot, format_stat, link_files, native_camera, run,
+                     seed_stats)
 
 sys.path.insert(0, str(ROOT))
 from vctrain.study import CANVASES, DEFAULT_CANVAS  # noqa: E402
@@ -359,6 +362,15 @@ def main() -> None:
     res_dir = (a.workdir / "results") if a.quick else (ROOT / "benchmarks" / "results")
     res_dir.mkdir(parents=True, exist_ok=True)
     (res_dir / "as_shipped.md").write_text(table)
+    groups = ["camvid-val", "camvid-0001TP"] + REAL_OTHER
+    bars = [k for k in conds if k != "resize"] + others + [k for k in conds if k == "resize"]
+    label = {k: (f"{k} ({DEFAULT_CANVAS})" if k != "resize" else k) for k in conds}
+    label.update({k: k.replace("@", " (") + ")" for k in others})
+    have = {(g, label[k]): stat(c(g, k)) for g in groups for k in bars if c(g, k)}
+    cv2.imwrite(str(res_dir / "as_shipped.png"), bar_plot(
+        {gk: v["mean"] / 100 for gk, v in have.items()}, groups, [label[k] for k in bars],
+        f"road IoU (%), trained on CamVid, tested in each camera (mean +/- std over {len(seeds)} seeds)",
+        {gk: (v["std"] or 0.0) / 100 for gk, v in have.items()}))
     (res_dir / "as_shipped.json").write_text(json.dumps(
         {"headline": head, "targets": targets, "cells": {f"{t}|{k}": v for (t, k), v in cell.items()},
          "loo_cells": {f"{t}|{k}": v for (t, k), v in loo.items()}, "ego_found": found,

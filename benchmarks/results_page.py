@@ -134,6 +134,8 @@ def run_facts(stem: str, d: dict) -> list[list[str]]:
             ["machine", "; ".join(machine) if machine else "not recorded in the JSON"]]
     if data:
         rows.append(["data", str(data).replace("/work/shared/data", "../shared/data")])
+    if (RESULTS / f"{stem}.png").exists():
+        rows.append(["plot", f"[`benchmarks/results/{stem}.png`](../benchmarks/results/{stem}.png)"])
     return rows
 
 
