@@ -267,3 +267,33 @@ def test_help_has_an_example(cmd):
     r = runner.invoke(_app(), [cmd, "--help"])
     assert r.exit_code == 0 and "Example:" in r.stdout
     assert "--prior" in r.stdout
+
+
+def test_the_prior_keeps_its_rectangle_for_a_wider_camera(world, tmp_path):
+    """A prior is an image of the training rectangle: `predict --prior` and `adapt` warp a camera
+    wider and steeper than that rectangle into it as it is, while the model's own `predict`
+    extends the rectangle for the same frames."""
+    from vcprep.camera import Camera
+
+    wide = Camera("wide", (160, 120), 56.0, 56.0, 79.5, 59.5, 1.3, tilt=12.0)  # 110 x 94 deg, 12 deg down
+    _render(tmp_path / "new", wide, 2, seed=4)
+    (tmp_path / "wide.yaml").write_text(camera_to_yaml(wide))
+    prior = np.load(world / "prior.npy")
+    common = ["--camera", tmp_path / "wide.yaml", "--within", "none", tmp_path / "new/images"]
+    proc = run_cli("predict", "--prior", world / "prior.npy", *common, "--out", tmp_path / "pp", "--keep-store",
+                   tmp_path / "kp", prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    assert tuple(Store.open(tmp_path / "kp").store_size) == (prior.shape[1], prior.shape[0])
+    proc = run_cli("predict", world / "model.pt", *common, "--out", tmp_path / "pm", "--keep-store", tmp_path / "km",
+                   prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    km = Store.open(tmp_path / "km").store_size
+    assert km[0] > prior.shape[1] and km[1] > prior.shape[0]
+    # a prior never predicts a store of another rectangle (it would sit in the wrong place)
+    assert_one_error_line(run_cli("predict", "--prior", world / "prior.npy", "--store", tmp_path / "km", "--out",
+                                  tmp_path / "po", prog="vctrain"), "another virtual camera")
+    proc = run_cli("adapt", world / "model.pt", "--images", tmp_path / "new/images", "--camera", tmp_path / "wide.yaml",
+                   "--within", "none", "--prior", world / "prior.npy", "--out", tmp_path / "a.pt", "--epochs", "1",
+                   "--quiet", prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    assert tuple(Store.open(tmp_path / "a.store").store_size) == (prior.shape[1], prior.shape[0])

@@ -59,6 +59,8 @@ class PriorPredictor:
     (``mode``, ``data``, ``path``, ``store_item``). Its description (``<prior>.json``, written by
     ``vcprep prior``) gives the virtual camera, scale and VP mode that images are warped with."""
 
+    fixed_rectangle = True  # p_g is an image of one rectangle: images are warped into it, never an extension
+
     mode = "virtual"
     vp_channel = False
 
@@ -199,7 +201,8 @@ def adapt(model: str | Path, images: str | Path | Iterable[str | Path], camera: 
         raise InputError("--out is the model being adapted", out, "write the adapted model to another file")
     jobs = collect_images([images] if isinstance(images, (str, Path)) else images)
     root = Path(store) if store is not None else adapt_store_path(out)
-    target = warp_like_training(data, model, jobs, camera, root, within, progress)
+    # the surrogate labels come from the prior, an image of the training rectangle: no extension
+    target = warp_like_training(data, model, jobs, camera, root, within, progress, extend=False)
     ids = [j.id for j in jobs]
     predictor = Predictor(model, device) if combine == "fuse" else None
     shares = write_surrogate_labels(target, p, lo, hi, combine, predictor, ids,

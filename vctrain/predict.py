@@ -160,8 +160,9 @@ def predict_store(predictor: Predictor, store: Store, out: str | Path, progress:
         if store.params.get("scale") != sp.get("scale"):
             raise InputError("store has another scale than the model's training store", store.root,
                              "predict from the images with --camera (they are warped as the model expects)")
-        if store.params.get("virtual") != sp.get("virtual") and not same_camera_other_canvas(
-                store.params.get("virtual"), sp.get("virtual")):
+        other_canvas_ok = not getattr(predictor, "fixed_rectangle", False)  # (a prior is one rectangle's image)
+        if store.params.get("virtual") != sp.get("virtual") and not (other_canvas_ok and same_camera_other_canvas(
+                store.params.get("virtual"), sp.get("virtual"))):
             raise InputError("store has another virtual camera than the model's training store", store.root,
                              "predict from the images with --camera (they are warped as the model expects)")
     written = []
@@ -199,7 +200,9 @@ def predict_images(predictor: Predictor, images: Iterable[str | Path], out: str 
                          "add --camera (preset or calibration file)")
     with tempfile.TemporaryDirectory(prefix="vctrain-predict-") as tmp:
         root = Path(keep_store) if keep_store else Path(tmp) / "store"
-        store = warp_like_training(predictor.data, predictor.path, jobs, camera, root, within, progress)
+        # a prior is an image of the training rectangle: its frames are warped into that rectangle as it is
+        store = warp_like_training(predictor.data, predictor.path, jobs, camera, root, within, progress,
+                                   extend=not getattr(predictor, "fixed_rectangle", False))
         return predict_store(predictor, store, out, progress, ids=[j.id for j in jobs], overlay=overlay)
 
 
@@ -225,12 +228,14 @@ def _canvas_for(virtual: Camera, jobs: list[Job], camera: Camera | FrameCameras,
 
 def warp_like_training(data: dict[str, Any], path: str | Path, jobs: list[Job], camera: Camera | FrameCameras,
                        root: str | Path,
-                       within: str = "auto", progress: bool = True) -> Store:
+                       within: str = "auto", progress: bool = True, extend: bool = True) -> Store:
     """Warp image ``jobs`` of ``camera`` into the store ``root`` exactly as the training store of
     a checkpoint (its ``data``; ``path`` names it in errors) was built: same code, virtual
     camera, scale and completion. ``within``: per-image pan/tilt from the road VP ('estimate',
     a CSV ``id,u,v``, 'none'); 'auto' estimates VPs when the training store used per-image VPs
-    and takes the camera's average pose otherwise."""
+    and takes the camera's average pose otherwise. ``extend``: the virtual camera's rectangle
+    extended to hold every frame (:func:`_canvas_for`); False keeps the training's rectangle (what
+    a prior, an image of that rectangle, needs)."""
     sp = data.get("store_params")
     if data.get("mode") != "virtual" or not sp:
         raise InputError("model was not trained in a virtual camera (a resize baseline)", path,
@@ -253,7 +258,8 @@ def warp_like_training(data: dict[str, Any], path: str | Path, jobs: list[Job], 
 
         res = vps_for_items([j.image for j in jobs], [j.id for j in jobs], camera, within)
         poses = {j.id: ItemPose((r.vp[0], r.vp[1]), r.status) for j, r in zip(jobs, res)}
-    virtual = _canvas_for(virtual, jobs, camera, poses)
+    if extend:
+        virtual = _canvas_for(virtual, jobs, camera, poses)
     settings = WarpSettings(camera=camera, virtual=virtual, scale=float(sp["scale"]), completion=completion,
                             poses=poses, progress=progress)
     store, _ = warp_dataset(jobs, root, settings)
