@@ -42,6 +42,8 @@ __all__ = ["Predictor", "collect_images", "predict_images", "predict_store", "wr
 class Predictor:
     """A checkpoint's model plus its input conventions."""
 
+    fixed_rectangle = False  # a model runs on any rectangle of its virtual camera (a prior: True, one image)
+
     def __init__(self, checkpoint: str | Path, device: str = "auto"):
         self.path = Path(checkpoint)
         self.ckpt = load_checkpoint(self.path)
@@ -160,9 +162,9 @@ def predict_store(predictor: Predictor, store: Store, out: str | Path, progress:
         if store.params.get("scale") != sp.get("scale"):
             raise InputError("store has another scale than the model's training store", store.root,
                              "predict from the images with --camera (they are warped as the model expects)")
-        other_canvas_ok = not getattr(predictor, "fixed_rectangle", False)  # (a prior is one rectangle's image)
-        if store.params.get("virtual") != sp.get("virtual") and not (other_canvas_ok and same_camera_other_canvas(
-                store.params.get("virtual"), sp.get("virtual"))):
+        other_rectangle = (not predictor.fixed_rectangle
+                           and same_camera_other_canvas(store.params.get("virtual"), sp.get("virtual")))
+        if store.params.get("virtual") != sp.get("virtual") and not other_rectangle:
             raise InputError("store has another virtual camera than the model's training store", store.root,
                              "predict from the images with --camera (they are warped as the model expects)")
     written = []
@@ -202,7 +204,7 @@ def predict_images(predictor: Predictor, images: Iterable[str | Path], out: str 
         root = Path(keep_store) if keep_store else Path(tmp) / "store"
         # a prior is an image of the training rectangle: its frames are warped into that rectangle as it is
         store = warp_like_training(predictor.data, predictor.path, jobs, camera, root, within, progress,
-                                   extend=not getattr(predictor, "fixed_rectangle", False))
+                                   extend=not predictor.fixed_rectangle)
         return predict_store(predictor, store, out, progress, ids=[j.id for j in jobs], overlay=overlay)
 
 

@@ -50,8 +50,8 @@ from vcprep.imageio import read_text
 from vcprep.labels import get_label_format
 
 __all__ = ["CONDITIONS", "DEFAULT_CONDITIONS", "DEFAULT_STORE_PIXELS", "DEFAULT_ABOVE", "DEFAULT_TRAIN", "CANVASES",
-           "DEFAULT_CANVAS", "GEOMETRIES",
-           "ROLES", "ADAPT_COMBINE", "RUN_KEYS", "TRAIN_KEYS", "Split", "Dataset", "Study", "load_study", "check_conditions", "evaluated_datasets"]
+           "DEFAULT_CANVAS", "GEOMETRIES", "ROLES", "ADAPT_COMBINE", "RUN_KEYS", "TRAIN_KEYS", "Split", "Dataset",
+           "Study", "load_study", "check_conditions", "evaluated_datasets"]
 
 # geometry name -> (VP source, completion); one store per dataset, split and geometry
 GEOMETRIES: dict[str, tuple[str, str]] = {
