@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import json
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -517,10 +518,12 @@ def test_footprint_canvas_keeps_the_budget_for_training_and_covers_every_test_pi
     w, h = train.store_size
     assert abs(w * h - 6000) < 0.02 * 6000
     assert camvid2.params["virtual"] == train.params["virtual"]
-    # independent oracle: the canvas a design of camvid alone gives, at the study's focal length and height
+    # independent oracle: the training rectangle is the virtual camera a design of camvid alone gives
+    # (focal length and height too: no test camera shapes the training)
     tv = camera_from_dict(train.params["virtual"])
-    alone = design_virtual_camera([CAMS["camvid"].without_ego()], 5, 3, above=6, f=tv.fx, height=tv.height).camera
+    alone = design_virtual_camera([CAMS["camvid"].without_ego()], 5, 3, above=6).camera
     assert alone.size == tv.size and alone.cy == pytest.approx(tv.cy)
+    assert (alone.fx, alone.height) == pytest.approx((tv.fx, tv.height))
     # kitti: one camera, another rectangle: wider, same top edge, same scale
     kv = camera_from_dict(kitti.params["virtual"])
     assert same_camera_other_canvas(kitti.params["virtual"], train.params["virtual"])
@@ -559,6 +562,13 @@ def test_footprint_canvas_keeps_the_budget_for_training_and_covers_every_test_pi
     info = json.loads((out / "study.json").read_text())
     assert info["canvas"] == "footprint" and info["canvases"]["kitti"] == list(kv.size)
     assert math.isclose(info["scale"], train.params["scale"])
+    # a test-only camera changed: its results are redone, nothing is retrained, the others are kept
+    (study.parent / "kitti.yaml").write_text(camera_to_yaml(replace(CAMS["kitti"], height=CAMS["kitti"].height * 1.3)))
+    again = run_cli("crossval", study, "--out", out, prog="vctrain")
+    assert again.returncode == 0, again.stderr
+    assert again.stderr.count("model trained earlier") == 2 and "training on" not in again.stderr
+    assert again.stderr.count("settings changed") == 2                    # kitti: resize and within
+    assert all(f"tested on camvid2, {c}: done earlier" in again.stderr for c in ("resize", "within"))
 
 
 # -- conditions prior (Table 5 "Geo-Prior") and adapt (the within model adapted without labels) ----

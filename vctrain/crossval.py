@@ -229,24 +229,28 @@ class _Builder:
 
     def virtual_for(self, ds: Dataset) -> Camera:
         """The virtual camera of ``ds``'s stores. ``canvas: shared`` (or a given virtual camera):
-        :meth:`virtual` for every dataset. ``canvas: footprint``: :meth:`virtual`'s focal length,
-        height, level pose and top edge, its rectangle sized to hold the trainable datasets'
-        cameras (every trainable dataset's stores, so a model's training images share one size),
-        and for a test-only dataset also its own camera (an extension of the training rectangle:
-        the network runs on it at the training's pixels per degree)."""
+        :meth:`virtual` for every dataset. ``canvas: footprint``: the virtual camera designed from
+        the trainable datasets' cameras alone (focal length, height, level pose, top edge, and the
+        rectangle that holds them: every trainable dataset's stores, so a model's training images
+        share one size and no test camera shapes the training), and for a test-only dataset that
+        camera's rectangle extended to its own camera (the network runs on it at the training's
+        pixels per degree)."""
         if self.study.virtual != "design" or self.canvas == "shared":
             return self.virtual()
         key = "\0train" if ds.role != "test" else ds.name
         if key not in self._canvas:
             from vcprep.virtual_camera import design_virtual_camera
 
-            ref = self.virtual()
             cams = [self.nominal_camera(d) for d in self.study.datasets if d.role != "test"]
             if ds.role == "test":
+                ref = self.virtual_for(next(d for d in self.study.datasets if d.role != "test"))
                 cams.append(self.nominal_camera(ds))
+                f, height = ref.fx, ref.height
+            else:
+                f = height = None
             self._canvas[key] = design_virtual_camera(cams, self.study.pan_range, self.study.tilt_range,
-                                                      name="study-virtual", above=self.study.above, f=ref.fx,
-                                                      height=ref.height).camera
+                                                      name="study-virtual", above=self.study.above, f=f,
+                                                      height=height).camera
         return self._canvas[key]
 
     def training_virtual(self) -> Camera:
@@ -398,6 +402,60 @@ class _Run:
         return run_dir / ("result.json" if ds.name == self.name else f"result-{ds.name}.json")
 
 
+class _Keys:
+    """What a finished model and a finished result depend on, as short hashes: a model or result
+    of other settings is redone, never silently reused, and one of the same is never redone.
+
+    * ``full``: every setting of the study (``settings_sha`` of the results of conditions prior
+      and adapt, and of every row written before the split below, still accepted);
+    * ``model(run)``: the training settings, the training stores' virtual camera and scale, the
+      pose ranges and the run's training datasets (their cameras, labels, splits, own vehicle,
+      estimates) -- so a test-only dataset added or changed retrains nothing (canvas: footprint;
+      with ``canvas: shared`` its camera shapes the one virtual camera, which is in the key);
+    * ``result(run, ds)``: the model's key and the test store's (``ds``'s camera, canvas, splits)."""
+
+    def __init__(self, b: "_Builder", virt: Camera, training: dict[str, Any]):
+        study = b.study
+        self.b = b
+        self.common = {"virtual": virt.to_dict(), "scale": b.scale(), "pan_range": study.pan_range,
+                       "tilt_range": study.tilt_range, "train": training,
+                       "resize_size": "source aspect, store pixels"}
+        self.entry = {d.name: self._entry(d) for d in study.datasets}
+        settings = {**self.common, "datasets": [self.entry[d.name]["dataset"] for d in study.datasets]}
+        canvases = {d.name: b.virtual_for(d).to_dict() for d in study.datasets}
+        if any(c != virt.to_dict() for c in canvases.values()):  # (every store in the shared rectangle: as before)
+            settings["canvas"] = canvases
+        ego = {n: e["ego_rows"] for n, e in self.entry.items() if e.get("ego_rows")}
+        if ego:  # only when a camera sees its own vehicle: the settings of studies without one are as before
+            settings["ego_rows"] = ego
+        if b.estimated:  # a changed estimate redoes what depends on it
+            settings["cameras_estimated"] = {k: v["camera"] for k, v in b.estimated.items()}
+        self.full = _sha(settings)
+
+    def _entry(self, d: Dataset) -> dict[str, Any]:
+        b = self.b
+        # (a preset is written preset:NAME since the one naming rule; bare, as before, in the settings)
+        e = {"dataset": [d.name, d.role, d.camera.removeprefix(PRESET_PREFIX), d.label_format, repr(d.train),
+                         repr(d.test)], "canvas": b.virtual_for(d).to_dict(),
+             "camera_params": b.nominal_camera(d).to_dict()}  # (the file's contents, not only its name)
+        cam = b.camera(d)
+        if isinstance(cam, Camera) and cam.ego_rows:
+            e["ego_rows"] = cam.ego_rows
+        if d.name in b.estimated:
+            e["camera_estimated"] = b.estimated[d.name]["camera"]
+        return e
+
+    def model(self, run: "_Run") -> str:
+        return _sha({**self.common, "train_datasets": [self.entry[d.name] for d in run.train]})
+
+    def result(self, run: "_Run", ds: Dataset) -> str:
+        return _sha({"model": self.model(run), "test": self.entry[ds.name]})
+
+
+def _sha(obj: Any) -> str:
+    return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+
 def plan_runs(study: Study, conditions: Sequence[str], evaluated: Sequence[str]) -> list[_Run]:
     """Leave-one-out runs for the evaluated 'both' datasets, then (with test-role datasets) one run
     per condition on every trainable dataset, scored on each evaluated test-role dataset."""
@@ -413,15 +471,17 @@ def _what(run: _Run, ds: Dataset, tag: str) -> str:
     return f"{tag} {'held out' if ds.role == 'both' else 'tested on'} {ds.name}, {run.condition}"
 
 
-def _pending(run: _Run, b: _Builder, sha: str, tag: str) -> tuple[list[dict[str, Any]], list[Dataset]]:
-    """(results finished earlier with settings ``sha``, datasets still to score); a result of other
-    settings is removed."""
+def _pending(run: _Run, b: _Builder, key: Callable[[Dataset], str], tag: str,
+             legacy: str | None = None) -> tuple[list[dict[str, Any]], list[Dataset]]:
+    """(results finished earlier with settings ``key(ds)`` -- or ``legacy``, every setting of the
+    study, as rows were keyed before :class:`_Keys` --, datasets still to score); a result of
+    other settings is removed."""
     run_dir = b.out / "runs" / run.name / run.condition
     rows, todo = [], []
     for ds in run.tests:
         f = run.result_file(run_dir, ds)
         prev = json.loads(f.read_text()) if f.exists() else None
-        if prev is not None and prev.get("settings_sha") == sha:
+        if prev is not None and prev.get("settings_sha") in (key(ds), legacy):
             rows.append(prev)
             b.say(f"{_what(run, ds, tag)}: done earlier (IoU {prev['iou']:.3f})")
             continue
@@ -436,14 +496,14 @@ _INFO = ("train_datasets", "train_items", "val_items", "best_epoch", "best_val_i
          "train_seconds", "train_images_per_s")  # what each result row repeats of its model's training
 
 
-def _execute(run: _Run, b: _Builder, sha: str, overrides: dict[str, Any], tag: str) -> list[dict[str, Any]]:
+def _execute(run: _Run, b: _Builder, keys: _Keys, overrides: dict[str, Any], tag: str) -> list[dict[str, Any]]:
     """Train (unless trained earlier with these settings) and score the results still missing."""
     kind = CONDITIONS[run.condition][1]
     if kind == "prior":
-        return _execute_prior(run, b, sha, tag)
+        return _execute_prior(run, b, keys.full, tag)
     if kind == "adapt":
-        return _execute_adapt(run, b, sha, overrides, tag)
-    rows, todo = _pending(run, b, sha, tag)
+        return _execute_adapt(run, b, keys, overrides, tag)
+    rows, todo = _pending(run, b, lambda ds: keys.result(run, ds), tag, keys.full)
     if not todo:
         return rows
     say, c = b.say, run.condition
@@ -459,11 +519,12 @@ def _execute(run: _Run, b: _Builder, sha: str, overrides: dict[str, Any], tag: s
             return rows
     say(f"{tag} {run.name}, {c}: stores")
     test_stores = {ds.name: b.store(ds, "test", geometry) for ds in todo}
-    cfg, info = _trained(run, b, sha, overrides, tag)
+    cfg, info = _trained(run, b, keys, overrides, tag)
     for ds in todo:
         t0 = time.perf_counter()
         metrics = evaluate_heldout(Path(cfg.out), test_stores[ds.name], b.progress)
-        rows.append(_result(run, b, ds, metrics, info, info["train_seconds"] + time.perf_counter() - t0, sha, tag))
+        rows.append(_result(run, b, ds, metrics, info, info["train_seconds"] + time.perf_counter() - t0,
+                            keys.result(run, ds), tag))
     return rows
 
 
@@ -477,9 +538,10 @@ def _result(run: _Run, b: _Builder, ds: Dataset, metrics: dict[str, Any], info: 
     return row
 
 
-def _trained(run: _Run, b: _Builder, sha: str, overrides: dict[str, Any], tag: str):
+def _trained(run: _Run, b: _Builder, keys: _Keys, overrides: dict[str, Any], tag: str):
     """``(config, train.json)`` of ``run``'s model: trained now, or found trained earlier with
-    settings ``sha`` (``runs/<run>/<condition>/train.json``), so a model is never trained twice."""
+    the settings it depends on (``keys.model(run)``; ``runs/<run>/<condition>/train.json``), so a
+    model is never trained twice."""
     from .train import fit
 
     say, c = b.say, run.condition
@@ -493,8 +555,13 @@ def _trained(run: _Run, b: _Builder, sha: str, overrides: dict[str, Any], tag: s
     cfg = _train_config(b.study, stores, run_dir, baseline, size, b.progress, overrides)
     trained = run_dir / "train.json"
     info = json.loads(trained.read_text()) if trained.exists() else None
-    if info is not None and info.get("settings_sha") == sha and Path(cfg.out).exists():
+    model_sha = keys.model(run)
+    if (info is not None and model_sha in (info.get("model_sha"), info.get("settings_sha") == keys.full and model_sha)
+            and Path(cfg.out).exists()):
         say(f"{tag} {run.name}, {c}: model trained earlier")
+        if info.get("model_sha") != model_sha:  # (keyed by every setting of the study before _Keys)
+            info["model_sha"] = model_sha
+            write_json(trained, info)
     else:  # a training of other settings, or one that was interrupted: start afresh
         for old in (trained, Path(cfg.out), run_dir / "model.last.pt", run_dir / "model.log.jsonl"):
             old.unlink(missing_ok=True)
@@ -507,7 +574,7 @@ def _trained(run: _Run, b: _Builder, sha: str, overrides: dict[str, Any], tag: s
                 "best_val_iou": summary["best_val_iou"], "epochs": cfg.epochs, "input_size": list(size),
                 "train_seconds": round(time.perf_counter() - t0, 1),
                 "train_images_per_s": summary["train_images_per_s"], "model_args": summary["model_args"],
-                "settings_sha": sha}
+                "settings_sha": keys.full, "model_sha": model_sha}
         write_json(trained, info)
     return cfg, info
 
@@ -532,7 +599,7 @@ def _execute_prior(run: _Run, b: _Builder, sha: str, tag: str) -> list[dict[str,
     image (:class:`vctrain.adapt.PriorPredictor`), scored like every other condition."""
     from .adapt import PriorPredictor
 
-    rows, todo = _pending(run, b, sha, tag)
+    rows, todo = _pending(run, b, lambda ds: sha, tag)
     if not todo:
         return rows
     run_dir = b.out / "runs" / run.name / run.condition
@@ -559,7 +626,7 @@ def _adapt_settings(condition: str = "adapt") -> dict[str, Any]:
             "combine": ADAPT_COMBINE[condition]}
 
 
-def _execute_adapt(run: _Run, b: _Builder, sha: str, overrides: dict[str, Any], tag: str) -> list[dict[str, Any]]:
+def _execute_adapt(run: _Run, b: _Builder, keys: _Keys, overrides: dict[str, Any], tag: str) -> list[dict[str, Any]]:
     """Condition adapt: the within run's model (trained once, shared with condition within)
     adapted to each evaluated dataset's unlabelled images with the training datasets' prior
     (:func:`vctrain.adapt.adapt`), then scored on its test images like every other condition."""
@@ -567,20 +634,20 @@ def _execute_adapt(run: _Run, b: _Builder, sha: str, overrides: dict[str, Any], 
 
     # a result depends on the study's settings, the adaptation's and the images adapted to
     def adapt_sha(ds: Dataset) -> str:
-        key = {"study": sha, "adapt": _adapt_settings(run.condition), "target": b.adapt_split(ds),
+        key = {"study": keys.full, "adapt": _adapt_settings(run.condition), "target": b.adapt_split(ds),
                "unlabelled": repr(ds.unlabelled)}
         return hashlib.sha256(json.dumps(key, sort_keys=True).encode()).hexdigest()[:16]
 
     rows, todo = [], []
     for ds in run.tests:  # each evaluated dataset has its own adapted model and settings
-        r, t = _pending(_Run(run.name, run.condition, run.train, (ds,)), b, adapt_sha(ds), tag)
+        r, t = _pending(_Run(run.name, run.condition, run.train, (ds,)), b, adapt_sha, tag)
         rows, todo = rows + r, todo + t
     if not todo:
         return rows
     say = b.say
     run_dir = b.out / "runs" / run.name / run.condition
     within = _Run(run.name, "within", run.train, run.tests)
-    cfg, info = _trained(within, b, sha, overrides, tag)
+    cfg, info = _trained(within, b, keys, overrides, tag)
     source = Path(cfg.out)
     source_sha = hashlib.sha256(source.read_bytes()).hexdigest()
     prior_path, _, _ = _write_prior(run, b, run_dir)
@@ -654,7 +721,7 @@ def run_study(study: Study, out: str | Path, conditions: Sequence[str] | None = 
                              "drop 'canvas: footprint' from the study, or those conditions")
         b.canvas = "shared"
     out.mkdir(parents=True, exist_ok=True)
-    virt = b.virtual()
+    virt = b.training_virtual()  # (canvas: shared -- the one virtual camera of every store)
     for d in study.datasets:
         b.camera(d)  # every camera before anything is written: the own vehicle is searched for now
     b.say_ego()
@@ -668,28 +735,11 @@ def run_study(study: Study, out: str | Path, conditions: Sequence[str] | None = 
                                       **({"ego_found": b.ego_found} if b.ego_found else {}),
                                       **({"cameras_estimated": {k: v["camera"] for k, v in b.estimated.items()}}
                                          if b.estimated else {})})
-    # what a run's result depends on (besides its datasets and condition): a finished run with
-    # other settings is redone, never silently reused
-    settings = {"virtual": virt.to_dict(), "scale": b.scale(), "pan_range": study.pan_range,
-                "tilt_range": study.tilt_range, "train": training, "resize_size": "source aspect, store pixels",
-                # (a preset is written preset:NAME since the one naming rule; bare, as before, in the settings)
-                "datasets": [[d.name, d.role, d.camera.removeprefix(PRESET_PREFIX), d.label_format, repr(d.train),
-                              repr(d.test)]
-                             for d in study.datasets]}
-    ego = {d.name: b.camera(d).ego_rows for d in study.datasets
-           if isinstance(b.camera(d), Camera) and b.camera(d).ego_rows}
-    canvases = {d.name: b.virtual_for(d).to_dict() for d in study.datasets}
-    if any(c != virt.to_dict() for c in canvases.values()):  # (every store in the shared rectangle: as before)
-        settings["canvas"] = canvases
-    if ego:  # only when a camera sees its own vehicle: the settings of studies without one are as before
-        settings["ego_rows"] = ego
-    if b.estimated:  # a changed estimate redoes the runs
-        settings["cameras_estimated"] = {k: v["camera"] for k, v in b.estimated.items()}
-    settings_sha = hashlib.sha256(json.dumps(settings, sort_keys=True, default=str).encode()).hexdigest()[:16]
+    keys = _Keys(b, virt, training)
     runs = plan_runs(study, conditions, evaluated)
     rows: list[dict[str, Any]] = []
     for k, run in enumerate(runs, 1):
-        rows += _execute(run, b, settings_sha, overrides, f"[{k}/{len(runs)}]")
+        rows += _execute(run, b, keys, overrides, f"[{k}/{len(runs)}]")
     order = {(h, c): i for i, (h, c) in enumerate((h, c) for h in evaluated for c in conditions)}
     rows.sort(key=lambda r: order[r["heldout"], r["condition"]])
     notes = [f"Camera of {k} ESTIMATED from its frames (cameras/{k}.yaml: what was estimated, given and assumed)."
