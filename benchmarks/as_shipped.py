@@ -194,6 +194,19 @@ def run_study(study: Path, out: Path, conds: list[str], seed: int, threads: int)
     return rows, json.loads((out / "study.json").read_text())
 
 
+def share_stores(wd: Path, seed: int, first: int) -> None:
+    """WORKDIR/seed<seed>/{stores,vps,cameras} -> seed<first>'s: they do not depend on the seed, so
+    they are built once (crossval's store locks and finished-store checks make the sharing safe)."""
+    if seed == first:
+        return
+    for sub in ("stores", "vps", "cameras"):
+        link = wd / f"seed{seed}" / sub
+        if not link.exists() and not link.is_symlink():
+            link.parent.mkdir(parents=True, exist_ok=True)
+            link.symlink_to(Path("..") / f"seed{first}" / sub)
+            (wd / f"seed{first}" / sub).mkdir(parents=True, exist_ok=True)
+
+
 def stat(v: list[float] | None) -> dict | None:
     """:func:`measure.seed_stats` of IoU points (None without values)."""
     return seed_stats(v) if v else None
@@ -240,12 +253,7 @@ def main() -> None:
         wd = a.workdir if canvas == "shared" else a.workdir / canvas
         cc = conds if canvas == "shared" else [k for k in conds if k != "resize"]
         for seed in seeds:
-            if canvas != "shared" and seed != seeds[0]:  # the stores do not depend on the seed: build them once
-                for sub in ("stores", "cameras"):
-                    link = wd / f"seed{seed}" / sub
-                    if not link.exists() and (wd / f"seed{seeds[0]}" / sub).exists():
-                        link.parent.mkdir(parents=True, exist_ok=True)
-                        link.symlink_to(Path("..") / f"seed{seeds[0]}" / sub)
+            share_stores(wd, seed, seeds[0])
             rows, info = run_study(study, wd / f"seed{seed}", cc, seed, a.threads)
             trained: dict[str, float] = {}
             for r in rows:
@@ -263,6 +271,7 @@ def main() -> None:
     if loo_seeds:
         loo_study = loo_study_file(a.workdir, a.quick, a.epochs)
         for seed in loo_seeds:
+            share_stores(a.workdir / "loo", seed, loo_seeds[0])
             rows, _ = run_study(loo_study, a.workdir / "loo" / f"seed{seed}", conds, seed, a.threads)
             for r in rows:
                 loo.setdefault((r["heldout"], r["condition"]), []).append(100 * r["iou"])
