@@ -14,9 +14,10 @@ import pytest
 
 from conftest import assert_one_error_line, run_cli
 from vcprep.camera import Camera, read_camera_yaml
-from vcprep.camera_estimate import ASSUMED_HFOV, estimate_camera, exif_focal_35mm
+from vcprep.camera_estimate import ASSUMED_HFOV, ROAD_WIDTH, estimate_camera, exif_focal_35mm, road_widths
 from vcprep.errors import InputError
-from vcprep.homography import vp_from_pose
+from vcprep.homography import virt_H_src, vp_from_pose
+from vcprep.labels import get_label_format
 from vcprep.synthetic import RoadScene, render_road
 from vcprep.vanishing_point import read_vp_csv
 
@@ -77,6 +78,64 @@ def test_given_values_and_non_square_pixels(tmp_path):
     assert est.camera.fx == pytest.approx(283.0, abs=0.01) and est.camera.fy == pytest.approx(566.0, abs=0.02)
     assert est.camera.height == 1.22 and est.values["height"].source == "given"
     assert est.camera.tilt == pytest.approx(2.4 + 0.0, abs=0.3)
+
+
+def _labelled_frames(folder, cam: Camera, width: float, n: int = 6):
+    """Frames and 0/1 road labels of a road ``width`` metres wide (format values:road=1;max=1)."""
+    (folder / "labels").mkdir(parents=True, exist_ok=True)
+    images, labels = [], []
+    for i in range(n):
+        img, lab = render_road(cam, RoadScene(width=width, texture_seed=i, offset=0.4 * (i % 3) - 0.4),
+                               pan=cam.pan + PANS[i], supersample=1)
+        images.append(folder / f"seq_{i:04d}.png")
+        labels.append(folder / "labels" / f"seq_{i:04d}.png")
+        cv2.imwrite(str(images[-1]), img)
+        cv2.imwrite(str(labels[-1]), lab)
+    return images, labels
+
+
+BINARY = "values:road=1;max=1"
+
+
+@pytest.mark.parametrize("width_factor", [1.0, 0.6])
+def test_road_widths_measure_the_road_in_camera_heights(tmp_path, width_factor):
+    """A road W metres wide seen from h metres measures W / h in every frame, whatever the focal
+    length; the estimated height makes it ROAD_WIDTH metres wide."""
+    width = ROAD_WIDTH * width_factor
+    cam = Camera("true", (320, 240), 400.0, 400.0, 159.5, 119.5, 1.4, tilt=3.0)
+    images, labels = _labelled_frames(tmp_path, cam, width)
+    w = road_widths(labels, get_label_format(BINARY), cam)
+    assert len(w) == 6
+    # the frames' headings (PANS) widen the road's cut across the rows by 1/cos(pan): under 0.1 %
+    assert np.median(w) == pytest.approx(width / 1.4, rel=0.03)
+    est = estimate_camera(images, fx=400.0, labels=labels, label_format=get_label_format(BINARY))
+    assert est.values["height"].source == "estimated" and "road footprint" in est.values["height"].how
+    assert est.camera.height == pytest.approx(1.4 / width_factor, rel=0.04)
+    assert not [x for x in est.warnings if x.startswith("height")]
+
+
+def test_a_road_footprint_height_absorbs_an_unknown_pixel_aspect(tmp_path):
+    """Frames squashed 2:1 (the Cityscapes pix2pix case: fy = 2 fx) estimated with square pixels:
+    the road-footprint height makes up for it, so the estimated camera maps the road plane into
+    the virtual camera where the true camera does."""
+    true = Camera("true", (256, 256), 283.0, 566.0, 127.5, 127.5, 1.22, tilt=0.0)
+    images, labels = _labelled_frames(tmp_path, true, ROAD_WIDTH)
+    est = estimate_camera(images, fx=283.0, labels=labels, label_format=get_label_format(BINARY))
+    assert est.camera.fy == pytest.approx(283.0) and est.values["fy"].source == "assumed"
+    assert est.camera.height == pytest.approx(2 * 1.22, rel=0.04)
+    virt = Camera("virtual", (400, 200), 300.0, 300.0, 199.5, 20.0, 1.2)
+    ys, xs = np.mgrid[150:256:5, 0:256:5]
+    pts = np.stack([xs.ravel(), ys.ravel(), np.ones(xs.size)]).astype(float)
+
+    def below_horizon(cam):  # each point's virtual row, counted from the virtual horizon
+        p = virt_H_src(cam, virt) @ pts
+        return p[1] / p[2] - virt.cy
+
+    ratio = below_horizon(est.camera) / below_horizon(true)
+    assert np.median(ratio) == pytest.approx(1.0, abs=0.04) and np.percentile(np.abs(ratio - 1), 90) < 0.08
+    # square pixels and the assumed 1.4 m without labels: the same road lands about 1.6x as far below
+    plain = estimate_camera(images, fx=283.0)
+    assert np.median(below_horizon(plain.camera) / below_horizon(true)) > 1.5
 
 
 def _with_exif_focal35(jpeg: bytes, f35: int) -> bytes:

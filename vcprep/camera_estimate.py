@@ -26,7 +26,14 @@ Conventions are :mod:`vcprep.homography`'s (tilt > 0 looks down; pixel centres a
   256x256) have fy != fx; nothing in the pixels says so: ``--source-size WxH`` (the size the
   frames were resized from) or ``--pixel-aspect`` gives it, else square pixels are ASSUMED.
 * **Height** -- sets only the scale of the ground plane (the virtual image stretches vertically
-  about the horizon by h / h_estimated): ``--height``, else ASSUMED :data:`ASSUMED_HEIGHT` m.
+  about the horizon by h / h_estimated): ``--height``; else, with labels, ESTIMATED from the road
+  footprint (:func:`road_widths`): the camera height at which the frames' median visible road
+  width is :data:`ROAD_WIDTH` m, CamVid's (the training data's) under its calibration. The
+  measured width is ``fy/fx * du / (v - v_horizon)`` in camera heights -- the focal length cancels,
+  the pixel aspect does not -- so this height also absorbs a pixel aspect nothing else tells
+  (Cityscapes pix2pix, squashed 2:1, gets 2.9 m for a true 1.22 m at fy/fx 2: the same road in
+  the virtual image); roads narrower or wider than CamVid's are scaled to CamVid's (Cityscapes'
+  measures 6.1 m under its calibration). Without labels ASSUMED :data:`ASSUMED_HEIGHT` m.
 * **Own vehicle** -- from labels (:mod:`vcprep.ego`) when they are given.
 """
 from __future__ import annotations
@@ -43,8 +50,8 @@ from .camera import Camera, yaml_name
 from .errors import InputError
 from .homography import pose_from_vp
 
-__all__ = ["ASSUMED_HFOV", "ASSUMED_HEIGHT", "MIN_FRAMES", "Value", "CameraEstimate", "estimate_camera",
-           "exif_focal_35mm", "estimate_to_yaml"]
+__all__ = ["ASSUMED_HFOV", "ASSUMED_HEIGHT", "MIN_FRAMES", "ROAD_WIDTH", "Value", "CameraEstimate",
+           "estimate_camera", "exif_focal_35mm", "estimate_to_yaml", "road_widths"]
 
 ASSUMED_HFOV = 60.0     # degrees: a typical dashcam / phone main camera in landscape (CamVid 58, BDD ~65)
 ASSUMED_HEIGHT = 1.4    # metres: a car-mounted camera (CamVid 1.21, Cityscapes 1.22, KITTI 1.65)
@@ -52,6 +59,10 @@ MIN_FRAMES = 5          # fewer frames: one odd road decides the pose
 MIN_ACCEPTED = 3        # fewer accepted road VPs: the pose is not estimated
 ROLL_MIN_SPREAD = 0.1   # VPs must spread over this share of the width to fix the horizon's slope
 DIAG_35MM = math.hypot(36.0, 24.0)  # mm: the 35 mm film frame's diagonal (EXIF FocalLengthIn35mmFilm)
+# metres: the median visible road width of CamVid train's labels under its calibration, 7.19 m over 306 of
+# its 367 frames (Cityscapes pix2pix under its own: 6.10 m); benchmarks/camera_estimate.py measures both
+ROAD_WIDTH = 7.2
+HORIZON_SKIP = 0.15  # road_widths: the rows nearest the horizon (this share of those below it) are left out
 
 
 @dataclass(frozen=True)
@@ -159,6 +170,54 @@ def _aspect(size: tuple[int, int], pixel_aspect: float | None, source_size: tupl
                  "--source-size WxH if the frames were resized)", "assumed")
 
 
+def road_widths(labels: Sequence[str | Path], label_format, cam: Camera, ego_rows: int = 0) -> np.ndarray:
+    """Per labelled frame of ``cam``'s size, the median lateral width of its road in units of the
+    camera height: in each row below the horizon (leaving out the :data:`HORIZON_SKIP` share
+    nearest it, and the own vehicle's ``ego_rows``), the leftmost and rightmost road pixels
+    back-projected onto the road plane of ``cam`` at height 1; rows whose road reaches a side edge
+    of the frame (its width is cut) are left out, frames with fewer than 5 rows too. The focal
+    length cancels (width = fy/fx * du / (v - v_horizon) for a level camera)."""
+    from .homography import ground_to_image
+    from .imageio import read_image
+    from .labels import decode_label
+
+    G = ground_to_image(replace(cam, height=1.0))
+    Gi = np.linalg.inv(G)
+    far = G @ np.array([0.0, 1e9, 1.0])
+    v_h = far[1] / far[2]
+    out = []
+    for f in labels:
+        lab = decode_label(read_image(f, label=True).array, label_format, f)
+        h, w = lab.shape
+        if (w, h) != tuple(cam.size):
+            continue
+        rows, lo, hi = [], [], []
+        for v in range(max(0, int(math.ceil(v_h + HORIZON_SKIP * (h - v_h)))), h - ego_rows):
+            r = np.flatnonzero(lab[v] == 1)
+            if len(r) >= 3 and r[0] > 0 and r[-1] < w - 1:
+                rows.append(v), lo.append(r[0]), hi.append(r[-1])
+        if len(rows) < 5:
+            continue
+        p = Gi @ np.array([lo + hi, rows + rows, [1.0] * (2 * len(rows))], float)
+        x = p[0] / p[2]
+        out.append(float(np.median(np.abs(x[len(rows):] - x[:len(rows)]))))
+    return np.array(out)
+
+
+def _height_from_road(labels, label_format, cam: Camera) -> Value | None:
+    """The camera height that makes the frames' median road width :data:`ROAD_WIDTH` m, or None
+    (fewer than :data:`MIN_FRAMES` frames with a measurable road)."""
+    widths = road_widths(labels, label_format, cam, cam.ego_rows)
+    if len(widths) < MIN_FRAMES:
+        return None
+    med, se = _robust(widths)
+    height = ROAD_WIDTH / med
+    return Value(round(height, 3), f"road footprint: the median road width of {len(widths)} labelled frames, "
+                 f"{med:.2f} camera heights, made {ROAD_WIDTH:g} m (CamVid's); it absorbs a pixel aspect the frames "
+                 "do not tell, and scales a road narrower or wider than CamVid's to CamVid's (give --height "
+                 "METRES if you know it)", "estimated", round(height * se / med, 3))
+
+
 def _robust(x: np.ndarray) -> tuple[float, float]:
     """Median and its uncertainty 1.4826 MAD / sqrt(n)."""
     med = float(np.median(x))
@@ -198,8 +257,9 @@ def estimate_camera(images: Sequence[str | Path], *, name: str = "estimated", fx
                          "assumed")
     values["cy"] = Value((h - 1) / 2, "the image centre", "assumed")
     values["height"] = (Value(float(height), "given (--height)", "given") if height is not None else
-                        Value(ASSUMED_HEIGHT, "sets only the ground plane's scale, not observable from the frames; "
-                              "give --height METRES", "assumed"))
+                        Value(ASSUMED_HEIGHT, "sets only the ground plane's scale, not observable from the frames "
+                              "without labels (give --labels to measure the road footprint), or give --height "
+                              "METRES", "assumed"))
     ego = 0
     if labels:
         from .ego import ego_rows_from_label_files, rows_at_height
@@ -243,7 +303,6 @@ def estimate_camera(images: Sequence[str | Path], *, name: str = "estimated", fx
                                   "length)", "estimated", round(_robust(vrows)[1], 2))
     us = np.array([r.vp[0] for r in ok])
     q25, q75 = np.percentile(us, [25, 75])
-    warnings = [f"{k}: {v.how}" for k, v in values.items() if v.source == "assumed" and k in ("fx", "height")]
     if n >= 10 and q75 - q25 >= ROLL_MIN_SPREAD * w:
         A = np.column_stack([us - us.mean(), np.ones(n)])
         coef, res, *_ = np.linalg.lstsq(A, vrows, rcond=None)
@@ -256,6 +315,12 @@ def estimate_camera(images: Sequence[str | Path], *, name: str = "estimated", fx
         values["roll"] = Value(0.0, "not estimated: the road VPs do not spread along the horizon (straight roads); "
                                "0 is used", "assumed")
     cam = replace(cam, tilt=float(values["tilt"].value), pan=float(values["pan"].value))
+    if height is None and labels:
+        road = _height_from_road(labels, label_format, cam)
+        if road is not None:
+            values["height"] = road
+            cam = replace(cam, height=float(road.value))
+    warnings = [f"{k}: {v.how}" for k, v in values.items() if v.source == "assumed" and k in ("fx", "height")]
     ids = list(ids) if ids is not None else [p.stem for p in images]
     final = apply_reliability([replace(r, pan_deg=pose_from_vp(cam, r.vp)[0], tilt_deg=pose_from_vp(cam, r.vp)[1])
                                for r in results], [cam] * len(results), ids)

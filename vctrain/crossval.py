@@ -67,7 +67,7 @@ from .study import (ADAPT_COMBINE, CONDITIONS, DEFAULT_CANVAS, DEFAULT_STORE_PIX
 
 __all__ = ["plan_runs", "training_settings", "run_study", "evaluate_heldout", "score_store"]
 
-ESTIMATE_VERSION = 1  # bump when vcprep.camera_estimate changes what it estimates (cached estimates are redone)
+ESTIMATE_VERSION = 2  # bump when vcprep.camera_estimate changes what it estimates (cached estimates are redone)
 ALL_RUN = "_all"  # runs/_all/<condition>/: trained on every trainable dataset, scored on the test-role ones
 
 
