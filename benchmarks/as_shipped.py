@@ -77,18 +77,16 @@ import yaml
 
 import cv2
 
-from measure import (BIN, DATA, KITTI, ROOT, SHARED_DATA, bar_plot, format_stat, link_files, native_camera, run,
-                     seed_stats)
+from measure import (BIN, CS_FORMAT, DATA, KITTI, LUMS_FORMAT, ROOT, SHARED_DATA, bar_plot, format_stat, link_files,
+                     native_camera, run, seed_stats)
 
 sys.path.insert(0, str(ROOT))
 from vctrain.study import CANVASES, DEFAULT_CANVAS  # noqa: E402
 
 CITYSCAPES = SHARED_DATA / "cityscapes_pix2pix"
-CS_FORMAT = "values:road=1;ignore=255;max=255"
 IDD = SHARED_DATA / "idd_lite"
 BDD = SHARED_DATA / "bdd100k_drivable"
 LUMS = SHARED_DATA / "lums_road"
-LUMS_FORMAT = "values:road=2;max=4"
 REAL_OTHER = ["cityscapes", "idd", "kitti", "bdd", "lums"]  # real cameras other than CamVid: the headline
 EGO = ["cityscapes", "camvid-0001TP"]                       # real cameras that show their own vehicle
 ESTIMATED = ["cityscapes", "idd", "bdd"]                    # also with camera: estimate

@@ -22,9 +22,15 @@ Sets (truth -> what is compared):
   its camera.yaml (typical Cityscapes intrinsics, tilt 2.4: typical extrinsics, not per frame).
   KITTI: the one frame in ../shared/data is below the estimator's minimum of 5 frames (listed).
 
-Per camera, estimated twice: with the true fx given (``--fx``: what the frames alone say about
-the pose) and with nothing given (fx ASSUMED from a 60-degree FOV). Errors: horizon row (% of the
-height; independent of fx), tilt and pan (degrees), fx (%; only where it was assumed). Targets of
+Per camera, estimated twice: with the true fx and pixel aspect given (``--fx``, ``--source-size``:
+what the frames alone say about the pose) and with nothing given but the labels of the real sets
+(fx ASSUMED from a 60-degree FOV, square pixels ASSUMED, the height from the road footprint where
+there are labels, ASSUMED 1.4 m elsewhere). Errors: horizon row (% of the height; independent of
+fx), tilt and pan (degrees), fx (%; only where it was assumed), and the road plane's depth scale
+``fy * height`` (%; the vertical stretch of the road in the virtual image is its inverse) with
+the road-footprint height and with the height assumed. The road width the footprint height aims
+at (``ROAD_WIDTH``) is measured beside: the median visible road width of CamVid train and of the
+Cityscapes set under their true calibrations. Targets of
 the issue: |tilt error| <= 1 deg, |horizon error| <= 2 % of the height, fx within 10 % (median over
 cameras) -- the last is reported as the error of the assumption, since road frames do not fix fx
 (vcprep/camera_estimate.py). Speed: seconds per 100 frames of the estimate outside VP detection
@@ -32,7 +38,7 @@ cameras) -- the last is reported as the error of the assumption, since road fram
 The last stdout line is one JSON object: ``tilt_abs_err_median``, ``tilt_abs_err_max``,
 ``horizon_err_pct_median``, ``horizon_err_pct_max`` (synthetic, fx given), the same with fx assumed
 (``*_fx_assumed``), ``fx_err_pct_median_assumed``, ``real`` (per real set), ``s_per_100_frames_besides_vp``,
-``s_per_100_frames_vp``. Outputs: benchmarks/results/camera_estimate.{md,json}.
+``s_per_100_frames_vp``, ``real_depth_scale_err_pct`` (and ``_height_assumed``), ``road_width_m``. Outputs: benchmarks/results/camera_estimate.{md,json}.
 """
 from __future__ import annotations
 
@@ -44,19 +50,21 @@ import platform
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from measure import BIN, DATA, ROOT, SHARED_DATA, run
+from measure import BIN, CS_FORMAT, DATA, ROOT, SHARED_DATA, run
 
 sys.path.insert(0, str(ROOT))
 import vcprep.vanishing_point as vpmod  # noqa: E402
 from vcprep.camera import PRESETS, Camera, load_camera  # noqa: E402
-from vcprep.camera_estimate import estimate_camera  # noqa: E402
+from vcprep.camera_estimate import ASSUMED_HEIGHT, ROAD_WIDTH, estimate_camera, road_widths  # noqa: E402
 from vcprep.errors import InputError  # noqa: E402
 from vcprep.homography import vp_from_pose  # noqa: E402
+from vcprep.labels import get_label_format  # noqa: E402
 from vcprep.synthetic import RoadScene, render_road  # noqa: E402
 
 CITYSCAPES = SHARED_DATA / "cityscapes_pix2pix"
@@ -146,16 +154,37 @@ def _camvid_sim(wd: Path, quick: bool) -> dict[str, tuple[list[Path], Camera, di
 
 
 def _real(quick: bool) -> dict[str, tuple[list[Path], Camera, dict]]:
+    """Real sets: (frames, true camera, {"source_size", "labels", "label_format"} as they apply)."""
     cv = PRESETS["camvid"].for_image_size((480, 360))
-    sets = {"camvid-val": (sorted((DATA / "val").glob("*.png")), cv, {})}
+    lab = lambda files, folder: [folder / f.name for f in files]
+    val = sorted((DATA / "val").glob("*.png"))
+    sets = {"camvid-val": (val, cv, {"labels": lab(val, DATA / "valannot"), "label_format": "camvid"})}
     for seq in ("0016E5", "0006R0", "0001TP"):
-        sets[f"camvid-{seq}"] = (sorted((DATA / "train").glob(f"{seq}_*.png")), cv, {})
+        files = sorted((DATA / "train").glob(f"{seq}_*.png"))
+        sets[f"camvid-{seq}"] = (files, cv, {"labels": lab(files, DATA / "trainannot"), "label_format": "camvid"})
     if CITYSCAPES.is_dir():
-        sets["cityscapes"] = (sorted((CITYSCAPES / "images").glob("*.jpg")), load_camera(CITYSCAPES / "camera.yaml"),
-                              {"source_size": (2048, 1024)})
+        files = sorted((CITYSCAPES / "images").glob("*.jpg"))
+        sets["cityscapes"] = (files, load_camera(CITYSCAPES / "camera.yaml"),
+                              {"source_size": (2048, 1024), "labels": [CITYSCAPES / "labels" / (f.stem + ".png")
+                                                                       for f in files], "label_format": CS_FORMAT})
     if quick:
-        sets = {k: (v[0][:12], v[1], v[2]) for k, v in sets.items()}
+        sets = {k: (v[0][:12], v[1], {**v[2], **({"labels": v[2]["labels"][:12]} if "labels" in v[2] else {})})
+                for k, v in sets.items()}
     return sets
+
+
+def _road_width_m(labels: list[Path], fmt: str, cam: Camera) -> tuple[float, int]:
+    """The median visible road width (metres) of labelled frames under their TRUE calibration, and
+    the number of frames it was measurable in: what ROAD_WIDTH (CamVid train's) stands for."""
+    w = road_widths(labels, get_label_format(fmt), cam, cam.ego_rows)
+    return (float(np.median(w)) * cam.height if len(w) else float("nan")), len(w)
+
+
+def _depth_scale_err(c: Camera, truth: Camera) -> float:
+    """% error of fy * height, the road plane's depth scale (depth = fy h / (v - v_horizon) for a
+    level camera): how much too far (>0) or near the estimated camera puts each road row; the
+    vertical stretch of the road in the virtual image is its inverse."""
+    return 100 * (c.fy * c.height / (truth.fy * truth.height) - 1)
 
 
 def _stats(rows: list[dict], key: str) -> tuple[float, float]:
@@ -187,11 +216,24 @@ def main() -> None:
                 try:
                     for with_fx in (True, False):
                         t0 = time.perf_counter()
-                        est = estimate_camera(files, fx=truth.fx if with_fx else None,
-                                              pixel_aspect=truth.fy / truth.fx if with_fx else None, **kw)
+                        # fx given: what the frames say of the pose; nothing given: the labels (where
+                        # there are) give the height, from the road footprint
+                        given = {"fx": truth.fx, "pixel_aspect": truth.fy / truth.fx} if with_fx else {
+                            "labels": kw.get("labels"), "label_format": get_label_format(kw["label_format"])
+                            if kw.get("labels") else None}
+                        est = estimate_camera(files, source_size=kw.get("source_size") if with_fx else None,
+                                              **given)
                         t_total += time.perf_counter() - t0
                         frames_total += len(files)
                         row["fx_given" if with_fx else "fx_assumed"] = _errors(est, truth, with_fx)
+                        if not with_fx:
+                            e = row["fx_assumed"]
+                            e["height"] = est.camera.height
+                            e["height_source"] = est.values["height"].source
+                            e["depth_scale_err_pct"] = _depth_scale_err(est.camera, truth)
+                            # the same camera with the height assumed (what a user got without labels)
+                            e["depth_scale_err_pct_height_assumed"] = _depth_scale_err(
+                                replace(est.camera, height=ASSUMED_HEIGHT), truth)
                 except InputError as e:  # reported, never hidden: a camera the estimator refuses
                     failed[f"{g} {name}"] = f"{e.problem} ({'fx given' if with_fx else 'fx assumed'})"
                     print(f"{g:10s} {name:24s} NO ESTIMATE: {failed[f'{g} {name}']}", flush=True)
@@ -202,6 +244,17 @@ def main() -> None:
                       f"pan {e['pan_err']:+6.2f}; fx assumed: horizon {row['fx_assumed']['horizon_err_pct']:+6.2f} %, "
                       f"tilt {row['fx_assumed']['tilt_err']:+6.2f}, fx {row['fx_assumed']['fx_err_pct']:+6.1f} % "
                       f"({e['accepted']}/{e['frames']} VPs)", flush=True)
+    # what ROAD_WIDTH stands for: the median visible road width under the TRUE calibrations
+    cv = PRESETS["camvid"].for_image_size((480, 360))
+    train_labels = sorted((DATA / "trainannot").glob("*.png"))
+    widths = {"camvid-train": _road_width_m(train_labels[:12] if a.quick else train_labels, "camvid", cv)}
+    if CITYSCAPES.is_dir():
+        cs_labels = sorted((CITYSCAPES / "labels").glob("*.png"))
+        widths["cityscapes"] = _road_width_m(cs_labels[:12] if a.quick else cs_labels, CS_FORMAT,
+                                             load_camera(CITYSCAPES / "camera.yaml"))
+    road_width = {k: {"median_m": round(m, 2), "frames": n} for k, (m, n) in widths.items()}
+    print("visible road width under the true calibration: " + ", ".join(
+        f"{k} {v['median_m']:.2f} m ({v['frames']} frames)" for k, v in road_width.items()), flush=True)
     s_vp = 100 * vt.seconds / frames_total
     s_rest = 100 * (t_total - vt.seconds) / frames_total
     syn = results["synthetic"]
@@ -223,17 +276,31 @@ def main() -> None:
         "real": {k: {"tilt_err": round(r["fx_given"]["tilt_err"], 3),
                      "horizon_err_pct": round(r["fx_given"]["horizon_err_pct"], 3)} for k, r in results["real"].items()},
         "kitti": "1 frame in ../shared/data: below the 5 frames an estimate needs",
+        # nothing given, labels given: the road-footprint height; depth scale = fy * height (% error)
+        "real_depth_scale_err_pct": {k: round(r["fx_assumed"]["depth_scale_err_pct"], 1)
+                                     for k, r in results["real"].items()},
+        "real_depth_scale_err_pct_height_assumed": {k: round(r["fx_assumed"]["depth_scale_err_pct_height_assumed"], 1)
+                                                    for k, r in results["real"].items()},
+        "road_width_constant_m": ROAD_WIDTH,
+        "road_width_m": road_width,
         "no_estimate": failed,
         "s_per_100_frames_besides_vp": round(s_rest, 4),
         "s_per_100_frames_vp": round(s_vp, 3),
     }
     lines = ["| set | camera | tilt err (deg) | horizon err (% h) | pan err (deg) | fx assumed: fx err (%) | "
-             "fx assumed: tilt err | VPs |", "|---|---|---|---|---|---|---|---|"]
+             "fx assumed: tilt err | nothing given: height m (how) | depth scale err (%): labels / no labels | VPs |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for g, sets in results.items():
         for name, r in sets.items():
             e, s = r["fx_given"], r["fx_assumed"]
             lines.append(f"| {g} | {name} | {e['tilt_err']:+.2f} | {e['horizon_err_pct']:+.2f} | {e['pan_err']:+.2f} | "
-                         f"{s['fx_err_pct']:+.1f} | {s['tilt_err']:+.2f} | {e['accepted']}/{e['frames']} |")
+                         f"{s['fx_err_pct']:+.1f} | {s['tilt_err']:+.2f} | {s['height']:.2f} ({s['height_source']}) | "
+                         + (f"{s['depth_scale_err_pct']:+.1f} / " if s["height_source"] == "estimated" else "- / ")
+                         + f"{s['depth_scale_err_pct_height_assumed']:+.1f} | {e['accepted']}/{e['frames']} |")
+    lines.append("")
+    lines.append("Visible road width under the true calibration (what ROAD_WIDTH = "
+                 f"{ROAD_WIDTH:g} m stands for): " + ", ".join(f"{k} {v['median_m']:.2f} m ({v['frames']} frames)"
+                                                             for k, v in road_width.items()) + ".")
     table = "\n".join(lines) + "\n"
     print(table)
     res = ROOT / "benchmarks" / "results" if not a.quick else wd

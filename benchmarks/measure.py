@@ -41,6 +41,8 @@ BIN = Path(sys.executable).parent                   # the tools (vcprep, vctrain
 SHARED_DATA = ROOT.parent / "shared" / "data"
 DATA = SHARED_DATA / "camvid"                       # CamVid, SegNet release (480x360)
 KITTI = SHARED_DATA / "kitti_road" / "training"     # KITTI road: image_2, gt_image_2, calib
+CS_FORMAT = "values:road=1;ignore=255;max=255"  # ../shared/data/cityscapes_pix2pix (its README)
+LUMS_FORMAT = "values:road=2;max=4"              # ../shared/data/lums_road (its README)
 sys.path.insert(0, str(ROOT))                       # this repository's vcprep and vctrain
 
 from vcprep.homography import vp_from_pose  # noqa: E402

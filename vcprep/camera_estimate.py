@@ -227,9 +227,11 @@ def _robust(x: np.ndarray) -> tuple[float, float]:
 def estimate_camera(images: Sequence[str | Path], *, name: str = "estimated", fx: float | None = None,
                     hfov: float | None = None, height: float | None = None, pixel_aspect: float | None = None,
                     source_size: tuple[int, int] | None = None, ids: Sequence[str] | None = None,
-                    labels: Sequence[str | Path] | None = None, label_format=None,
+                    labels: Sequence[str | Path] | None = None, label_format=None, find_ego: bool = True,
                     on_image: Callable[[int], None] | None = None) -> CameraEstimate:
-    """Estimate one camera from its frames (all of one size; see the module docstring).
+    """Estimate one camera from its frames (all of one size; see the module docstring). With
+    ``labels``, the own vehicle is searched for (unless ``find_ego`` is False) and the height
+    comes from the road footprint (unless ``height`` is given).
 
     Raises :class:`InputError` with what is missing: too few frames, frames of several sizes,
     too few road VPs (say the tilt and pan instead, or give frames where the road runs ahead)."""
@@ -261,7 +263,7 @@ def estimate_camera(images: Sequence[str | Path], *, name: str = "estimated", fx
                               "without labels (give --labels to measure the road footprint), or give --height "
                               "METRES", "assumed"))
     ego = 0
-    if labels:
+    if labels and find_ego:
         from .ego import ego_rows_from_label_files, rows_at_height
 
         est = ego_rows_from_label_files(labels, label_format)
@@ -269,7 +271,7 @@ def estimate_camera(images: Sequence[str | Path], *, name: str = "estimated", fx
         values["ego_rows"] = Value(ego, est.describe(), "estimated")
     else:
         values["ego_rows"] = Value(0, "not searched (no labels): give --labels to find the own vehicle, or write "
-                                   "ego_rows by hand", "assumed")
+                                   "ego_rows by hand" if not labels else "not searched", "assumed")
     cam = Camera(name, size, float(f.value), float(values["fy"].value), float(values["cx"].value),
                  float(values["cy"].value), float(values["height"].value), ego_rows=int(ego))
     # the road VP may be anywhere in the frame: the search window covers it whole (the usual +/-20 deg

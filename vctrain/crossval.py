@@ -131,7 +131,8 @@ class _Builder:
 
     def _estimate(self, ds: Dataset) -> Camera:
         """``camera: estimate``: the camera estimated from the dataset's own frames (every split's
-        images; the own vehicle from its labels unless ``ego: none``/``N``), once: kept in
+        images; the own vehicle from its labels unless ``ego: none``/``N``, the height from its labels'
+        road footprint), once: kept in
         ``OUT/cameras/<dataset>.yaml`` with the frames it came from, reused while they are the same."""
         from vcprep.camera import read_camera_yaml
         from vcprep.camera_estimate import estimate_camera, estimate_to_yaml
@@ -141,10 +142,10 @@ class _Builder:
         images = sorted(jobs)
         from vcprep.ego import MIN_FRAMES as EGO_MIN_FRAMES
 
-        labels = sorted({jobs[i].label for i in images if jobs[i].label is not None}) if ds.ego == "auto" else []
+        labels = sorted({jobs[i].label for i in images if jobs[i].label is not None})
         labels = labels if len(labels) >= EGO_MIN_FRAMES else []
         key = hashlib.sha256(json.dumps([ESTIMATE_VERSION, [str(i) for i in images], [str(x) for x in labels],
-                                         ds.label_format]).encode()).hexdigest()[:16]
+                                         ds.label_format, ds.ego == "auto"]).encode()).hexdigest()[:16]
         path = self.out / "cameras" / f"{ds.name}.yaml"
         record = path.with_suffix(".json")
         rec, cam = None, None
@@ -157,7 +158,8 @@ class _Builder:
         if cam is None:
             self.say(f"{ds.name}: estimating its camera from {len(images)} frames")
             est = estimate_camera(images, name=f"{ds.name}-estimated", ids=[jobs[i].id for i in images],
-                                  labels=labels or None, label_format=get_label_format(ds.label_format))
+                                  labels=labels or None, label_format=get_label_format(ds.label_format),
+                                  find_ego=ds.ego == "auto")
             # written at once, and the camera taken as its YAML reads back: the first run and every
             # resumed one design the same virtual camera (so finished stores stay finished)
             path.parent.mkdir(parents=True, exist_ok=True)
