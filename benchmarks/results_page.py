@@ -288,13 +288,23 @@ def r_real_cameras(d: dict) -> list[str]:
 
 def r_camera_estimate(d: dict) -> list[str]:
     h = d["headline"]
-    out = r_generic({"headline": {k: v for k, v in h.items() if k not in ("real", "no_estimate")}})
+    split = ("real", "no_estimate", "real_depth_scale_err_pct", "real_depth_scale_err_pct_height_assumed", "road_width_m")
+    out = r_generic({"headline": {k: v for k, v in h.items() if k not in split}})
     real = h.get("real", {})
     if real:
+        depth, assumed = h.get("real_depth_scale_err_pct", {}), h.get("real_depth_scale_err_pct_height_assumed", {})
         out += ["Real cameras against their given calibration (tilt error in degrees, horizon error in % of "
-                "the height):", ""]
-        out += table(["set", "tilt error", "horizon error %"],
-                     [[k, num(v.get("tilt_err")), num(v.get("horizon_err_pct"))] for k, v in real.items()])
+                "the height, both with fx given); with nothing given but the labels, the error of the road "
+                "plane's depth scale fy x height (%) with the height from the road footprint and with the "
+                "height assumed:", ""]
+        out += table(["set", "tilt error", "horizon error %", "depth scale % (road footprint)",
+                      "depth scale % (height assumed)"],
+                     [[k, num(v.get("tilt_err")), num(v.get("horizon_err_pct")), num(depth.get(k)), num(assumed.get(k))]
+                      for k, v in real.items()])
+    if h.get("road_width_m"):
+        out += ["", "Median visible road width under the true calibration (what the footprint height's "
+                f"{h.get('road_width_constant_m')} m stands for): " + ", ".join(
+                    f"{k} {v['median_m']} m ({v['frames']} frames)" for k, v in h["road_width_m"].items()) + ".", ""]
     return out
 
 
