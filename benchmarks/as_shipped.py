@@ -129,17 +129,16 @@ def _folders(wd: Path, quick: bool) -> dict[str, dict]:
 
 
 def _simulated(wd: Path, cam: Path, f: dict) -> dict[str, tuple[Path, dict]]:
-    """CamVid val (the test frames of ``f``) through each simulated camera of measure.SIMULATED, made
-    once into WORKDIR/sim/<name>/ (made again, the same frames would look new to the stores):
-    {set name: (its exact camera file, its split)}."""
+    """CamVid val (the test frames of ``f``) through each simulated camera of measure.SIMULATED, into
+    WORKDIR/sim/<name>/ (``vcprep simulate`` resumes: an earlier run's finished frames are kept as
+    they are): {set name: (its exact camera file, its split)}."""
     out = {}
+    images, labels = Path(f["camvid-val"]["images"]), Path(f["camvid-val"]["labels"])
+    if "include" in f["camvid-val"]:  # (a smoke run: its few frames)
+        images, labels = _subset_glob(images, labels, f["camvid-val"]["include"], wd / "quick" / "sim-src")
     for n in SIM:
         dst = wd / "sim" / n
-        if not (dst / "camera.yaml").is_file():
-            images, labels = Path(f["camvid-val"]["images"]), Path(f["camvid-val"]["labels"])
-            if "include" in f["camvid-val"]:  # (a smoke run: its few frames)
-                images, labels = _subset_glob(images, labels, f["camvid-val"]["include"], wd / "quick" / "sim-src")
-            simulate(cam, images, labels, dst, n)
+        simulate(cam, images, labels, dst, n)
         out["sim-" + n] = (dst / "camera.yaml", {"images": str(dst / "images"), "labels": str(dst / "labels")})
     return out
 
