@@ -419,7 +419,7 @@ def test_predict_store_and_resize_baseline(trained, tmp_path):
     assert r.exit_code == 0, r.output
     assert len(list((tmp_path / "vs").glob("*_mask.png"))) == 6
     # the paper's baseline: the same network on the original images simply resized
-    r = runner.invoke(app, ["fit", str(root / "store"), "--baseline", "resize", "--size", "64x48", "--width", "4",
+    r = runner.invoke(app, ["fit", str(root / "store"), "--baseline", "resize", "--size", "64x48", "--width", "8",
                             "--epochs", "2", "--batch-size", "3", "--val-fraction", "0.34",
                             "--out", str(tmp_path / "resize.pt"), "--quiet", "--json"])
     assert r.exit_code == 0, r.output
