@@ -55,10 +55,10 @@ def _render(folder: Path, cam, n: int, seed: int, shifted: bool = False) -> None
                           texture_seed=seed * 10 + i)
         img, lab = render_road(cam, scene, pan=float(rng.uniform(-3, 3)))
         if shifted:  # render_road's grass (BGR 40, 120-170, 60) on the road, its asphalt (95-130) elsewhere
-            n = cv2.GaussianBlur(np.random.default_rng((seed, i)).normal(0, 1, lab.shape).astype(np.float32),
-                                 (0, 0), 1.5) * 3
-            road = np.stack([40 + 5 * n, 130 + 25 * n, 60 + 5 * n], axis=2)
-            grey = np.repeat((100 + 20 * n)[..., None], 3, axis=2)
+            tex = cv2.GaussianBlur(np.random.default_rng((seed, i)).normal(0, 1, lab.shape).astype(np.float32),
+                                   (0, 0), 1.5) * 3
+            road = np.stack([40 + 5 * tex, 130 + 25 * tex, 60 + 5 * tex], axis=2)
+            grey = np.repeat((100 + 20 * tex)[..., None], 3, axis=2)
             img = np.clip(np.where(lab[..., None] == 1, road, grey), 0, 255).astype(np.uint8)
         write_png(folder / "images" / f"s{seed}_{i}.png", img)
         write_png(folder / "labels" / f"s{seed}_{i}.png", lab)
