@@ -308,6 +308,21 @@ def r_camera_estimate(d: dict) -> list[str]:
     return out
 
 
+def r_focal_from_verticals(d: dict) -> list[str]:
+    out = r_generic(d)
+    cell = lambda e: "-" if not e else f"{e['err_pct']:+.1f} [{e['interval_pct'][0]:+.0f}, {e['interval_pct'][1]:+.0f}]"
+    out += ["", "fy from the road VP and the vertical VP (error %, [68 % bootstrap interval]); information: the "
+            "pooled cost curve's relative depth (0: the frames say nothing about fy):", ""]
+    out += table(["set", "tilt°", "true fy", "horizon exact", "information", "detected VPs", "information",
+                  "VPs", "60° assumed: fx err %", "fy err %"],
+                 [[k, f"{r['tilt']:+.1f}", f"{r['true_fy']:.0f}", cell(r["exact_horizon"]),
+                   f"{r['exact_horizon']['information']:.2f}", cell(r["detected_vp"]),
+                   "-" if not r["detected_vp"] else f"{r['detected_vp']['information']:.2f}",
+                   f"{r['vps_accepted']}/{r['frames']}", f"{r['assumed_fx_err_pct']:+.1f}",
+                   f"{r['assumed_fy_err_pct']:+.1f}"] for k, r in d.get("sets", {}).items()])
+    return out
+
+
 AS_SHIPPED_ROWS = [  # (test set, what it is)
     ("camvid-val", "CamVid val (in domain)"),
     ("camvid-0001TP", "CamVid 0001TP (unseen rig), own vehicle found from the labels"),
@@ -414,7 +429,7 @@ def r_generic(d: dict) -> list[str]:
 
 RENDER: dict[str, Callable[[dict], list[str]]] = {
     "warp": r_warp, "completion": r_completion, "store": r_store, "stages": r_stages, "train": r_train,
-    "camera_estimate": r_camera_estimate, "as_shipped": r_as_shipped, "vp": r_vp, "vp.dev": r_vp, "cross_camera": r_cross_camera, "real_cameras": r_real_cameras,
+    "camera_estimate": r_camera_estimate, "focal_from_verticals": r_focal_from_verticals, "as_shipped": r_as_shipped, "vp": r_vp, "vp.dev": r_vp, "cross_camera": r_cross_camera, "real_cameras": r_real_cameras,
     "real_cameras_within_seq_fallback": r_real_cameras,
 }
 
