@@ -2,7 +2,7 @@
 nothing set by hand (issues 24 and 25)?
 
     .venv/bin/python benchmarks/as_shipped.py [--seeds 0,1,2] [--loo-seeds 0,1,2] [--conditions within,resize]
-                                              [--canvases shared,footprint] [--epochs N]
+                                              [--canvases shared,footprint] [--ablation-seeds 0,1] [--epochs N]
                                               [--workdir benchmarks/out/as_shipped] [--threads 2] [--quick]
 
 Two ``vctrain crossval`` studies, each run once per seed (``--seed k``; an interrupted run resumes),
@@ -45,6 +45,13 @@ Every fold trains as many steps as the CamVid model of study 1 (``max_steps`` pe
 model's steps per epoch: 305 frames less the 10 % validation share, batch 8), so a fold costs what
 one model costs whatever the size of its training union.
 
+**Ablation: no geometric augmentation** (``--ablation-seeds``, WORKDIR/noaug/seed<k>/, the default
+rectangle's stores): study 1 again with the random scale about the VP and the random shift off
+(``scale_aug: 0, shift_aug: 0``) for both conditions, tested on camvid-val, 0001TP and the five real
+other cameras; compared paired per seed with the default recipe's models of the same seeds. The
+paper's SegNet recipe trains without augmentation; a resize baseline that learns scale tolerance
+from augmentation could be what holds within - resize far below the paper's +21.
+
 The resize baseline reads the frames as they are (no geometry, so ``ego`` and ``camera`` do not touch
 it); the rows of a frame set share its resize score. Reported, mean +/- sample std over seeds: road
 IoU per test set and condition; within - resize paired per seed, per camera and over the real
@@ -59,7 +66,9 @@ The last stdout line is one JSON object: ``real_within_minus_resize`` (and ``_st
 ``in_domain_0001TP_within``/``_resize``, ``ego_gain_<camera>``, ``ego_rows_found``,
 ``estimated_minus_given_<camera>`` (and ``_simulated``, the mean over the simulated cameras), ``within_estimated_minus_resize_<camera>``, ``minutes_per_model``,
 ``canvas_default``, ``real_within_minus_resize@<canvas>`` and ``real_footprint_minus_shared`` (and
-``_std``, and ``footprint_minus_shared_<test set>``). Outputs: benchmarks/results/as_shipped.{md,json,png} (``--quick``: a smoke run, a
+``_std``, and ``footprint_minus_shared_<test set>``); with the ablation ``noaug_real_within_minus_resize``,
+``aug_real_within_minus_resize`` (same seeds), ``noaug_minus_aug_real_within`` / ``_resize`` (each with
+``_std``) and ``noaug_within_minus_resize_<camera>``. Outputs: benchmarks/results/as_shipped.{md,json,png} (``--quick``: a smoke run, a
 few frames, 1 seed, 2 steps, into WORKDIR/results). Nothing is tuned on a test set: the own-vehicle
 search and the camera estimate have no parameter fitted to these frames, the checkpoints are chosen
 on the training frames' validation share.
@@ -186,6 +195,20 @@ def study_file(wd: Path, quick: bool, epochs: int | None, canvas: str = "shared"
                   {"canvas": canvas})
 
 
+NO_GEOMETRIC_AUG = {"scale_aug": 0.0, "shift_aug": 0.0}   # the ablation's training (the paper's SegNet recipe has none)
+ABLATION_TESTS = ["camvid-val", "camvid-0001TP"] + ["cityscapes", "idd", "kitti", "bdd", "lums"]
+
+
+def ablation_study_file(wd: Path, quick: bool, epochs: int | None) -> Path:
+    """Study 1 in the default rectangle, trained WITHOUT geometric augmentation (random scale about
+    the VP and shift off, both conditions), on the in-domain and real test sets only: is the resize
+    baseline's augmentation what holds within - resize down?"""
+    full = yaml.safe_load(study_file(wd, quick, epochs, DEFAULT_CANVAS).read_text())
+    datasets = [x for x in full["datasets"] if x["role"] == "train" or x["name"] in ABLATION_TESTS]
+    return _write(wd, "study-noaug.yaml", datasets, {**full.get("train", {}), **NO_GEOMETRIC_AUG},
+                  {"canvas": DEFAULT_CANVAS})
+
+
 def camvid_steps_per_epoch() -> int:
     """The CamVid model's steps per epoch in study 1 (its frames less the validation share, batch 8)."""
     n = sum(1 for p in (DATA / "train").glob("*.png") if not p.name.startswith("0001TP_"))
@@ -250,6 +273,8 @@ def main() -> None:
     ap.add_argument("--canvases", default="shared,footprint",
                     help="the virtual camera's rectangle rules compared (crossval's 'canvas'); the headline is "
                          f"crossval's default ({DEFAULT_CANVAS})")
+    ap.add_argument("--ablation-seeds", default="",
+                    help="seeds of the ablation: study 1 without geometric augmentation (WORKDIR/noaug); '' skips it")
     ap.add_argument("--epochs", type=int, default=None)
     ap.add_argument("--workdir", type=Path, default=ROOT / "benchmarks" / "out" / "as_shipped")
     ap.add_argument("--threads", type=int, default=os.cpu_count() or 1)
@@ -260,6 +285,7 @@ def main() -> None:
             raise SystemExit(f"needs {need} (../shared/data); not found")
     seeds = [0] if a.quick else [int(s) for s in a.seeds.split(",") if s]
     loo_seeds = [0] if a.quick else [int(s) for s in a.loo_seeds.split(",") if s]
+    abl_seeds = ([0] if a.ablation_seeds else []) if a.quick else [int(s) for s in a.ablation_seeds.split(",") if s]
     conds = a.conditions.split(",")
     canvases = a.canvases.split(",")
     if "shared" not in canvases or any(c not in CANVASES for c in canvases):
@@ -303,7 +329,25 @@ def main() -> None:
                 loo.setdefault((r["heldout"], r["condition"]), []).append(100 * r["iou"])
                 loo_minutes.append(r["train_seconds"] / 60)  # one model per fold and condition
 
+    # -- ablation: study 1 without geometric augmentation (stores shared with the default rectangle's) --
+    abl: dict[tuple[str, str], list[float]] = {}
+    if abl_seeds:
+        abl_study = ablation_study_file(a.workdir, a.quick, a.epochs)
+        for seed in abl_seeds:
+            out = a.workdir / "noaug" / f"seed{seed}"
+            for sub in ("stores", "vps", "cameras"):  # the same stores as the default rectangle's study
+                src = a.workdir / DEFAULT_CANVAS / f"seed{seeds[0]}" / sub
+                if not (out / sub).exists() and not (out / sub).is_symlink():
+                    out.mkdir(parents=True, exist_ok=True)
+                    src.mkdir(parents=True, exist_ok=True)
+                    (out / sub).symlink_to(Path("..") / ".." / DEFAULT_CANVAS / f"seed{seeds[0]}" / sub)
+            rows, _ = run_study(abl_study, out, conds, seed, a.threads)
+            for r in rows:
+                abl.setdefault((r["heldout"], r["condition"]), []).append(100 * r["iou"])
+
     c = lambda t, k="within": cell.get((t, k))
+    # a study-1 cell's values of the ablation's seeds (None unless study 1 ran every one of them)
+    pick = lambda v: [v[seeds.index(k)] for k in abl_seeds] if v and all(k in seeds for k in abl_seeds) else None
     r2 = lambda x: round(float(x), 2)
     diff = lambda x, y: [p - q for p, q in zip(x, y)] if x and y and len(x) == len(y) else None
     head: dict = {}
@@ -353,6 +397,18 @@ def main() -> None:
         s_ = stat([float(np.mean(v)) for v in zip(*sim_e)])
         head["estimated_minus_given_simulated"], head["estimated_minus_given_simulated_std"] = (r2(s_["mean"]),
                                                                                                 r2(s_["std"]))
+    if abl:  # paired per seed over the ablation's seeds (the augmented models of the same seeds)
+        ab = lambda t, k="within": abl.get((t, k))
+        for name, per in (("noaug_real_within_minus_resize", {t: diff(ab(t), ab(t, "resize")) for t in REAL_OTHER}),
+                          ("aug_real_within_minus_resize", {t: diff(pick(c(t)), pick(c(t, "resize"))) for t in REAL_OTHER}),
+                          ("noaug_minus_aug_real_within", {t: diff(ab(t), pick(c(t))) for t in REAL_OTHER}),
+                          ("noaug_minus_aug_real_resize", {t: diff(ab(t, "resize"), pick(c(t, "resize"))) for t in REAL_OTHER})):
+            if all(per.values()):
+                s_ = stat([float(np.mean(v)) for v in zip(*per.values())])
+                head[name], head[name + "_std"] = r2(s_["mean"]), r2(s_["std"])
+        for t in REAL_OTHER:
+            v = diff(ab(t), ab(t, "resize"))
+            head[f"noaug_within_minus_resize_{t}"] = r2(stat(v)["mean"]) if v else None
     all_minutes = minutes + loo_minutes
     head["minutes_per_model"] = round(float(np.mean(all_minutes)), 2) if all_minutes else None
     head["minutes_per_model_max"] = round(float(np.max(all_minutes)), 2) if all_minutes else None
@@ -404,6 +460,16 @@ def main() -> None:
         for t in LOO:
             lines.append(f"| {t} | " + " | ".join(fmt(stat(loo.get((t, k)))) for k in conds) + " | "
                          + fmt(stat(lo.get(t)), signed=True) + " |")
+    if abl:
+        lines += ["", f"Without geometric augmentation (random scale about the VP and shift off, both conditions; "
+                      f"seeds {abl_seeds}), against the default recipe's models of the same seeds:", "",
+                  "| test set | within | resize | within − resize | within: noaug − aug | resize: noaug − aug |",
+                  "|---|---|---|---|---|---|"]
+        for t in ABLATION_TESTS:
+            ab_w, ab_r = abl.get((t, "within")), abl.get((t, "resize"))
+            lines.append(f"| {t} | {fmt(stat(ab_w))} | {fmt(stat(ab_r))} | {fmt(stat(diff(ab_w, ab_r)), signed=True)} | "
+                         f"{fmt(stat(diff(ab_w, pick(c(t)))), signed=True)} | "
+                         f"{fmt(stat(diff(ab_r, pick(c(t, 'resize')))), signed=True)} |")
     lines += ["", "| target | met |", "|---|---|"] + [f"| {k} | {'not measured' if v is None else 'yes' if v else 'no'} |"
                                                          for k, v in targets.items()]
     table = "\n".join(lines) + "\n"
@@ -423,12 +489,15 @@ def main() -> None:
     (res_dir / "as_shipped.json").write_text(json.dumps(
         {"headline": head, "targets": targets, "cells": {f"{t}|{k}": v for (t, k), v in cell.items()},
          "loo_cells": {f"{t}|{k}": v for (t, k), v in loo.items()}, "ego_found": found,
+         "ablation_cells": {f"{t}|{k}": v for (t, k), v in abl.items()}, "ablation_seeds": abl_seeds,
          "cameras_estimated": estimated, "seeds": seeds, "loo_seeds": loo_seeds, "conditions": conds,
          "canvases": canvases,
          "loo_steps_per_epoch": camvid_steps_per_epoch(), "epochs": a.epochs, "threads": a.threads,
          "machine": f"{platform.machine()}, {os.cpu_count()} cores", "date": time.strftime("%Y-%m-%d"),
          "command": "benchmarks/as_shipped.py " + " ".join(f"--{k} {v}" for k, v in
                                                             (("seeds", a.seeds), ("loo-seeds", a.loo_seeds),
+                                                             *((("ablation-seeds", a.ablation_seeds),)
+                                                               if a.ablation_seeds else ()),
                                                              ("conditions", a.conditions),
                                                              ("canvases", a.canvases)))},
         indent=1))

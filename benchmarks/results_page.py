@@ -396,6 +396,23 @@ def r_as_shipped(d: dict) -> list[str]:
                      [[t, _mean_std(loo.get(f"{t}|within")), _mean_std(loo.get(f"{t}|resize")),
                        _mean_std(_diff(loo.get(f"{t}|within"), loo.get(f"{t}|resize")), signed=True)] for t in names])
         out += [f"Mean over the held-out datasets: **{_mean_std(_real_mean(loo, names), signed=True)}**.", ""]
+    abl = d.get("ablation_cells") or {}
+    if abl:
+        seeds, a_seeds = d.get("seeds", []), d.get("ablation_seeds", [])
+        sub = lambda v: [v[seeds.index(k)] for k in a_seeds] if v and all(k in seeds for k in a_seeds) else None
+        names = list(dict.fromkeys(k.split("|")[0] for k in abl))
+        out += [f"Without geometric augmentation (random scale about the VP and shift off, both conditions; seeds "
+                f"{a_seeds}), against the default recipe's models of the same seeds (paired per seed):", ""]
+        out += table(["test set", "within", "resize", "within − resize", "within: noaug − aug", "resize: noaug − aug"],
+                     [[t, _mean_std(abl.get(f"{t}|within")), _mean_std(abl.get(f"{t}|resize")),
+                       _mean_std(_diff(abl.get(f"{t}|within"), abl.get(f"{t}|resize")), signed=True),
+                       _mean_std(_diff(abl.get(f"{t}|within"), sub(c.get(f"{t}|within"))), signed=True),
+                       _mean_std(_diff(abl.get(f"{t}|resize"), sub(c.get(f"{t}|resize"))), signed=True)]
+                      for t in names])
+        aug = {f"{t}|{k}": sub(c.get(f"{t}|{k}")) for t in AS_SHIPPED_REAL for k in ("within", "resize")}
+        out += [f"Real other cameras, within − resize: without geometric augmentation "
+                f"**{_mean_std(_real_mean(abl, AS_SHIPPED_REAL), signed=True)}**, with it (same seeds) "
+                f"{_mean_std(_real_mean(aug, AS_SHIPPED_REAL), signed=True)}.", ""]
     found = d["headline"].get("ego_rows_found", {})
     out += ["Own vehicle rows found from the labels: " + ", ".join(f"{k} {v}" for k, v in found.items()) + ".", ""]
     given = [k.split("|")[0][:-len("-est")] for k in c if k.endswith("-est|within")]
