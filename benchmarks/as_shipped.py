@@ -243,17 +243,22 @@ def run_study(study: Path, out: Path, conds: list[str], seed: int, threads: int)
     return rows, json.loads((out / "study.json").read_text())
 
 
-def share_stores(wd: Path, seed: int, first: int) -> None:
-    """WORKDIR/seed<seed>/{stores,vps,cameras} -> seed<first>'s: they do not depend on the seed, so
-    they are built once (crossval's store locks and finished-store checks make the sharing safe)."""
-    if seed == first:
-        return
+def link_stores(out: Path, src: Path) -> None:
+    """out/{stores,vps,cameras} -> src's (relative links): they do not depend on the seed or the
+    training settings, so they are built once (crossval's store locks and finished-store checks make
+    the sharing safe). Existing entries are kept."""
     for sub in ("stores", "vps", "cameras"):
-        link = wd / f"seed{seed}" / sub
+        link = out / sub
         if not link.exists() and not link.is_symlink():
             link.parent.mkdir(parents=True, exist_ok=True)
-            link.symlink_to(Path("..") / f"seed{first}" / sub)
-            (wd / f"seed{first}" / sub).mkdir(parents=True, exist_ok=True)
+            link.symlink_to(Path(os.path.relpath(src / sub, out)))
+            (src / sub).mkdir(parents=True, exist_ok=True)
+
+
+def share_stores(wd: Path, seed: int, first: int) -> None:
+    """WORKDIR/seed<seed>/{stores,vps,cameras} -> seed<first>'s."""
+    if seed != first:
+        link_stores(wd / f"seed{seed}", wd / f"seed{first}")
 
 
 def stat(v: list[float] | None) -> dict | None:
@@ -335,12 +340,7 @@ def main() -> None:
         abl_study = ablation_study_file(a.workdir, a.quick, a.epochs)
         for seed in abl_seeds:
             out = a.workdir / "noaug" / f"seed{seed}"
-            for sub in ("stores", "vps", "cameras"):  # the same stores as the default rectangle's study
-                src = a.workdir / DEFAULT_CANVAS / f"seed{seeds[0]}" / sub
-                if not (out / sub).exists() and not (out / sub).is_symlink():
-                    out.mkdir(parents=True, exist_ok=True)
-                    src.mkdir(parents=True, exist_ok=True)
-                    (out / sub).symlink_to(Path("..") / ".." / DEFAULT_CANVAS / f"seed{seeds[0]}" / sub)
+            link_stores(out, a.workdir / DEFAULT_CANVAS / f"seed{seeds[0]}")  # the default rectangle's stores
             rows, _ = run_study(abl_study, out, conds, seed, a.threads)
             for r in rows:
                 abl.setdefault((r["heldout"], r["condition"]), []).append(100 * r["iou"])

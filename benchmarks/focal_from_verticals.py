@@ -53,7 +53,6 @@ import os
 import platform
 import sys
 import time
-from dataclasses import replace
 from pathlib import Path
 
 import cv2
@@ -63,9 +62,10 @@ from measure import BIN, DATA, ROOT, SHARED_DATA, native_camera, run
 
 sys.path.insert(0, str(ROOT))
 from vcprep.camera import PRESETS, Camera, load_camera  # noqa: E402
-from vcprep.camera_estimate import ASSUMED_HFOV  # noqa: E402
+from vcprep.camera_estimate import ASSUMED_HFOV, whole_frame_vp_config  # noqa: E402
+from vcprep.homography import vp_from_pose  # noqa: E402
 from vcprep.imageio import read_image  # noqa: E402
-from vcprep.vanishing_point import VPConfig, estimate_vp  # noqa: E402
+from vcprep.vanishing_point import estimate_vp  # noqa: E402
 
 CITYSCAPES = SHARED_DATA / "cityscapes_pix2pix"
 SIM = [(hf, t) for hf in (20, 30) for t in (-8, -4, 0, 4, 8)]
@@ -76,14 +76,17 @@ GRID = np.exp(np.linspace(math.log(0.3), math.log(12.0), 240))   # fy / image he
 BOOT = 40
 
 
-def vertical_segments(gray: np.ndarray, road_vp: tuple[float, float]) -> np.ndarray:
-    """Near-vertical LSD segments (x1, y1, x2, y2), less those below the horizon whose line passes
-    within a tenth of the width of the road VP (lane marks and road edges run to it)."""
-    h, w = gray.shape
+def line_segments(gray: np.ndarray) -> np.ndarray:
+    """All LSD segments (x1, y1, x2, y2) of a grey image."""
     lines = cv2.createLineSegmentDetector().detect(gray)[0]
-    if lines is None:
-        return np.zeros((0, 4), np.float32)
-    s = lines.reshape(-1, 4)
+    return np.zeros((0, 4), np.float32) if lines is None else lines.reshape(-1, 4)
+
+
+def vertical_segments(s: np.ndarray, size: tuple[int, int], road_vp: tuple[float, float]) -> np.ndarray:
+    """The near-vertical ones of segments ``s`` in an image of ``size`` (w, h), less those below the
+    horizon whose line passes within a tenth of the width of the road VP (lane marks and road edges
+    run to it)."""
+    w, h = size
     d = s[:, 2:] - s[:, :2]
     length = np.hypot(d[:, 0], d[:, 1])
     dev = np.degrees(np.arctan2(np.abs(d[:, 0]), np.abs(d[:, 1])))
@@ -123,20 +126,19 @@ def estimate_fy(costs: np.ndarray, fys: np.ndarray, rng: np.random.Generator) ->
 def measure_set(files: list[Path], cam: Camera, rng: np.random.Generator) -> dict:
     w, h = cam.size
     fys = GRID * h
-    v_true = cam.cy - cam.fy * math.tan(math.radians(cam.tilt))
-    half_w, half_h = math.degrees(math.atan(w / 2 / cam.fx)), math.degrees(math.atan(h / 2 / cam.fy))
-    cfg = replace(VPConfig(), pan_range=max(VPConfig.pan_range, half_w), tilt_range=max(VPConfig.tilt_range, half_h))
+    vp_true = vp_from_pose(cam)
+    cfg = whole_frame_vp_config(cam)
     exact, detected, nseg, accepted = [], [], 0, 0
     for f in files:
         img = read_image(f).array
-        gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY) if img.ndim == 3 else img
-        seg = vertical_segments(gray, (cam.cx, v_true))
+        lines = line_segments(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY) if img.ndim == 3 else img)
+        seg = vertical_segments(lines, cam.size, vp_true)
         nseg += len(seg)
-        exact.append(frame_costs(seg, cam.cx, cam.cy, v_true, fys))
+        exact.append(frame_costs(seg, cam.cx, cam.cy, vp_true[1], fys))
         r = estimate_vp(img, cam, cfg)
         if r.status == "accepted":
             accepted += 1
-            seg_d = vertical_segments(gray, r.vp)
+            seg_d = vertical_segments(lines, cam.size, r.vp)
             detected.append(frame_costs(seg_d, cam.cx, cam.cy, r.vp[1], fys))
     out = {"frames": len(files), "segments": nseg, "vps_accepted": accepted, "true_fy": cam.fy,
            "true_fx": cam.fx, "tilt": cam.tilt}
@@ -170,7 +172,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--frames", type=int, default=60, help="frames per set (evenly spaced)")
     ap.add_argument("--workdir", type=Path, default=ROOT / "benchmarks" / "out" / "focal_from_verticals")
-    ap.add_argument("--quick", action="store_true", help="4 sets of 8 frames (a smoke run)")
+    ap.add_argument("--quick", action="store_true", help="4 simulated sets and CamVid val, 8 frames each (a smoke run)")
     args = ap.parse_args()
     cv2.setNumThreads(1)
     args.workdir.mkdir(parents=True, exist_ok=True)

@@ -228,6 +228,17 @@ def _robust(x: np.ndarray) -> tuple[float, float]:
     return med, float(1.4826 * np.median(np.abs(x - med)) / math.sqrt(len(x)))
 
 
+def whole_frame_vp_config(cam: Camera):
+    """The VP search settings with the window widened to ``cam``'s whole frame (at least the usual
+    +/-20 deg pan and +/-15 deg tilt): with the pose unknown the road VP may be anywhere, and the usual
+    window around a known pose would cut off a steep tilt seen through an assumed focal length."""
+    from .vanishing_point import VPConfig
+
+    w, h = cam.size
+    half_w, half_h = math.degrees(math.atan(w / 2 / cam.fx)), math.degrees(math.atan(h / 2 / cam.fy))
+    return replace(VPConfig(), pan_range=max(VPConfig.pan_range, half_w), tilt_range=max(VPConfig.tilt_range, half_h))
+
+
 def estimate_camera(images: Sequence[str | Path], *, name: str = "estimated", fx: float | None = None,
                     hfov: float | None = None, height: float | None = None, pixel_aspect: float | None = None,
                     source_size: tuple[int, int] | None = None, ids: Sequence[str] | None = None,
@@ -240,7 +251,7 @@ def estimate_camera(images: Sequence[str | Path], *, name: str = "estimated", fx
     Raises :class:`InputError` with what is missing: too few frames, frames of several sizes,
     too few road VPs (say the tilt and pan instead, or give frames where the road runs ahead)."""
     from .imageio import image_size, read_image
-    from .vanishing_point import VPConfig, apply_reliability, estimate_vp
+    from .vanishing_point import apply_reliability, estimate_vp
 
     images = [Path(p) for p in images]
     if len(images) < MIN_FRAMES:
@@ -278,10 +289,7 @@ def estimate_camera(images: Sequence[str | Path], *, name: str = "estimated", fx
                                    "ego_rows by hand" if not labels else "not searched", "assumed")
     cam = Camera(name, size, float(f.value), float(values["fy"].value), float(values["cx"].value),
                  float(values["cy"].value), float(values["height"].value), ego_rows=int(ego))
-    # the road VP may be anywhere in the frame: the search window covers it whole (the usual +/-20 deg
-    # pan, +/-15 deg tilt around a known pose would cut off a steep tilt seen through an assumed focal length)
-    half_w, half_h = math.degrees(math.atan(w / 2 / cam.fx)), math.degrees(math.atan(h / 2 / cam.fy))
-    cfg = replace(VPConfig(), pan_range=max(VPConfig.pan_range, half_w), tilt_range=max(VPConfig.tilt_range, half_h))
+    cfg = whole_frame_vp_config(cam)
     results, cams = [], []
     for i, p in enumerate(images):
         results.append(estimate_vp(read_image(p).array, cam, cfg))
