@@ -444,8 +444,30 @@ def r_generic(d: dict) -> list[str]:
     return table(["figure", "value"], rows)
 
 
+def r_deploy(d: dict) -> list[str]:
+    rows = []
+    for name, v in d["detail"].items():
+        for t, r in v["threads"].items():
+            st = r["torch_stages"]
+            m = lambda k: f"{r[k]['median']:.1f} ({r[k]['min']:.1f}–{r[k]['max']:.1f})"  # noqa: E731
+            rows.append([f"{name} {num(v['frame_size'])}", t, m("net_torch"), m("net_ort"),
+                         f"{m('torch_path')}: {st['warp']:.1f} / {st['network']:.1f} / {st['backproject']:.1f}",
+                         m("onnx_fixed"), m("onnx_vp"), m("resize_torch"), m("resize_onnx"),
+                         num(r["geometry_share_torch"], 3), num(r["geometry_share_graph"], 3),
+                         num(r["onnx_over_torch"], 2)])
+    out = table(["frame", "threads", "network torch ms", "network onnxruntime ms",
+                 "torch path ms: warp / network / back-projection", "graph (mount) ms", "graph (--vp-input) ms",
+                 "resize twin torch ms", "resize twin graph ms", "geometry / network, torch path",
+                 "geometry / network, graph", "graph / torch path"], rows)
+    agree = [[name, num(v["store_size"]), num(v["working_size"]), f"{v['agreement_fixed']['max_abs_diff']:.1e}",
+              f"{100 * v['agreement_fixed']['mask_agreement']:.3f}", f"{v['agreement_vp']['max_abs_diff']:.1e}",
+              f"{v['graph_mb']['']:.1f}", f"{v['graph_mb']['_vp']:.1f}"] for name, v in d["detail"].items()]
+    return out + table(["frame", "store", "working size", "graph vs torch path: max abs dP", "masks agree %",
+                        "--vp-input graph: max abs dP", "graph MB", "--vp-input graph MB"], agree)
+
+
 RENDER: dict[str, Callable[[dict], list[str]]] = {
-    "warp": r_warp, "completion": r_completion, "store": r_store, "stages": r_stages, "train": r_train,
+    "warp": r_warp, "completion": r_completion, "deploy": r_deploy, "store": r_store, "stages": r_stages, "train": r_train,
     "camera_estimate": r_camera_estimate, "focal_from_verticals": r_focal_from_verticals, "as_shipped": r_as_shipped, "vp": r_vp, "vp.dev": r_vp, "cross_camera": r_cross_camera, "real_cameras": r_real_cameras,
     "real_cameras_within_seq_fallback": r_real_cameras,
 }

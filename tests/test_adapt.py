@@ -29,7 +29,7 @@ from vcprep.labels import get_label_format
 from vcprep.prior import compute_prior, prior_meta, write_prior
 from vcprep.store import Store
 from vcprep.synthetic import RoadScene, render_road
-from vctrain.adapt import PriorPredictor, adapt, fuse, surrogate_for_item
+from vctrain.adapt import AdaptSettings, PriorPredictor, adapt, fuse, surrogate_for_item
 from vctrain.checkpoint import load_checkpoint
 from vctrain.metrics import road_metrics
 from vctrain.predict import Predictor, predict_images
@@ -102,7 +102,7 @@ def _target_iou(model: Path, root: Path, out: Path) -> float:
 def test_adapting_on_the_target_camera_raises_its_iou(world, tmp_path):
     before = _target_iou(world / "model.pt", world, tmp_path / "before")
     summary = adapt(world / "model.pt", world / "tgt_train/images", TGT, world / "prior.npy", tmp_path / "adapted.pt",
-                    epochs=16, lr=0.02, progress=False)
+                    AdaptSettings(epochs=16, lr=0.02, progress=False))
     after = _target_iou(tmp_path / "adapted.pt", world, tmp_path / "after")
     print(f"target road IoU: unadapted {before:.3f}, adapted {after:.3f}")
     # measured over source seeds 0-2 with oneDNN on and off: unadapted 0.29-0.49 (0.29 is the road's

@@ -861,11 +861,10 @@ def test_camera_estimate_in_a_study(tmp_path):
     assert "building it afresh" not in proc.stderr and "training on" not in proc.stderr
     # the first estimate is the camera as its YAML reads back (not the unrounded one), so a resumed
     # study designs the very same virtual camera and its finished stores stay finished
-    from vctrain.crossval import _Builder
-    from vctrain.study import load_study
+    from vctrain.study import Resolution, load_study
 
     fresh = tmp_path / "fresh"
-    first, again = (_Builder(load_study(study), fresh, False, 1, lambda m: None) for _ in range(2))
+    first, again = (Resolution(load_study(study), fresh) for _ in range(2))
     car = load_study(study).dataset("car")
     cam1 = first.camera(car)
     assert cam1 == again.camera(car) == read_camera_yaml(fresh / "cameras" / "car.yaml")
@@ -910,8 +909,7 @@ def test_a_study_that_sets_nothing_gets_the_measured_design(tmp_path):
     explicit crop wins over the default."""
     import math
 
-    from vctrain.crossval import _Builder, training_settings
-    from vctrain.study import DEFAULT_ABOVE, DEFAULT_CANVAS, DEFAULT_STORE_PIXELS, load_study
+    from vctrain.study import DEFAULT_ABOVE, DEFAULT_CANVAS, DEFAULT_STORE_PIXELS, Resolution, load_study, training_settings
 
     study = _study(tmp_path / "data")
     d = yaml.safe_load(study.read_text())
@@ -921,7 +919,7 @@ def test_a_study_that_sets_nothing_gets_the_measured_design(tmp_path):
     s = load_study(study)
     assert s.above == DEFAULT_ABOVE == 8.0 and s.store_pixels is None and s.store_width is None
     assert s.canvas is None and DEFAULT_CANVAS == "footprint"
-    b = _Builder(s, tmp_path / "out", False, 1, lambda m: None)
+    b = Resolution(s, tmp_path / "out")
     assert b.canvas == "footprint"
     v = b.virtual()
     f = v.K[0][0]
@@ -934,7 +932,7 @@ def test_a_study_that_sets_nothing_gets_the_measured_design(tmp_path):
     d["store_width"], d["above"], d["train"]["crop"] = 200, None, 0.5
     study.write_text(yaml.safe_dump(d))
     s = load_study(study)
-    b = _Builder(s, tmp_path / "out2", False, 1, lambda m: None)
+    b = Resolution(s, tmp_path / "out2")
     assert s.above is None and b.scale() == pytest.approx(200 / b.virtual().size[0])
     assert b.virtual().size[1] > v.size[1]  # uncropped: taller than the 8-degree design
     assert training_settings(s)["crop"] == 0.5

@@ -505,3 +505,76 @@ def test_vcprep_camera_ego_prints_and_writes_the_rows(tmp_path):
     assert_one_error_line(run_cli("camera", "ego", "-l", tmp_path / "labels", "-f", "camvid"), "too few", "ego_rows")
     assert_one_error_line(run_cli("camera", "ego", "-l", tmp_path / "labels", "-f", "camvid", "-o", out),
                           "no --camera")
+
+
+# -- finding the own vehicle from frames alone (vcprep.ego; issue 35) -------------------------------
+# Oracle: a drive rendered with varying lateral offset, pan, tilt, asphalt texture and moving boxes
+# (other traffic: horizontal edges anywhere, different in every frame), and a bonnet painted as a
+# fixed ellipse cap with its own shading and highlight whose top we choose.
+
+def _drive(n=36, size=(240, 180), seed=0):
+    cam = PRESETS["camvid"].for_image_size(size)
+    rng = np.random.default_rng(seed)
+    w, h = size
+    out = []
+    for i in range(n):
+        img, _ = render_road(cam, RoadScene(offset=float(rng.uniform(-1.5, 1.5)), texture_seed=100 * seed + i),
+                             pan=float(rng.uniform(-3, 3)), tilt=float(rng.uniform(-2, 2)), supersample=1)
+        for _ in range(6):
+            x, y = int(rng.integers(0, w)), int(rng.integers(0, h))
+            cv2.rectangle(img, (x, y), (x + int(rng.integers(10, 60)), y + int(rng.integers(10, 40))),
+                          tuple(int(c) for c in rng.integers(0, 255, 3)), -1)
+        out.append(img)
+    return out
+
+
+def _paint_bonnet(img, rows):
+    """A bonnet whose top is ``rows`` rows above the bottom edge, the same in every frame."""
+    h, w = img.shape[:2]
+    mask = np.zeros((h, w), np.uint8)
+    cv2.ellipse(mask, (w // 2, h - 1), (3 * w // 4, rows - 1), 0, 180, 360, 255, -1)
+    paint = np.broadcast_to(np.linspace(70, 30, h)[:, None, None] * np.array([1.2, 1.0, 0.9]), img.shape).copy()
+    cv2.line(paint, (w // 4, h - rows // 2), (3 * w // 4, h - rows // 2 - 3), (160, 150, 140), 2)
+    out = img.copy()
+    out[mask > 0] = paint[mask > 0].astype(np.uint8)
+    return out
+
+
+@pytest.fixture(scope="module")
+def drive():
+    return _drive()
+
+
+@pytest.mark.parametrize("bonnet", [12, 25, 40])
+def test_ego_rows_from_frames_is_the_bonnet_top(drive, bonnet):
+    from vcprep.ego import ego_rows_from_frames
+    est = ego_rows_from_frames(_paint_bonnet(f, bonnet) for f in drive)
+    assert abs(est.rows - bonnet) <= 2 and est.size == (240, 180) and est.method == "frames"
+    assert est.to_dict()["method"].startswith("frames") and "found from the frames" in est.describe()
+
+
+def test_frames_without_a_vehicle_give_0(drive):
+    from vcprep.ego import ego_rows_from_frames
+    for seed in (0, 1):
+        est = ego_rows_from_frames(drive if seed == 0 else _drive(seed=seed))
+        assert est.rows == 0, seed
+    assert "no own vehicle" in est.describe() and est.to_dict()["method"].startswith("frames")
+
+
+def test_ego_rows_from_frames_refuses_repeats_and_two_sizes(drive):
+    from vcprep.ego import ego_rows_from_frames
+    with pytest.raises(InputError, match="distinct frame"):   # a stopped car: every edge would stay put
+        ego_rows_from_frames([_paint_bonnet(drive[0], 20)] * 40)
+    with pytest.raises(InputError, match="two sizes"):
+        ego_rows_from_frames(drive[:3] + [cv2.resize(drive[3], (120, 90))])
+
+
+def test_vcprep_camera_ego_without_labels_uses_the_frames(drive, tmp_path):
+    for i, f in enumerate(drive):
+        cv2.imwrite(str(tmp_path / f"f{i:03d}.png"), _paint_bonnet(f, 25))
+    proc = run_cli("camera", "ego", "--images", tmp_path, "--json")
+    assert proc.returncode == 0, proc.stderr
+    rep = json.loads(proc.stdout)
+    assert abs(rep["ego_rows"] - 25) <= 2 and rep["method"].startswith("frames")
+    assert "no labels" in proc.stderr and "from the frames" in proc.stderr
+    assert_one_error_line(run_cli("camera", "ego"), "no --labels and no --images")

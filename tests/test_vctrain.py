@@ -527,6 +527,38 @@ def test_fit_help_names_the_recipes():
     assert "resfpn" in text and "'cpu'" in text and "'paper'" in text
 
 
+def test_fit_has_one_option_per_train_config_field():
+    """Every TrainConfig field is set by exactly one fit option (named as the field, or as
+    FIT_OPTION_FIELD says), except the fields fit leaves to the library; and the options given
+    reach the config they name."""
+    import typer.main
+    from dataclasses import fields
+
+    from vctrain.cli import FIT_NO_OPTION, FIT_OPTION_FIELD, _fit_config
+
+    cmd = typer.main.get_command(app).commands["fit"]
+    options = [p.name for p in cmd.params if p.name != "as_json"]
+    set_fields = [FIT_OPTION_FIELD.get(n, n) for n in options]
+    assert sorted(set_fields) == sorted(f.name for f in fields(TrainConfig) if f.name not in FIT_NO_OPTION)
+    args = ["s1", "s2", "-o", "runs/m.pt", "-m", "segnet-narrow", "--width", "4", "--val-store", "v", "--size",
+            "64x48", "--crop", "0.5x1", "--seed", "3", "--no-hflip", "--quiet", "--log", "l.jsonl", "--epochs", "2"]
+    cfg = _fit_config(cmd.make_context("fit", args).params)
+    assert (cfg.stores, cfg.out, cfg.arch, cfg.base_width, cfg.val_stores) == (["s1", "s2"], "runs/m.pt",
+                                                                               "segnet-narrow", 4, ["v"])
+    assert (cfg.size, cfg.crop, cfg.seed, cfg.hflip, cfg.progress, cfg.log, cfg.epochs) == ((64, 48), (0.5, 1.0), 3,
+                                                                                            False, False, "l.jsonl", 2)
+    default = _fit_config(cmd.make_context("fit", ["s", "-o", "m.pt"]).params)
+    assert default == TrainConfig(stores=["s"], out="m.pt")
+
+
+@pytest.mark.parametrize("cmd, option", [("fit", "--label-format"), ("eval", "--label-format")])
+def test_label_format_help_names_every_label_format(cmd, option):
+    from vcprep.labels import LABEL_FORMATS
+
+    text = " ".join(runner.invoke(app, [cmd, "--help"]).stdout.split()).replace("- ", "-")
+    assert all(name in text for name in LABEL_FORMATS) and "idd" in text
+
+
 def _cli(*args):
     return subprocess.run([sys.executable, "-m", "vctrain.cli", *map(str, args)], capture_output=True, text=True,
                           timeout=60)

@@ -1,49 +1,53 @@
 """Building a store: pair images with labels, warp each item into the virtual camera, record it.
 
-Three layers (style.md): :func:`list_dataset` (files -> jobs), :func:`warp_item` (one item,
-in memory), :func:`warp_dataset` (the loop: up-to-date check, atomic writes, manifest, progress),
-which takes its settings whole as one :class:`WarpSettings` (cameras, scale, labels, completion,
-poses, workers, shard, keep_going, progress).
-:func:`build_item` / :func:`complete_item` are the per-item steps of ``warp`` / ``complete``;
-both run in the one loop :func:`_build_loop` (serial or a process pool, :mod:`vcprep.parallel`).
+Three layers (style.md): :func:`vcprep.dataset.list_dataset` (files -> jobs), :func:`warp_item`
+(one item, in memory), :func:`warp_dataset` (the loop: up-to-date check, atomic writes, manifest,
+progress), which takes its settings whole as one :class:`WarpSettings` (cameras, scale, labels,
+completion, poses, workers, shard, keep_going, progress). Each item's record is a
+:class:`vcprep.record.ItemRecord` (its key says when it is up to date).
+:func:`build_item` / :func:`vcprep.store_complete.complete_item` are the per-item steps of
+``warp`` / ``complete``; both run in the one loop :func:`build_loop` (serial or a process pool,
+:mod:`vcprep.parallel`).
 """
 from __future__ import annotations
 
 import functools
 import hashlib
-import json
-import os
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 import numpy as np
-from . import __version__
+
 from .camera import Camera, FrameCameras, camera_of_image
+from .dataset import Job, find_images, list_dataset  # re-exported: callers import them from here
 from .errors import InputError, StoreError, VCError
 from .homography import apply_homography, check_not_folded, pose_from_vp, virt_H_src, virtual_at_scale, vp_from_pose
-from .imageio import IMAGE_EXTENSIONS, image_size_from_header, read_image, write_png
-from .labels import LabelFormat, decode_label, image_id, label_stem_for
+from .imageio import image_size_from_header, read_image, write_png
+from .labels import LabelFormat, decode_label
 from .parallel import ItemError, run_items
-from .store import VALID_PREFIX, Shard, Store, store_lock, temp_files
+from .record import WARP_ALGORITHM, ItemRecord, completion_fields, completion_key_part, record_key, valid_path
+from .store import Shard, Store, store_lock, temp_files
 from .completion import border_ignore, check_method, completion_maps
 from .warp import warp_image, warp_label
 
 __all__ = ["Job", "ItemPose", "WarpSettings", "BuildSummary", "item_maps", "warp_item", "find_images", "list_dataset",
            "store_params", "item_geometry", "warp_dataset", "WarpedItem", "warp_item_full", "complete_store",
-           "record_key", "ItemResult", "build_item", "complete_item"]
+           "record_key", "ItemResult", "build_item", "complete_item", "warp_arrays", "CompleteSettings", "build_loop",
+           "WARP_ALGORITHM", "valid_path", "completion_key_part", "completion_fields"]
+# re-exported for callers of the names that lived here: WARP_ALGORITHM, valid_path, completion_key_part,
+# completion_fields, record_key (vcprep.record); complete_store, complete_item, CompleteSettings
+# (vcprep.store_complete, imported on first use: it builds on this module)
+_COMPLETE_NAMES = ("complete_store", "complete_item", "CompleteSettings")
 
-WARP_ALGORITHM = "warp-v1"  # bump when stored outputs of identical inputs would change
 
+def __getattr__(name: str):
+    if name in _COMPLETE_NAMES:
+        from . import store_complete
 
-@dataclass(frozen=True)
-class Job:
-    """One item to build: its id, source image and (optional) source label."""
-
-    id: str
-    image: Path
-    label: Path | None = None
+        return getattr(store_complete, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 @dataclass(frozen=True)
@@ -97,6 +101,17 @@ class BuildSummary:
                      f"(warnings below)")
         return text
 
+    def count(self, res: "ItemResult") -> None:
+        """Count one item's result: built (with its remark) or up to date."""
+        if res.status != "built":
+            self.up_to_date += 1
+            return
+        self.built += 1
+        if res.note:
+            self.notes.append(res.note)
+        if res.off_vp:
+            self.off_vp[res.off_vp] += 1
+
 
 # An item whose VP lies outside the covered region is completed from the covered point next to it
 # (vcprep.completion). How much that moves the filled-in labels, measured on the synthetic CamVid
@@ -120,89 +135,6 @@ def off_vp_note(item_id: str, maps, vp_store: tuple[float, float], store_dir: Pa
             f"({maps.centre[0]:.1f}, {maps.centre[1]:.1f}), so the filled-in pixels may bend (the real ones are "
             f"exact). Look: vcprep figure completion {store_dir} {item_id} -o {item_id}.png; if the VP is right the "
             f"item is usable as is, if not give the right one with --within vps.csv"), "check"
-
-
-def find_images(folder: str | Path, kind: str = "image", skip: Path | None = None) -> list[Path]:
-    """Every image file under ``folder``, recursively (dataset trees such as Cityscapes'
-    ``leftImg8bit/train/<city>/``), sorted by path relative to ``folder``; names starting with
-    '.' (files and folders) are skipped, symbolic links to folders followed (each real folder
-    once), and ``skip`` (e.g. a label tree inside the image tree) left out."""
-    folder = Path(folder)
-    if not folder.exists():
-        raise InputError(f"{kind} folder not found", folder, f"check the {kind} folder path")
-    if not folder.is_dir():
-        raise InputError(f"is a file, expected a folder of {kind}s", folder, f"give the folder that holds the {kind}s")
-    skip_real = os.path.realpath(skip) if skip is not None else None
-    seen: set[str] = set()
-    files: list[Path] = []
-    for top, dirs, names in os.walk(folder, followlinks=True):
-        real = os.path.realpath(top)
-        if real in seen or real == skip_real:
-            dirs[:] = []
-            continue
-        seen.add(real)
-        dirs[:] = [d for d in dirs if not d.startswith(".")]
-        files += [Path(top) / n for n in names
-                  if not n.startswith(".") and os.path.splitext(n)[1].lower() in IMAGE_EXTENSIONS]
-    return sorted(files, key=lambda f: f.relative_to(folder).parts)
-
-
-def _images_in(folder: Path, skip: Path | None = None) -> list[Path]:
-    files = find_images(folder, skip=skip)
-    if not files:
-        raise InputError(f"no images ({', '.join(IMAGE_EXTENSIONS)}) in folder or its subfolders", folder,
-                         "check --images")
-    return files
-
-
-def _inside(path: Path, folder: Path) -> bool:
-    try:
-        Path(os.path.realpath(path)).relative_to(os.path.realpath(folder))
-        return True
-    except ValueError:
-        return False
-
-
-def list_dataset(images: str | Path, labels: str | Path | None = None, fmt: LabelFormat | None = None,
-                 id_prefix: str = "") -> list[Job]:
-    """Jobs for every image in the tree ``images`` (recursively, :func:`find_images`); with
-    ``labels``, each image's label is found in the mirrored tree: the same subfolder of
-    ``labels``, named by the format's naming rule (``labels.LABEL_FORMATS``; Cityscapes
-    ``leftImg8bit/train/<city>/X_leftImg8bit.png`` -> ``gtFine/train/<city>/X_gtFine_labelIds.png``).
-    A missing label is an error; ids are file stems, and two images with one id are an error."""
-    images = Path(images)
-    label_dir = Path(labels) if labels is not None else None
-    if not images.is_dir():  # the images first: with both folders missing, the images are what to fix first
-        find_images(images)
-    if label_dir is not None:
-        if fmt is None:
-            raise InputError("labels given without a label format", label_dir, "add --label-format (e.g. camvid)")
-        if not label_dir.is_dir():
-            raise InputError("label folder not found" if not label_dir.exists() else "is not a folder", label_dir,
-                             "check --labels")
-    files = _images_in(images, skip=label_dir if label_dir is not None and _inside(label_dir, images) else None)
-    label_files: dict[tuple[tuple[str, ...], str], Path] = {}
-    if label_dir is not None:
-        for p in find_images(label_dir, "label"):
-            label_files.setdefault((p.relative_to(label_dir).parent.parts, p.stem), p)
-    jobs: list[Job] = []
-    seen: dict[str, Path] = {}
-    for f in files:
-        iid = id_prefix + image_id(f, fmt)
-        if iid in seen:
-            raise InputError(f"duplicate image id '{iid}' (also {seen[iid].relative_to(images)})", f,
-                             "give each image a unique file name stem (ids are file stems, also in subfolders)")
-        seen[iid] = f
-        lab = None
-        if label_dir is not None:
-            stem = label_stem_for(f, fmt)
-            sub = f.relative_to(images).parent
-            lab = label_files.get((sub.parts, stem))
-            if lab is None:
-                raise InputError(f"no label '{sub / stem}.png' for this image in {label_dir}", f,
-                                 "check --labels (a tree mirroring --images) and --label-format, or remove the image")
-        jobs.append(Job(iid, f, lab))
-    return jobs
 
 
 def store_params(virtual: Camera, scale: float) -> dict[str, Any]:
@@ -242,16 +174,12 @@ def _geometry(camera: Camera, size: tuple[int, int], virtual_scaled: Camera, pan
     return cam, H
 
 
-def _sha256_file(path: Path, kind: str) -> tuple[str, bytes]:
+def sha256_file(path: Path, kind: str) -> tuple[str, bytes]:
     try:
         data = path.read_bytes()
     except OSError as e:
         raise InputError(f"cannot read {kind}: {e.strerror or e}", path, "check the file") from None
     return hashlib.sha256(data).hexdigest(), data
-
-
-def _item_key(parts: dict[str, Any]) -> str:
-    return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()
 
 
 def item_maps(H: np.ndarray, src_size: tuple[int, int], store_size: tuple[int, int], completion: str = "none",
@@ -289,10 +217,18 @@ def warp_item_full(job: Job, store_size: tuple[int, int], H: np.ndarray, fmt: La
             raise InputError(f"label is {raw.size[0]}x{raw.size[1]} but its image is {img.size[0]}x{img.size[1]}",
                              job.label, "labels must have the size of their images")
         lab = decode_label(raw.array, fmt, job.label)
-    src, w, h = img.array, img.size[0], img.size[1] - int(ego_rows)
+    return warp_arrays(img.array, lab, store_size, H, completion, vp_store, ego_rows, job.image)
+
+
+def warp_arrays(image: np.ndarray, label: np.ndarray | None, store_size: tuple[int, int], H: np.ndarray,
+                completion: str = "none", vp_store: tuple[float, float] | None = None, ego_rows: int = 0,
+                file: Path | None = None) -> WarpedItem:
+    """:func:`warp_item_full` on arrays already in memory (a decoded video frame; ``label``: the
+    decoded label or None); ``file`` names the source in errors."""
+    src, lab, w, h = image, label, image.shape[1], image.shape[0] - int(ego_rows)
     if ego_rows:
         if h < 1:
-            raise InputError(f"ego_rows {ego_rows} leaves nothing of the {img.size[0]}x{img.size[1]} image", job.image,
+            raise InputError(f"ego_rows {ego_rows} leaves nothing of the {w}x{image.shape[0]} image", file,
                              "ego_rows must be less than the image height")
         src = src[:h]
         lab = lab[:h] if lab is not None else None
@@ -333,7 +269,7 @@ class _WarpContext:
     params: dict[str, Any]
     fmt: LabelFormat | None
     completion: str
-    written: dict[str, str] = field(default_factory=dict, compare=False, repr=False)  # see _write_item
+    written: dict[str, str] = field(default_factory=dict, compare=False, repr=False)  # see write_item
 
 
 @dataclass(frozen=True)
@@ -343,31 +279,22 @@ class _WarpTask:
     old: dict[str, Any] | None  # the item's current record, if any
 
 
-def _files_present(root: Path, rec: dict[str, Any]) -> bool:
+def files_present(root: Path, rec: dict[str, Any]) -> bool:
     return all((root / rec[k]).is_file() for k in ("image", "label", "valid") if rec.get(k))
 
 
-def valid_path(H: np.ndarray, src_size: tuple[int, int], store_size: tuple[int, int]) -> str:
-    """The store path of the valid mask of one geometry: it depends only on H and the sizes, so
-    every item with that geometry (all images of a camera in between-camera mode) shares one
-    file, named by a hash of them (``valid/H-<16 hex>.png``)."""
-    parts = {"algorithm": WARP_ALGORITHM, "H": np.round(np.asarray(H, dtype=np.float64), 12).ravel().tolist(),
-             "size": [int(src_size[0]), int(src_size[1])], "store_size": [int(store_size[0]), int(store_size[1])]}
-    return f"valid/{VALID_PREFIX}{_item_key(parts)[:16]}.png"
-
-
-def _write_item(root: Path, rec: dict[str, Any], item: WarpedItem, written: dict[str, str]) -> dict[str, str]:
+def write_item(root: Path, rec: ItemRecord, item: WarpedItem, written: dict[str, str]) -> dict[str, str]:
     """Write the item's PNGs (atomically); returns their SHA-256. The valid mask is shared by
     path (:func:`valid_path`): ``written`` (path -> SHA-256, one per build and process) holds the
     ones this process wrote in this build, which are not encoded again. A failed write (a full
     disk) raises :class:`StoreError` naming the file."""
     try:
-        sums = {"image": write_png(root / rec["image"], item.image, kind="store")}
-        if item.label is not None and rec.get("label"):
-            sums["label"] = write_png(root / rec["label"], item.label, kind="mask")
-        sha = written.get(rec["valid"])
+        sums = {"image": write_png(root / rec.image, item.image, kind="store")}
+        if item.label is not None and rec.label:
+            sums["label"] = write_png(root / rec.label, item.label, kind="mask")
+        sha = written.get(rec.valid)
         if sha is None:
-            sha = written[rec["valid"]] = write_png(root / rec["valid"], item.valid, kind="mask")
+            sha = written[rec.valid] = write_png(root / rec.valid, item.valid, kind="mask")
     except OSError as e:
         raise StoreError(f"cannot write: {e.strerror or e}", e.filename,
                          "free disk space (or check permissions) and run the same command again; finished items "
@@ -376,78 +303,72 @@ def _write_item(root: Path, rec: dict[str, Any], item: WarpedItem, written: dict
     return sums
 
 
+def _item_pose(cam: Camera, pose: ItemPose | None, per_frame: bool) -> tuple[float, float, tuple[float, float], str]:
+    """(pan, tilt, VP in source pixels, vp_status) of one item: its own VP pose (within-camera
+    correction), else the camera's (per-frame calibration: that frame's, 'calibrated')."""
+    if pose is not None:
+        pan, tilt = pose_from_vp(cam, pose.vp)
+        return pan, tilt, (float(pose.vp[0]), float(pose.vp[1])), pose.status
+    return cam.pan, cam.tilt, vp_from_pose(cam, cam.pan, cam.tilt), "calibrated" if per_frame else "camera"
+
+
 def build_item(ctx: _WarpContext, task: _WarpTask) -> ItemResult:
     """One item of :func:`warp_dataset`: hash the inputs, compute H and the item key; if the
     stored record has that key and its files, it is up to date; else warp + complete and write
     the PNGs (atomically) and return the new record. Raises :class:`VCError` on bad input."""
-    job, old, camera, params = task.job, task.old, ctx.camera, ctx.params
-    fmt, completion = ctx.fmt, ctx.completion
-    store_size = (int(params["store_size"][0]), int(params["store_size"][1]))
+    job, old, camera, fmt = task.job, task.old, ctx.camera, ctx.fmt
+    store_size = (int(ctx.params["store_size"][0]), int(ctx.params["store_size"][1]))
     if old is not None and old.get("source") != str(job.image):
         raise InputError(f"store item '{job.id}' already holds another source ({old.get('source')})", job.image,
                          "use --id-prefix to keep datasets apart, or another --out")
-    src_hash, data = _sha256_file(job.image, "image")
+    src_hash, data = sha256_file(job.image, "image")
     size = image_size_from_header(data)
     if size is None:
         size = read_image(job.image).size
     per_frame = isinstance(camera, FrameCameras)
     cam = camera_of_image(camera, job.image, size)  # per-frame: this frame's own calibration file
-    if task.pose is not None:
-        pan, tilt = pose_from_vp(cam, task.pose.vp)
-        vp, vp_status = (float(task.pose.vp[0]), float(task.pose.vp[1])), task.pose.status
-    else:
-        pan, tilt = cam.pan, cam.tilt
-        vp, vp_status = vp_from_pose(cam, pan, tilt), "calibrated" if per_frame else "camera"
+    pan, tilt, vp, vp_status = _item_pose(cam, task.pose, per_frame)
     cam, H = item_geometry(cam, size, ctx.virtual_scaled, job.image, pan, tilt)
     vp_store = tuple(apply_homography(H, [vp])[0])  # = the virtual principal point (H maps VP -> pp)
-    lab_hash, lab_data = _sha256_file(job.label, "label") if job.label is not None else (None, None)
-    key = _item_key({"algorithm": WARP_ALGORITHM, "source_sha256": src_hash, "label_sha256": lab_hash,
-                     "label_format": fmt.name if fmt and job.label else None, "camera": cam.to_dict(),
-                     "store": {k: params[k] for k in ("virtual", "scale", "store_size")},
-                     "H": np.round(H, 12).ravel().tolist(), "vp_status": vp_status,
-                     "completion": completion_key_part(completion)})
-    if old is not None and old.get("key") == key and _files_present(ctx.root, old):
+    lab_hash, lab_data = sha256_file(job.label, "label") if job.label is not None else (None, None)
+    rec = ItemRecord(
+        id=job.id, source=str(job.image), source_sha256=src_hash,
+        label_source=str(job.label) if job.label else None, label_sha256=lab_hash,
+        label_format=fmt.name if fmt and job.label else None, camera=camera.name, camera_params=cam.to_dict(),
+        camera_file=str(camera.file_for(job.image)) if per_frame else None, size=list(cam.size),
+        ego_rows=int(cam.ego_rows or 0), vp=[float(vp[0]), float(vp[1])], vp_status=vp_status, pan_deg=pan,
+        tilt_deg=tilt, H=H.ravel().tolist(), image=f"images/{job.id}.png",
+        label=f"labels/{job.id}.png" if job.label is not None else None,
+        valid=valid_path(H, cam.visible_size, store_size), store_size=list(store_size), completion=ctx.completion,
+    ).keyed(ctx.params)
+    if old is not None and old.get("key") == rec.key and files_present(ctx.root, old):
         return ItemResult(job.id, "up_to_date", old)
-    item = warp_item_full(job, store_size=store_size, H=H, fmt=fmt, completion=completion, vp_store=vp_store,
+    item = warp_item_full(job, store_size=store_size, H=H, fmt=fmt, completion=ctx.completion, vp_store=vp_store,
                           data=(data, lab_data), ego_rows=cam.ego_rows)
-    rec = {
-        "id": job.id,
-        "source": str(job.image),
-        "source_sha256": src_hash,
-        "label_source": str(job.label) if job.label else None,
-        "label_sha256": lab_hash,
-        "label_format": fmt.name if fmt and job.label else None,
-        "camera": camera.name,
-        "camera_params": cam.to_dict(),
-        **({"camera_file": str(camera.file_for(job.image))} if per_frame else {}),
-        "size": list(cam.size),
-        **({"ego_rows": int(cam.ego_rows)} if cam.ego_rows else {}),
-        "vp": [float(vp[0]), float(vp[1])],
-        "vp_status": vp_status,
-        "pan_deg": pan,
-        "tilt_deg": tilt,
-        "H": H.ravel().tolist(),
-        "image": f"images/{job.id}.png",
-        "label": f"labels/{job.id}.png" if item.label is not None else None,
-        "valid": valid_path(H, cam.visible_size, store_size),
-        "store_size": list(store_size),
-        "completion": completion,
-        **completion_fields(item.maps),
-        "key": key,
-        "tool_version": __version__,
-    }
-    rec["files_sha256"] = _write_item(ctx.root, rec, item, ctx.written)
-    return ItemResult(job.id, "built", rec, *off_vp_note(job.id, item.maps, vp_store, ctx.root))
+    rec = replace(rec, **completion_fields(item.maps))
+    rec = replace(rec, files_sha256=write_item(ctx.root, rec, item, ctx.written))
+    return ItemResult(job.id, "built", rec.to_dict(), *off_vp_note(job.id, item.maps, vp_store, ctx.root))
 
 
-def _build_loop(store: Store, fn, ctx: Any, tasks: list, ids: list[str], summary: BuildSummary, jobs: int,
-                progress: bool, keep_going: bool, desc: str) -> None:
-    """The loop :func:`warp_dataset` and :func:`complete_store` share: run ``fn`` over the
-    tasks (:func:`vcprep.parallel.run_items`), record each built item as it arrives, count, and
-    fold the records into the manifest at the end (also after an error or Ctrl-C).
+@dataclass(frozen=True)
+class LoopStep:
+    """What :func:`build_loop` runs on each task: ``fn(ctx, task)`` -> :class:`ItemResult` (``ctx``
+    is sent once to each worker), shown as ``desc`` on the progress bar."""
+
+    fn: Callable[[Any, Any], ItemResult]
+    ctx: Any
+    desc: str
+
+
+def build_loop(store: Store, step: LoopStep, tasks: list, ids: list[str], settings: Any) -> BuildSummary:
+    """The loop :func:`warp_dataset` and :func:`vcprep.store_complete.complete_store` share: run
+    ``step`` over the tasks (item ``ids``; :func:`vcprep.parallel.run_items`), record each built
+    item as it arrives, count, and fold the records into the manifest at the end (also after an
+    error or Ctrl-C). ``settings``: ``workers``, ``progress``, ``keep_going`` as in :class:`WarpSettings`.
 
     A bad item stops the build (after the items in flight) and its error is raised, unless
-    ``keep_going``: then it is counted in ``summary.failed`` / ``summary.errors`` and skipped."""
+    ``settings.keep_going``: then it is counted in ``failed`` / ``errors`` and skipped."""
+    summary = BuildSummary(total=len(tasks))
     if store.shard is None:
         for tmp in temp_files(store.root):  # left by a killed build (no other writer runs now)
             tmp.unlink(missing_ok=True)
@@ -458,24 +379,19 @@ def _build_loop(store: Store, fn, ctx: Any, tasks: list, ids: list[str], summary
         if isinstance(res, ItemError):
             summary.failed.append(id_of[id(task)])
             summary.errors.append(str(res.error))
-            if keep_going:
+            if settings.keep_going:
                 return True
             if not first_error:
                 first_error.append(res.error)
             return False
         if res.status == "built":
             store.record(res.record)
-            summary.built += 1
-            if res.note:
-                summary.notes.append(res.note)
-            if res.off_vp:
-                summary.off_vp[res.off_vp] += 1
-        else:
-            summary.up_to_date += 1
+        summary.count(res)
         return True
 
     try:
-        run_items(fn, ctx, tasks, on_result, jobs=jobs, progress=progress, desc=desc)
+        run_items(step.fn, step.ctx, tasks, on_result, jobs=settings.workers, progress=settings.progress,
+                  desc=step.desc)
     finally:
         summary.notes.sort()
         if summary.built or (store.shard is None and store.parts):  # (folds a killed build's journal)
@@ -484,6 +400,7 @@ def _build_loop(store: Store, fn, ctx: Any, tasks: list, ids: list[str], summary
             store.prune_valid()
     if first_error:
         raise first_error[0]
+    return summary
 
 
 def warp_dataset(jobs: list[Job], out: str | Path, settings: WarpSettings) -> tuple[Store, BuildSummary]:
@@ -509,7 +426,6 @@ def warp_dataset(jobs: list[Job], out: str | Path, settings: WarpSettings) -> tu
     shard = settings.shard
     if shard is not None:
         jobs = [j for j in jobs if shard.contains(j.id)]
-    summary = BuildSummary(total=len(jobs))
     poses = settings.poses or {}
     # the store is read after the lock is held: a writer that finished meanwhile is seen
     with store_lock(out, shared=shard is not None, on_wait=say_on_stderr if settings.progress else None):
@@ -517,105 +433,10 @@ def warp_dataset(jobs: list[Job], out: str | Path, settings: WarpSettings) -> tu
         ctx = _WarpContext(store.root, settings.camera, store.virtual, store.params, settings.label_format,
                            settings.completion)
         tasks = [_WarpTask(j, poses.get(j.id), store.items.get(j.id)) for j in jobs]
-        _build_loop(store, build_item, ctx, tasks, [j.id for j in jobs], summary, settings.workers, settings.progress,
-                    settings.keep_going, "warp")
+        summary = build_loop(store, LoopStep(build_item, ctx, "warp"), tasks, [j.id for j in jobs], settings)
     return store, summary
 
 
 def say_on_stderr(msg: str) -> None:
     """Chatter of a library step for the person at the terminal (a store lock wait)."""
     print(msg, file=sys.stderr, flush=True)
-
-
-# -- completion of an existing store ---------------------------------------------------------------
-
-def completion_key_part(completion: str) -> str:
-    """What an item key records about completion ('none' unchanged; others carry the algorithm)."""
-    from .completion import COMPLETION_VERSION
-
-    return completion if completion == "none" else f"{completion}/{COMPLETION_VERSION}"
-
-
-def completion_fields(maps: Any) -> dict[str, Any]:
-    """Record fields that say how an item was completed: the projective ray centre (store
-    pixels) and whether it is the item's VP (False: the VP was outside the covered region)."""
-    centre = getattr(maps, "centre", None)
-    method = getattr(maps, "method", "none")
-    return {"completion_centre": [float(centre[0]), float(centre[1])] if centre is not None and method == "projective"
-            else None,
-            "completion_vp_inside": bool(maps.vp_inside) if method == "projective" else None}
-
-
-def record_key(rec: dict[str, Any], params: dict[str, Any], completion: str) -> str:
-    """The item key :func:`warp_dataset` computes, rebuilt from a stored record for another
-    ``completion`` (so that ``vcprep complete`` and ``vcprep warp --complete`` agree)."""
-    return _item_key({"algorithm": WARP_ALGORITHM, "source_sha256": rec["source_sha256"],
-                      "label_sha256": rec.get("label_sha256"), "label_format": rec.get("label_format"),
-                      "camera": rec["camera_params"],
-                      "store": {k: params[k] for k in ("virtual", "scale", "store_size")},
-                      "H": np.round(np.asarray(rec["H"], dtype=np.float64), 12).ravel().tolist(),
-                      "vp_status": rec["vp_status"], "completion": completion_key_part(completion)})
-
-
-def _check_unchanged(path: Path, sha: str | None, kind: str) -> None:
-    digest, _ = _sha256_file(path, kind)
-    if sha is not None and digest != sha:
-        raise InputError(f"{kind} changed since the store was built", path,
-                         "re-run 'vcprep warp' with the same options to rebuild the store")
-
-
-@dataclass(frozen=True)
-class _CompleteContext:
-    root: Path
-    params: dict[str, Any]
-    method: str
-    written: dict[str, str] = field(default_factory=dict, compare=False, repr=False)  # see _write_item
-
-
-def complete_item(ctx: _CompleteContext, rec: dict[str, Any]) -> ItemResult:
-    """One item of :func:`complete_store`: rebuild it from its recorded sources with ``method``
-    unless it is completed that way already."""
-    from .labels import get_label_format
-
-    key = record_key(rec, ctx.params, ctx.method)
-    if rec.get("completion") == ctx.method and rec.get("key") == key and _files_present(ctx.root, rec):
-        return ItemResult(rec["id"], "up_to_date", rec)
-    src = Path(rec["source"])
-    _check_unchanged(src, rec.get("source_sha256"), "image")
-    lab = Path(rec["label_source"]) if rec.get("label_source") else None
-    if lab is not None:
-        _check_unchanged(lab, rec.get("label_sha256"), "label")
-    fmt = get_label_format(rec["label_format"]) if rec.get("label_format") else None
-    H = np.asarray(rec["H"], dtype=np.float64).reshape(3, 3)
-    store_size = (int(ctx.params["store_size"][0]), int(ctx.params["store_size"][1]))
-    vp_store = tuple(apply_homography(H, [rec["vp"]])[0])
-    ego = int(rec.get("ego_rows", 0))
-    item = warp_item_full(Job(rec["id"], src, lab), store_size, H, fmt, ctx.method, vp_store, ego_rows=ego)
-    new = dict(rec)
-    new.update({"completion": ctx.method, **completion_fields(item.maps), "key": key,
-                "valid": valid_path(H, (int(rec["size"][0]), int(rec["size"][1]) - ego), store_size)})
-    new.pop("files_sha256", None)  # keep the field order of a record built by warp
-    new["files_sha256"] = _write_item(ctx.root, new, item, ctx.written)
-    return ItemResult(rec["id"], "built", new, *off_vp_note(rec["id"], item.maps, vp_store, ctx.root))
-
-
-def complete_store(store_dir: str | Path, method: str = "projective", progress: bool = True, workers: int = 1,
-                   shard: Shard | None = None, keep_going: bool = False) -> tuple[Store, BuildSummary]:
-    """Complete every item of an already-warped store in place with ``method``.
-
-    Each item is rebuilt from its recorded source image and label (their SHA-256 must still
-    match), its H and VP, as one warp + completion remap: the files, record fields and key are
-    identical to ``vcprep warp --complete METHOD``. Items already completed that way are skipped;
-    files and records are written as by :func:`warp_dataset` (``workers``, ``shard``,
-    ``keep_going`` likewise).
-    """
-    check_method(method)
-    Store.open(store_dir)  # a clear error for a missing or foreign directory, before any lock file
-    with store_lock(store_dir, shared=shard is not None, on_wait=say_on_stderr if progress else None):
-        store = Store.open(store_dir, shard=shard)
-        recs = [r for r in store if shard is None or shard.contains(r["id"])]
-        summary = BuildSummary(total=len(recs))
-        ctx = _CompleteContext(store.root, store.params, method)
-        _build_loop(store, complete_item, ctx, recs, [r["id"] for r in recs], summary, workers, progress, keep_going,
-                    "complete")
-    return store, summary

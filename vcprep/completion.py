@@ -538,16 +538,35 @@ def _build_angle_index(valid: np.ndarray, centre: tuple[float, float]) -> AngleI
     H_, W_ = valid.shape
     far = max(math.hypot(cx - centre[0], cy - centre[1]) for cx in (0, W_ - 1) for cy in (0, H_ - 1))
     n = int(max(1024, math.ceil(2 * math.pi * far / TABLE_ARC)))
-    du = np.arange(W_, dtype=np.float32)[None, :] - np.float32(centre[0])
-    dv = np.arange(H_, dtype=np.float32)[:, None] - np.float32(centre[1])
-    angle = np.arctan2(dv, du)  # float32 numpy: ~3e-7 rad (cv2.phase: ~2e-4, too coarse far out)
-    k = np.rint(angle * np.float32(n / (2 * math.pi))).astype(np.int32) % n
-    index = np.empty((H_, W_, 2), dtype=np.int16)
-    index[..., 0] = k % TABLE_COLS
-    index[..., 1] = k // TABLE_COLS
-    index[valid == 1] = -1
+    every = _all_angles((H_, W_), np.float32(centre[0]), np.float32(centre[1]), n)
+    # covered pixels -> (-1, -1): one int32 word per pixel (the two int16 of the pair)
+    index = np.where(valid == 1, np.int32(-1), every.view(np.int32)[..., 0]).view(np.int16).reshape(H_, W_, 2)
     covered, fill = _bands(valid)
     return AngleIndex(n, index, covered, fill)
+
+
+_ALL_ANGLES: "OrderedDict[tuple, np.ndarray]" = OrderedDict()
+
+
+def _all_angles(shape: tuple[int, int], cx: np.float32, cy: np.float32, n: int) -> np.ndarray:
+    """The fill-table index of EVERY store pixel of ``shape`` seen from (cx, cy) with ``n``
+    angles (read-only; :func:`_build_angle_index` marks the covered ones). It does not depend on
+    the pose: every image's VP maps to the virtual camera's, so per-image poses (within-camera
+    correction, a video) share it and only the covered mask changes (LRU-cached by the exact
+    float32 centre it is computed from)."""
+
+    def build() -> np.ndarray:
+        du = np.arange(shape[1], dtype=np.float32)[None, :] - cx
+        dv = np.arange(shape[0], dtype=np.float32)[:, None] - cy
+        angle = np.arctan2(dv, du)  # float32 numpy: ~3e-7 rad (cv2.phase: ~2e-4, too coarse far out)
+        k = np.rint(angle * np.float32(n / (2 * math.pi))).astype(np.int32) % n
+        index = np.empty(shape + (2,), dtype=np.int16)
+        index[..., 0] = k % TABLE_COLS
+        index[..., 1] = k // TABLE_COLS
+        index.setflags(write=False)
+        return index
+
+    return _lru(_ALL_ANGLES, (tuple(shape), cx.tobytes(), cy.tobytes(), int(n)), build)
 
 
 def complete_maps(base: RemapMaps, dst_H_src: np.ndarray, src_size: tuple[int, int], method: str,

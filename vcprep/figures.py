@@ -373,3 +373,23 @@ def camera_figure(images: list, camera, vps: dict | None = None, width: int = 14
                 (10, 22), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (0, 0, 0), 1, cv2.LINE_AA)
     cv2.putText(head, CAMERA_LEGEND, (10, 46), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (60, 60, 60), 1, cv2.LINE_AA)
     return np.vstack([head] + rows)
+
+
+def vp_figure_of_file(image, camera) -> np.ndarray:
+    """:func:`vp_figure` of one image file alone (``vcprep figure vp``): its road VP detected
+    and judged by the reliability rule with the default :class:`~vcprep.vanishing_point.VPConfig`;
+    with no dataset to fall back to, a rejected VP falls back to the camera's average-pose VP.
+    ``camera``: the camera of the image at any size (scaled to the image's)."""
+    from .vanishing_point import VPConfig, apply_reliability, estimate_vp, prior_window
+
+    img = read_image(image).array
+    cam = camera.for_image_size((img.shape[1], img.shape[0]), image)
+    cfg = VPConfig()
+    res = apply_reliability([estimate_vp(img, cam, cfg)], [cam])[0]
+    return vp_figure(img, res, cam, prior_window(cam, cfg.pan_range, cfg.tilt_range))
+
+
+def evenly_spread(files: list, n: int) -> list:
+    """``n`` of ``files`` (at most all), evenly spread from the first to the last (sample frames)."""
+    n = min(n, len(files))
+    return [files[round(i * (len(files) - 1) / max(1, n - 1))] for i in range(n)]

@@ -235,6 +235,27 @@ def _line_crosses_box(seg: np.ndarray, box: tuple[float, float, float, float]) -
     return (side.min(axis=1) <= 0) & (side.max(axis=1) >= 0)
 
 
+def _gradient_window(gray: np.ndarray, mx: np.ndarray, my: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, int]:
+    """The 3x3 Sobel gradient (x, y; float32, cv2.spatialGradient's values) of ``gray`` over the
+    window that bilinear sampling at the points (mx, my) reads, and the window's top-left (x0, y0).
+
+    The same numbers as the gradient of the whole image, sampled at (mx - x0, my - y0) with
+    BORDER_REPLICATE: the window holds every pixel a sample reads (2 px to spare) and reaches the
+    image edge wherever a sample is clamped to it; the Sobel is computed with a 1 px margin of
+    real pixels (dropped after) except at the image edge, where both reflect alike."""
+    h, w = gray.shape[:2]
+    x0 = int(np.clip(np.floor(mx.min()) - 2, 0, w - 1))
+    x1 = int(np.clip(np.floor(mx.max()) + 3, x0 + 1, w))
+    y0 = int(np.clip(np.floor(my.min()) - 2, 0, h - 1))
+    y1 = int(np.clip(np.floor(my.max()) + 3, y0 + 1, h))
+    mx0, my0 = max(x0 - 1, 0), max(y0 - 1, 0)
+    sub = gray[my0:min(y1 + 1, h), mx0:min(x1 + 1, w)]
+    win = (slice(y0 - my0, y1 - my0), slice(x0 - mx0, x1 - mx0))
+    gx = cv2.Sobel(sub, cv2.CV_32F, 1, 0, ksize=3)[win]
+    gy = cv2.Sobel(sub, cv2.CV_32F, 0, 1, ksize=3)[win]
+    return gx, gy, x0, y0
+
+
 def refine_segments(gray: np.ndarray, seg: np.ndarray, samples: int = 16, half_width: float = 2.5,
                     step: float = 0.5) -> np.ndarray:
     """Sub-pixel re-fit of each segment's line to the gradient of ``gray`` (source pixels).
@@ -250,8 +271,6 @@ def refine_segments(gray: np.ndarray, seg: np.ndarray, samples: int = 16, half_w
     seg = np.asarray(seg, dtype=np.float64)
     if len(seg) == 0:
         return seg.copy()
-    gx, gy = cv2.spatialGradient(gray)                          # 3x3 Sobel, int16
-    gx, gy = gx.astype(np.float32), gy.astype(np.float32)
     d = seg[:, 2:4] - seg[:, 0:2]
     t = d / (np.hypot(d[:, 0], d[:, 1])[:, None] + 1e-12)
     nrm = np.column_stack([-t[:, 1], t[:, 0]])
@@ -262,6 +281,9 @@ def refine_segments(gray: np.ndarray, seg: np.ndarray, samples: int = 16, half_w
            + o[None, None, :, None] * nrm[:, None, None, :])                       # (N, K, O, 2)
     mx = pts[..., 0].reshape(n_seg * samples, n_off).astype(np.float32)
     my = pts[..., 1].reshape(n_seg * samples, n_off).astype(np.float32)
+    gx, gy, x0, y0 = _gradient_window(gray, mx, my)
+    mx -= np.float32(x0)  # exact: an integer shift of float32 values below 2**24
+    my -= np.float32(y0)
     sx = cv2.remap(gx, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE).reshape(n_seg, samples, n_off)
     sy = cv2.remap(gy, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE).reshape(n_seg, samples, n_off)
     gp = sx * nrm[:, None, None, 0].astype(np.float32) + sy * nrm[:, None, None, 1].astype(np.float32)

@@ -45,13 +45,12 @@ from vcprep.cliutil import err
 from vcprep.store import Store, store_lock
 
 from .checkpoint import load_checkpoint, save_checkpoint
+from .config import ADAPT_EPOCHS, ADAPT_LR_FACTOR, AdaptSettings, TrainConfig
 
-__all__ = ["COMBINE", "PriorPredictor", "fuse", "surrogate_for_item", "write_surrogate_labels", "adapt",
+__all__ = ["COMBINE", "AdaptSettings", "ADAPT_EPOCHS", "ADAPT_LR_FACTOR", "PriorPredictor", "fuse", "surrogate_for_item", "write_surrogate_labels", "adapt",
            "adapt_store_path"]
 
 COMBINE = ("prior", "fuse")
-ADAPT_EPOCHS = 5       # a short fine-tune
-ADAPT_LR_FACTOR = 0.1  # of the model's own training learning rate
 
 
 class PriorPredictor:
@@ -155,19 +154,32 @@ def _sha256(arr: np.ndarray) -> str:
     return hashlib.sha256(np.ascontiguousarray(arr, np.float32).tobytes()).hexdigest()
 
 
+def _prior_for(prior: str | Path | np.ndarray, store_params: dict[str, Any],
+               model: Path) -> tuple[np.ndarray, str | None, dict | None]:
+    """(p_g, its path, its description) of ``prior`` (a file or an array), checked to be in the
+    virtual camera and scale of ``model``'s store (``store_params``)."""
+    size = tuple(store_params["store_size"])
+    if isinstance(prior, (str, Path)):
+        p, meta = read_prior(prior, size=size)
+        check_prior_fits(prior, meta, store_params)
+        return p, str(prior), meta
+    p = np.asarray(prior, np.float32)
+    if p.shape != (size[1], size[0]):
+        raise InputError(f"prior is {p.shape[1]}x{p.shape[0]} but the model's store is {size[0]}x{size[1]}", model,
+                         "compute the prior from stores of the model's virtual camera and scale")
+    return p, None, None
+
+
 def adapt(model: str | Path, images: str | Path | Iterable[str | Path], camera: Camera | FrameCameras,
-          prior: str | Path | np.ndarray, out: str | Path, lo: float = 0.25, hi: float = 0.75,
-          combine: str = "prior", epochs: int | None = None, lr: float | None = None,
-          store: str | Path | None = None, within: str = "auto", device: str = "auto", seed: int | None = None,
-          batch_size: int | None = None, max_steps: int | None = None, progress: bool = True) -> dict[str, Any]:
+          prior: str | Path | np.ndarray, out: str | Path, settings: AdaptSettings = AdaptSettings()) -> dict[str, Any]:
     """Fine-tune the virtual-camera ``model`` on unlabelled ``images`` of ``camera`` with surrogate
     labels from ``prior`` (a ``.npy``/``.png`` written by ``vcprep prior``, or the array of
     :func:`vcprep.prior.compute_prior`); ``camera`` may be per-frame calibration (every frame
     its exact pose, no VP estimated); writes ``out`` (and ``OUT-stem.last.pt``, the log).
     Returns :func:`vctrain.train.fit`'s summary plus ``adapted`` (what the checkpoint records).
-    See the module docstring for the steps and the defaults."""
+    See the module docstring for the steps and :class:`vctrain.config.AdaptSettings` for the settings."""
     from .predict import Predictor, collect_images, warp_like_training
-    from .train import TrainConfig, fit, last_path
+    from .train import fit, last_path
 
     model = Path(model)
     ck = load_checkpoint(model)
@@ -175,36 +187,28 @@ def adapt(model: str | Path, images: str | Path | Iterable[str | Path], camera: 
     if data.get("mode") != "virtual" or not data.get("store_params"):
         raise InputError("model has no virtual camera (a resize baseline); adaptation works in the virtual camera",
                          model, "adapt a model trained on a store built by 'vcprep warp'")
+    lo, hi, combine = settings.lo, settings.hi, settings.combine
     check_thresholds(lo, hi)
     if combine not in COMBINE:
         raise InputError(f"unknown combination '{combine}'", None, f"use one of {', '.join(COMBINE)}")
-    epochs = int(epochs) if epochs is not None else ADAPT_EPOCHS
-    lr = float(lr) if lr is not None else ADAPT_LR_FACTOR * float((ck.get("config") or {}).get("lr") or 0.005)
+    epochs = int(settings.epochs)
+    lr = (float(settings.lr) if settings.lr is not None
+          else ADAPT_LR_FACTOR * float((ck.get("config") or {}).get("lr") or 0.005))
     if epochs < 1 or not lr > 0:
         raise InputError(f"epochs {epochs} and lr {lr:g} must be positive", None, "use e.g. --epochs 5 --lr 0.001")
-    sp = data["store_params"]
-    size = tuple(sp["store_size"])
-    if isinstance(prior, (str, Path)):
-        prior_path: str | None = str(prior)
-        p, meta = read_prior(prior, size=size)
-        check_prior_fits(prior, meta, sp)
-    else:
-        prior_path, meta = None, None
-        p = np.asarray(prior, np.float32)
-        if p.shape != (size[1], size[0]):
-            raise InputError(f"prior is {p.shape[1]}x{p.shape[0]} but the model's store is {size[0]}x{size[1]}", model,
-                             "compute the prior from stores of the model's virtual camera and scale")
+    size = tuple(data["store_params"]["store_size"])
+    p, prior_path, meta = _prior_for(prior, data["store_params"], model)
     out = Path(out)
     if not out.parent.is_dir():
         raise InputError("output folder does not exist", out.parent, "create it first")
     if out.resolve() == model.resolve():
         raise InputError("--out is the model being adapted", out, "write the adapted model to another file")
     jobs = collect_images([images] if isinstance(images, (str, Path)) else images)
-    root = Path(store) if store is not None else adapt_store_path(out)
+    root = Path(settings.store) if settings.store is not None else adapt_store_path(out)
     # the surrogate labels come from the prior, an image of the training rectangle: no extension
-    target = warp_like_training(data, model, jobs, camera, root, within, progress, extend=False)
+    target = warp_like_training(data, model, jobs, camera, root, settings.within, settings.progress, extend=False)
     ids = [j.id for j in jobs]
-    predictor = Predictor(model, device) if combine == "fuse" else None
+    predictor = Predictor(model, settings.device) if combine == "fuse" else None
     shares = write_surrogate_labels(target, p, lo, hi, combine, predictor, ids,
                                     ignore_uncovered=data.get("completion", "none") == "none")
     if shares["road"] == 0 or shares["not_road"] == 0:
@@ -218,13 +222,13 @@ def adapt(model: str | Path, images: str | Path | Iterable[str | Path], camera: 
                      images=None, labels=None, label_format=None, val_fraction=0.0, val_stores=[], log=None,
                      arch=ck["model_args"]["arch"], base_width=ck["model_args"]["base_width"],
                      size=tuple(data.get("input_size") or size),
-                     epochs=epochs, lr=lr,
-                     device=device, progress=progress, max_steps=max_steps, workers=0,
+                     epochs=epochs, lr=lr, device=settings.device, progress=settings.progress,
+                     max_steps=settings.max_steps, workers=0,
                      vp_channel=bool(data.get("vp_channel", False)), greyscale=float(data.get("greyscale", 0.0)))
-    if seed is not None:
-        overrides["seed"] = int(seed)
-    if batch_size is not None:
-        overrides["batch_size"] = int(batch_size)
+    if settings.seed is not None:
+        overrides["seed"] = int(settings.seed)
+    if settings.batch_size is not None:
+        overrides["batch_size"] = int(settings.batch_size)
     cfg = TrainConfig(**{**base, **overrides})
     summary = fit(cfg)
 

@@ -15,6 +15,9 @@ small pan/tilt), so the network learns a tolerance to the pose errors it meets a
 Photometric: brightness, contrast and per-channel gain drawn in 1 ± ``color_aug`` (gain ±1/3 of it)
 and a gamma in [1/(1+c), 1+c] (dusk and over-exposed frames differ by more than a linear map).
 
+A training run's data (:func:`prepare_data`): its stores opened and checked, the samples, the
+validation share or stores, the working size and the crop window (:func:`crop_size`).
+
 Random crops (``crop`` (cw, ch), training only): each item is a random window of the
 (augmented) working-size image, drawn uniformly over the positions that keep it inside; the
 affine map above and the crop are one warp, so a crop costs no more than the augmentation alone.
@@ -36,6 +39,7 @@ import cv2
 import numpy as np
 import torch
 
+from vcprep.build import list_dataset
 from vcprep.camera import scale_matrix
 from vcprep.errors import InputError
 from vcprep.homography import apply_homography
@@ -43,8 +47,13 @@ from vcprep.imageio import read_image
 from vcprep.labels import IGNORE, decode_label, get_label_format
 from vcprep.store import Store
 
+from .config import TrainConfig
+
 __all__ = ["Sample", "store_samples", "resize_samples", "RoadDataset", "to_input", "vp_proximity",
-           "vp_in_store", "resize_pair", "class_frequencies", "median_frequency_weights"]
+           "vp_in_store", "resize_pair", "class_frequencies", "median_frequency_weights", "prepare_data", "crop_size",
+           "MIN_SIDE"]
+
+MIN_SIDE = 32  # the smallest working side: five 2x2 poolings
 
 
 @dataclass(frozen=True)
@@ -292,3 +301,119 @@ def median_frequency_weights(freq: np.ndarray) -> np.ndarray:
         return np.ones_like(freq)
     med = np.median(freq[seen])
     return np.where(seen, med / np.where(seen, freq, 1.0), 0.0)
+
+
+# -- a training run's data ----------------------------------------------------------------------------------------
+def _open_stores(paths: list[str]) -> list[Store]:
+    stores = [Store.open(p) for p in paths]
+    for s in stores[1:]:
+        for k in ("virtual", "scale", "store_size"):
+            if s.params.get(k) != stores[0].params.get(k):
+                raise InputError(f"store has another {k} than {stores[0].root}", s.root,
+                                 "train on stores of one virtual camera at one scale")
+    return stores
+
+
+def _samples(stores: list[Store], baseline: str) -> list[Sample]:
+    out: list[Sample] = []
+    for s in stores:
+        got = resize_samples(s) if baseline == "resize" else store_samples(s)
+        if not got:
+            raise InputError("store has no labelled items", s.root, "build it with --labels")
+        out += got
+    return out
+
+
+def _completion(stores: list[Store]) -> str:
+    kinds = {rec.get("completion", "none") for s in stores for rec in s}
+    if len(kinds) > 1:
+        raise InputError(f"stores mix completion methods ({', '.join(sorted(kinds))})", stores[0].root,
+                         "train on items built with one --complete method")
+    return kinds.pop() if kinds else "none"
+
+
+def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str, Any]]:
+    """Training and validation samples plus the checkpoint's ``data`` description."""
+    if cfg.baseline not in ("none", "resize"):
+        raise InputError(f"unknown baseline '{cfg.baseline}'", None, "use --baseline resize (or leave it out)")
+    stores = _open_stores(cfg.stores) if cfg.stores else []
+    info: dict[str, Any] = {"mode": "resize" if cfg.baseline == "resize" else "virtual",
+                            "store_params": stores[0].params if stores else None,
+                            "completion": _completion(stores) if stores else "none",
+                            "vp_channel": cfg.vp_channel, "greyscale": cfg.greyscale}
+    if cfg.images is not None:
+        if cfg.baseline != "resize":
+            raise InputError("--images is for the resize baseline", cfg.images,
+                             "add --baseline resize, or train on a store built with 'vcprep warp'")
+        if cfg.labels is None or cfg.label_format is None:
+            raise InputError("--images needs --labels and --label-format", cfg.images, "add them")
+        fmt = get_label_format(cfg.label_format)
+        train = [Sample(j.id, j.image, j.label, fmt.name) for j in list_dataset(cfg.images, cfg.labels, fmt)]
+        if stores:
+            train += _samples(stores, cfg.baseline)
+    elif stores:
+        train = _samples(stores, cfg.baseline)
+    else:
+        raise InputError("no training data", None, "give STORE... (or --baseline resize --images/--labels)")
+    if cfg.val_stores:
+        vstores = _open_stores(cfg.val_stores)
+        if cfg.baseline != "resize" and stores:
+            for k in ("virtual", "scale"):
+                if vstores[0].params.get(k) != stores[0].params.get(k):
+                    raise InputError(f"validation store has another {k} than the training store", vstores[0].root,
+                                     "validate on a store of the same virtual camera and scale")
+        val = _samples(vstores, cfg.baseline)
+    elif cfg.val_fraction > 0:
+        if not 0 < cfg.val_fraction < 1:
+            raise InputError(f"validation fraction {cfg.val_fraction} is not in [0, 1)", None, "use e.g. 0.1")
+        perm = np.random.default_rng(cfg.seed).permutation(len(train))
+        n_val = max(1, int(round(cfg.val_fraction * len(train))))
+        if n_val >= len(train):
+            raise InputError(f"{len(train)} items are too few to hold out {cfg.val_fraction:g}", None,
+                             "add items, or use --val-fraction 0 / --val-store")
+        val = [train[i] for i in sorted(perm[:n_val])]
+        train = [train[i] for i in sorted(perm[n_val:])]
+    else:
+        val = []
+    if cfg.size is not None:
+        size = (int(cfg.size[0]), int(cfg.size[1]))
+    elif stores:
+        size = stores[0].store_size
+    else:
+        from vcprep.imageio import read_image
+
+        size = read_image(train[0].image).size
+    if min(size) < MIN_SIDE:
+        raise InputError(f"working size {size[0]}x{size[1]} is below {MIN_SIDE} pixels", None,
+                         "use a larger --size or store scale")
+    info["input_size"] = list(size)
+    info["crop_size"] = list(crop_size(cfg.crop, size))
+    info["vp_status"] = sorted({rec.get("vp_status", "camera") for s in stores for rec in s})
+    info["train_items"] = len(train)
+    info["val_items"] = len(val)
+    return train, val, info
+
+
+def crop_size(crop: Any, size: tuple[int, int]) -> tuple[int, int]:
+    """The training window (w, h) of ``crop`` at working size ``size``: None -> ``size``; a number
+    in (0, 1] -> that share of each side; a pair of floats in (0, 1] -> the shares of the width
+    and the height (e.g. (0.44, 1.0): full-height windows); a pair of ints -> pixels. Shares are
+    rounded. The window must fit ``size`` and be at least MIN_SIDE on each side."""
+    if crop is None:
+        return tuple(size)
+
+    def share(v: Any, side: int) -> int:
+        if not 0 < float(v) <= 1:
+            raise InputError(f"crop share {v} is not in (0, 1]", None, "use e.g. --crop 0.67, 0.44x1 or 320x240")
+        return int(round(side * float(v)))
+
+    if isinstance(crop, (int, float)) and not isinstance(crop, bool):
+        out = (share(crop, size[0]), share(crop, size[1]))
+    elif all(isinstance(v, float) for v in crop):
+        out = (share(crop[0], size[0]), share(crop[1], size[1]))
+    else:
+        out = (int(crop[0]), int(crop[1]))
+    if out[0] > size[0] or out[1] > size[1] or min(out) < MIN_SIDE:
+        raise InputError(f"crop {out[0]}x{out[1]} does not fit the working size {size[0]}x{size[1]} (or is below "
+                         f"{MIN_SIDE} px)", None, "use a smaller --crop, a larger --size, or leave --crop out")
+    return out

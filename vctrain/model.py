@@ -100,9 +100,20 @@ class SegNet(nn.Module):
             x, idx = F.max_pool2d(x, 2, 2, ceil_mode=False, return_indices=True)
             indices.append(idx)
         for dec, idx, size in zip(self.decoders, reversed(indices), reversed(sizes)):
-            x = F.max_unpool2d(x, idx, 2, 2, output_size=size)
+            x = _max_unpool(x, idx, size)
             x = dec(x)
         return self.classifier(x)
+
+
+def _max_unpool(x: torch.Tensor, idx: torch.Tensor, size) -> torch.Tensor:
+    """2x2 max-unpooling to ``size`` (h, w). ONNX has no export of ``max_unpool2d``: while
+    exporting (vctrain.export) the same values are scattered to their per-plane argmax index."""
+    if not torch.onnx.is_in_onnx_export():
+        return F.max_unpool2d(x, idx, 2, 2, output_size=size)
+    h, w = int(size[0]), int(size[1])
+    n, c = x.shape[0], x.shape[1]
+    out = torch.zeros(n, c, h * w, dtype=x.dtype, device=x.device)
+    return out.scatter(2, idx.flatten(2), x.flatten(2)).reshape(n, c, h, w)
 
 
 class _BasicBlock(nn.Module):

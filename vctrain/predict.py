@@ -25,11 +25,12 @@ import torch
 from tqdm import tqdm
 
 from vcprep.backproject import backproject_array
-from vcprep.build import Job, WarpSettings, find_images, warp_dataset
+from vcprep.build import Job, WarpSettings, warp_dataset
 from vcprep.camera import Camera, FrameCameras, camera_from_dict, camera_of_image, scale_matrix
+from vcprep.dataset import collect_images  # re-exported: the one image collection of vcprep and vctrain
 from vcprep.errors import InputError
 from vcprep.homography import vp_from_pose
-from vcprep.imageio import IMAGE_EXTENSIONS, read_image, write_png
+from vcprep.imageio import read_image, write_png
 from vcprep.store import Store
 
 from .checkpoint import load_checkpoint, model_from_checkpoint
@@ -123,31 +124,6 @@ def _out_dir(out: str | Path) -> Path:
         raise InputError("exists and is not a directory", out, "choose another --out")
     out.mkdir(parents=True, exist_ok=True)
     return out
-
-
-def collect_images(paths: Iterable[str | Path]) -> list[Job]:
-    """Jobs (id = file stem) for image files and every image inside given folders (and their
-    subfolders); two images with one stem are an error."""
-    jobs: list[Job] = []
-    seen: dict[str, Path] = {}
-    for p in map(Path, paths):
-        if p.is_dir():
-            files = find_images(p)  # recursively: dataset trees such as Cityscapes' leftImg8bit/<split>/<city>/
-            if not files:
-                raise InputError("no images in folder", p, f"give image files ({', '.join(IMAGE_EXTENSIONS)})")
-        elif p.is_file():
-            files = [p]
-        else:
-            raise InputError("image not found", p, "check the path")
-        for f in files:
-            if f.stem in seen:
-                raise InputError(f"two images named '{f.stem}' (also {seen[f.stem]})", f,
-                                 "outputs are named by stem; predict them into separate --out folders")
-            seen[f.stem] = f
-            jobs.append(Job(f.stem, f))
-    if not jobs:
-        raise InputError("no images given", None, "give image files or folders")
-    return jobs
 
 
 def predict_store(predictor: Predictor, store: Store, out: str | Path, progress: bool = True,

@@ -33,7 +33,7 @@ adapt-fuse  as adapt, the surrogate labels from the prior FUSED with the within 
 A study's default conditions are the first five (:data:`DEFAULT_CONDITIONS`); ``prior``,
 ``adapt`` and ``adapt-fuse`` run when asked for (study ``conditions:`` or ``--conditions``).
 Training settings the study's ``train:`` does not give are :class:`vctrain.train.TrainConfig`'s
-defaults. How a study runs: :mod:`vctrain.crossval`; its tables: :mod:`vctrain.report`.
+defaults. How a study runs: :mod:`vctrain.study.execute`; its tables: :mod:`vctrain.report`.
 """
 from __future__ import annotations
 
@@ -48,6 +48,8 @@ from vcprep.camera import PRESET_PREFIX, PRESETS, preset_name
 from vcprep.errors import InputError
 from vcprep.imageio import read_text
 from vcprep.labels import get_label_format
+
+from ..config import TrainConfig
 
 __all__ = ["CONDITIONS", "DEFAULT_CONDITIONS", "DEFAULT_STORE_PIXELS", "DEFAULT_ABOVE", "DEFAULT_TRAIN", "CANVASES",
            "DEFAULT_CANVAS", "GEOMETRIES", "ROLES", "ADAPT_COMBINE", "RUN_KEYS", "TRAIN_KEYS", "Split", "Dataset",
@@ -82,7 +84,7 @@ DEFAULT_CONDITIONS = ("resize", "between", "within", "within-gt", "zero")  # a s
 # no crop above the horizon and whole-image training): the defaults of a study that sets nothing.
 DEFAULT_STORE_PIXELS = 172800          # the pixels of 480x360 per virtual store image
 DEFAULT_ABOVE = 8.0                    # degrees of the designed virtual camera kept above the horizon
-# How the designed virtual camera's rectangle is sized per store (vctrain.crossval._Builder.virtual_for):
+# How the designed virtual camera's rectangle is sized per store (vctrain.study.resolve.Resolution.virtual_for):
 # 'shared' -- one rectangle holding every dataset's camera (the paper's rule); 'footprint' -- the same
 # virtual camera (focal length, height, level pose, top edge), its rectangle holding only the trainable
 # datasets' cameras for their stores, and also the dataset's own camera for a test-only dataset's
@@ -96,11 +98,9 @@ CANVASES = ("shared", "footprint")
 DEFAULT_CANVAS = "footprint"
 DEFAULT_TRAIN = {"crop": (4 / 9, 1.0)}  # full-height training windows of 4/9 of the width (76800 px a step)
 # the study file's `train:` section may set any TrainConfig field except these, which the study sets per run
-# (TRAIN_KEYS are checked without importing torch; another key is checked against TrainConfig itself)
 RUN_KEYS = ("stores", "out", "baseline", "images", "labels", "label_format", "size", "val_stores", "resume", "log",
             "progress")
-TRAIN_KEYS = ("epochs", "arch", "base_width", "batch_size", "lr", "momentum", "weight_decay", "schedule", "seed",
-              "val_fraction", "class_weights", "hflip", "greyscale", "device", "workers", "max_steps", "crop")
+TRAIN_KEYS = tuple(f.name for f in fields(TrainConfig) if f.name not in RUN_KEYS)
 # role -> (trained on, evaluated); 'both' = held out in turn (leave one out)
 ROLES: dict[str, tuple[bool, bool]] = {"both": (True, True), "train": (True, False), "test": (False, True)}
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
@@ -163,7 +163,7 @@ class Study:
     canvas: str | None = None        # 'shared': one designed rectangle for every store; 'footprint': the
                                      # training stores hold the trainable datasets' cameras, a test-only
                                      # dataset's stores also its own (CANVASES); None: DEFAULT_CANVAS, or
-                                     # 'shared' for conditions prior/adapt (vctrain.crossval.run_study)
+                                     # 'shared' for conditions prior/adapt (vctrain.study.run_study)
     train: dict[str, Any] = field(default_factory=dict)  # TrainConfig overrides
 
     def dataset(self, name: str) -> Dataset:
@@ -223,15 +223,9 @@ def _split(d: Any, what: str, path: Path, labelled: bool = True) -> Split:
 
 def _check_train_keys(t: dict, path: Path) -> None:
     """Keys of the study's ``train:`` section: TrainConfig fields the study does not set per run."""
-    unknown = sorted(set(map(str, t)) - set(TRAIN_KEYS))
-    if not unknown:
-        return
-    from .train import TrainConfig  # imports torch: only when a key is not one of the usual ones
-
-    allowed = [f.name for f in fields(TrainConfig) if f.name not in RUN_KEYS]
-    bad = [k for k in unknown if k not in allowed]
+    bad = sorted(set(map(str, t)) - set(TRAIN_KEYS))
     if bad:
-        raise InputError(f"unknown key '{bad[0]}' in 'train'", path, f"allowed keys: {', '.join(allowed)}")
+        raise InputError(f"unknown key '{bad[0]}' in 'train'", path, f"allowed keys: {', '.join(TRAIN_KEYS)}")
 
 
 def camera_spec(spec: str, path: Path, what: str) -> str:
@@ -275,47 +269,59 @@ def load_study(path: str | Path) -> Study:
                          "a study trains on some datasets and tests on others")
     datasets: list[Dataset] = []
     for i, r in enumerate(raw):
-        r = _mapping(r, f"dataset #{i + 1}", path)
-        _keys(r, ("name", "camera", "label_format", "role", "train", "test", "unlabelled", "ego"),
-              ("name", "camera", "label_format"),
-              f"dataset #{i + 1}", path)
-        name = r["name"]
-        if not isinstance(name, str) or not _NAME.match(name):
-            raise InputError(f"dataset #{i + 1} has a bad name {name!r}", path, "use letters, digits, '_', '-', '.'")
-        role = r.get("role", "both")
-        if role not in ROLES:
-            raise InputError(f"dataset '{name}' has an unknown role {role!r}", path, f"use one of {', '.join(ROLES)}")
-        # a test-role dataset is never trained on (only 'test:'); a train-role one never tested ('train:')
-        need, unused = {"both": ("train", None), "train": ("train", "test"), "test": ("test", "train")}[role]
-        if r.get(need) is None:
-            raise InputError(f"missing key '{need}' in dataset '{name}' (role {role})", path,
-                             f"add '{need}: {{images: ..., labels: ...}}'")
-        if unused is not None and r.get(unused) is not None:
-            raise InputError(f"dataset '{name}' has role {role}, so its '{unused}' split would never be used", path,
-                             f"remove '{unused}:', or use role: both")
-        if any(x.name == name for x in datasets):
-            raise InputError(f"two datasets named '{name}'", path, "give each dataset its own name")
-        try:
-            get_label_format(str(r["label_format"]))
-        except InputError as e:
-            raise InputError(f"dataset '{name}': {e.problem}", path, e.fix) from None
-        cam = str(r["camera"])
-        if cam != "estimate":
-            cam = camera_spec(cam, path, f"dataset '{name}' camera")
-        train = _split(r["train"], f"dataset '{name}' train", path) if role != "test" else None
-        test = _split(r["test"], f"dataset '{name}' test", path) if r.get("test") is not None else train
-        if role == "train" and r.get("unlabelled") is not None:
-            raise InputError(f"dataset '{name}' has role train, so its 'unlabelled' split would never be used", path,
-                             "remove 'unlabelled:' (it is what condition adapt adapts to on an evaluated dataset)")
-        unlabelled = (_split(r["unlabelled"], f"dataset '{name}' unlabelled", path, labelled=False)
-                      if r.get("unlabelled") is not None else None)
-        ego = r.get("ego", "auto")
-        if not (ego in ("auto", "none") or (isinstance(ego, int) and not isinstance(ego, bool) and ego >= 0)):
-            raise InputError(f"dataset '{name}' has ego {ego!r}", path,
-                             "write ego: auto (found from the labels), none, or the number of bottom rows that show "
-                             "your own vehicle")
-        datasets.append(Dataset(name, cam, str(r["label_format"]), train, test if role != "train" else None, role,
-                                unlabelled, ego))
+        datasets.append(_dataset(r, i, path, datasets))
+    _check_roles(datasets, path)
+    study = Study(path, datasets)
+    _read_settings(d, study)
+    return study
+
+
+def _dataset(r: Any, i: int, path: Path, before: Sequence[Dataset]) -> Dataset:
+    """Dataset #``i + 1`` of the study file ``path`` (``before``: the datasets read so far)."""
+    r = _mapping(r, f"dataset #{i + 1}", path)
+    _keys(r, ("name", "camera", "label_format", "role", "train", "test", "unlabelled", "ego"),
+          ("name", "camera", "label_format"),
+          f"dataset #{i + 1}", path)
+    name = r["name"]
+    if not isinstance(name, str) or not _NAME.match(name):
+        raise InputError(f"dataset #{i + 1} has a bad name {name!r}", path, "use letters, digits, '_', '-', '.'")
+    role = r.get("role", "both")
+    if role not in ROLES:
+        raise InputError(f"dataset '{name}' has an unknown role {role!r}", path, f"use one of {', '.join(ROLES)}")
+    # a test-role dataset is never trained on (only 'test:'); a train-role one never tested ('train:')
+    need, unused = {"both": ("train", None), "train": ("train", "test"), "test": ("test", "train")}[role]
+    if r.get(need) is None:
+        raise InputError(f"missing key '{need}' in dataset '{name}' (role {role})", path,
+                         f"add '{need}: {{images: ..., labels: ...}}'")
+    if unused is not None and r.get(unused) is not None:
+        raise InputError(f"dataset '{name}' has role {role}, so its '{unused}' split would never be used", path,
+                         f"remove '{unused}:', or use role: both")
+    if any(x.name == name for x in before):
+        raise InputError(f"two datasets named '{name}'", path, "give each dataset its own name")
+    try:
+        get_label_format(str(r["label_format"]))
+    except InputError as e:
+        raise InputError(f"dataset '{name}': {e.problem}", path, e.fix) from None
+    cam = str(r["camera"])
+    if cam != "estimate":
+        cam = camera_spec(cam, path, f"dataset '{name}' camera")
+    train = _split(r["train"], f"dataset '{name}' train", path) if role != "test" else None
+    test = _split(r["test"], f"dataset '{name}' test", path) if r.get("test") is not None else train
+    if role == "train" and r.get("unlabelled") is not None:
+        raise InputError(f"dataset '{name}' has role train, so its 'unlabelled' split would never be used", path,
+                         "remove 'unlabelled:' (it is what condition adapt adapts to on an evaluated dataset)")
+    unlabelled = (_split(r["unlabelled"], f"dataset '{name}' unlabelled", path, labelled=False)
+                  if r.get("unlabelled") is not None else None)
+    ego = r.get("ego", "auto")
+    if not (ego in ("auto", "none") or (isinstance(ego, int) and not isinstance(ego, bool) and ego >= 0)):
+        raise InputError(f"dataset '{name}' has ego {ego!r}", path,
+                         "write ego: auto (found from the labels), none, or the number of bottom rows that show "
+                         "your own vehicle")
+    return Dataset(name, cam, str(r["label_format"]), train, test if role != "train" else None, role, unlabelled, ego)
+
+
+def _check_roles(datasets: Sequence[Dataset], path: Path) -> None:
+    """Some dataset is trained on, some tested on, and a held-out one leaves one to train on."""
     trainable = [x for x in datasets if x.trained]
     if not trainable:
         raise InputError("no dataset may be trained on (every role is 'test')", path,
@@ -326,7 +332,18 @@ def load_study(path: str | Path) -> Study:
     if len(trainable) == 1 and trainable[0].role == "both":
         raise InputError(f"dataset '{trainable[0].name}' is the only one that may be trained on, so it cannot be held "
                          "out", path, "give it role: train (trained on, never tested), or add a training dataset")
-    study = Study(path, datasets)
+
+
+def _whole(d: dict, key: str, lo: int, hi: int, path: Path, fix: str) -> int:
+    v = d[key]
+    if isinstance(v, bool) or not isinstance(v, int) or not lo <= v <= hi:
+        raise InputError(f"'{key}' must be a whole number of pixels in {lo}..{hi}, got {v!r}", path, fix)
+    return v
+
+
+def _read_settings(d: dict, study: Study) -> None:
+    """The study-wide settings of the file's mapping ``d`` into ``study`` (checked)."""
+    path = study.path
     if "conditions" in d:
         conds = d["conditions"]
         if not isinstance(conds, list) or not conds:
@@ -343,17 +360,10 @@ def load_study(path: str | Path) -> Study:
                 raise InputError(f"'{key}' must be degrees in [0, 60), got {v!r}", path, "e.g. pan_range: 10")
             setattr(study, key, float(v))
     if "store_width" in d:
-        v = d["store_width"]
-        if isinstance(v, bool) or not isinstance(v, int) or not 64 <= v <= 8192:
-            raise InputError(f"'store_width' must be a whole number of pixels in 64..8192, got {v!r}", path,
-                             "e.g. store_width: 320")
-        study.store_width = v
+        study.store_width = _whole(d, "store_width", 64, 8192, path, "e.g. store_width: 320")
     if "store_pixels" in d:
-        v = d["store_pixels"]
-        if isinstance(v, bool) or not isinstance(v, int) or not 4096 <= v <= 64_000_000:
-            raise InputError(f"'store_pixels' must be a whole number of pixels in 4096..64000000, got {v!r}", path,
-                             "e.g. store_pixels: 76800 (the pixels of 320x240)")
-        study.store_pixels = v
+        study.store_pixels = _whole(d, "store_pixels", 4096, 64_000_000, path,
+                                    "e.g. store_pixels: 76800 (the pixels of 320x240)")
     if "above" in d:
         v = d["above"]
         if v is not None and (isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 <= v < 60):
@@ -372,7 +382,6 @@ def load_study(path: str | Path) -> Study:
         t = _mapping(d["train"], "'train'", path)
         _check_train_keys(t, path)
         study.train = dict(t)
-    return study
 
 
 def check_conditions(conds: Sequence[str], file: Path | None = None) -> list[str]:

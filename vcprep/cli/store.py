@@ -1,0 +1,321 @@
+"""Commands that build and read stores: ``warp``, ``complete``, ``store show|verify|info|merge``, ``backproject``, ``prior``."""
+from __future__ import annotations
+
+from dataclasses import asdict
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+from tqdm import tqdm
+
+from ..backproject import backproject_folder
+from ..build import ItemPose, WarpSettings, say_on_stderr, warp_dataset
+from ..camera import Camera, load_camera
+from ..camera_estimate import estimate_camera, estimate_to_yaml
+from ..cliutil import check_data_folders, count, emit_json, ensure_parent, err
+from ..dataset import list_dataset
+from ..errors import InputError, StoreError
+from ..imageio import write_bytes_atomic
+from ..labels import get_label_format
+from ..parallel import default_jobs
+from ..prior import compute_prior, open_stores, prior_meta, write_prior
+from ..store import Shard, Store
+from ..store_check import merge_store, store_info, verify_and_repair, verify_store
+from ..store_complete import CompleteSettings, complete_store
+from ..vanishing_point import vps_for_items
+from .common import (COMPLETE_HELP, FRAMES_HELP, JOBS_HELP, KEEP_GOING_HELP, LABEL_FORMAT_HELP, SHARD_HELP,
+                     SMOOTH_HELP, WITHIN_HELP, app, camera_for, check_label_format, estimated_line, finish, store_app,
+                     vp_counts)
+
+
+@app.command("warp")
+def warp_cmd(
+    camera: str = typer.Option(..., "--camera", "-c", help=FRAMES_HELP + ", or 'estimate': estimated from these "
+                               "frames (as 'vcprep camera estimate' does; written to STORE/camera.estimated.yaml)"),
+    images: Path = typer.Option(..., "--images", "-i", help="folder of source images (subfolders included)"),
+    out: Path = typer.Option(..., "--out", "-o", help="store directory (created, or updated in place)"),
+    labels: Optional[Path] = typer.Option(None, "--labels", "-l", help="folder of label images, a tree mirroring "
+                                          "--images (e.g. gtFine/train for leftImg8bit/train)"),
+    label_format: Optional[str] = typer.Option(None, "--label-format", "-f",
+                                               help=LABEL_FORMAT_HELP),
+    virtual: str = typer.Option("virtual", "--virtual", help="virtual camera: preset or YAML file"),
+    scale: float = typer.Option(0.125, "--scale", "-s", help="store scale of the full virtual camera (1/8 -> 688x350)"),
+    id_prefix: str = typer.Option("", "--id-prefix", help="prefix for item ids (keeps datasets apart in one store)"),
+    complete: str = typer.Option("projective", "--complete", help=COMPLETE_HELP),
+    within: str = typer.Option("none", "--within", help=WITHIN_HELP),
+    vp_smooth: int = typer.Option(0, "--vp-smooth", min=0, help=SMOOTH_HELP),
+    jobs: Optional[int] = typer.Option(None, "--jobs", "-j", min=1, help=JOBS_HELP),
+    shard: Optional[str] = typer.Option(None, "--shard", help=SHARD_HELP),
+    keep_going: bool = typer.Option(False, "--keep-going", "-k", help=KEEP_GOING_HELP),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar or summary on stderr"),
+):
+    """Warp a folder of images (and labels) from CAMERA into the virtual camera store OUT.
+
+    Images are resampled bilinearly, labels by nearest neighbour and stored as 0 = not road,
+    1 = road, 255 = ignore. Virtual pixels no source pixel covers are filled in the same remap
+    by --complete (default projective, the paper's §4.3; 'none' leaves image 0 / label ignore;
+    the valid/ mask always marks the covered pixels). Re-running with unchanged inputs does no work; a changed image,
+    label, camera or parameter redoes exactly the affected items. Prints the store path.
+
+    A camera YAML with 'ego_rows: N' (the bottom N rows of every image, at its image_size,
+    show the rig's own vehicle) cuts those rows off before warping, an exact bottom crop: they
+    never reach the store (completed like any uncovered pixel; labels ignore without
+    completion); records keep the full size and ego_rows, for back-projection.
+
+    With --within, each image's own pan and tilt come from its road vanishing point
+    (within-camera correction): 'estimate' detects it (see 'vcprep vp'), FILE reads a CSV
+    'id,u,v' of known VPs (source pixels); the record gets vp, vp_status, pan_deg, tilt_deg.
+
+    Items are built by --jobs worker processes; a bad item stops the build (items finished
+    so far are kept) unless --keep-going. Ctrl-C stops after the items in flight; a killed
+    build loses only those: run the same command again to resume.
+
+    \b
+    Example:
+      vcprep warp --camera camvid --images data/camvid/train \\
+          --labels data/camvid/trainannot --label-format camvid --out stores/camvid
+      vcprep warp --camera camvid --images data/camvid/train --out stores/camvid --shard 2/8
+      (with --shard, give --within a CSV from 'vcprep vp', or every shard estimates every VP)
+      vcprep warp --camera camvid --images data/camvid/val --out stores/val --within estimate
+      vcprep warp --camera camvid --images data/camvid/val --out stores/val --within vps.csv
+      vcprep warp --camera kitti/training/calib --images kitti/training/image_2 \\
+          --labels kitti/training/gt_image_2 --label-format kitti --out stores/kitti   # per-frame calibration
+      vcprep warp --camera cityscapes/camera/train --images cityscapes/leftImg8bit/train \\
+          --labels cityscapes/gtFine/train --label-format cityscapes --out stores/cs   # nested city folders
+    """
+    part = Shard.parse(shard) if shard else None
+    check_label_format(labels, label_format)
+    fmt = get_label_format(label_format) if label_format else None
+    check_data_folders(images, labels)
+    items = list_dataset(images, labels, fmt, id_prefix)
+    cam, estimate = _warp_camera(camera, items, fmt, quiet)
+    if not isinstance(cam, Camera) and within != "none":
+        raise InputError("--within needs one camera; a per-frame calibration folder already gives every frame its "
+                         "exact pose", camera, "drop --within, or give one camera file or preset")
+    virt = load_camera(virtual)
+    # VPs over all frames even for one shard: the fallback VP and smoothing depend on the whole run
+    poses = _within_poses(items, cam, within, vp_smooth, id_prefix, quiet)
+    settings = WarpSettings(camera=cam, virtual=virt, scale=scale, label_format=fmt, completion=complete, poses=poses,
+                            workers=jobs or default_jobs(), shard=part, keep_going=keep_going, progress=not quiet)
+    store, summary = warp_dataset(items, out, settings)
+    if estimate is not None:
+        write_bytes_atomic(out / "camera.estimated.yaml", estimate_to_yaml(estimate).encode())
+        if not quiet:
+            err(estimated_line(estimate, f"the frames ({out / 'camera.estimated.yaml'})"))
+    finish(out, summary, quiet, f" (store {store.store_size[0]}x{store.store_size[1]}"
+                                 f"{f', shard {part}' if part else ''})")
+
+
+def _warp_camera(camera: str, items: list, fmt, quiet: bool):
+    """(camera, its estimate or None) of ``vcprep warp --camera``: 'estimate' estimates it from
+    the frames (and the own vehicle from their labels, with >= 5), said on stderr."""
+    if camera != "estimate":
+        return camera_for(camera, items[0].image), None
+    if not quiet:
+        err(f"estimating the camera from {count(len(items), 'frame')}")
+    est_labels = [j.label for j in items if j.label is not None]
+    estimate = estimate_camera([j.image for j in items], name="estimated", ids=[j.id for j in items],
+                               labels=est_labels if len(est_labels) >= 5 else None, label_format=fmt)
+    return estimate.camera, estimate
+
+
+def _within_poses(jobs, cam: Camera, within: str, smooth: int, id_prefix: str, quiet: bool):
+    """The ``poses`` mapping of :class:`vcprep.build.WarpSettings` from ``--within`` (None for 'none')."""
+    if within == "none":
+        if smooth:
+            raise InputError("--vp-smooth needs --within estimate", None, "add --within estimate or drop --vp-smooth")
+        return None
+
+    if within != "estimate" and smooth:
+        raise InputError("--vp-smooth applies to estimated VPs only", within, "use --within estimate")
+    bar = tqdm(total=len(jobs), desc="vp", unit="img", disable=True if quiet or within != "estimate" else None, leave=False)
+    try:
+        results = vps_for_items([j.image for j in jobs], [j.id for j in jobs], cam, within, smooth,
+                                id_prefix=id_prefix, on_image=lambda i: bar.update())
+    finally:
+        bar.close()
+    if not quiet:
+        err(f"vanishing points: {vp_counts(results)}")
+    return {j.id: ItemPose((r.vp[0], r.vp[1]), r.status) for j, r in zip(jobs, results)}
+
+
+@app.command("complete")
+def complete_cmd(store: Path = typer.Argument(..., help="store directory built by 'vcprep warp'"),
+                 method: str = typer.Option("projective", "--method", "-m", help=COMPLETE_HELP),
+                 jobs: Optional[int] = typer.Option(None, "--jobs", "-j", min=1, help=JOBS_HELP),
+                 shard: Optional[str] = typer.Option(None, "--shard", help=SHARD_HELP),
+                 keep_going: bool = typer.Option(False, "--keep-going", "-k", help=KEEP_GOING_HELP),
+                 quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar or summary on stderr")):
+    """Complete an already-warped store in place: fill the pixels no source pixel covers.
+
+    Each item is rebuilt from its recorded source image and label (which must be unchanged)
+    as one warp + completion remap, so the result is identical to 'vcprep warp --complete
+    METHOD'. Items already completed with METHOD are skipped. Prints the store path.
+
+    \b
+    Example:
+      vcprep warp --camera camvid --images data/camvid/train --out stores/camvid --complete none
+      vcprep complete stores/camvid --method projective
+    """
+    part = Shard.parse(shard) if shard else None
+    st, summary = complete_store(store, CompleteSettings(method, workers=jobs or default_jobs(), shard=part,
+                                                         keep_going=keep_going, progress=not quiet))
+    finish(store, summary, quiet, f" ({method}{f', shard {part}' if part else ''})", verb="completed")
+
+
+@store_app.command("show")
+def store_show(store: Path = typer.Argument(..., help="store directory"),
+               as_json: bool = typer.Option(False, "--json", help="one JSON item record per line")):
+    """List the items of a store (id, camera, source), or their full records with --json.
+
+    \b
+    Example:
+      vcprep store show stores/camvid --json | head -1
+    """
+    st = Store.open(store)
+    for rec in st:
+        if as_json:
+            emit_json(rec)
+        else:
+            print(f"{rec['id']}\t{rec['camera']}\t{rec['source']}")
+    if not as_json:
+        err(f"{store}: {count(len(st), 'item')}, {st.store_size[0]}x{st.store_size[1]} at scale {st.scale:g}")
+
+
+@store_app.command("verify")
+def store_verify(store: Path = typer.Argument(..., help="store directory"),
+                 sources: bool = typer.Option(True, "--sources/--no-sources",
+                                              help="also check that source images and labels still match their hashes"),
+                 as_json: bool = typer.Option(False, "--json", help="one JSON object per problem"),
+                 repair: bool = typer.Option(False, "--repair", help="drop the records and files of items with bad "
+                                             "stored files and delete orphans, so that re-running the build redoes "
+                                             "them (waits for a running build: it holds the store lock)"),
+                 jobs: Optional[int] = typer.Option(None, "--jobs", "-j", min=1, help=JOBS_HELP),
+                 quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar or summary on stderr")):
+    """Check a store: every recorded PNG exists, decodes, has the store size, allowed values
+    and its recorded SHA-256; sources still hash as recorded; no orphan (unrecorded) PNGs or
+    temp files. Prints one line per problem (id, kind, file, detail; --json: objects) and
+    exits 1 if there is any. A build skips items whose files exist, so to redo items with bad
+    files run --repair first, then the build.
+
+    \b
+    Example:
+      vcprep store verify stores/camvid
+      vcprep store verify stores/camvid --no-sources --json | jq -r .id | sort -u
+      vcprep store verify stores/camvid --repair; vcprep warp ... --out stores/camvid
+    """
+    if repair:  # under the store lock: waits for a running build, whose files in flight are no orphans
+        report, dropped, removed = verify_and_repair(store, sources, jobs or default_jobs(), not quiet,
+                                                     on_wait=None if quiet else say_on_stderr)
+    else:
+        report = verify_store(store, check_sources=sources, workers=jobs or default_jobs(), progress=not quiet)
+    for p in report.problems:
+        if as_json:
+            emit_json(asdict(p))
+        else:
+            print(p.line())
+    if not quiet:
+        err(f"{store}: {report.summary()}")
+    if report.problems:
+        bad = report.bad_items
+        named = ", ".join(bad[:10]) + (f" and {len(bad) - 10} more" if len(bad) > 10 else "")
+        if repair:
+            fix = (f"repaired: dropped {count(len(dropped), 'item')}, deleted {count(removed, 'file')}; re-run the build command to "
+                   "redo them")
+        else:
+            fix = "run 'vcprep store verify --repair STORE', then the build command again, to redo them"
+        raise StoreError(f"{count(len(bad), 'bad item')}{': ' + named if bad else ''}; "
+                         f"{count(len(report.orphans), 'orphan or temp file')}", store, fix)
+
+
+@store_app.command("info")
+def store_info_cmd(store: Path = typer.Argument(..., help="store directory"),
+                   as_json: bool = typer.Option(False, "--json", help="one JSON object")):
+    """Counts, parameters and disk use of a store.
+
+    \b
+    Example:
+      vcprep store info stores/camvid
+      vcprep store info stores/camvid --json | jq .disk_bytes
+    """
+    info = store_info(store)
+    if as_json:
+        emit_json(info)
+        return
+    mb = lambda b: f"{b / 1e6:.1f} MB"
+    print(f"store\t{info['store']}")
+    print(f"parameters\tvirtual {info['virtual']} at scale {info['scale']:g} -> "
+          f"{info['store_size'][0]}x{info['store_size'][1]} ({info['created_by']}, format v{info['version']})")
+    print(f"items\t{info['items']} ({info['with_labels']} with labels)")
+    for key in ("cameras", "completion", "vp_status", "label_format", "tool_version"):
+        print(f"{key}\t" + ", ".join(f"{k} {v}" for k, v in info[key].items()))
+    print("disk\t" + ", ".join(f"{k} {v['files']} files {mb(v['bytes'])}" for k, v in info["disk"].items())
+          + f"; total {mb(info['disk_bytes'])}")
+    if info["pending_parts"]:
+        print(f"pending\t{', '.join(info['pending_parts'])} (fold with 'vcprep store merge')")
+
+
+@store_app.command("merge")
+def store_merge(store: Path = typer.Argument(..., help="store directory"),
+                quiet: bool = typer.Option(False, "--quiet", "-q", help="no summary on stderr")):
+    """Fold the shard part files of a store (built with 'warp --shard K/N') into its
+    manifest.jsonl and remove temp files of interrupted writes. Run it once every shard has
+    finished (it waits for running builds: it holds the store lock). The store is readable
+    before (parts are read too); merging makes it one file.
+
+    \b
+    Example:
+      vcprep warp -c camvid -i data/camvid/train -o stores/camvid --shard 1/2 &
+      vcprep warp -c camvid -i data/camvid/train -o stores/camvid --shard 2/2; wait
+      vcprep store merge stores/camvid
+    """
+    st, n = merge_store(store, on_wait=None if quiet else say_on_stderr)
+    if not quiet:
+        err(f"{store}: merged {count(n, 'part file')}; {count(len(st), 'item')}")
+    print(store)
+
+
+@app.command("backproject")
+def backproject_cmd(store: Path = typer.Argument(..., help="store the masks belong to"),
+                    masks: Path = typer.Argument(..., help="folder of virtual-domain PNGs named <id>.png"),
+                    out: Path = typer.Option(..., "--out", "-o", help="output folder (created)"),
+                    kind: str = typer.Option("mask", help="'mask' (nearest) or 'prob' (bilinear)"),
+                    quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar")):
+    """Map virtual-domain masks or probability maps back to each item's original camera,
+    exactly inverting its H. Writes OUT/<id>.png at the source image size; source pixels
+    outside the virtual image get 0. The ego_rows of an item whose camera sees its own vehicle
+    get what the store holds there (the completion of the visible scene), like every pixel.
+
+    \b
+    Example:
+      vcprep backproject stores/camvid preds/virtual --out preds/camvid --kind prob
+    """
+    n = backproject_folder(store, masks, out, kind=kind, progress=not quiet)
+    if not quiet:
+        err(f"{out}: {count(n, 'map')} back-projected")
+    print(out)
+
+
+@app.command("prior")
+def prior_cmd(stores: List[Path] = typer.Argument(..., help="labelled stores of one virtual camera and scale"),
+              out: Path = typer.Option(..., "--out", "-o", help="prior.npy (float32 p_g) or prior.png (uint8 round(255 p_g))"),
+              quiet: bool = typer.Option(False, "--quiet", "-q", help="no summary on stderr")):
+    """Geometric road prior (paper §4.5): p_g(x, y) = the mean road label over the stores'
+    labelled items in the virtual camera; ignore pixels (255) count in neither the numerator nor
+    the denominator; a pixel no item labels gets 0. Writes OUT and OUT.json beside it (virtual
+    camera, scale, item counts); prints OUT. Stores of another virtual camera or scale are refused.
+
+    \b
+    Example:
+      vcprep prior stores/camvid stores/kitti -o prior.npy
+      vcprep prior stores/camvid -o prior.png
+    """
+    opened = open_stores(stores)
+    prior, n_unlabelled = compute_prior(opened)
+    meta = prior_meta(opened, n_unlabelled)
+    write_prior(ensure_parent(out), prior, meta)
+    if not quiet:
+        w, h = opened[0].store_size
+        err(f"{out}: p_g over {count(meta['items'], 'labelled item')} of {count(len(opened), 'store')} ({w}x{h}); "
+            f"{count(n_unlabelled, 'pixel')} with no labelled item (set to 0)")
+    print(out)

@@ -1,0 +1,96 @@
+"""The settings of a training run and of an adaptation, declared once (no torch import here).
+
+:class:`TrainConfig` is what ``vctrain fit`` builds from its options, what a study's ``train:``
+section may set (:data:`vctrain.study.TRAIN_KEYS` derives from its fields) and what a checkpoint
+records; :data:`RECIPES` fill the fields left at ``None`` (:func:`vctrain.train.resolve_recipe`).
+:class:`AdaptSettings` are the settings of :func:`vctrain.adapt.adapt` (``vctrain adapt``).
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Optional
+
+__all__ = ["TrainConfig", "RECIPES", "SCHEDULES", "OPTIMIZERS", "AdaptSettings", "ADAPT_EPOCHS", "ADAPT_LR_FACTOR"]
+
+# recipe -> the defaults it gives every TrainConfig field left at None (vctrain.train's docstring)
+RECIPES: dict[str, dict[str, Any]] = {
+    "paper": {"arch": "segnet", "epochs": 30, "batch_size": 8, "optimizer": "sgd", "lr": 0.005, "momentum": 0.9,
+              "weight_decay": 0.0005, "schedule": "poly", "hflip": False, "scale_aug": 0.0, "shift_aug": 0.0,
+              "color_aug": 0.0},
+    "cpu": {"arch": "resfpn", "epochs": 20, "batch_size": 8, "optimizer": "adamw", "lr": 0.002, "momentum": 0.9,
+            "weight_decay": 0.01, "schedule": "cosine", "hflip": True, "scale_aug": 0.25, "shift_aug": 0.05,
+            "color_aug": 0.3},
+}
+SCHEDULES = ("poly", "cosine", "constant")
+OPTIMIZERS = ("sgd", "adamw")
+
+
+@dataclass
+class TrainConfig:
+    """All settings of a training run (saved in the checkpoint)."""
+
+    stores: list[str] = field(default_factory=list)  # training stores (one virtual camera and scale)
+    out: str = "model.pt"              # best checkpoint; '<stem>.last.pt' beside it is the latest epoch
+    baseline: str = "none"             # 'none': train on the stores; 'resize': original images resized
+    images: Optional[str] = None       # baseline from folders instead of stores: image folder
+    labels: Optional[str] = None       #   ... label folder
+    label_format: Optional[str] = None  #  ... label format (camvid, kitti, values:road=..)
+    recipe: Optional[str] = None       # 'cpu' | 'paper' (vctrain.train); None: paper on a GPU, cpu without
+    arch: Optional[str] = None         # 'resfpn' | 'segnet' | 'segnet-narrow'; None: the recipe's
+    base_width: Optional[int] = None   # override the architecture's first-block width
+    size: Optional[tuple[int, int]] = None  # working size (w, h); None: the store size (first image for folders)
+    crop: Optional[Any] = None         # training window: (w, h) pixels (ints), a share of each side (float) or
+                                       # of width and height (two floats); None: the whole image (validation
+                                       # and prediction always see it whole)
+    epochs: Optional[int] = None       # None: the recipe's (the paper trains 600 on a GPU)
+    batch_size: Optional[int] = None   # global batch (paper Table 2: 8)
+    optimizer: Optional[str] = None    # 'sgd' (momentum) | 'adamw'
+    lr: Optional[float] = None         # peak learning rate
+    momentum: Optional[float] = None   # SGD momentum (AdamW: beta1)
+    weight_decay: Optional[float] = None  # L2 (SGD) or decoupled (AdamW) weight decay
+    schedule: Optional[str] = None     # 'poly' (power 0.9), 'cosine' (with warm-up) or 'constant'
+    scale_aug: Optional[float] = None  # random scale in [1/(1+a), 1+a] about the VP (0: off)
+    shift_aug: Optional[float] = None  # random shift up to this share of the width/height
+    color_aug: Optional[float] = None  # photometric jitter strength (0: off)
+    seed: int = 0                      # seeds init, split, order and augmentation
+    device: str = "auto"               # 'auto' (cuda if present), 'cpu', 'cuda', 'cuda:1'
+    val_fraction: float = 0.1          # held-out share of the training items (0: none)
+    val_stores: list[str] = field(default_factory=list)  # validation stores (replace val_fraction)
+    class_weights: str = "none"        # 'none' or 'median-freq' (median frequency balancing)
+    hflip: Optional[bool] = None       # random horizontal flip, p = 0.5
+    greyscale: float = 0.0             # probability of a greyscale image (1.0: greyscale model)
+    vp_channel: bool = False           # 4th input channel: VP proximity map
+    resume: Optional[str] = None       # continue from this checkpoint ('.last.pt') up to `epochs`
+    init: Optional[str] = None         # start from this checkpoint's network and weights (fine-tuning, vctrain adapt)
+    workers: int = 0                   # DataLoader worker processes
+    log: Optional[str] = None          # JSON-lines log; None: '<out stem>.log.jsonl'
+    progress: bool = True              # tqdm bar on stderr
+    max_steps: Optional[int] = None    # stop each epoch after this many steps (smoke tests)
+
+    def to_dict(self) -> dict[str, Any]:
+        d = asdict(self)
+        d["size"] = list(self.size) if self.size else None
+        return d
+
+
+ADAPT_EPOCHS = 5       # a short fine-tune
+ADAPT_LR_FACTOR = 0.1  # of the model's own training learning rate
+
+
+@dataclass(frozen=True)
+class AdaptSettings:
+    """How :func:`vctrain.adapt.adapt` fine-tunes a model on unlabelled images (its module docstring)."""
+
+    lo: float = 0.25                   # surrogate 'not road' where the (fused) probability is below this
+    hi: float = 0.75                   # surrogate 'road' where it is above this
+    combine: str = "prior"             # 'prior' (the prior's tri-mask, paper §4.5) | 'fuse' (with the model's own)
+    epochs: int = ADAPT_EPOCHS         # fine-tuning epochs
+    lr: Optional[float] = None         # None: ADAPT_LR_FACTOR times the model's own learning rate
+    store: Optional[Path] = None       # store of the warped target images; None: OUT-stem.store
+    within: str = "auto"               # per-image VP correction: auto (as trained), estimate, a CSV, none
+    device: str = "auto"               # 'auto', 'cpu', 'cuda', 'cuda:N'
+    seed: Optional[int] = None         # None: the model's
+    batch_size: Optional[int] = None   # None: the model's
+    max_steps: Optional[int] = None    # stop each epoch after this many steps (smoke tests)
+    progress: bool = True              # progress bars and epoch lines on stderr

@@ -1,0 +1,105 @@
+"""The stores a study needs, each built once (or found up to date) with :func:`vcprep.build.warp_dataset`:
+``OUT/stores/<dataset>/<split>/<geometry>/``, one per dataset, split and geometry, shared by all
+runs, and the road VPs they are warped with (``OUT/vps/<dataset>-<split>.csv``).
+
+Estimated VPs (``within``, ``zero``) are searched for and accepted only inside the pose range the
+virtual camera is designed to hold (``pan_range``, ``tilt_range`` of the study; rejected images fall
+back to the mean accepted VP, see :mod:`vcprep.vanishing_point`).
+"""
+from __future__ import annotations
+
+import math
+import shutil
+from pathlib import Path
+from typing import Sequence
+
+from vcprep.build import ItemPose, WarpSettings, warp_dataset
+from vcprep.camera import Camera, FrameCameras
+from vcprep.errors import InputError
+from vcprep.imageio import image_size
+from vcprep.labels import get_label_format
+from vcprep.store import Store
+
+from .resolve import Resolution
+from .spec import GEOMETRIES, Dataset
+
+__all__ = ["Stores"]
+
+
+class Stores:
+    """The stores of a study whose files ``res`` resolves (``jobs`` worker processes; ``progress`` bars)."""
+
+    def __init__(self, res: Resolution, progress: bool = False, jobs: int = 1):
+        self.res, self.progress, self.jobs = res, progress, jobs
+        self.out, self.say = res.out, res.say
+        self._vps: dict[tuple[str, str, str], dict[str, ItemPose] | None] = {}
+
+    def resize_size(self, datasets: Sequence[Dataset], store_size: tuple[int, int]) -> tuple[int, int]:
+        """The resize baseline's working size: the virtual store's pixel count at the aspect of
+        the first training dataset's images (same pixel budget, no squashing of the source)."""
+        first = self.res.items(datasets[0], "train")[0].image
+        w0, h0 = image_size(first)
+        n = store_size[0] * store_size[1]
+        return max(32, int(round(math.sqrt(n * w0 / h0)))), max(32, int(round(math.sqrt(n * h0 / w0))))
+
+    def has_given_vps(self, ds: Dataset, split: str) -> bool:
+        return self.res.split(ds, split).vps is not None
+
+    def poses(self, ds: Dataset, split: str, source: str) -> dict[str, ItemPose] | None:
+        if source == "none" or (source == "estimate" and isinstance(self.res.camera(ds), FrameCameras)):
+            return None  # (per-frame calibration: every frame's exact pose, nothing to estimate)
+        from vcprep.vanishing_point import vps_for_items, write_vp_csv
+
+        key = (ds.name, split, source)
+        if key not in self._vps:
+            jobs = self.res.items(ds, split)
+            images, ids = [j.image for j in jobs], [j.id for j in jobs]
+            if source == "given":
+                vps = self.res.split(ds, split).vps
+                if vps is None:
+                    raise InputError(f"dataset '{ds.name}' {split} has no 'vps' file", self.res.study.path,
+                                     "add 'vps:' to the split, or drop the within-gt condition")
+                found = vps_for_items(images, ids, self.res.camera(ds), str(vps))
+            else:
+                from vcprep.vanishing_point import VPConfig
+
+                # search and accept VPs only within the pose range the virtual camera is designed
+                # to hold: a pose outside it would push the image out of the virtual frame
+                cfg = VPConfig(pan_range=self.res.study.pan_range, tilt_range=self.res.study.tilt_range)
+                self.say(f"estimating road VPs of {ds.name}/{split} ({len(jobs)} images)")
+                found = vps_for_items(images, ids, self.res.camera(ds), "estimate", cfg=cfg)
+                (self.out / "vps").mkdir(parents=True, exist_ok=True)
+                write_vp_csv(self.out / "vps" / f"{ds.name}-{split}.csv", ids, found)
+            self._vps[key] = {i: ItemPose((r.vp[0], r.vp[1]), r.status) for i, r in zip(ids, found)}
+        return self._vps[key]
+
+    def _drop_if_other_virtual(self, root: Path, virtual: Camera) -> None:
+        """The study's stores are its own derived data: one built for another virtual camera or
+        scale (the study's datasets or settings changed since) is removed, to be built afresh."""
+        if not (root / "store.json").exists():
+            return
+        from vcprep.build import store_params
+
+        want = store_params(virtual, self.res.scale())
+        have = Store.open(root).params
+        if any(have.get(k) != want[k] for k in ("virtual", "scale", "store_size")):
+            self.say(f"{root.relative_to(self.out)}: built for another virtual camera or scale; building it afresh")
+            shutil.rmtree(root)
+
+    def warp_settings(self, ds: Dataset, split: str, geometry: str) -> WarpSettings:
+        """How the store of ``ds``'s ``split`` in ``geometry`` is built: the dataset's camera into
+        the study's virtual camera and scale, with the geometry's poses and completion."""
+        source, completion = GEOMETRIES[geometry]
+        return WarpSettings(camera=self.res.camera(ds), virtual=self.res.virtual_for(ds), scale=self.res.scale(),
+                            label_format=get_label_format(ds.label_format), completion=completion,
+                            poses=self.poses(ds, split, source), workers=self.jobs, progress=self.progress)
+
+    def store(self, ds: Dataset, split: str, geometry: str) -> Path:
+        """The store of ``ds``'s ``split`` in ``geometry`` (built or brought up to date)."""
+        root = self.out / "stores" / ds.name / split / geometry
+        jobs = self.res.items(ds, split)
+        settings = self.warp_settings(ds, split, geometry)
+        self._drop_if_other_virtual(root, settings.virtual)
+        warp_dataset(jobs, root, settings)
+        return root
+
