@@ -25,7 +25,7 @@ camera (back-projected; road IoU = sum TP / sum (TP+FP+FN) over the set, ignore 
   ``bdd-est``, against the shipped camera of the same frames (in the default rectangle rule's study
   only: in ``shared`` an estimated camera would size the one rectangle every other row is seen in);
 * known cameras hidden from the estimate: ``sim-tele``, ``sim-band``, ``sim-dashcam`` (CamVid val made
-  exactly into measure.SIMULATED's cameras by ``vcprep simulate``, each with its exact camera file) and
+  exactly into measure.data.SIMULATED's cameras by ``vcprep simulate``, each with its exact camera file) and
   the same frames with ``camera: estimate`` (``sim-<name>-est``), in the default rectangle's study only;
 * the own vehicle: ``cityscapes-noego`` and ``camvid-0001TP-noego`` (``ego: none``: the bonnet
   warped as road surface, what a user got before) against ``cityscapes`` and ``camvid-0001TP``
@@ -79,9 +79,8 @@ import argparse
 import json
 import math
 import os
-import platform
-import sys
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -89,11 +88,12 @@ import yaml
 
 import cv2
 
-from measure import (BIN, CS_FORMAT, DATA, KITTI, LUMS_FORMAT, ROOT, SHARED_DATA, SIM, bar_plot, format_stat,
-                     link_files, native_camera, run, seed_stats, simulate)
-
-sys.path.insert(0, str(ROOT))
-from vctrain.study import CANVASES, DEFAULT_CANVAS  # noqa: E402
+from measure.data import (BIN, CS_FORMAT, DATA, KITTI, LUMS_FORMAT, ROOT, SHARED_DATA, SIM, link_files, native_camera,
+                          run, simulate)
+from measure.report import machine, today
+from measure.stats import format_stat, seed_stats
+from measure.tables import bar_plot
+from vctrain.study import CANVASES, DEFAULT_CANVAS
 
 CITYSCAPES = SHARED_DATA / "cityscapes_pix2pix"
 IDD = SHARED_DATA / "idd_lite"
@@ -138,7 +138,7 @@ def _folders(wd: Path, quick: bool) -> dict[str, dict]:
 
 
 def _simulated(wd: Path, cam: Path, f: dict) -> dict[str, tuple[Path, dict]]:
-    """CamVid val (the test frames of ``f``) through each simulated camera of measure.SIMULATED, into
+    """CamVid val (the test frames of ``f``) through each simulated camera of measure.data.SIMULATED, into
     WORKDIR/sim/<name>/ (``vcprep simulate`` resumes: an earlier run's finished frames are kept as
     they are): {set name: (its exact camera file, its split)}."""
     out = {}
@@ -262,7 +262,7 @@ def share_stores(wd: Path, seed: int, first: int) -> None:
 
 
 def stat(v: list[float] | None) -> dict | None:
-    """:func:`measure.seed_stats` of IoU points (None without values)."""
+    """:func:`measure.stats.seed_stats` of IoU points (None without values)."""
     return seed_stats(v) if v else None
 
 
@@ -270,7 +270,54 @@ def fmt(s: dict | None, signed: bool = False) -> str:
     return format_stat(s, scale=1.0, signed=signed)
 
 
-def main() -> None:
+def diff(x: list[float] | None, y: list[float] | None) -> list[float] | None:
+    """x - y per seed (None unless both have the same seeds)."""
+    return [p - q for p, q in zip(x, y)] if x and y and len(x) == len(y) else None
+
+
+def r2(x: float) -> float:
+    return round(float(x), 2)
+
+
+@dataclass
+class Runs:
+    """The seeds, conditions and rectangle rules of the three studies, and what they measured: IoU
+    points per (test set, condition) and seed (``cell``: study 1, crossval's DEFAULT canvas under the
+    plain condition name, every canvas under 'condition@canvas'; ``loo``: study 2; ``abl``: the
+    ablation), training minutes, and the own vehicles and cameras crossval found."""
+    seeds: list[int]
+    loo_seeds: list[int]
+    abl_seeds: list[int]
+    conds: list[str]
+    canvases: list[str]
+    cell: dict = field(default_factory=dict)
+    loo: dict = field(default_factory=dict)
+    abl: dict = field(default_factory=dict)
+    minutes: list = field(default_factory=list)
+    loo_minutes: list = field(default_factory=list)
+    found: dict = field(default_factory=dict)
+    estimated: dict = field(default_factory=dict)
+
+    def c(self, t: str, k: str = "within") -> list[float] | None:
+        """Study 1's values of test set ``t`` under condition ``k``."""
+        return self.cell.get((t, k))
+
+    def pick(self, v: list[float] | None) -> list[float] | None:
+        """A study-1 cell's values of the ablation's seeds (None unless study 1 ran every one of them)."""
+        return [v[self.seeds.index(k)] for k in self.abl_seeds] if v and all(k in self.seeds for k in self.abl_seeds) \
+            else None
+
+    def others(self) -> list[str]:
+        """Study 1's 'condition@canvas' columns besides crossval's default canvas."""
+        return [f"{k}@{cv}" for cv in self.canvases if cv != DEFAULT_CANVAS for k in self.conds if k != "resize"]
+
+    def loo_diff(self) -> dict:
+        """Study 2's within - resize per held-out set."""
+        return {t: diff(self.loo.get((t, "within")), self.loo.get((t, "resize"))) for t in LOO}
+
+
+def parse_args() -> argparse.Namespace:
+    """The options."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", default="0,1,2", help="seeds of study 1 (trained on CamVid)")
     ap.add_argument("--loo-seeds", default="0,1,2", help="seeds of study 2 (leave one real dataset out); '' skips it")
@@ -284,7 +331,11 @@ def main() -> None:
     ap.add_argument("--workdir", type=Path, default=ROOT / "benchmarks" / "out" / "as_shipped")
     ap.add_argument("--threads", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--quick", action="store_true")
-    a = ap.parse_args()
+    return ap.parse_args()
+
+
+def plan(a: argparse.Namespace) -> Runs:
+    """The seeds, conditions and canvases the options ask for (checked), nothing measured yet."""
     for need in (CITYSCAPES, IDD, DATA, KITTI, BDD, LUMS):
         if not need.is_dir():
             raise SystemExit(f"needs {need} (../shared/data); not found")
@@ -295,15 +346,14 @@ def main() -> None:
     canvases = a.canvases.split(",")
     if "shared" not in canvases or any(c not in CANVASES for c in canvases):
         raise SystemExit(f"--canvases: 'shared' (it holds the resize baseline) and any of {', '.join(CANVASES)}")
-    a.workdir.mkdir(parents=True, exist_ok=True)
+    return Runs(seeds, loo_seeds, abl_seeds, conds, canvases)
 
-    # -- study 1: trained on CamVid, in each rectangle rule ('canvas') -----------------------------
-    # the shared rectangle's study (WORKDIR/seed<k>) runs every condition, resize included; another
-    # canvas's (WORKDIR/<canvas>/seed<k>) only the virtual-camera conditions (resize reads the frames
-    # as they are: no rectangle touches it). cell[(test, cond)] is crossval's DEFAULT canvas;
-    # cell[(test, cond@canvas)] every canvas's.
-    cell: dict[tuple[str, str], list[float]] = {}
-    minutes: list[float] = []
+
+def run_study1(a: argparse.Namespace, r: Runs) -> None:
+    """Study 1: trained on CamVid, in each rectangle rule ('canvas'). The shared rectangle's study
+    (WORKDIR/seed<k>) runs every condition, resize included; another canvas's (WORKDIR/<canvas>/seed<k>)
+    only the virtual-camera conditions (resize reads the frames as they are: no rectangle touches it)."""
+    seeds, conds, canvases, cell, minutes = r.seeds, r.conds, r.canvases, r.cell, r.minutes
     found, estimated = {}, {}
     for canvas in canvases:
         study = study_file(a.workdir, a.quick, a.epochs, canvas)
@@ -313,43 +363,46 @@ def main() -> None:
             share_stores(wd, seed, seeds[0])
             rows, info = run_study(study, wd / f"seed{seed}", cc, seed, a.threads)
             trained: dict[str, float] = {}
-            for r in rows:
-                k = r["condition"]
-                cell.setdefault((r["heldout"], f"{k}@{canvas}"), []).append(100 * r["iou"])
+            for row in rows:
+                k = row["condition"]
+                cell.setdefault((row["heldout"], f"{k}@{canvas}"), []).append(100 * row["iou"])
                 if canvas == DEFAULT_CANVAS or k == "resize":
-                    cell.setdefault((r["heldout"], k), []).append(100 * r["iou"])
-                trained[k] = r["train_seconds"] / 60  # one model per condition: every row repeats it
+                    cell.setdefault((row["heldout"], k), []).append(100 * row["iou"])
+                trained[k] = row["train_seconds"] / 60  # one model per condition: every row repeats it
             minutes += trained.values()
             found, estimated = info.get("ego_found") or found, info.get("cameras_estimated") or estimated
+    r.found, r.estimated = found, estimated
 
-    # -- study 2: leave one real dataset out -----------------------------------------------------
-    loo: dict[tuple[str, str], list[float]] = {}
-    loo_minutes: list[float] = []
+
+def run_loo(a: argparse.Namespace, r: Runs) -> None:
+    """Study 2: leave one real dataset out."""
+    loo_seeds, conds, loo, loo_minutes = r.loo_seeds, r.conds, r.loo, r.loo_minutes
     if loo_seeds:
         loo_study = loo_study_file(a.workdir, a.quick, a.epochs)
         for seed in loo_seeds:
             share_stores(a.workdir / "loo", seed, loo_seeds[0])
             rows, _ = run_study(loo_study, a.workdir / "loo" / f"seed{seed}", conds, seed, a.threads)
-            for r in rows:
-                loo.setdefault((r["heldout"], r["condition"]), []).append(100 * r["iou"])
-                loo_minutes.append(r["train_seconds"] / 60)  # one model per fold and condition
+            for row in rows:
+                loo.setdefault((row["heldout"], row["condition"]), []).append(100 * row["iou"])
+                loo_minutes.append(row["train_seconds"] / 60)  # one model per fold and condition
 
-    # -- ablation: study 1 without geometric augmentation (stores shared with the default rectangle's) --
-    abl: dict[tuple[str, str], list[float]] = {}
+
+def run_ablation(a: argparse.Namespace, r: Runs) -> None:
+    """The ablation: study 1 without geometric augmentation (stores shared with the default rectangle's)."""
+    seeds, abl_seeds, conds, abl = r.seeds, r.abl_seeds, r.conds, r.abl
     if abl_seeds:
         abl_study = ablation_study_file(a.workdir, a.quick, a.epochs)
         for seed in abl_seeds:
             out = a.workdir / "noaug" / f"seed{seed}"
             link_stores(out, a.workdir / DEFAULT_CANVAS / f"seed{seeds[0]}")  # the default rectangle's stores
             rows, _ = run_study(abl_study, out, conds, seed, a.threads)
-            for r in rows:
-                abl.setdefault((r["heldout"], r["condition"]), []).append(100 * r["iou"])
+            for row in rows:
+                abl.setdefault((row["heldout"], row["condition"]), []).append(100 * row["iou"])
 
-    c = lambda t, k="within": cell.get((t, k))
-    # a study-1 cell's values of the ablation's seeds (None unless study 1 ran every one of them)
-    pick = lambda v: [v[seeds.index(k)] for k in abl_seeds] if v and all(k in seeds for k in abl_seeds) else None
-    r2 = lambda x: round(float(x), 2)
-    diff = lambda x, y: [p - q for p, q in zip(x, y)] if x and y and len(x) == len(y) else None
+
+def headline_studies(r: Runs) -> dict:
+    """Study 1's and 2's figures: within - resize on the real other cameras, in domain, per canvas."""
+    conds, canvases, loo, c = r.conds, r.canvases, r.loo, r.c
     head: dict = {}
     # within - resize over the real other cameras: per seed the mean over cameras, then over seeds
     per_cam = {t: diff(c(t), c(t, "resize")) for t in REAL_OTHER}
@@ -358,7 +411,7 @@ def main() -> None:
         head["real_within_minus_resize"], head["real_within_minus_resize_std"] = r2(real["mean"]), r2(real["std"])
     for t, v in per_cam.items():
         head[f"real_within_minus_resize_{t}"] = r2(stat(v)["mean"]) if v else None
-    lo = {t: diff(loo.get((t, "within")), loo.get((t, "resize"))) for t in LOO}
+    lo = r.loo_diff()
     if loo and all(lo.values()):
         s = stat([float(np.mean(v)) for v in zip(*lo.values())])
         head["loo_within_minus_resize"], head["loo_within_minus_resize_std"] = r2(s["mean"]), r2(s["std"])
@@ -381,6 +434,13 @@ def main() -> None:
                 head[f"real_{canvas}_minus_shared"], head[f"real_{canvas}_minus_shared_std"] = r2(s_["mean"]), r2(s_["std"])
             for t, v in pd.items():
                 head[f"{canvas}_minus_shared_{t}"] = r2(stat(v)["mean"]) if v else None
+    return head
+
+
+def headline_more(r: Runs, head: dict) -> None:
+    """Into ``head``: the own vehicle, the estimated cameras, the ablation and the training minutes."""
+    abl, c, pick = r.abl, r.c, r.pick
+    found = r.found
     for cam in EGO:
         g = diff(c(cam), c(cam + "-noego"))
         head[f"ego_gain_{cam}"] = r2(stat(g)["mean"]) if g else None
@@ -409,12 +469,16 @@ def main() -> None:
         for t in REAL_OTHER:
             v = diff(ab(t), ab(t, "resize"))
             head[f"noaug_within_minus_resize_{t}"] = r2(stat(v)["mean"]) if v else None
-    all_minutes = minutes + loo_minutes
+    all_minutes = r.minutes + r.loo_minutes
     head["minutes_per_model"] = round(float(np.mean(all_minutes)), 2) if all_minutes else None
     head["minutes_per_model_max"] = round(float(np.max(all_minutes)), 2) if all_minutes else None
+
+
+def targets_met(head: dict) -> dict:
+    """Each target: met (True/False), or None where not measured."""
     worst = min((v for k, v in head.items() if k.startswith("real_within_minus_resize_") and v is not None),
                 default=None)
-    targets = {
+    return {
         "real_within_minus_resize >= +10": head.get("real_within_minus_resize") is not None
         and head["real_within_minus_resize"] >= TARGET_GAIN,
         "no real camera below resize - 2": worst is not None and worst >= TARGET_WORST,
@@ -426,8 +490,13 @@ def main() -> None:
         and head["minutes_per_model_max"] <= TARGET_MINUTES,
     }
 
-    # -- the tables ----------------------------------------------------------------------------
-    others = [f"{k}@{cv}" for cv in canvases if cv != DEFAULT_CANVAS for k in conds if k != "resize"]
+
+def tables(r: Runs, head: dict, targets: dict) -> str:
+    """The markdown page: study 1's table, the canvases, the estimated cameras, study 2 and the ablation."""
+    seeds, loo_seeds, abl_seeds, conds, canvases = r.seeds, r.loo_seeds, r.abl_seeds, r.conds, r.canvases
+    loo, abl, c, pick = r.loo, r.abl, r.c, r.pick
+    lo = r.loo_diff()
+    others = r.others()
     lines = [f"Road IoU (%), mean ± std over seeds {seeds}; one model per condition trained on CamVid train minus "
              f"0001TP with `vctrain crossval`'s defaults, scored in each test set's own camera.", "",
              f"`within` is crossval's default rectangle ('canvas: {DEFAULT_CANVAS}'); `within@<canvas>` the others.", "",
@@ -472,8 +541,15 @@ def main() -> None:
                          f"{fmt(stat(diff(ab_r, pick(c(t, 'resize')))), signed=True)} |")
     lines += ["", "| target | met |", "|---|---|"] + [f"| {k} | {'not measured' if v is None else 'yes' if v else 'no'} |"
                                                          for k, v in targets.items()]
-    table = "\n".join(lines) + "\n"
-    print(table)
+    return "\n".join(lines) + "\n"
+
+
+def write_results(a: argparse.Namespace, r: Runs, head: dict, targets: dict, table: str) -> None:
+    """as_shipped.{md,png,json} in benchmarks/results (a smoke run: WORKDIR/results)."""
+    seeds, loo_seeds, abl_seeds, conds, canvases = r.seeds, r.loo_seeds, r.abl_seeds, r.conds, r.canvases
+    cell, loo, abl, c = r.cell, r.loo, r.abl, r.c
+    found, estimated = r.found, r.estimated
+    others = r.others()
     res_dir = (a.workdir / "results") if a.quick else (ROOT / "benchmarks" / "results")
     res_dir.mkdir(parents=True, exist_ok=True)
     (res_dir / "as_shipped.md").write_text(table)
@@ -493,7 +569,7 @@ def main() -> None:
          "cameras_estimated": estimated, "seeds": seeds, "loo_seeds": loo_seeds, "conditions": conds,
          "canvases": canvases,
          "loo_steps_per_epoch": camvid_steps_per_epoch(), "epochs": a.epochs, "threads": a.threads,
-         "machine": f"{platform.machine()}, {os.cpu_count()} cores", "date": time.strftime("%Y-%m-%d"),
+         "machine": machine(), "date": today(),
          "command": "benchmarks/as_shipped.py " + " ".join(f"--{k} {v}" for k, v in
                                                             (("seeds", a.seeds), ("loo-seeds", a.loo_seeds),
                                                              *((("ablation-seeds", a.ablation_seeds),)
@@ -501,6 +577,21 @@ def main() -> None:
                                                              ("conditions", a.conditions),
                                                              ("canvases", a.canvases)))},
         indent=1))
+
+
+def main() -> None:
+    a = parse_args()
+    r = plan(a)
+    a.workdir.mkdir(parents=True, exist_ok=True)
+    run_study1(a, r)
+    run_loo(a, r)
+    run_ablation(a, r)
+    head = headline_studies(r)
+    headline_more(r, head)
+    targets = targets_met(head)
+    table = tables(r, head, targets)
+    print(table)
+    write_results(a, r, head, targets, table)
     print(json.dumps(head))
 
 

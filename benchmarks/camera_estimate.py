@@ -45,9 +45,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
-import platform
-import sys
 import tempfile
 import time
 from dataclasses import replace
@@ -56,16 +53,15 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from measure import BIN, CS_FORMAT, DATA, ROOT, SHARED_DATA, run
-
-sys.path.insert(0, str(ROOT))
-import vcprep.vanishing_point as vpmod  # noqa: E402
-from vcprep.camera import PRESETS, Camera, load_camera  # noqa: E402
-from vcprep.camera_estimate import ASSUMED_HEIGHT, ROAD_WIDTH, estimate_camera, road_widths  # noqa: E402
-from vcprep.errors import InputError  # noqa: E402
-from vcprep.homography import vp_from_pose  # noqa: E402
-from vcprep.labels import get_label_format  # noqa: E402
-from vcprep.synthetic import RoadScene, render_road  # noqa: E402
+from measure.data import BIN, CS_FORMAT, DATA, ROOT, SHARED_DATA, run
+from measure.report import machine, today, write_json
+import vcprep.vanishing_point as vpmod
+from vcprep.camera import PRESETS, Camera, load_camera
+from vcprep.camera_estimate import ASSUMED_HEIGHT, ROAD_WIDTH, estimate_camera, road_widths
+from vcprep.errors import InputError
+from vcprep.homography import vp_from_pose
+from vcprep.labels import get_label_format
+from vcprep.synthetic import RoadScene, render_road
 
 CITYSCAPES = SHARED_DATA / "cityscapes_pix2pix"
 FOCALS = [0.5, 0.71, 1.0, 1.41, 2.0]
@@ -131,7 +127,7 @@ def _synthetic(wd: Path, frames: int) -> dict[str, tuple[list[Path], Camera, dic
 
 
 def _camvid_sim(wd: Path, quick: bool) -> dict[str, tuple[list[Path], Camera, dict]]:
-    from measure import native_camera
+    from measure.data import native_camera
 
     native = native_camera(wd)
     images, labels = DATA / "val", DATA / "valannot"
@@ -192,51 +188,48 @@ def _stats(rows: list[dict], key: str) -> tuple[float, float]:
     return float(np.median(x)), float(np.max(x))
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--frames", type=int, default=8)
-    ap.add_argument("--workdir", type=Path, default=ROOT / "benchmarks" / "out" / "camera_estimate")
-    ap.add_argument("--quick", action="store_true")
-    a = ap.parse_args()
-    cv2.setNumThreads(1)
-    if not DATA.is_dir():
-        raise SystemExit(f"needs {DATA} (../shared/data); not found")
-    wd = a.workdir if not a.quick else Path(tempfile.mkdtemp(prefix="camest_"))
-    groups = {"synthetic": _synthetic(wd, 6 if a.quick else a.frames), "camvid-sim": _camvid_sim(wd, a.quick),
-              "real": _real(a.quick)}
-    if a.quick:
-        groups["synthetic"] = dict(list(groups["synthetic"].items())[::6])
+def _estimate_row(files: list[Path], truth: Camera, kw: dict, clock: dict) -> dict:
+    """One set's errors with fx given and with nothing given, or {"failed": why} where the estimator
+    refuses the camera; ``clock`` adds the seconds and frames of each estimate."""
+    row = {}
+    for with_fx in (True, False):
+        t0 = time.perf_counter()
+        # fx given: what the frames say of the pose; nothing given: the labels (where there are) give
+        # the height, from the road footprint
+        given = {"fx": truth.fx, "pixel_aspect": truth.fy / truth.fx} if with_fx else {
+            "labels": kw.get("labels"), "label_format": get_label_format(kw["label_format"])
+            if kw.get("labels") else None}
+        try:
+            est = estimate_camera(files, source_size=kw.get("source_size") if with_fx else None, **given)
+        except InputError as e:  # reported, never hidden: a camera the estimator refuses
+            return {"failed": f"{e.problem} ({'fx given' if with_fx else 'fx assumed'})"}
+        clock["seconds"] += time.perf_counter() - t0
+        clock["frames"] += len(files)
+        row["fx_given" if with_fx else "fx_assumed"] = _errors(est, truth, with_fx)
+        if not with_fx:
+            e = row["fx_assumed"]
+            e["height"] = est.camera.height
+            e["height_source"] = est.values["height"].source
+            e["depth_scale_err_pct"] = _depth_scale_err(est.camera, truth)
+            # the same camera with the height assumed (what a user got without labels)
+            e["depth_scale_err_pct_height_assumed"] = _depth_scale_err(replace(est.camera, height=ASSUMED_HEIGHT),
+                                                                       truth)
+    return row
+
+
+def estimate_sets(groups: dict) -> tuple[dict, dict, float, float]:
+    """Every set's row (printed as it comes), the refused sets, and seconds per 100 frames inside
+    estimate_vp and besides it."""
     results: dict[str, dict[str, dict]] = {}
-    frames_total, t_total = 0, 0.0
     failed: dict[str, str] = {}
+    clock = {"seconds": 0.0, "frames": 0}
     with _VPTimer() as vt:
         for g, sets in groups.items():
             for name, (files, truth, kw) in sets.items():
-                row = {}
-                try:
-                    for with_fx in (True, False):
-                        t0 = time.perf_counter()
-                        # fx given: what the frames say of the pose; nothing given: the labels (where
-                        # there are) give the height, from the road footprint
-                        given = {"fx": truth.fx, "pixel_aspect": truth.fy / truth.fx} if with_fx else {
-                            "labels": kw.get("labels"), "label_format": get_label_format(kw["label_format"])
-                            if kw.get("labels") else None}
-                        est = estimate_camera(files, source_size=kw.get("source_size") if with_fx else None,
-                                              **given)
-                        t_total += time.perf_counter() - t0
-                        frames_total += len(files)
-                        row["fx_given" if with_fx else "fx_assumed"] = _errors(est, truth, with_fx)
-                        if not with_fx:
-                            e = row["fx_assumed"]
-                            e["height"] = est.camera.height
-                            e["height_source"] = est.values["height"].source
-                            e["depth_scale_err_pct"] = _depth_scale_err(est.camera, truth)
-                            # the same camera with the height assumed (what a user got without labels)
-                            e["depth_scale_err_pct_height_assumed"] = _depth_scale_err(
-                                replace(est.camera, height=ASSUMED_HEIGHT), truth)
-                except InputError as e:  # reported, never hidden: a camera the estimator refuses
-                    failed[f"{g} {name}"] = f"{e.problem} ({'fx given' if with_fx else 'fx assumed'})"
-                    print(f"{g:10s} {name:24s} NO ESTIMATE: {failed[f'{g} {name}']}", flush=True)
+                row = _estimate_row(files, truth, kw, clock)
+                if "failed" in row:
+                    failed[f"{g} {name}"] = row["failed"]
+                    print(f"{g:10s} {name:24s} NO ESTIMATE: {row['failed']}", flush=True)
                     continue
                 results.setdefault(g, {})[name] = row
                 e = row["fx_given"]
@@ -244,23 +237,28 @@ def main() -> None:
                       f"pan {e['pan_err']:+6.2f}; fx assumed: horizon {row['fx_assumed']['horizon_err_pct']:+6.2f} %, "
                       f"tilt {row['fx_assumed']['tilt_err']:+6.2f}, fx {row['fx_assumed']['fx_err_pct']:+6.1f} % "
                       f"({e['accepted']}/{e['frames']} VPs)", flush=True)
-    # what ROAD_WIDTH stands for: the median visible road width under the TRUE calibrations
+    return (results, failed, 100 * vt.seconds / clock["frames"],
+            100 * (clock["seconds"] - vt.seconds) / clock["frames"])
+
+
+def visible_road_width(quick: bool) -> dict:
+    """What ROAD_WIDTH stands for: the median visible road width under the TRUE calibrations."""
     cv = PRESETS["camvid"].for_image_size((480, 360))
     train_labels = sorted((DATA / "trainannot").glob("*.png"))
-    widths = {"camvid-train": _road_width_m(train_labels[:12] if a.quick else train_labels, "camvid", cv)}
+    widths = {"camvid-train": _road_width_m(train_labels[:12] if quick else train_labels, "camvid", cv)}
     if CITYSCAPES.is_dir():
         cs_labels = sorted((CITYSCAPES / "labels").glob("*.png"))
-        widths["cityscapes"] = _road_width_m(cs_labels[:12] if a.quick else cs_labels, CS_FORMAT,
+        widths["cityscapes"] = _road_width_m(cs_labels[:12] if quick else cs_labels, CS_FORMAT,
                                              load_camera(CITYSCAPES / "camera.yaml"))
-    road_width = {k: {"median_m": round(m, 2), "frames": n} for k, (m, n) in widths.items()}
-    print("visible road width under the true calibration: " + ", ".join(
-        f"{k} {v['median_m']:.2f} m ({v['frames']} frames)" for k, v in road_width.items()), flush=True)
-    s_vp = 100 * vt.seconds / frames_total
-    s_rest = 100 * (t_total - vt.seconds) / frames_total
+    return {k: {"median_m": round(m, 2), "frames": n} for k, (m, n) in widths.items()}
+
+
+def headline(results: dict, failed: dict, road_width: dict, s_vp: float, s_rest: float) -> dict:
+    """The figures the results page shows: errors over the synthetic cameras, the simulated and real sets."""
     syn = results["synthetic"]
     given = [r["fx_given"] for r in syn.values()]
     assumed = [r["fx_assumed"] for r in syn.values()]
-    head = {
+    return {
         "tilt_abs_err_median": round(_stats(given, "tilt_err")[0], 3),
         "tilt_abs_err_max": round(_stats(given, "tilt_err")[1], 3),
         "horizon_err_pct_median": round(_stats(given, "horizon_err_pct")[0], 3),
@@ -287,6 +285,10 @@ def main() -> None:
         "s_per_100_frames_besides_vp": round(s_rest, 4),
         "s_per_100_frames_vp": round(s_vp, 3),
     }
+
+
+def table(results: dict, road_width: dict) -> str:
+    """Markdown: a row per set, and the visible road width."""
     lines = ["| set | camera | tilt err (deg) | horizon err (% h) | pan err (deg) | fx assumed: fx err (%) | "
              "fx assumed: tilt err | nothing given: height m (how) | depth scale err (%): labels / no labels | VPs |",
              "|---|---|---|---|---|---|---|---|---|---|"]
@@ -301,15 +303,36 @@ def main() -> None:
     lines.append("Visible road width under the true calibration (what ROAD_WIDTH = "
                  f"{ROAD_WIDTH:g} m stands for): " + ", ".join(f"{k} {v['median_m']:.2f} m ({v['frames']} frames)"
                                                              for k, v in road_width.items()) + ".")
-    table = "\n".join(lines) + "\n"
-    print(table)
+    return "\n".join(lines) + "\n"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--frames", type=int, default=8)
+    ap.add_argument("--workdir", type=Path, default=ROOT / "benchmarks" / "out" / "camera_estimate")
+    ap.add_argument("--quick", action="store_true")
+    a = ap.parse_args()
+    cv2.setNumThreads(1)
+    if not DATA.is_dir():
+        raise SystemExit(f"needs {DATA} (../shared/data); not found")
+    wd = a.workdir if not a.quick else Path(tempfile.mkdtemp(prefix="camest_"))
+    groups = {"synthetic": _synthetic(wd, 6 if a.quick else a.frames), "camvid-sim": _camvid_sim(wd, a.quick),
+              "real": _real(a.quick)}
+    if a.quick:
+        groups["synthetic"] = dict(list(groups["synthetic"].items())[::6])
+    results, failed, s_vp, s_rest = estimate_sets(groups)
+    road_width = visible_road_width(a.quick)
+    print("visible road width under the true calibration: " + ", ".join(
+        f"{k} {v['median_m']:.2f} m ({v['frames']} frames)" for k, v in road_width.items()), flush=True)
+    head = headline(results, failed, road_width, s_vp, s_rest)
+    text = table(results, road_width)
+    print(text)
     res = ROOT / "benchmarks" / "results" if not a.quick else wd
     res.mkdir(parents=True, exist_ok=True)
-    (res / "camera_estimate.md").write_text(table)
-    (res / "camera_estimate.json").write_text(json.dumps(
-        {"headline": head, "results": results, "frames_per_synthetic_camera": a.frames, "threads": 1,
-         "machine": f"{platform.machine()}, {os.cpu_count()} cores", "date": time.strftime("%Y-%m-%d"),
-         "command": f"benchmarks/camera_estimate.py --frames {a.frames}"}, indent=1))
+    (res / "camera_estimate.md").write_text(text)
+    write_json(res / "camera_estimate.json",
+               {"headline": head, "results": results, "frames_per_synthetic_camera": a.frames, "threads": 1,
+                "machine": machine(), "date": today(), "command": f"benchmarks/camera_estimate.py --frames {a.frames}"})
     print(json.dumps(head))
 
 

@@ -40,18 +40,15 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
-
-from vcprep.backproject import backproject_array  # noqa: E402
-from vcprep.camera import PRESETS  # noqa: E402
-from vcprep.completion import _CACHE as COMPLETION_CACHE, border_ignore, completion_maps, store_vp  # noqa: E402
-from vcprep.homography import virt_H_src, virtual_at_scale, vp_from_pose  # noqa: E402
-from vcprep.labels import LABEL_FORMATS, decode_label  # noqa: E402
-from vcprep.synthetic import render_road  # noqa: E402
-from vcprep.warp import _CACHE as WARP_CACHE, warp_image, warp_label  # noqa: E402
-
-CAMVID = ROOT.parent / "shared" / "data" / "camvid"
+from measure.data import DATA as CAMVID, ROOT
+from vcprep import completion, warp
+from vcprep.backproject import backproject_array
+from vcprep.camera import PRESETS
+from vcprep.completion import border_ignore, completion_maps, store_vp
+from vcprep.homography import virt_H_src, virtual_at_scale, vp_from_pose
+from vcprep.labels import LABEL_FORMATS, decode_label
+from vcprep.synthetic import render_road
+from vcprep.warp import warp_image, warp_label
 
 
 def frames(n: int):
@@ -99,8 +96,8 @@ def bench_scale(scale: float, data, repeats: int, cold_repeats: int) -> dict:
         ours_label = timeit(lambda: warp_label(lab, maps, maps.label_border), repeats) if lab is not None else None
 
         def cold():
-            COMPLETION_CACHE.clear()
-            WARP_CACHE.clear()
+            completion.clear_cache()
+            warp.clear_cache()
             warp_image(img, completion_maps(H, cam.size, size, "projective", vp, ign))
 
         ours_cold = timeit(cold, cold_repeats)

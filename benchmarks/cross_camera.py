@@ -48,7 +48,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from measure import BIN, DATA, ROOT, SIMULATED, bar_plot as _bars, native_camera, run, simulate
+from measure.data import BIN, DATA, ROOT, SIMULATED, native_camera, run, simulate
+from measure.tables import bar_plot as _bars
 
 CONDITIONS = ["resize", "between", "within", "within-gt", "zero"]  # the default; --conditions may add prior,
                                                                     # adapt, adapt-fuse

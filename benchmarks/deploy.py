@@ -46,22 +46,21 @@ import cv2
 import numpy as np
 import torch
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
+from measure.data import ROOT, SHARED_DATA
+from measure.report import write_json
+from vcprep.build import store_params
+from vcprep.camera import PRESETS, load_camera
+from vcprep.homography import vp_from_pose
+from vcprep.virtual_camera import design_virtual_camera
+from vctrain.checkpoint import save_checkpoint
+from vctrain.data import to_input
+from vctrain.export import OnnxPredictor, export_onnx
+from vctrain.frames import FramePredictor, StageTimes
+from vctrain.model import build_model, model_args_for
+from vctrain.predict import Predictor
+from vctrain.study.spec import DEFAULT_ABOVE, DEFAULT_STORE_PIXELS
 
-from vcprep.build import store_params  # noqa: E402
-from vcprep.camera import PRESETS, load_camera  # noqa: E402
-from vcprep.homography import vp_from_pose  # noqa: E402
-from vcprep.virtual_camera import design_virtual_camera  # noqa: E402
-from vctrain.checkpoint import save_checkpoint  # noqa: E402
-from vctrain.data import to_input  # noqa: E402
-from vctrain.export import OnnxPredictor, export_onnx  # noqa: E402
-from vctrain.frames import FramePredictor, StageTimes  # noqa: E402
-from vctrain.model import build_model, model_args_for  # noqa: E402
-from vctrain.predict import Predictor  # noqa: E402
-from vctrain.study.spec import DEFAULT_ABOVE, DEFAULT_STORE_PIXELS  # noqa: E402
-
-DATA = ROOT.parent / "shared" / "data"
+DATA = SHARED_DATA
 RESIZE_SIZE = (480, 360)  # the resize twin's working size: the same 172800 pixels
 POSE_RANGE = (5.0, 5.0)   # vctrain export's default for --vp-input
 
@@ -246,9 +245,7 @@ def main() -> None:
            "data": "; ".join(s[2] for s in sets.values()) + "; resfpn width 16 with random weights",
            "store_params": {"store_size": sp["store_size"], "scale": sp["scale"]},
            "headline": headline, "detail": detail}
-    res = ROOT / "benchmarks" / "results"
-    res.mkdir(parents=True, exist_ok=True)
-    (res / "deploy.json").write_text(json.dumps(out, indent=2) + "\n")
+    write_json(ROOT / "benchmarks" / "results" / "deploy.json", out, indent=2)
     print(json.dumps(headline))
 
 

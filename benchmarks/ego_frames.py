@@ -18,22 +18,19 @@ Writes benchmarks/results/ego_frames.json; prints the table, then one JSON line 
 from __future__ import annotations
 
 import json
-import os
-import platform
 import sys
 import time
 from pathlib import Path
 
 import cv2
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
+from measure.data import ROOT, SHARED_DATA
+from measure.report import machine, today, write_json
+from vcprep.ego import MIN_DISTINCT, ego_rows_from_frame_files, ego_rows_from_label_files
+from vcprep.errors import InputError
+from vcprep.labels import get_label_format, label_stem_for
 
-from vcprep.ego import MIN_DISTINCT, ego_rows_from_frame_files, ego_rows_from_label_files  # noqa: E402
-from vcprep.errors import InputError  # noqa: E402
-from vcprep.labels import get_label_format, label_stem_for  # noqa: E402
-
-DATA = ROOT.parent / "shared" / "data"
+DATA = SHARED_DATA
 WINDOW = 30   # consecutive frames per window
 
 
@@ -108,11 +105,10 @@ def main() -> None:
                 "cityscapes_label_rows": by["cityscapes"]["label_rows"],
                 "idd_lite_rows": by["idd_lite"]["frame_rows"], "lums_rows": by["lums"]["frame_rows"],
                 "bdd100k_0a0c3694_rows": by["bdd100k_0a0c3694"]["frame_rows"]}
-    out = {"headline": headline, "date": time.strftime("%Y-%m-%d"), "command": "benchmarks/ego_frames.py",
-           "machine": f"{platform.machine()}, {os.cpu_count()} cores", "cpu_threads": 1,
+    out = {"headline": headline, "date": today(), "command": "benchmarks/ego_frames.py",
+           "machine": machine(), "cpu_threads": 1,
            "seconds": round(time.time() - t0, 1), "sets": rows}
-    (ROOT / "benchmarks" / "results").mkdir(parents=True, exist_ok=True)
-    (ROOT / "benchmarks" / "results" / "ego_frames.json").write_text(json.dumps(out, indent=1) + "\n")
+    write_json(ROOT / "benchmarks" / "results" / "ego_frames.json", out)
     print(json.dumps(headline))
 
 

@@ -49,8 +49,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
-import platform
 import sys
 import time
 from pathlib import Path
@@ -58,14 +56,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from measure import BIN, DATA, ROOT, SHARED_DATA, native_camera, run
-
-sys.path.insert(0, str(ROOT))
-from vcprep.camera import PRESETS, Camera, load_camera  # noqa: E402
-from vcprep.camera_estimate import ASSUMED_HFOV, whole_frame_vp_config  # noqa: E402
-from vcprep.homography import vp_from_pose  # noqa: E402
-from vcprep.imageio import read_image  # noqa: E402
-from vcprep.vanishing_point import estimate_vp  # noqa: E402
+from measure.data import BIN, DATA, ROOT, SHARED_DATA, native_camera, run
+from measure.report import machine, today, write_json
+from vcprep.camera import PRESETS, Camera, load_camera
+from vcprep.camera_estimate import ASSUMED_HFOV, whole_frame_vp_config
+from vcprep.homography import vp_from_pose
+from vcprep.imageio import read_image
+from vcprep.vanishing_point import estimate_vp
 
 CITYSCAPES = SHARED_DATA / "cityscapes_pix2pix"
 SIM = [(hf, t) for hf in (20, 30) for t in (-8, -4, 0, 4, 8)]
@@ -213,12 +210,11 @@ def main() -> None:
     res = args.workdir if args.quick else ROOT / "benchmarks" / "results"   # a smoke run never replaces the record
     stem = "focal_from_verticals"
     (res / f"{stem}.md").write_text("\n".join(md) + "\n")
-    (res / f"{stem}.json").write_text(json.dumps(
-        {"headline": head, "sets": rows, "command": " ".join(["benchmarks/focal_from_verticals.py", *sys.argv[1:]]),
+    write_json(res / f"{stem}.json",
+               {"headline": head, "sets": rows, "command": " ".join(["benchmarks/focal_from_verticals.py", *sys.argv[1:]]),
          "settings": {"frames": frames, "max_dev_deg": MAX_DEV_DEG, "min_len_share": MIN_LEN_SHARE,
                       "tau_deg": math.degrees(TAU), "grid_fy_over_h": [float(GRID[0]), float(GRID[-1])], "boot": BOOT},
-         "machine": f"{platform.machine()}, {os.cpu_count()} cores", "date": time.strftime("%Y-%m-%d")},
-        indent=1) + "\n")
+         "machine": machine(), "date": today()})
     print("\n".join(md))
     print(json.dumps(head))
 

@@ -6,7 +6,7 @@
 One ``vctrain crossval`` study, run once per seed (``--seed k``) into WORKDIR/seed<k>/; every run
 resumes (crossval skips finished runs), so an interrupted benchmark continues where it stopped.
 This script sets the study up, runs it and reports; the measuring code (statistics over seeds, the
-reference training step, the camera change alone, tables and plot) is in ``measure.py``.
+reference training step, the camera change alone, tables and plot) is in the ``measure`` package.
 
 Data (../shared/data; nothing is tuned on a test set):
 
@@ -25,7 +25,7 @@ Data (../shared/data; nothing is tuned on a test set):
   as a row of its own (not in the headline). Other folders found in ../shared/data are listed as
   not used.
 * **simulated other cameras**: CamVid val through ``tele``, ``band`` and ``dashcam``, made by
-  ``vcprep simulate`` exactly as benchmarks/cross_camera.py makes them (measure.py).
+  ``vcprep simulate`` exactly as benchmarks/cross_camera.py makes them (measure.data).
 
 Every test set has role test: per condition ONE model is trained on CamVid train and scored on each
 test set in its own camera (back-projected, ignore excluded; road IoU = sum TP / sum (TP+FP+FN) over
@@ -65,7 +65,7 @@ right after each seed's training (same model args, batch, working size, memory f
 device and threads; kept in runs/_all/<condition>/reference.json, so a resumed benchmark reuses the
 reference of the training it belongs to).
 
-The camera change alone (simulated cameras, :func:`measure.no_shift_reference`): every trained model's
+The camera change alone (simulated cameras, :func:`measure.camera_change.no_shift_reference`): every trained model's
 prediction on the simulations' source frames (CamVid val; ``--dev``: 0006R0) in their own camera,
 carried into each simulated camera by the simulation's exact homography and scored against the
 simulated labels: the same frames and pixels with no camera change. The score on the simulated
@@ -74,7 +74,7 @@ minus resize's score is within - resize if the virtual camera removed the whole 
 (``zero_cost``; over the other cameras with KITTI as measured): what these test sets allow at this
 network quality. The recorded homography must carry every source label onto its simulated label
 exactly (checked).
-Estimated VPs vs the exact pose (:func:`measure.exact_vp_scores`): the within model on the simulated
+Estimated VPs vs the exact pose (:func:`measure.camera_change.exact_vp_scores`): the within model on the simulated
 cameras' frames warped with each frame's exact camera pose (the simulation's vps.csv: the source
 camera's nominal pose carried through that frame's simulated rotation, i.e. what a perfect
 per-frame calibration gives) instead of its estimated road VP.
@@ -105,9 +105,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from measure import (BIN, DATA, DESCRIPTION, KITTI, ROOT, SHARED_DATA, SIM, UNTRAINED, aggregate, bar_plot,
-                     collect_seed, ego_camera, exact_vp_scores, kitti_datasets, link_files, native_camera,
-                     no_shift_reference, run, seed_table, shift_costs, shift_table, simulate, vp_costs)
+from measure.camera_change import exact_vp_scores, no_shift_reference, shift_costs, vp_costs
+from measure.data import (BIN, DATA, DESCRIPTION, KITTI, ROOT, SHARED_DATA, SIM, ego_camera, kitti_datasets, link_files,
+                          native_camera, run, simulate)
+from measure.models import collect_seed
+from measure.stats import UNTRAINED, aggregate
+from measure.tables import bar_plot, seed_table, shift_table
+from vctrain.study import CONDITIONS as AVAILABLE
 
 UNSEEN = "0001TP"                         # the CamVid sequence held out of training
 # The 0001TP rig shows its ego-vehicle: a bonnet up to 36 rows high at the bottom of every frame
@@ -261,12 +265,11 @@ def _crop_share(text: str) -> float | list[float]:
     return crop if isinstance(crop, float) else list(crop)
 
 
-def main() -> None:
+def parse_args() -> argparse.Namespace:
+    """The options."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", default=None, help="comma-separated training seeds (default 0,1,2; --quick: 0)")
     ap.add_argument("--epochs", type=int, default=None, help="training epochs (default: vctrain fit's recipe)")
-    from vctrain.study import CONDITIONS as AVAILABLE
-
     ap.add_argument("--conditions", default=",".join(CONDITIONS),
                     help=f"comma-separated, from {','.join(AVAILABLE)} (default: {','.join(CONDITIONS)})")
     ap.add_argument("--store-width", type=int, default=None, help="working width (default: crossval's)")
@@ -290,32 +293,14 @@ def main() -> None:
     ap.add_argument("--results", type=Path, default=None, help="default benchmarks/results (--quick: WORKDIR/results)")
     ap.add_argument("--quick", action="store_true", help="smoke run: a few frames, 1 seed, 1 epoch of 2 steps")
     args = ap.parse_args()
-    if not DATA.is_dir():
-        sys.exit(f"{DATA} not found: this benchmark needs the CamVid train/val folders of ../shared/data")
-    import torch
+    return args
 
+
+def run_seeds(wd: Path, args: argparse.Namespace, conditions: list[str], seeds: list[int], sets: list[str],
+              source: dict) -> tuple[dict, list, dict, dict]:
+    """The study once per seed (resumed where it stopped), and each seed's rows, models, scores without
+    the camera change and with exact poses."""
     T = args.threads
-    torch.set_num_threads(T)
-    cv2.setNumThreads(T)
-    seeds = [int(s) for s in (args.seeds or ("0" if args.quick else "0,1,2")).split(",") if s.strip()]
-    conditions = [c for c in args.conditions.split(",") if c]
-    if not conditions or any(c not in AVAILABLE for c in conditions):
-        sys.exit(f"--conditions: choose from {', '.join(AVAILABLE)}")
-    wd = (args.workdir or ROOT / "benchmarks" / "out" / ("real_cameras_quick" if args.quick else
-                                                         "real_cameras_dev" if args.dev else "real_cameras"))
-    wd = wd.resolve()
-    res = (args.results or (wd / "results" if args.quick or args.dev else ROOT / "benchmarks" / "results")).resolve()
-    wd.mkdir(parents=True, exist_ok=True)
-    res.mkdir(parents=True, exist_ok=True)
-    print(f"threads: {T} (torch.set_num_threads, cv2.setNumThreads; OMP_NUM_THREADS={T} for training; "
-          f"--jobs {T} store builds); seeds {seeds}; workdir {wd}", file=sys.stderr, flush=True)
-    for name in unused_data():
-        print(f"note: ../shared/data/{name} is not used (no reader for it in this benchmark)", file=sys.stderr)
-    import yaml
-
-    t0 = time.perf_counter()
-    study, sets, source = make_study(wd, args, conditions)
-    (wd / "study.yaml").write_text(yaml.safe_dump(study, sort_keys=False))
     env = {"OMP_NUM_THREADS": str(T), "MKL_NUM_THREADS": str(T)}
     per_seed, models, no_shift, exact = {}, [], {}, {}
     for k in seeds:
@@ -330,19 +315,17 @@ def main() -> None:
         models += [{"seed": k, **m} for m in ms]
         no_shift[k] = no_shift_reference(sd, wd, source, conditions, sets)
         exact[k] = exact_vp_scores(sd, wd, sets, T) if "within" in conditions else {}
-    total = time.perf_counter() - t0
-    groups = report_groups(sets)
-    shift = shift_costs(per_seed, no_shift, sets, conditions, groups["other cameras"])
-    shift["exact_vp"] = vp_costs(per_seed, exact)
+    return per_seed, models, no_shift, exact
 
-    agg = aggregate(per_seed, sets, conditions, groups)
-    items = {s: per_seed[seeds[0]][s, conditions[0]]["test_items"] for s in sets if (s, conditions[0]) in per_seed[seeds[0]]}
-    tg = targets(agg, models, conditions)
+
+def mean_of(d: dict | None) -> float | None:
+    """A statistic's mean to 4 places (None without one)."""
+    return None if not d or d.get("mean") is None else round(d["mean"], 4)
+
+
+def headline(agg: dict, shift: dict, models: list, tg: dict, seeds: list[int], quick: bool) -> dict:
+    """The figures the results page and the README show."""
     diff, cells = agg["within_minus_resize"], agg["cells"]
-
-    def mean_of(d: dict | None) -> float | None:
-        return None if not d or d.get("mean") is None else round(d["mean"], 4)
-
     minutes = float(np.mean([m["train_minutes"] for m in models])) if models else None
     headline = {
         "within_minus_resize": mean_of(diff.get("other cameras")),
@@ -356,7 +339,7 @@ def main() -> None:
         "unseen_sequence_resize": mean_of(cells.get(f"camvid-{UNSEEN}", {}).get("resize")),
         "pipeline_ratio_min": None if tg["pipeline_ratio_ge_0.9"]["min"] is None
         else round(tg["pipeline_ratio_ge_0.9"]["min"], 3),
-        "converged": tg["converged"]["models"], "seeds": len(seeds), "quick": args.quick,
+        "converged": tg["converged"]["models"], "seeds": len(seeds), "quick": quick,
     }
     for c, d in agg["adapt_minus_within"].items():
         headline[f"{c.replace('-', '_')}_minus_within"] = mean_of(d.get("other cameras"))
@@ -367,7 +350,14 @@ def main() -> None:
     for g in ("simulated", "other cameras"):
         if g in shift["zero_cost"]:
             headline[f"{'simulated_' if g == 'simulated' else ''}within_minus_resize_zero_cost"] = mean_of(shift["zero_cost"][g])
-    study_json = json.loads((wd / f"seed{seeds[0]}" / "study.json").read_text())
+    return headline
+
+
+def report_md(agg: dict, shift: dict, models: list, tg: dict, seeds: list[int], sets: list[str], items: dict,
+              conditions: list[str], study_json: dict, args: argparse.Namespace, total: float) -> list[str]:
+    """The markdown report: the table, the camera change alone, the targets, the setup and the models."""
+    T = args.threads
+    minutes = float(np.mean([m["train_minutes"] for m in models])) if models else None
     virt, m0 = study_json["virtual"], (models[0] if models else {})
     md = ["# Real new cameras: train on CamVid, test on other cameras (benchmarks/real_cameras.py)", "",
           f"Road IoU (%) on each test set in its own camera, mean ± std over {len(seeds)} seeds {seeds}"
@@ -403,6 +393,50 @@ def main() -> None:
     md += [f"| {m['seed']} | {m['condition']} | {m['train_minutes']:.1f} | {m['best_epoch']}/{m['epochs']} | "
            f"{m['convergence']} | {m['train_images_per_s']:.1f} | {m['reference_images_per_s']:.1f} | "
            f"{m['pipeline_ratio']:.2f} |" for m in models]
+    return md
+
+
+def main() -> None:
+    args = parse_args()
+    if not DATA.is_dir():
+        sys.exit(f"{DATA} not found: this benchmark needs the CamVid train/val folders of ../shared/data")
+    import torch
+
+    T = args.threads
+    torch.set_num_threads(T)
+    cv2.setNumThreads(T)
+    seeds = [int(s) for s in (args.seeds or ("0" if args.quick else "0,1,2")).split(",") if s.strip()]
+    conditions = [c for c in args.conditions.split(",") if c]
+    if not conditions or any(c not in AVAILABLE for c in conditions):
+        sys.exit(f"--conditions: choose from {', '.join(AVAILABLE)}")
+    wd = (args.workdir or ROOT / "benchmarks" / "out" / ("real_cameras_quick" if args.quick else
+                                                         "real_cameras_dev" if args.dev else "real_cameras"))
+    wd = wd.resolve()
+    res = (args.results or (wd / "results" if args.quick or args.dev else ROOT / "benchmarks" / "results")).resolve()
+    wd.mkdir(parents=True, exist_ok=True)
+    res.mkdir(parents=True, exist_ok=True)
+    print(f"threads: {T} (torch.set_num_threads, cv2.setNumThreads; OMP_NUM_THREADS={T} for training; "
+          f"--jobs {T} store builds); seeds {seeds}; workdir {wd}", file=sys.stderr, flush=True)
+    for name in unused_data():
+        print(f"note: ../shared/data/{name} is not used (no reader for it in this benchmark)", file=sys.stderr)
+    import yaml
+
+    t0 = time.perf_counter()
+    study, sets, source = make_study(wd, args, conditions)
+    (wd / "study.yaml").write_text(yaml.safe_dump(study, sort_keys=False))
+    per_seed, models, no_shift, exact = run_seeds(wd, args, conditions, seeds, sets, source)
+    total = time.perf_counter() - t0
+    groups = report_groups(sets)
+    shift = shift_costs(per_seed, no_shift, sets, conditions, groups["other cameras"])
+    shift["exact_vp"] = vp_costs(per_seed, exact)
+
+    agg = aggregate(per_seed, sets, conditions, groups)
+    items = {s: per_seed[seeds[0]][s, conditions[0]]["test_items"] for s in sets if (s, conditions[0]) in per_seed[seeds[0]]}
+    tg = targets(agg, models, conditions)
+    diff, cells = agg["within_minus_resize"], agg["cells"]
+    head = headline(agg, shift, models, tg, seeds, args.quick)
+    study_json = json.loads((wd / f"seed{seeds[0]}" / "study.json").read_text())
+    md = report_md(agg, shift, models, tg, seeds, sets, items, conditions, study_json, args, total)
     (res / "real_cameras.md").write_text("\n".join(md) + "\n")
     groups = sets + [g for g in ("other cameras",) if g in cells]
     cell = {(g, c): cells[g][c]["mean"] for g in groups for c in conditions if cells[g][c]["mean"] is not None}
@@ -411,14 +445,14 @@ def main() -> None:
                 bar_plot(cell, groups, conditions, f"road IoU (%) per test set, trained on CamVid (mean +/- std over "
                                                   f"{len(seeds)} seeds)", spread))
     (res / "real_cameras.json").write_text(json.dumps(
-        {"headline": headline, "cells": cells, "within_minus_resize": diff,
+        {"headline": head, "cells": cells, "within_minus_resize": diff,
          "adapt_minus_within": agg["adapt_minus_within"], "within_minus_between": agg["within_minus_between"],
          "groups": agg["groups"], "no_shift": shift,
          "test_frames": items, "targets": tg, "models": models, "seeds": seeds, "conditions": conditions,
-         "threads": T, "study": study, "virtual": virt, "scale": study_json["scale"],
+         "threads": T, "study": study, "virtual": study_json["virtual"], "scale": study_json["scale"],
          "train_settings": study_json["train"], "wall_minutes": total / 60}, indent=1, default=str) + "\n")
     print(seed_table(agg, sets, conditions, items), file=sys.stderr)
-    print(json.dumps(headline))
+    print(json.dumps(head))
 
 
 if __name__ == "__main__":

@@ -20,26 +20,23 @@ from __future__ import annotations
 import argparse
 import json
 import statistics
-import sys
 import time
-from pathlib import Path
 
 import cv2
 import numpy as np
 import torch
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
+from measure.data import ROOT, SHARED_DATA
+from measure.report import write_json
+from vcprep.backproject import backproject_array
+from vcprep.camera import PRESETS
+from vcprep.completion import completion_maps
+from vcprep.homography import apply_homography, pose_from_vp, virt_H_src, virtual_at_scale
+from vcprep.vanishing_point import detect_segments, estimate_vp, to_gray
+from vcprep.warp import build_maps, warp_image
+from vctrain.model import build_model, model_args_for
 
-from vcprep.backproject import backproject_array  # noqa: E402
-from vcprep.camera import PRESETS  # noqa: E402
-from vcprep.completion import completion_maps  # noqa: E402
-from vcprep.homography import apply_homography, pose_from_vp, virt_H_src, virtual_at_scale  # noqa: E402
-from vcprep.vanishing_point import detect_segments, estimate_vp, to_gray  # noqa: E402
-from vcprep.warp import build_maps, warp_image  # noqa: E402
-from vctrain.model import build_model, model_args_for  # noqa: E402
-
-DATA = ROOT.parent / "shared" / "data" / "camvid" / "val"
+DATA = SHARED_DATA / "camvid" / "val"
 PAPER_MS = {"line_detection": 6200, "vp": 25, "projection": 182, "completion": 85, "inference": 43,
             "back_projection": 43}
 
@@ -108,9 +105,7 @@ def main():
     print(f"{'total':<18} {total:>9.2f} {'':>8} {sum(PAPER_MS.values()):>9}")
     headline = {f"{k}_ms": round(med[k], 2) for k in t} | {"total_ms": round(total, 2), "store_size": list(v.size),
                                                           "threads": 1, "data": source}
-    out = ROOT / "benchmarks" / "results"
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "stages.json").write_text(json.dumps({"headline": headline, "paper_ms": PAPER_MS}, indent=2) + "\n")
+    write_json(ROOT / "benchmarks" / "results" / "stages.json", {"headline": headline, "paper_ms": PAPER_MS}, indent=2)
     print(json.dumps(headline))
 
 

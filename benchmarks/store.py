@@ -55,16 +55,16 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT))
+from measure.data import ROOT, SHARED_DATA
+from measure.report import write_json
+from vcprep.build import Job, WarpSettings, list_dataset, warp_dataset
+from vcprep.camera import PRESETS
+from vcprep.imageio import write_bytes_atomic, write_png
+from vcprep.labels import LABEL_FORMATS
+from vcprep.parallel import default_jobs
+from vcprep.synthetic import RoadScene, render_road
 
-from vcprep.build import Job, WarpSettings, list_dataset, warp_dataset  # noqa: E402
-from vcprep.camera import PRESETS  # noqa: E402
-from vcprep.imageio import write_bytes_atomic, write_png  # noqa: E402
-from vcprep.labels import LABEL_FORMATS  # noqa: E402
-from vcprep.parallel import default_jobs  # noqa: E402
-
-CAMVID = ROOT.parent / "shared" / "data" / "camvid"
+CAMVID = SHARED_DATA / "camvid"
 
 
 def frames(n: int, tmp: Path) -> tuple[list[Job], str]:
@@ -73,14 +73,25 @@ def frames(n: int, tmp: Path) -> tuple[list[Job], str]:
     if (CAMVID / "train").is_dir() and (CAMVID / "trainannot").is_dir():
         jobs = list_dataset(CAMVID / "train", CAMVID / "trainannot", fmt)[:n or None]
         return jobs, f"{'first ' if n else 'all '}{len(jobs)} CamVid train frames from {CAMVID} (480x360) with trainannot labels"
-    sys.path.insert(0, str(ROOT / "tests"))
-    from conftest import write_synthetic_dataset  # noqa: E402
-
     n = n or 120
-    images, labels = write_synthetic_dataset(tmp / "synthetic", PRESETS["camvid"].for_image_size((480, 360)), n=n,
-                                             bonnet_rows=20)
-    jobs = list_dataset(images, labels, fmt)
+    jobs = list_dataset(*synthetic_frames(tmp / "synthetic", n), fmt)
     return jobs, f"{CAMVID} ABSENT: {n} synthetic render_road frames (480x360) instead"
+
+
+def synthetic_frames(folder: Path, n: int) -> tuple[Path, Path]:
+    """``n`` render_road frames through the camvid camera at 480x360 in ``folder/images`` and their
+    camvid labels (road 3, else 0, the bottom 20 rows 11 = ignore, a bonnet) in ``folder/labels``."""
+    cam = PRESETS["camvid"].for_image_size((480, 360))
+    images, labels = folder / "images", folder / "labels"
+    for d in (images, labels):
+        d.mkdir(parents=True, exist_ok=True)
+    for i in range(n):
+        img, road = render_road(cam, RoadScene(offset=0.3 * i, texture_seed=i), supersample=1)
+        ids = np.where(road == 1, 3, 0).astype(np.uint8)
+        ids[-20:] = 11
+        cv2.imwrite(str(images / f"seq_{i:04d}.png"), img)
+        cv2.imwrite(str(labels / f"seq_{i:04d}.png"), ids)
+    return images, labels
 
 
 def _opencv_png(path: Path, arr: np.ndarray, kind: str) -> None:
@@ -140,6 +151,87 @@ def stats(ts: list[float]) -> dict:
             "min_s": float(a.min()), "max_s": float(a.max()), "runs": len(ts)}
 
 
+def stage_runs(jobs: list[Job], tmp: Path, scale: float) -> dict:
+    """The timed stages, each a function of the repeat index returning seconds: the store build
+    with 1 and 2 workers, the PNG baselines, and the pure-CPU control with 1 and 2 processes."""
+    cam, virtual, fmt = PRESETS["camvid"], PRESETS["virtual"], LABEL_FORMATS["camvid"]
+
+    def build(workers: int, run: int) -> float:
+        out = tmp / f"store-{workers}-{run}"
+        t = time.perf_counter()
+        store, summary = warp_dataset(jobs, out, WarpSettings(cam, virtual, scale, fmt, completion="projective",
+                                                              workers=workers, progress=False))
+        dt = time.perf_counter() - t
+        assert summary.built == len(jobs), summary.line()
+        shutil.rmtree(out)
+        return dt
+
+    def baseline(fn, run: int) -> float:
+        out = tmp / f"png-{run}"
+        t = time.perf_counter()
+        fn(jobs, out)
+        dt = time.perf_counter() - t
+        shutil.rmtree(out)
+        return dt
+
+    return {"jobs1": lambda r: build(1, r), "jobs2": lambda r: build(2, r), "png_io": lambda r: baseline(png_io, r),
+            "png_io_same_encoder": lambda r: baseline(lambda j, o: png_io(j, o, _our_png), r),
+            "cpu1": lambda r: control(1), "cpu2": lambda r: control(2)}
+
+
+def time_stages(stages: dict, repeats: int) -> tuple[dict, dict, list[float]]:
+    """Seconds and busy machine CPU seconds of each stage per repeat (the stages in a rotated order
+    each repeat, after one warm-up build), and the 1-minute load average before and after."""
+    stages["jobs1"](-1)  # warm-up: imports, page cache of the frames
+    times: dict[str, list[float]] = {k: [] for k in stages}
+    cpu: dict[str, list[float]] = {k: [] for k in stages}
+    names = list(stages)
+    load_before = os.getloadavg()[0]
+    for r in range(repeats):
+        for k in names[r % len(names):] + names[:r % len(names)]:
+            c = cpu_s()
+            times[k].append(stages[k](r))
+            cpu[k].append(cpu_s() - c)
+    return times, cpu, [load_before, os.getloadavg()[0]]
+
+
+def report(times: dict, cpu: dict, loads: list[float], n: int, source: str, args: argparse.Namespace) -> dict:
+    """Print the table and the verdicts; the result record."""
+    names = list(times)
+    st = {k: stats(v) for k, v in times.items()}
+    med = {k: v["median_s"] for k, v in st.items()}
+    speedup = med["jobs1"] / med["jobs2"]
+    machine = med["cpu1"] / med["cpu2"]
+    ratio = med["jobs1"] / med["png_io"]
+    ratio_same = med["jobs1"] / med["png_io_same_encoder"]
+    virtual = PRESETS["virtual"]
+    store_size = [round(virtual.size[0] * args.scale), round(virtual.size[1] * args.scale)]
+    cores_used = {k: float(np.median(np.array(cpu[k]) / np.array(times[k]))) for k in names}
+    print(f"{'stage':<20} {'items/s':>8} {'ms/item':>8} {'median s':>9} {'p10..p90 s':>14} {'min..max s':>14} "
+          f"{'machine cores busy':>18}")
+    for k in names[:4]:
+        s = st[k]
+        print(f"{k:<20} {n / s['median_s']:>8.1f} {1000 * s['median_s'] / n:>8.2f} {s['median_s']:>9.3f} "
+              f"{s['p10_s']:>6.3f}..{s['p90_s']:<6.3f} {s['min_s']:>6.3f}..{s['max_s']:<6.3f} {cores_used[k]:>18.2f}")
+    print(f"load average (1 min) before/after: {loads[0]:.2f}/{loads[1]:.2f} on {os.cpu_count()} cores "
+          "(other processes' load leaves the pool fewer cores)")
+    print(f"jobs2 speedup {speedup:.2f}x (target >= 1.7); a pure-CPU control got {machine:.2f}x from 2 processes "
+          f"in the same run (what the machine allowed)")
+    print(f"store stage / PNG decode+encode {ratio:.2f}x (target <= 1.25); / the same with the store's PNG "
+          f"writer {ratio_same:.2f}x")
+    return {"benchmark": "store", "data": source, "frames": n, "source_size": [480, 360],
+            "store_size": store_size, "scale": args.scale, "completion": "projective",
+            "threads": "cv2.setNumThreads(1) per process", "cores": default_jobs(),
+            "machine": platform.machine(), "python": platform.python_version(), "cv2": cv2.__version__,
+            "repeats": args.repeats, "stages": st, "cores_busy": cores_used,
+            "machine_busy_ms_per_item": {k: 1000 * float(np.median(cpu[k])) / n for k in names},
+            "loadavg_1min": loads,
+            "items_s": {k: n / med[k] for k in names[:4]},
+            "jobs2_speedup": speedup, "ratio_vs_png_io": ratio,
+            "ratio_vs_same_encoder": ratio_same, "control_cpu_speedup": machine,
+            "targets": {"jobs2_speedup": ">= 1.7", "ratio_vs_png_io": "<= 1.25"}}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--frames", type=int, default=0, help="number of frames (default 0: all of camvid/train)")
@@ -153,79 +245,18 @@ def main() -> None:
         jobs, source = frames(args.frames, tmp)
         print(f"data: {source}; cores available: {default_jobs()}; threads: cv2.setNumThreads(1) per process",
               file=sys.stderr)
-        cam, virtual, fmt = PRESETS["camvid"], PRESETS["virtual"], LABEL_FORMATS["camvid"]
-
-        def build(workers: int, run: int) -> float:
-            out = tmp / f"store-{workers}-{run}"
-            t = time.perf_counter()
-            store, summary = warp_dataset(jobs, out, WarpSettings(cam, virtual, args.scale, fmt, completion="projective",
-                                                                  workers=workers, progress=False))
-            dt = time.perf_counter() - t
-            assert summary.built == len(jobs), summary.line()
-            shutil.rmtree(out)
-            return dt
-
-        def baseline(fn, run: int) -> float:
-            out = tmp / f"png-{run}"
-            t = time.perf_counter()
-            fn(jobs, out)
-            dt = time.perf_counter() - t
-            shutil.rmtree(out)
-            return dt
-
-        stages = {"jobs1": lambda r: build(1, r), "jobs2": lambda r: build(2, r), "png_io": lambda r: baseline(png_io, r),
-                  "png_io_same_encoder": lambda r: baseline(lambda j, o: png_io(j, o, _our_png), r),
-                  "cpu1": lambda r: control(1), "cpu2": lambda r: control(2)}
-        stages["jobs1"](-1)  # warm-up: imports, page cache of the frames
-        times: dict[str, list[float]] = {k: [] for k in stages}
-        cpu: dict[str, list[float]] = {k: [] for k in stages}
-        names = list(stages)
-        load_before = os.getloadavg()[0]
-        for r in range(args.repeats):
-            for k in names[r % len(names):] + names[:r % len(names)]:
-                c = cpu_s()
-                times[k].append(stages[k](r))
-                cpu[k].append(cpu_s() - c)
-        load_after = os.getloadavg()[0]
-        st = {k: stats(v) for k, v in times.items()}
-        n = len(jobs)
-        med = {k: v["median_s"] for k, v in st.items()}
-        speedup = med["jobs1"] / med["jobs2"]
-        machine = med["cpu1"] / med["cpu2"]
-        ratio = med["jobs1"] / med["png_io"]
-        ratio_same = med["jobs1"] / med["png_io_same_encoder"]
-        store_size = [round(virtual.size[0] * args.scale), round(virtual.size[1] * args.scale)]
-        cores_used = {k: float(np.median(np.array(cpu[k]) / np.array(times[k]))) for k in names}
-        print(f"{'stage':<20} {'items/s':>8} {'ms/item':>8} {'median s':>9} {'p10..p90 s':>14} {'min..max s':>14} "
-              f"{'machine cores busy':>18}")
-        for k in names[:4]:
-            s = st[k]
-            print(f"{k:<20} {n / s['median_s']:>8.1f} {1000 * s['median_s'] / n:>8.2f} {s['median_s']:>9.3f} "
-                  f"{s['p10_s']:>6.3f}..{s['p90_s']:<6.3f} {s['min_s']:>6.3f}..{s['max_s']:<6.3f} {cores_used[k]:>18.2f}")
-        print(f"load average (1 min) before/after: {load_before:.2f}/{load_after:.2f} on {os.cpu_count()} cores "
-              "(other processes' load leaves the pool fewer cores)")
-        print(f"jobs2 speedup {speedup:.2f}x (target >= 1.7); a pure-CPU control got {machine:.2f}x from 2 processes "
-              f"in the same run (what the machine allowed)")
-        print(f"store stage / PNG decode+encode {ratio:.2f}x (target <= 1.25); / the same with the store's PNG "
-              f"writer {ratio_same:.2f}x")
-        result = {"benchmark": "store", "data": source, "frames": n, "source_size": [480, 360],
-                  "store_size": store_size, "scale": args.scale, "completion": "projective",
-                  "threads": "cv2.setNumThreads(1) per process", "cores": default_jobs(),
-                  "machine": platform.machine(), "python": platform.python_version(), "cv2": cv2.__version__,
-                  "repeats": args.repeats, "stages": st, "cores_busy": cores_used,
-                  "machine_busy_ms_per_item": {k: 1000 * float(np.median(cpu[k])) / n for k in names},
-                  "loadavg_1min": [load_before, load_after],
-                  "items_s": {k: n / med[k] for k in names[:4]},
-                  "jobs2_speedup": speedup, "ratio_vs_png_io": ratio,
-                  "ratio_vs_same_encoder": ratio_same, "control_cpu_speedup": machine,
-                  "targets": {"jobs2_speedup": ">= 1.7", "ratio_vs_png_io": "<= 1.25"}}
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(json.dumps(result, indent=1) + "\n")
+        times, cpu, loads = time_stages(stage_runs(jobs, tmp, args.scale), args.repeats)
+        result = report(times, cpu, loads, len(jobs), source, args)
+        write_json(args.out, result)
         print(f"wrote {args.out}", file=sys.stderr)
+        n, med, cores_used = len(jobs), {k: v["median_s"] for k, v in result["stages"].items()}, result["cores_busy"]
         print(json.dumps({"jobs1_items_s": round(n / med["jobs1"], 2), "jobs2_items_s": round(n / med["jobs2"], 2),
-                          "png_io_items_s": round(n / med["png_io"], 2), "jobs2_speedup": round(speedup, 3), "control_cpu_speedup": round(machine, 3),
-                          "ratio_vs_png_io": round(ratio, 3), "ratio_vs_same_encoder": round(ratio_same, 3), "frames": n,
-                          "jobs2_cores_busy": round(cores_used["jobs2"], 2), "loadavg": round(load_before, 2), "camvid": "ABSENT" not in source}))
+                          "png_io_items_s": round(n / med["png_io"], 2), "jobs2_speedup": round(result["jobs2_speedup"], 3),
+                          "control_cpu_speedup": round(result["control_cpu_speedup"], 3),
+                          "ratio_vs_png_io": round(result["ratio_vs_png_io"], 3),
+                          "ratio_vs_same_encoder": round(result["ratio_vs_same_encoder"], 3), "frames": n,
+                          "jobs2_cores_busy": round(cores_used["jobs2"], 2), "loadavg": round(loads[0], 2),
+                          "camvid": "ABSENT" not in source}))
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 

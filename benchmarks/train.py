@@ -15,21 +15,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import subprocess
 import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
-BIN = Path(sys.executable).parent
-DATA = ROOT.parent / "shared" / "data" / "camvid"
-
-
-def run(*args: str) -> str:
-    proc = subprocess.run([str(a) for a in args], capture_output=True, text=True)
-    if proc.returncode != 0:
-        sys.exit(f"failed: {' '.join(map(str, args))}\n{proc.stderr[-2000:]}")
-    return proc.stdout
+from measure.data import BIN, DATA, ROOT, run
+from measure.report import write_json
 
 
 def main() -> None:
@@ -68,9 +59,7 @@ def main() -> None:
                 "train_images_per_s_resize": round(results["resize"]["train_images_per_s"], 3),
                 "epochs": args.epochs, "model": "segnet-narrow", "threads": "torch default (2 cores)",
                 "data": "CamVid train 367 -> val 101"}
-    out = ROOT / "benchmarks" / "results"
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "train.json").write_text(json.dumps({"headline": headline, "detail": results}, indent=2) + "\n")
+    write_json(ROOT / "benchmarks" / "results" / "train.json", {"headline": headline, "detail": results}, indent=2)
     print(json.dumps(headline))
 
 

@@ -33,7 +33,6 @@ import argparse
 import json
 import math
 import os
-import platform
 import shutil
 import statistics
 import subprocess
@@ -45,19 +44,17 @@ import cv2
 import numpy as np
 import torch
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
-BIN = Path(sys.executable).parent
+from measure.data import BIN, ROOT, SHARED_DATA
+from measure.report import machine, today, write_json
+from vcprep.build import store_params
+from vcprep.camera import PRESETS, load_camera
+from vctrain.checkpoint import save_checkpoint
+from vctrain.frames import StageTimes
+from vctrain.model import build_model, model_args_for
+from vctrain.predict import Predictor
+from vctrain.video import ego_camera, open_video, predict_video
 
-from vcprep.build import store_params  # noqa: E402
-from vcprep.camera import PRESETS, load_camera  # noqa: E402
-from vctrain.checkpoint import save_checkpoint  # noqa: E402
-from vctrain.frames import StageTimes  # noqa: E402
-from vctrain.model import build_model, model_args_for  # noqa: E402
-from vctrain.predict import Predictor  # noqa: E402
-from vctrain.video import ego_camera, open_video, predict_video  # noqa: E402
-
-BDD = ROOT.parent / "shared" / "data" / "bdd100k_drivable"
+BDD = SHARED_DATA / "bdd100k_drivable"
 FPS, HOLD = 30.0, 45                      # video frame rate; frames each BDD100K frame is shown
 PAN_DEG, PAN_S, TILT_DEG, TILT_S = 1.0, 3.1, 0.6, 2.3
 THREADS = 2
@@ -208,8 +205,8 @@ def main() -> None:
           f"{stage['within']['total']['median'] / stage['between']['total']['median']:.3f}")
     headline = {"within_over_between": round(ratio, 3), "fps_between": round(fps["between"], 2),
                 "fps_within": round(fps["within"], 2), "fps_one_minute_720p": round(fps["within"], 2)}
-    out = {"headline": headline, "date": time.strftime("%Y-%m-%d"), "command": "benchmarks/video.py",
-           "machine": f"{platform.machine()}, {os.cpu_count()} cores", "cpu_threads": THREADS,
+    out = {"headline": headline, "date": today(), "command": "benchmarks/video.py",
+           "machine": machine(), "cpu_threads": THREADS,
            "video": {"frames": frames, "size": list(info.size), "fps": info.fps, "source": "BDD100K frames (40 "
                      "dashcams), 1.5 s each, smooth pan/tilt about the optical centre; mp4v"},
            "model": "resfpn, untrained (seed 0), 344x176 on the 688x350 canvas, projective completion",
@@ -219,8 +216,7 @@ def main() -> None:
            "stage_frames": args.stage_frames,
            "stages_ms": {n: {k: {q: round(v, 2) for q, v in c.items()} for k, c in s.items()} for n, s in stage.items()},
            "stages_within_over_between": round(stage["within"]["total"]["median"] / stage["between"]["total"]["median"], 3)}
-    (ROOT / "benchmarks" / "results").mkdir(parents=True, exist_ok=True)
-    (ROOT / "benchmarks" / "results" / "video.json").write_text(json.dumps(out, indent=1) + "\n")
+    write_json(ROOT / "benchmarks" / "results" / "video.json", out)
     print(json.dumps(headline))
 
 

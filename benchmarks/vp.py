@@ -7,8 +7,9 @@ Run (one thread, as the figures below are stated):
     .venv/bin/python benchmarks/vp.py --n-synthetic 40 --repeats 3
     .venv/bin/python benchmarks/vp.py --dev           # development sets only (see "Development")
 
-This script runs the measurement and writes its results; the measuring code (the baseline, the
-reference rule, the sets, the errors and the scene bootstrap) is in ``measure.py``.
+This script runs the measurement and writes its results; the measuring code is in the ``measure``
+package: the baseline and the reference rule in ``measure.vp_reference``, the sets in
+``measure.vp_sets``, the errors and the scene bootstrap in ``measure.vp_scoring``.
 
 Data
 ----
@@ -86,7 +87,7 @@ Data
   development; ``val`` was run once at the end.
 
 * **other cameras** (issue 17): the CamVid ``val`` frames that have a reference VP, through the
-  simulated cameras of the cross-camera benchmarks (``measure.SIMULATED``: ``tele`` 35 deg
+  simulated cameras of the cross-camera benchmarks (``measure.data.SIMULATED``: ``tele`` 35 deg
   HFOV tilted 3 deg down, 320x240; ``band`` 480x146; ``dashcam`` 40 deg, 400x225, per-image pan
   +/-8 and tilt +/-4 deg), made by ``vcprep simulate --vps`` so that each frame's reference VP is
   moved by the same exact homography as its pixels (in ``--workdir``). The detector gets the
@@ -207,9 +208,10 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-# measure first: it puts the repository (ROOT) first on sys.path
-from measure import (DATA, KITTI, ROOT, TAIL_PCT, camera_consistency, camvid_vp_set, evaluate_vps, fallback_loo,
-                     kitti_vp_set, simulated_vp_sets, synthetic_vp_set)
+from measure.data import DATA, KITTI, ROOT
+from measure.report import write_json
+from measure.vp_scoring import TAIL_PCT, camera_consistency, evaluate_vps, fallback_loo
+from measure.vp_sets import camvid_vp_set, kitti_vp_set, simulated_vp_sets, synthetic_vp_set
 from vcprep.camera import PRESETS
 from vcprep.vanishing_point import VPConfig
 
@@ -219,7 +221,8 @@ def _row(label, size, r):
             f"{r['ms_per_image']:>8.2f}")
 
 
-def main(argv=None) -> int:
+def parse_args(argv=None) -> argparse.Namespace:
+    """The options (--dev: the train split, its own output file)."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--n-synthetic", type=int, default=40)
     ap.add_argument("--n-synthetic-960", type=int, default=8, help="960x720 renders (timing + error)")
@@ -237,20 +240,22 @@ def main(argv=None) -> int:
         args.splits = "train"
     if args.out is None:
         args.out = str(ROOT / "benchmarks" / "results" / ("vp.dev.json" if args.dev else "vp.json"))
-    cv2.setNumThreads(1)
+    return args
+
+
+def vp_config(overrides: list[str]) -> VPConfig:
+    """The detector's configuration with ``--set`` overrides (field=value)."""
     cfg = VPConfig()
-    for kv in args.set:
+    for kv in overrides:
         k, v = kv.split("=")
         t = type(getattr(cfg, k))
         cfg = replace(cfg, **{k: v.strip().lower() in ("1", "true", "yes") if t is bool else t(v)})
-    cam480 = PRESETS["camvid"].for_image_size((480, 360))
-    cam960 = PRESETS["camvid"]
-    results = {"config": asdict(cfg), "threads": 1, "opencv": cv2.__version__, "python": platform.python_version(),
-               "seed": 0, "sets": {}}
-    print(f"threads: 1 (cv2.setNumThreads(1)); opencv {cv2.__version__}; repeats {args.repeats}", file=sys.stderr)
-    sets = [("synthetic", "480x360", synthetic_vp_set(args.n_synthetic, cam480), cam480)]
-    if args.n_synthetic_960:
-        sets.append(("synthetic", "960x720", synthetic_vp_set(args.n_synthetic_960, cam960, seed=1), cam960))
+    return cfg
+
+
+def camvid_sets(args: argparse.Namespace, cfg: VPConfig, cam480, results: dict, sets: list) -> list | None:
+    """The CamVid splits' sets (appended to ``sets``), their reference spread, fallback and skipped
+    frames (into ``results``); the items of the split the simulated cameras are made from."""
     val_items = None
     if DATA.is_dir():
         for split in args.splits.split(","):
@@ -276,27 +281,37 @@ def main(argv=None) -> int:
                 val_items = items
     else:
         print(f"NOTE: {DATA} is absent: real-frame figures are NOT measured (synthetic only).", file=sys.stderr)
-    sims = {}  # simulated set -> (its folder, the source set, items, camera)
-    if not args.no_other_cameras:
-        if val_items:
-            sim_split = "train" if args.dev else "val"
-            wd = Path(args.workdir)
-            for name, cam, items in simulated_vp_sets(val_items, wd, sim_split):
-                label, size = f"sim/{name}" if not args.dev else f"sim-train/{name}", f"{cam.size[0]}x{cam.size[1]}"
-                sims[f"{label}@{size}"] = (wd / "sim" / (name if sim_split == "val" else f"{sim_split}-{name}"),
-                                           f"camvid/{sim_split}@480x360", items, cam)
-                sets.append((label, size, items, cam))
-        kcams, kitems, kskipped = kitti_vp_set() if not args.dev else ([], [], 0)
-        if kitems:
-            w, h = kcams[0].size
-            sets.append(("kitti", f"{w}x{h}", kitems, kcams))
-            results.setdefault("skipped", {})["kitti"] = kskipped
-        elif not args.dev:
-            print(f"NOTE: no KITTI road frame with a usable reference in {KITTI}", file=sys.stderr)
+    return val_items
+
+
+def other_camera_sets(args: argparse.Namespace, val_items: list | None, results: dict, sets: list) -> dict:
+    """The simulated cameras' and KITTI's sets (appended to ``sets``): {simulated set: (its folder,
+    the source set, items, camera)}."""
+    sims = {}
+    if val_items:
+        sim_split = "train" if args.dev else "val"
+        wd = Path(args.workdir)
+        for name, cam, items in simulated_vp_sets(val_items, wd, sim_split):
+            label, size = f"sim/{name}" if not args.dev else f"sim-train/{name}", f"{cam.size[0]}x{cam.size[1]}"
+            sims[f"{label}@{size}"] = (wd / "sim" / (name if sim_split == "val" else f"{sim_split}-{name}"),
+                                       f"camvid/{sim_split}@480x360", items, cam)
+            sets.append((label, size, items, cam))
+    kcams, kitems, kskipped = kitti_vp_set() if not args.dev else ([], [], 0)
+    if kitems:
+        w, h = kcams[0].size
+        sets.append(("kitti", f"{w}x{h}", kitems, kcams))
+        results.setdefault("skipped", {})["kitti"] = kskipped
+    elif not args.dev:
+        print(f"NOTE: no KITTI road frame with a usable reference in {KITTI}", file=sys.stderr)
+    return sims
+
+
+def evaluate_sets(sets: list, cfg: VPConfig, repeats: int, results: dict) -> None:
+    """Ours and the baseline on every set (into ``results["sets"]``), a table row each."""
     print(f"{'set':<26} {'size':>8} {'n':>4}  {'med %w':>7} {'p90 %w':>7} {'ms/img':>8}   accepted: n med p90 | "
           "rejected: n, detection med, fallback med")
     for name, size, items, cam in sets:
-        r = evaluate_vps(items, cam, cfg, args.repeats)
+        r = evaluate_vps(items, cam, cfg, repeats)
         results["sets"][f"{name}@{size}"] = r
         rel = r["ours"]["reliability"]
         print(_row(f"{name} ours", size, r["ours"]) +
@@ -304,7 +319,11 @@ def main(argv=None) -> int:
               f"{rel['rejected_detection']['n']}, {rel['rejected_detection']['median_pct_width']}, "
               f"{rel['rejected_fallback']['median_pct_width']}")
         print(_row(f"{name} baseline", size, r["baseline"]))
-    S = results["sets"]
+
+
+def print_scenes_and_consistency(S: dict, sims: dict) -> None:
+    """The scene bootstrap, the per-scene errors, the tail split, and the camera consistency of the
+    simulated sets (added to their results)."""
     print("scenes (frames of one drive <= 1 s apart; paired scene-block bootstrap, 2000 draws, seed 0; 90 % "
           "intervals, % width): p90 ours | p90 baseline | p90 ours - baseline | median ours - baseline")
     for key, r in S.items():
@@ -334,10 +353,15 @@ def main(argv=None) -> int:
         S[key]["ours"]["camera_consistency"] = c
         print(f"{key:<26} {c['consistency']['median_pct_width']!s:>7} {c['consistency']['p90_pct_width']!s:>7} | "
               f"{c['inherited']['median_pct_width']!s:>7} {c['inherited']['p90_pct_width']!s:>7}")
-    real = S.get("camvid/train@480x360" if args.dev else "camvid/val@480x360")
+
+
+def headline(results: dict, dev: bool) -> dict:
+    """The figures the results page shows."""
+    S = results["sets"]
+    real = S.get("camvid/train@480x360" if dev else "camvid/val@480x360")
     head_src = real or S["synthetic@480x360"]
-    headline = {
-        "data": ("camvid/train (--dev)" if args.dev else "camvid/val") if real else "synthetic (../shared/data absent)",
+    return {
+        "data": ("camvid/train (--dev)" if dev else "camvid/val") if real else "synthetic (../shared/data absent)",
         "n": head_src["ours"]["n"],
         "median_pct_width": head_src["ours"]["median_pct_width"],
         "p90_pct_width": head_src["ours"]["p90_pct_width"],
@@ -375,12 +399,28 @@ def main(argv=None) -> int:
                            if "camera_consistency" in v["ours"] else {})}
                     for k, v in S.items()},
     }
-    results["headline"] = headline
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(json.dumps(results, indent=1) + "\n")
+
+
+def main(argv=None) -> int:
+    args = parse_args(argv)
+    cv2.setNumThreads(1)
+    cfg = vp_config(args.set)
+    cam480 = PRESETS["camvid"].for_image_size((480, 360))
+    cam960 = PRESETS["camvid"]
+    results = {"config": asdict(cfg), "threads": 1, "opencv": cv2.__version__, "python": platform.python_version(),
+               "seed": 0, "sets": {}}
+    print(f"threads: 1 (cv2.setNumThreads(1)); opencv {cv2.__version__}; repeats {args.repeats}", file=sys.stderr)
+    sets = [("synthetic", "480x360", synthetic_vp_set(args.n_synthetic, cam480), cam480)]
+    if args.n_synthetic_960:
+        sets.append(("synthetic", "960x720", synthetic_vp_set(args.n_synthetic_960, cam960, seed=1), cam960))
+    val_items = camvid_sets(args, cfg, cam480, results, sets)
+    sims = {} if args.no_other_cameras else other_camera_sets(args, val_items, results, sets)
+    evaluate_sets(sets, cfg, args.repeats, results)
+    print_scenes_and_consistency(results["sets"], sims)
+    results["headline"] = headline(results, args.dev)
+    out = write_json(Path(args.out), results)
     print(f"wrote {out}", file=sys.stderr)
-    print(json.dumps(headline))
+    print(json.dumps(results["headline"]))
     return 0
 
 

@@ -19,21 +19,18 @@ import argparse
 import json
 import platform
 import statistics
-import sys
 import time
-from pathlib import Path
 
 import cv2
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
+from measure.data import ROOT, SHARED_DATA
+from measure.report import write_json
+from vcprep.camera import PRESETS
+from vcprep.homography import virt_H_src, virtual_at_scale
+from vcprep.warp import build_maps, maps_for, warp_image
 
-from vcprep.camera import PRESETS  # noqa: E402
-from vcprep.homography import virt_H_src, virtual_at_scale  # noqa: E402
-from vcprep.warp import build_maps, maps_for, warp_image  # noqa: E402
-
-DATA = ROOT.parent / "shared" / "data" / "camvid" / "train"
+DATA = SHARED_DATA / "camvid" / "train"
 
 
 def load_frames(n: int) -> tuple[list[bytes], str]:
@@ -105,9 +102,7 @@ def main() -> None:
                 "bare_ms_full": round(results["full"]["bare_ms"][0], 2),
                 "ours_ms_full": round(results["full"]["ours_ms"][0], 2),
                 "cold_maps_ms_full": round(results["full"]["cold_ms"], 1), "threads": 1, "data": source}
-    out = ROOT / "benchmarks" / "results"
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "warp.json").write_text(json.dumps({"headline": headline, "detail": results}, indent=2) + "\n")
+    write_json(ROOT / "benchmarks" / "results" / "warp.json", {"headline": headline, "detail": results}, indent=2)
     print(json.dumps(headline))
 
 

@@ -90,6 +90,26 @@ def test_methods_shapes_and_borders(camvid_half):
         check_method("mirror")
 
 
+def test_clear_cache_builds_the_maps_afresh(camvid_half):
+    """The public cache resets (a benchmark's cold start): after them the maps are built again (new
+    objects, where without them the cached ones come back), equal to what was cached."""
+    from vcprep import completion, warp
+
+    img, _, H, vp = _setup(camvid_half)
+    build = lambda: (maps_for(H, camvid_half.size, V8.size),  # noqa: E731
+                     completion_maps(H, camvid_half.size, V8.size, "projective", vp))
+    base, maps = build()
+    again = build()
+    assert again[0] is base and again[1] is maps  # cached
+    warp.clear_cache()
+    completion.clear_cache()
+    base2, maps2 = build()
+    assert base2 is not base and maps2 is not maps
+    for a, b in ((base2.map_x, base.map_x), (maps2.map_x, maps.map_x), (maps2.map_y, maps.map_y)):
+        assert np.array_equal(a, b)
+    assert np.array_equal(warp_image(img, maps2), warp_image(img, maps))
+
+
 def test_projective_rays_are_exact(camvid_half):
     """Every uncovered pixel samples a source-boundary point whose image lies on the segment from
     the VP to that pixel (H maps rays from the VP to rays from the VP), up to the fill table's

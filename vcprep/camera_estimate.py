@@ -250,10 +250,42 @@ def estimate_camera(images: Sequence[str | Path], *, name: str = "estimated", fx
 
     Raises :class:`InputError` with what is missing: too few frames, frames of several sizes,
     too few road VPs (say the tilt and pan instead, or give frames where the road runs ahead)."""
-    from .imageio import image_size, read_image
+    from .imageio import read_image
     from .vanishing_point import apply_reliability, estimate_vp
 
     images = [Path(p) for p in images]
+    values, cam = _intrinsics(images, name, fx, hfov, height, pixel_aspect, source_size, labels, label_format,
+                              find_ego)
+    cfg = whole_frame_vp_config(cam)
+    results = []
+    for i, p in enumerate(images):
+        results.append(estimate_vp(read_image(p).array, cam, cfg))
+        if on_image is not None:
+            on_image(i)
+    ok = [r for r in results if r.status == "accepted"]
+    if len(ok) < MIN_ACCEPTED:
+        raise InputError(f"a road vanishing point was found in {len(ok)} of {len(images)} frames (need "
+                         f">= {MIN_ACCEPTED}): the tilt and pan cannot be estimated", images[0],
+                         "give frames where the road runs ahead with visible edges or markings, or write tilt and "
+                         "pan by hand")
+    values.update(_pose_values(ok, cam, len(images)))
+    cam = replace(cam, tilt=float(values["tilt"].value), pan=float(values["pan"].value))
+    if height is None and labels:
+        road = _height_from_road(labels, label_format, cam)
+        if road is not None:
+            values["height"] = road
+            cam = replace(cam, height=float(road.value))
+    warnings = [f"{k}: {v.how}" for k, v in values.items() if v.source == "assumed" and k in ("fx", "height")]
+    ids = list(ids) if ids is not None else [p.stem for p in images]
+    final = apply_reliability([replace(r, pan_deg=pose_from_vp(cam, r.vp)[0], tilt_deg=pose_from_vp(cam, r.vp)[1])
+                               for r in results], [cam] * len(results), ids)
+    return CameraEstimate(cam, values, len(images), len(ok), ids, final, warnings)
+
+
+def _frames_size(images: list[Path]) -> tuple[int, int]:
+    """The one size of the frames; too few frames, or frames of several sizes, are an error."""
+    from .imageio import image_size
+
     if len(images) < MIN_FRAMES:
         raise InputError(f"{len(images)} frame(s) are too few to estimate a camera (need >= {MIN_FRAMES})",
                          images[0] if images else None, "give more frames of the same camera")
@@ -264,6 +296,14 @@ def estimate_camera(images: Sequence[str | Path], *, name: str = "estimated", fx
         raise InputError(f"frames of more than one size ({size[0]}x{size[1]} and "
                          f"{image_size(other)[0]}x{image_size(other)[1]}): one camera, one size", other,
                          "estimate each camera from its own frames")
+    return size
+
+
+def _intrinsics(images: list[Path], name: str, fx, hfov, height, pixel_aspect, source_size, labels, label_format,
+                find_ego: bool) -> tuple[dict[str, Value], Camera]:
+    """Everything but the pose: the focal lengths, the principal point (the image centre), the
+    height (given or assumed) and the own vehicle's rows (from the labels); and the camera of them."""
+    size = _frames_size(images)
     w, h = size
     values: dict[str, Value] = {}
     values["fx"] = f = _focal(images, size, fx, hfov)
@@ -289,19 +329,11 @@ def estimate_camera(images: Sequence[str | Path], *, name: str = "estimated", fx
                                    "ego_rows by hand" if not labels else "not searched", "assumed")
     cam = Camera(name, size, float(f.value), float(values["fy"].value), float(values["cx"].value),
                  float(values["cy"].value), float(values["height"].value), ego_rows=int(ego))
-    cfg = whole_frame_vp_config(cam)
-    results, cams = [], []
-    for i, p in enumerate(images):
-        results.append(estimate_vp(read_image(p).array, cam, cfg))
-        cams.append(cam)
-        if on_image is not None:
-            on_image(i)
-    ok = [r for r in results if r.status == "accepted"]
-    if len(ok) < MIN_ACCEPTED:
-        raise InputError(f"a road vanishing point was found in {len(ok)} of {len(images)} frames (need "
-                         f">= {MIN_ACCEPTED}): the tilt and pan cannot be estimated", images[0],
-                         "give frames where the road runs ahead with visible edges or markings, or write tilt and "
-                         "pan by hand")
+    return values, cam
+
+
+def _pose_values(ok: list, cam: Camera, n_frames: int) -> dict[str, Value]:
+    """tilt, pan, horizon_row and roll from the accepted road VPs ``ok`` of ``n_frames`` frames."""
     rays = np.array([[(r.vp[0] - cam.cx) / cam.fx, (r.vp[1] - cam.cy) / cam.fy] for r in ok])
     mu, mu_se = _robust(rays[:, 0])
     mv, mv_se = _robust(rays[:, 1])
@@ -309,7 +341,8 @@ def estimate_camera(images: Sequence[str | Path], *, name: str = "estimated", fx
     tilts = np.array([r.tilt_deg for r in ok])
     pans = np.array([r.pan_deg for r in ok])
     n = len(ok)
-    how = f"median road VP of {n} of {len(images)} frames"
+    how = f"median road VP of {n} of {n_frames} frames"
+    values: dict[str, Value] = {}
     values["tilt"] = Value(round(tilt, 3), how, "estimated", round(_robust(tilts)[1], 3))
     values["pan"] = Value(round(pan, 3), how, "estimated", round(_robust(pans)[1], 3))
     vrows = np.array([r.vp[1] for r in ok])
@@ -317,7 +350,7 @@ def estimate_camera(images: Sequence[str | Path], *, name: str = "estimated", fx
                                   "length)", "estimated", round(_robust(vrows)[1], 2))
     us = np.array([r.vp[0] for r in ok])
     q25, q75 = np.percentile(us, [25, 75])
-    if n >= 10 and q75 - q25 >= ROLL_MIN_SPREAD * w:
+    if n >= 10 and q75 - q25 >= ROLL_MIN_SPREAD * cam.size[0]:
         A = np.column_stack([us - us.mean(), np.ones(n)])
         coef, res, *_ = np.linalg.lstsq(A, vrows, rcond=None)
         sigma = math.sqrt(float(res[0]) / (n - 2)) if len(res) and n > 2 else 0.0
@@ -328,17 +361,7 @@ def estimate_camera(images: Sequence[str | Path], *, name: str = "estimated", fx
     else:
         values["roll"] = Value(0.0, "not estimated: the road VPs do not spread along the horizon (straight roads); "
                                "0 is used", "assumed")
-    cam = replace(cam, tilt=float(values["tilt"].value), pan=float(values["pan"].value))
-    if height is None and labels:
-        road = _height_from_road(labels, label_format, cam)
-        if road is not None:
-            values["height"] = road
-            cam = replace(cam, height=float(road.value))
-    warnings = [f"{k}: {v.how}" for k, v in values.items() if v.source == "assumed" and k in ("fx", "height")]
-    ids = list(ids) if ids is not None else [p.stem for p in images]
-    final = apply_reliability([replace(r, pan_deg=pose_from_vp(cam, r.vp)[0], tilt_deg=pose_from_vp(cam, r.vp)[1])
-                               for r in results], [cam] * len(results), ids)
-    return CameraEstimate(cam, values, len(images), n, ids, final, warnings)
+    return values
 
 
 _KEYS = ("fx", "fy", "cx", "cy", "height", "tilt", "pan", "ego_rows")

@@ -64,7 +64,7 @@ from .labels import IGNORE
 from .warp import RemapMaps, maps_for
 
 __all__ = ["METHODS", "COMPLETION_VERSION", "LABEL_RIM", "CompletionMaps", "check_method", "border_ignore",
-           "completion_maps", "complete_maps", "exit_points_rectangle", "label_exit_points", "store_vp"]
+           "completion_maps", "complete_maps", "clear_cache", "exit_points_rectangle", "label_exit_points", "store_vp"]
 
 METHODS = ("projective", "zero", "replicate", "none")
 COMPLETION_VERSION = "completion-v3"  # bump when completed outputs of identical inputs would change
@@ -680,3 +680,10 @@ def completion_maps(dst_H_src: np.ndarray, src_size: tuple[int, int], dst_size: 
            mask_key if method in ("projective", "replicate") else None)
     return _lru(_CACHE, key, lambda: complete_maps(maps_for(H, src_size, dst_size), H, src_size, method, vp,
                                                    src_ignore if method in ("projective", "replicate") else None))
+
+
+def clear_cache() -> None:
+    """Forget the maps :func:`completion_maps` keeps, so the next call completes them afresh (a
+    benchmark's cold start). The ray and angle tables they are built from stay cached, and so do the
+    warp maps (:func:`vcprep.warp.clear_cache`)."""
+    _CACHE.clear()

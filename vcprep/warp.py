@@ -17,7 +17,7 @@ from functools import cached_property
 import cv2
 import numpy as np
 
-__all__ = ["RemapMaps", "build_maps", "warp_image", "warp_label", "maps_for", "OUTSIDE"]
+__all__ = ["RemapMaps", "build_maps", "warp_image", "warp_label", "maps_for", "clear_cache", "OUTSIDE"]
 
 OUTSIDE = -64.0  # map value for destination pixels that have no source pixel
 
@@ -114,6 +114,12 @@ def maps_for(dst_H_src: np.ndarray, src_size: tuple[int, int], dst_size: tuple[i
     if len(_CACHE) > _CACHE_MAX:
         _CACHE.popitem(last=False)
     return maps
+
+
+def clear_cache() -> None:
+    """Forget the maps :func:`maps_for` keeps, so the next call builds them afresh (a benchmark's
+    cold start)."""
+    _CACHE.clear()
 
 
 def _remap(img: np.ndarray, maps: RemapMaps, m1, m2, interp: int, border_value) -> np.ndarray:

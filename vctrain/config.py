@@ -11,7 +11,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Optional
 
-__all__ = ["TrainConfig", "RECIPES", "SCHEDULES", "OPTIMIZERS", "AdaptSettings", "ADAPT_EPOCHS", "ADAPT_LR_FACTOR"]
+__all__ = ["TrainConfig", "RECIPES", "SCHEDULES", "OPTIMIZERS", "BALANCES", "AdaptSettings", "ADAPT_EPOCHS",
+           "ADAPT_LR_FACTOR"]
 
 # recipe -> the defaults it gives every TrainConfig field left at None (vctrain.train's docstring)
 RECIPES: dict[str, dict[str, Any]] = {
@@ -24,6 +25,9 @@ RECIPES: dict[str, dict[str, Any]] = {
 }
 SCHEDULES = ("poly", "cosine", "constant")
 OPTIMIZERS = ("sgd", "adamw")
+# how an epoch draws from several training stores (vctrain.data.epoch_order): 'items' every item
+# once (a store's share is its size), 'datasets' every store equally often (small ones repeated)
+BALANCES = ("items", "datasets")
 
 
 @dataclass
@@ -67,6 +71,8 @@ class TrainConfig:
     log: Optional[str] = None          # JSON-lines log; None: '<out stem>.log.jsonl'
     progress: bool = True              # tqdm bar on stderr
     max_steps: Optional[int] = None    # stop each epoch after this many steps (smoke tests)
+    balance: str = "items"             # 'items': each training item once an epoch; 'datasets': each training
+                                       # store (and the --images folder) drawn equally often (BALANCES)
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)

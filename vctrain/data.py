@@ -31,6 +31,7 @@ size, so a crop sees exactly its window of the whole image's map.
 from __future__ import annotations
 
 import math
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Sequence
@@ -47,11 +48,11 @@ from vcprep.imageio import read_image
 from vcprep.labels import IGNORE, decode_label, get_label_format
 from vcprep.store import Store
 
-from .config import TrainConfig
+from .config import BALANCES, TrainConfig
 
 __all__ = ["Sample", "store_samples", "resize_samples", "RoadDataset", "to_input", "vp_proximity",
            "vp_in_store", "resize_pair", "class_frequencies", "median_frequency_weights", "prepare_data", "crop_size",
-           "MIN_SIDE"]
+           "epoch_order", "MIN_SIDE"]
 
 MIN_SIDE = 32  # the smallest working side: five 2x2 poolings
 
@@ -61,7 +62,8 @@ class Sample:
     """One training item: where its image and label are and how to decode them.
 
     ``label_format`` None: the label is a store label (0/1/255 already). ``vp`` is the road VP in
-    the coordinates of ``image`` (None: unknown, only needed for the VP channel).
+    the coordinates of ``image`` (None: unknown, only needed for the VP channel). ``source`` is the
+    store (or image folder) it comes from: the group ``balance: datasets`` draws equally often.
     """
 
     id: str
@@ -69,6 +71,7 @@ class Sample:
     label: Path | None
     label_format: str | None = None
     vp: tuple[float, float] | None = None
+    source: str = ""
 
 
 def vp_in_store(record: dict[str, Any], store: Store | None = None) -> tuple[float, float]:
@@ -94,7 +97,8 @@ def store_samples(store: Store) -> list[Sample]:
     for rec in store:
         if not rec.get("label"):
             continue
-        out.append(Sample(rec["id"], store.path(rec["image"]), store.path(rec["label"]), None, vp_in_store(rec, store)))
+        out.append(Sample(rec["id"], store.path(rec["image"]), store.path(rec["label"]), None, vp_in_store(rec, store),
+                          str(store.root)))
     return out
 
 
@@ -105,7 +109,7 @@ def resize_samples(store: Store) -> list[Sample]:
         if not rec.get("label_source"):
             continue
         out.append(Sample(rec["id"], Path(rec["source"]), Path(rec["label_source"]), rec["label_format"],
-                          tuple(rec["vp"]) if rec.get("vp") else None))
+                          tuple(rec["vp"]) if rec.get("vp") else None, str(store.root)))
     return out
 
 
@@ -348,7 +352,8 @@ def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str
         if cfg.labels is None or cfg.label_format is None:
             raise InputError("--images needs --labels and --label-format", cfg.images, "add them")
         fmt = get_label_format(cfg.label_format)
-        train = [Sample(j.id, j.image, j.label, fmt.name) for j in list_dataset(cfg.images, cfg.labels, fmt)]
+        train = [Sample(j.id, j.image, j.label, fmt.name, source=str(cfg.images))
+                 for j in list_dataset(cfg.images, cfg.labels, fmt)]
         if stores:
             train += _samples(stores, cfg.baseline)
     elif stores:
@@ -390,6 +395,7 @@ def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str
     info["crop_size"] = list(crop_size(cfg.crop, size))
     info["vp_status"] = sorted({rec.get("vp_status", "camera") for s in stores for rec in s})
     info["train_items"] = len(train)
+    info["train_items_per_source"] = dict(Counter(t.source for t in train))  # (in the stores' order)
     info["val_items"] = len(val)
     return train, val, info
 
@@ -417,3 +423,34 @@ def crop_size(crop: Any, size: tuple[int, int]) -> tuple[int, int]:
         raise InputError(f"crop {out[0]}x{out[1]} does not fit the working size {size[0]}x{size[1]} (or is below "
                          f"{MIN_SIDE} px)", None, "use a smaller --crop, a larger --size, or leave --crop out")
     return out
+
+
+def epoch_order(sources: Sequence[str], balance: str, generator: torch.Generator) -> list[int]:
+    """The training items (indices into ``sources``, each item's store or folder) one epoch visits,
+    in order: as many as there are items, drawn with ``generator`` (seeded per run and epoch, so a
+    resumed run and the resize twin of a virtual-camera run draw the same).
+
+    ``items``: a random permutation (every item once; a store weighs as many items as it holds).
+    ``datasets``: every source gets an equal share of the epoch (the remainder to sources chosen at
+    random), filled with fresh random permutations of its own items -- a small store is repeated,
+    a large one sampled without replacement -- then the whole epoch shuffled. With one source it is
+    ``items``' permutation."""
+    n = len(sources)
+    groups: dict[str, list[int]] = {}
+    for i, s in enumerate(sources):
+        groups.setdefault(s, []).append(i)
+    if balance == "items" or len(groups) < 2:
+        return torch.randperm(n, generator=generator).tolist()
+    if balance != "datasets":
+        raise InputError(f"unknown balance '{balance}'", None, f"use one of {', '.join(BALANCES)}")
+    members = list(groups.values())
+    quota = [n // len(members)] * len(members)
+    for g in torch.randperm(len(members), generator=generator)[: n % len(members)].tolist():
+        quota[g] += 1
+    drawn: list[int] = []
+    for idx, q in zip(members, quota):
+        while q > 0:
+            take = torch.randperm(len(idx), generator=generator)[:q].tolist()
+            drawn += [idx[k] for k in take]
+            q -= len(take)
+    return [drawn[k] for k in torch.randperm(len(drawn), generator=generator).tolist()]

@@ -28,12 +28,19 @@ epoch, for ``resume``. Every epoch appends one JSON line to the log.
 Determinism: the item order and augmentations of epoch e depend only on (seed, e, rank), so a
 resumed run continues exactly where the interrupted one would have gone (on the CPU).
 
+Several stores (one virtual camera and scale, e.g. one per source camera): ``balance`` says how an
+epoch draws from them (:func:`vctrain.data.epoch_order`): ``items`` every item once, ``datasets``
+every store an equal share of the epoch. Fine-tuning: ``init`` starts from a checkpoint's network
+and weights with a fresh optimiser; another architecture, width, input channels or mode (virtual
+camera vs resize) is refused, and the new checkpoint records the one it started from (``init``).
+
 Multi-process: launched with ``torchrun --nproc-per-node N vctrain fit ...`` the loop runs
 DistributedDataParallel (gloo on CPU, NCCL on GPUs); ``batch_size`` is the global batch, split
 across processes; rank 0 alone writes checkpoints and logs.
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -51,8 +58,9 @@ from tqdm import tqdm
 from vcprep.errors import InputError
 
 from .checkpoint import load_checkpoint, model_from_checkpoint, save_checkpoint
-from .config import OPTIMIZERS, RECIPES, SCHEDULES, TrainConfig
-from .data import MIN_SIDE, RoadDataset, class_frequencies, crop_size, median_frequency_weights, prepare_data
+from .config import BALANCES, OPTIMIZERS, RECIPES, SCHEDULES, TrainConfig
+from .data import (MIN_SIDE, RoadDataset, class_frequencies, crop_size, epoch_order, median_frequency_weights,
+                   prepare_data)
 from .metrics import RoadMetrics
 from .model import ARCHITECTURES, build_model, model_args_for
 
@@ -81,6 +89,8 @@ def resolve_recipe(cfg: TrainConfig, device: torch.device | None = None) -> Trai
         raise InputError(f"unknown schedule '{cfg.schedule}'", None, f"use one of {', '.join(SCHEDULES)}")
     if cfg.optimizer not in OPTIMIZERS:
         raise InputError(f"unknown optimizer '{cfg.optimizer}'", None, f"use one of {', '.join(OPTIMIZERS)}")
+    if cfg.balance not in BALANCES:
+        raise InputError(f"unknown balance '{cfg.balance}'", None, f"use one of {', '.join(BALANCES)}")
     for k in ("epochs", "batch_size"):
         if int(getattr(cfg, k)) < 1:
             raise InputError(f"{k.replace('_', ' ')} must be at least 1, got {getattr(cfg, k)}", None, "use e.g. 8")
@@ -178,17 +188,50 @@ def _network(cfg: TrainConfig, resume: dict[str, Any] | None, init: dict[str, An
 
     torch.manual_seed(cfg.seed)
     if init is not None:  # fine-tuning: the checkpoint's network (weights loaded below), a fresh optimiser
+        _check_init(cfg, init, info)
         model_args = init["model_args"]
-        if model_args["in_channels"] != (4 if cfg.vp_channel else 3):
-            raise InputError(f"checkpoint takes {model_args['in_channels']} input channels, the data "
-                             f"{4 if cfg.vp_channel else 3}", cfg.init,
-                             "fine-tune with the model's own --vp-channel setting")
     model = build_model(model_args)
     if resume is not None:
         model = model_from_checkpoint(resume, cfg.resume)
     elif init is not None:
         model = model_from_checkpoint(init, cfg.init)
     return model, model_args
+
+
+def _check_init(cfg: TrainConfig, init: dict[str, Any], info: dict[str, Any]) -> None:
+    """Refuse an ``init`` checkpoint whose network or domain differs from the run's: architecture,
+    first-block width, input channels, or mode (virtual camera vs resize baseline)."""
+    args = init["model_args"]
+    if cfg.arch != args["arch"]:
+        raise InputError(f"checkpoint is a '{args['arch']}' but --model {cfg.arch} was asked", cfg.init,
+                         f"use --model {args['arch']} or leave --model out")
+    width = int(cfg.base_width or ARCHITECTURES[cfg.arch])
+    if width != int(args["base_width"]):
+        raise InputError(f"checkpoint has width {args['base_width']} but --width {width} was asked", cfg.init,
+                         f"use --width {args['base_width']} or leave --width out")
+    if args["in_channels"] != (4 if cfg.vp_channel else 3):
+        raise InputError(f"checkpoint takes {args['in_channels']} input channels, the data "
+                         f"{4 if cfg.vp_channel else 3}", cfg.init,
+                         "fine-tune with the model's own --vp-channel setting")
+    mode = (init.get("data") or {}).get("mode", "virtual")
+    if mode != info["mode"]:
+        raise InputError(f"checkpoint was trained in mode '{mode}' but this run is '{info['mode']}'", cfg.init,
+                         "fine-tune a resize model with --baseline resize, a virtual-camera model on stores")
+
+
+def _init_network(cfg: TrainConfig, init: dict[str, Any]) -> None:
+    """Fill the network settings a fine-tuning run left unset (``--model``, ``--width``) from the
+    ``init`` checkpoint (in place), so :func:`_check_init` only refuses what was asked otherwise."""
+    if cfg.arch is None:
+        cfg.arch = init["model_args"]["arch"]
+    if cfg.base_width is None and cfg.arch == init["model_args"]["arch"]:
+        cfg.base_width = int(init["model_args"]["base_width"])
+
+
+def _init_record(path: str, init: dict[str, Any]) -> dict[str, Any]:
+    """What a fine-tuned checkpoint records of the one it started from."""
+    return {"path": str(path), "sha256": hashlib.sha256(Path(path).read_bytes()).hexdigest(),
+            "epoch": init.get("epoch"), "best_iou": init.get("best_iou"), "model_args": init["model_args"]}
 
 
 def _datasets(cfg: TrainConfig, train_s: list, val_s: list, info: dict[str, Any]) -> tuple[RoadDataset, RoadDataset]:
@@ -229,10 +272,10 @@ def _optimizer(cfg: TrainConfig, model: nn.Module) -> torch.optim.Optimizer:
 
 
 def _epoch_loader(train_ds: RoadDataset, cfg: TrainConfig, epoch: int, rank: int, world: int, batch: int):
-    """This rank's batches of ``epoch``: item order and augmentation depend on (seed, epoch, rank)
-    only -> exact resume."""
+    """This rank's batches of ``epoch``: item order (:func:`vctrain.data.epoch_order`, ``cfg.balance``)
+    and augmentation depend on (seed, epoch, rank) only -> exact resume."""
     gen = torch.Generator().manual_seed(cfg.seed * 1000003 + epoch)
-    order = torch.randperm(len(train_ds), generator=gen).tolist()
+    order = epoch_order([x.source for x in train_ds.samples], cfg.balance, gen)
     if world > 1:  # equal shares (DistributedSampler's padding) so no rank waits for another
         order += order[: (-len(order)) % world]
         order = order[rank::world]
@@ -343,6 +386,8 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
 
     resume = load_checkpoint(cfg.resume) if cfg.resume else None
     init = load_checkpoint(cfg.init) if cfg.init and resume is None else None
+    if init is not None:
+        _init_network(cfg, init)
     resolve_recipe(cfg, device)
     train_s, val_s, info = prepare_data(cfg)
     model, model_args = _network(cfg, resume, init, info)
@@ -366,12 +411,14 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
                                              num_workers=cfg.workers)
 
     start_epoch, step, best_iou, best_epoch, history = _resumed(resume, opt)
+    # the weights a fine-tuning run started from (a resumed one keeps its first run's record)
+    init_from = (resume or {}).get("init") or (_init_record(cfg.init, init) if init is not None else None)
     loop = _Loop(net, opt, cfg, device, fmt, weight, world, steps_per_epoch, total_steps, cfg.progress and master)
 
     def checkpoint(epoch: int, metrics: dict[str, Any]) -> dict[str, Any]:
         return {"model": model.state_dict(), "model_args": model_args, "config": cfg.to_dict(), "data": info,
                 "epoch": epoch, "step": step, "metrics": metrics, "best_iou": best_iou, "best_epoch": best_epoch,
-                "history": history, "optimizer": opt.state_dict()}
+                "history": history, "optimizer": opt.state_dict(), **({"init": init_from} if init_from else {})}
 
     seconds, images = 0.0, 0
     for epoch in range(start_epoch, cfg.epochs):

@@ -261,6 +261,13 @@ def ego_camera(camera: Camera, info: VideoInfo, ego: str = "auto", say: Callable
     return replace(cam, ego_rows=rows_at_height(est, info.size[1]))
 
 
+def _now(fn, *args) -> Future:
+    """``fn(*args)`` computed here, as a finished Future (no worker thread)."""
+    done: Future = Future()
+    done.set_result(fn(*args))
+    return done
+
+
 def _within_mode(predictor, within: str) -> str:
     """'estimate', 'none' or a CSV path: 'auto' as :func:`vctrain.predict.warp_like_training` decides."""
     if within == "auto":
@@ -271,12 +278,13 @@ def _within_mode(predictor, within: str) -> str:
 
 def predict_video(predictor, video: str | Path, out: str | Path, camera: Camera | None, within: str = "auto",
                   mask_video: bool = False, overlay: bool = False, progress: bool = True, vp_window: int = 2,
-                  times: StageTimes | None = None, ego: str = "auto") -> list[Path]:
+                  times: StageTimes | None = None, ego: str = "auto", vp_ahead: int = VP_AHEAD) -> list[Path]:
     """Predict every frame of ``video`` (module docstring); returns the paths written (the mask
     PNGs, or the mask video; the overlay video). ``within``: 'auto', 'estimate', 'none' or a CSV
     ``id,u,v`` whose ids are ``<stem>_<frame:06d>``. ``ego``: the own vehicle, as
     :func:`ego_camera` takes it (a virtual-camera model). ``times`` (given) gets the stage timings;
-    ``progress`` False also silences the own-vehicle remark."""
+    ``progress`` False also silences the own-vehicle remark. ``vp_ahead``: frames whose VP is
+    estimated in a worker thread ahead of the one predicted (0: in this thread, in turn)."""
     from vcprep.vanishing_point import read_vp_csv
 
     from .predict import write_prediction
@@ -310,7 +318,8 @@ def predict_video(predictor, video: str | Path, out: str | Path, camera: Camera 
         (out if mask_video else frame_dir).mkdir(parents=True, exist_ok=True)
         outs: list[_VideoOut] = []
         written: list[Path] = []
-        pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="vp") if vps is not None else None
+        pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="vp") if vps is not None and vp_ahead else None
+        submit = pool.submit if pool is not None else _now
         try:
             mv = _VideoOut(out / f"{stem}_mask.mkv", "FFV1", info.fps, info.size) if mask_video else None
             outs += [mv] if mv else []
@@ -361,8 +370,8 @@ def predict_video(predictor, video: str | Path, out: str | Path, camera: Camera 
                 held[i] = frame
                 order.append(i)
                 if frame is not None:
-                    ahead.append((i, pool.submit(vps.estimate, frame)))
-                while len(ahead) > VP_AHEAD:
+                    ahead.append((i, submit(vps.estimate, frame)))
+                while len(ahead) > vp_ahead:
                     j, est = ahead.popleft()
                     release(vps.push(j, estimate=est.result()))
             if vps is not None:

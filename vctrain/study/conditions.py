@@ -56,7 +56,10 @@ def train_config(study: Study, stores: list[Path], out: Path, baseline: str, siz
 def training_settings(study: Study, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
     """The training settings every run of ``study`` shares (the effective config, defaults included)."""
     cfg = train_config(study, [], Path("."), "none", None, False, dict(overrides or {}))
-    return {k: v for k, v in cfg.to_dict().items() if k not in RUN_KEYS and k != "workers"}
+    out = {k: v for k, v in cfg.to_dict().items() if k not in RUN_KEYS and k != "workers"}
+    if out.get("balance") == "items":  # (the default: the keys of studies from before the setting are as before)
+        del out["balance"]
+    return out
 
 
 @dataclass

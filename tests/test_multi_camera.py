@@ -1,0 +1,176 @@
+"""Training on several stores: per-dataset balance of an epoch's draws (vctrain.data.epoch_order,
+the trainer's epoch loader) and fine-tuning from a checkpoint (``vctrain fit --init``)."""
+from __future__ import annotations
+
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from typer.testing import CliRunner
+
+from vcprep.build import WarpSettings, list_dataset, warp_dataset
+from vcprep.camera import PRESETS
+from vcprep.errors import InputError
+from vcprep.imageio import write_png
+from vcprep.labels import get_label_format
+from vcprep.synthetic import RoadScene, render_road
+from vctrain.checkpoint import load_checkpoint
+from vctrain.cli import app
+from vctrain.config import TrainConfig
+from vctrain.data import RoadDataset, Sample, epoch_order
+from vctrain.train import _epoch_loader, fit
+
+torch.set_num_threads(1)
+FMT = "values:road=1"  # the synthetic labels: 0 not road, 1 road
+
+
+def _dataset(sizes: dict[str, int]) -> RoadDataset:
+    """A RoadDataset of len sum(sizes) whose items come from the named sources (nothing is read
+    until an item is asked for: the order is all that is tested here)."""
+    samples = [Sample(f"{s}{i}", Path(f"{s}{i}.png"), Path(f"{s}{i}_l.png"), source=s)
+               for s, n in sizes.items() for i in range(n)]
+    return RoadDataset(samples, (64, 32))
+
+
+def _drawn(ds: RoadDataset, cfg: TrainConfig, epoch: int, world: int = 1) -> list[int]:
+    """The item indices the trainer's loader visits in ``epoch`` (all ranks)."""
+    out = []
+    for rank in range(world):
+        out += _epoch_loader(ds, cfg, epoch, rank, world, 4).dataset.indices
+    return out
+
+
+def test_balance_datasets_draws_each_store_equally_often():
+    ds = _dataset({"large": 300, "small": 12})
+    source = [s.source for s in ds.samples]
+    cfg = TrainConfig(balance="datasets", seed=3)
+    per_item = Counter()
+    for epoch in range(10):
+        got = _drawn(ds, cfg, epoch)
+        assert len(got) == 312  # an epoch as long as with 'items': the step budget is unchanged
+        c = Counter(source[i] for i in got)
+        assert abs(c["large"] - c["small"]) <= 1  # 156 each (312 / 2)
+        large = [i for i in got if source[i] == "large"]
+        assert len(set(large)) == len(large)  # the large store: sampled without replacement
+        per_item.update(got)
+    # every small item drawn 156 * 10 / 12 = 130 times, give or take one an epoch
+    assert all(abs(per_item[i] - 130) <= 10 for i in range(300, 312))
+    assert _drawn(ds, cfg, 4) == _drawn(ds, cfg, 4)  # seeded: the same run draws the same
+    assert _drawn(ds, cfg, 4) != _drawn(ds, TrainConfig(balance="datasets", seed=4), 4)
+    # 'items' (the default) visits every item once: the large store holds 96 % of the epoch
+    items = _drawn(ds, TrainConfig(seed=3), 0)
+    assert sorted(items) == list(range(312))
+    assert Counter(source[i] for i in items)["small"] == 12
+
+
+def test_balance_datasets_split_across_processes_and_one_store():
+    ds = _dataset({"a": 50, "b": 7, "c": 3})
+    cfg = TrainConfig(balance="datasets", seed=0)
+    whole = _drawn(ds, cfg, 2)
+    split = _drawn(ds, cfg, 2, world=3)  # torchrun: each rank its share of the same epoch order
+    assert Counter(split) == Counter(whole)
+    c = Counter(s.source for s in (ds.samples[i] for i in whole))
+    assert sorted(c.values()) == [20, 20, 20]
+    one = _dataset({"a": 20})
+    assert _drawn(one, cfg, 1) == _drawn(one, TrainConfig(seed=0), 1)  # one store: 'datasets' is 'items'
+    with pytest.raises(InputError, match="unknown balance"):
+        epoch_order(["a", "b"], "stores", torch.Generator().manual_seed(0))
+
+
+def _store(root: Path, n: int, seed: int):
+    cam = PRESETS["camvid"].resized(0.1)  # 96x72
+    src = root / f"src{seed}"
+    (src / "images").mkdir(parents=True)
+    (src / "labels").mkdir()
+    rng = np.random.default_rng(seed)
+    for i in range(n):
+        scene = RoadScene(offset=float(rng.uniform(-2, 2)), width=float(rng.uniform(6, 10)), texture_seed=seed * 10 + i)
+        img, lab = render_road(cam, scene, pan=float(rng.uniform(-5, 5)))
+        write_png(src / "images" / f"s{seed}_{i}.png", img)
+        write_png(src / "labels" / f"s{seed}_{i}.png", lab)
+    fmt = get_label_format(FMT)
+    warp_dataset(list_dataset(src / "images", src / "labels", fmt), root / f"store{seed}",
+                 WarpSettings(cam, PRESETS["virtual"], 0.02, fmt, progress=False))
+    return str(root / f"store{seed}")
+
+
+@pytest.fixture(scope="module")
+def two_stores(tmp_path_factory):
+    """Two synthetic stores of one virtual camera (110x56), 6 and 2 frames, and a width-4 model
+    trained on both with balance=datasets."""
+    root = tmp_path_factory.mktemp("multi")
+    stores = [_store(root, 6, 0), _store(root, 2, 1)]
+    cfg = TrainConfig(stores=stores, out=str(root / "a.pt"), base_width=4, epochs=1, batch_size=4, val_fraction=0,
+                      progress=False, device="cpu", balance="datasets")
+    fit(cfg)
+    return root, stores
+
+
+def test_fit_on_two_stores_records_the_balance(two_stores):
+    root, stores = two_stores
+    ck = load_checkpoint(root / "a.pt")
+    assert ck["config"]["balance"] == "datasets"
+    assert ck["data"]["train_items_per_source"] == {stores[0]: 6, stores[1]: 2}
+    with pytest.raises(InputError, match="unknown balance"):
+        fit(TrainConfig(stores=stores, out=str(root / "x.pt"), balance="cameras", progress=False))
+
+
+def test_fit_init_starts_from_the_checkpoints_weights(two_stores, tmp_path):
+    root, stores = two_stores
+    a = load_checkpoint(root / "a.pt")
+    # a learning rate too small to move a float32 weight: the fine-tuned parameters are the init's
+    # (BatchNorm running statistics are buffers and do move); a fresh network of the seed is not
+    r = CliRunner().invoke(app, ["fit", stores[1], "--init", str(root / "a.pt"), "--lr", "1e-30", "--schedule",
+                                 "constant", "--weight-decay", "0", "--epochs", "1", "--val-fraction", "0",
+                                 "--seed", "5", "--out", str(tmp_path / "b.pt"), "--quiet"])
+    assert r.exit_code == 0, r.output
+    fresh = tmp_path / "fresh.pt"
+    fit(TrainConfig(stores=[stores[1]], out=str(fresh), base_width=4, epochs=1, lr=1e-30, schedule="constant",
+                    weight_decay=0.0, val_fraction=0, seed=5, progress=False))
+    b, c = load_checkpoint(tmp_path / "b.pt"), load_checkpoint(fresh)
+    params = [k for k in a["model"] if "running" not in k and "num_batches" not in k]
+    assert all(torch.equal(a["model"][k], b["model"][k]) for k in params)
+    assert not all(torch.equal(a["model"][k], c["model"][k]) for k in params)
+    assert b["model_args"] == a["model_args"]  # the init's network: resfpn at width 4, no --width given
+    assert b["config"]["init"] == str(root / "a.pt") and b["init"]["epoch"] == 1 and len(b["init"]["sha256"]) == 64
+
+
+@pytest.mark.parametrize("extra, needle", [(["--model", "segnet-narrow"], "checkpoint is a 'resfpn'"),
+                                           (["--width", "8"], "checkpoint has width 4"),
+                                           (["--vp-channel"], "input channels"),
+                                           (["--baseline", "resize"], "mode 'virtual'")])
+def test_fit_init_refuses_another_network_or_mode(two_stores, tmp_path, extra, needle):
+    root, stores = two_stores
+    r = CliRunner().invoke(app, ["fit", stores[1], "--init", str(root / "a.pt"), "--epochs", "1", "--out",
+                                 str(tmp_path / "c.pt"), "--quiet", *extra])
+    assert r.exit_code != 0 and isinstance(r.exception, InputError) and needle in str(r.exception)
+    assert not (tmp_path / "c.pt").exists()
+
+
+def test_study_train_balance_is_a_training_setting(tmp_path, camvid_half):
+    """``train: {balance: datasets}`` is allowed in a study and reaches its training settings (so
+    the models' keys); the default 'items' leaves the settings, and so the keys of studies written
+    before the setting existed, as they were."""
+    import yaml
+
+    from conftest import write_synthetic_dataset
+    from vcprep.camera import camera_to_yaml
+    from vctrain.study import load_study, training_settings
+
+    images, labels = write_synthetic_dataset(tmp_path / "a", camvid_half, n=2)
+    (tmp_path / "cam.yaml").write_text(camera_to_yaml(camvid_half))
+    split = {"images": str(images), "labels": str(labels)}
+    d = {"datasets": [{"name": n, "camera": str(tmp_path / "cam.yaml"), "label_format": "camvid", "train": split,
+                       "test": split} for n in ("a", "b")], "train": {"epochs": 1}}
+    path = tmp_path / "study.yaml"
+    path.write_text(yaml.safe_dump(d))
+    assert "balance" not in training_settings(load_study(path))
+    d["train"]["balance"] = "datasets"
+    path.write_text(yaml.safe_dump(d))
+    assert training_settings(load_study(path))["balance"] == "datasets"
+    d["train"]["balance"] = "cameras"
+    path.write_text(yaml.safe_dump(d))
+    with pytest.raises(InputError):  # resolved like vctrain fit's: refused before any store is built
+        training_settings(load_study(path))

@@ -1,0 +1,60 @@
+"""What the ``vctrain`` commands share: the Typer app (with ``--version`` and ``version``), the
+defaults of fit's and adapt's options as the library declares them, help texts and the end of a
+command that writes one file. Commands live in one module per group (:mod:`vctrain.cli`)."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Optional
+
+import typer
+
+from vcprep.cliutil import emit_json
+from vcprep.labels import LABEL_FORMATS
+
+from .. import __version__
+from ..config import AdaptSettings, TrainConfig
+
+app = typer.Typer(rich_markup_mode=None, pretty_exceptions_enable=False, add_completion=False, no_args_is_help=True,
+                  help="Train, predict and evaluate road segmentation in the virtual-camera domain.\n\n"
+                       "Add --debug to any command to see a traceback on error.")
+
+
+def _version(value: bool):
+    if value:
+        print(f"vctrain {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _root(version: bool = typer.Option(False, "--version", callback=_version, is_eager=True, help="Print the version.")):
+    pass
+
+
+@app.command("version")
+def version_cmd():
+    """Print the version.
+
+    \b
+    Example:
+      vctrain version
+    """
+    print(f"vctrain {__version__}")
+
+
+def parse_size(text: Optional[str]) -> Optional[tuple[int, int]]:
+    from vcprep.cliutil import parse_size as parse
+
+    return None if text is None else parse(text)
+
+
+TRAIN = TrainConfig()     # the defaults of fit's options, as TrainConfig declares them
+ADAPT = AdaptSettings()  # ... and of adapt's
+LABEL_FORMAT_HELP = f"{', '.join(LABEL_FORMATS)} or values:road=3;ignore=11"
+
+
+def path_or_json(out: Path, doc: Any, as_json: bool) -> None:
+    """stdout of a command that writes one file: ``doc`` as one JSON object with --json, else the path."""
+    if as_json:
+        emit_json(doc)
+    else:
+        print(out)

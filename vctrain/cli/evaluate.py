@@ -1,0 +1,42 @@
+"""``vctrain eval``: road IoU and the KITTI road metrics of predictions against labels
+(:func:`vctrain.evaluate.evaluate_folder`)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from vcprep.cliutil import count, emit_json, err
+
+from .common import LABEL_FORMAT_HELP, app
+
+
+@app.command("eval")
+def eval_cmd(
+    pred_dir: Path = typer.Argument(..., help="folder of <stem>_mask.png / <stem>_prob.png from 'vctrain predict'"),
+    labels: Path = typer.Option(..., "--labels", "-l", help="folder of ground-truth labels"),
+    label_format: str = typer.Option(..., "--label-format", "-f", help=LABEL_FORMAT_HELP),
+    as_json: bool = typer.Option(False, "--json", help="print one JSON object (values in [0, 1])"),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar"),
+):
+    """Road IoU (ΣTP/Σ(TP+FP+FN), ignore pixels excluded), mean per-image IoU, precision, recall,
+    F1; with probability maps also the KITTI road metrics: MaxF, AP (11-point) and
+    precision/recall/FPR/FNR at the MaxF threshold (KITTI devkit definitions).
+
+    \b
+    Example:
+      vctrain eval preds/camvid_val --labels data/camvid/valannot --label-format camvid
+      vctrain eval preds/kitti --labels data/kitti/gt_image_2 --label-format kitti --json
+    """
+    from vcprep.labels import get_label_format
+
+    from ..evaluate import evaluate_folder
+
+    result, n = evaluate_folder(pred_dir, labels, get_label_format(label_format), progress=not quiet)
+    if as_json:
+        emit_json(result)
+    else:
+        for k, v in result.items():
+            print(f"{k:<16} {v:.4f}")
+    if not quiet:
+        err(f"{pred_dir}: {count(n, 'image')} evaluated")

@@ -1,0 +1,125 @@
+"""``vctrain predict`` (a model, the geometric prior or an exported graph on images, videos or a
+store: :func:`vctrain.predict_inputs.predict_inputs`) and ``vctrain export`` (the ONNX graph with
+the camera inside: :func:`vctrain.export.export_onnx`)."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+from vcprep.cliutil import ensure_parent, err
+
+from .common import app, path_or_json
+
+
+@app.command("predict")
+def predict_cmd(
+    checkpoint: Optional[Path] = typer.Argument(None, help="model written by 'vctrain fit' (left out with --prior)"),
+    images: Optional[List[Path]] = typer.Argument(None, help="image files or folders, or video files (.mp4 .avi .mkv .mov ...)"),
+    out: Path = typer.Option(..., "--out", "-o", help="output folder (created)"),
+    camera: Optional[str] = typer.Option(None, "--camera", "-c",
+                                         help="camera of the images: preset or file (.yaml, KITTI .txt, Cityscapes .json), "
+                                              "or a folder of per-frame calibration files matched by stem, or "
+                                              "'estimate' (from these images, as 'vcprep camera estimate' does); a .yaml "
+                                              "camera's ego_rows (its own vehicle) are never warped; the prediction there "
+                                              "continues the scene above them"),
+    prior: Optional[Path] = typer.Option(None, "--prior", help="no model: segment with the geometric prior written by "
+                                                                "'vcprep prior' (p_g >= 0.5, back-projected)"),
+    store: Optional[Path] = typer.Option(None, "--store", help="predict every item of this store instead of IMAGES"),
+    device: str = typer.Option("auto", "--device", help="auto, cpu, cuda, cuda:N"),
+    keep_store: Optional[Path] = typer.Option(None, "--keep-store", help="keep the warped images in this store"),
+    within: str = typer.Option("auto", "--within", help="per-image VP correction: auto (as the model was trained), "
+                                                         "estimate, a CSV id,u,v, or none"),
+    overlay: bool = typer.Option(False, "--overlay", help="also write OUT/<stem>_overlay.png (road in green); for a "
+                                                           "video OUT/<stem>_overlay.mp4 (also the horizon and the VP)"),
+    mask_video: bool = typer.Option(False, "--mask-video", help="a video's masks as one lossless video "
+                                                                "OUT/<stem>_mask.mkv instead of a PNG per frame"),
+    ego: str = typer.Option("auto", "--ego", help="a video's own vehicle: auto (the camera's ego_rows, else found "
+                                                  "from 48 frames spread over the video, said on stderr), none (no "
+                                                  "search: the camera as given) or N bottom rows"),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar"),
+):
+    """Predict road in original camera images with the checkpoint's own preprocessing.
+
+    A virtual-camera model warps the images into its virtual camera (same scale and completion
+    as its training store), infers, and back-projects to the original image; a resize-baseline
+    model resizes in and out. With --prior instead of a model, the geometric prior is the
+    segmentation (the paper's Table 5 "Geo-Prior" baseline): the images are warped into the
+    prior's virtual camera (from its description, e.g. prior.npy.json) and p_g is back-projected.
+    Writes OUT/<stem>_mask.png (0/255) and OUT/<stem>_prob.png (0-255 road probability) at the
+    image size; prints the mask paths. A video is predicted frame by frame in memory (the same
+    numbers), into OUT/<stem>/<stem>_<frame>_mask.png (frame: 6 digits from 0) or, with
+    --mask-video, OUT/<stem>_mask.mkv; per-frame VPs are smoothed over time.
+
+    \b
+    Example:
+      vctrain predict runs/vc.pt --camera kitti data/kitti/image_2 --out preds/kitti
+      vctrain predict runs/vc.pt --store stores/camvid_val --out preds/camvid_val
+      vctrain predict --prior prior.npy --camera kitti data/kitti/image_2 --out preds/geoprior
+      vctrain predict runs/vc.pt --camera camvid drive.mp4 --overlay --out preds/drive
+    """
+    from functools import partial
+
+    from vcprep.cli import camera_for
+
+    from ..predict_inputs import predict_inputs
+
+    frames_camera = partial(camera_for, camera, quiet=quiet) if camera is not None else None
+    result = predict_inputs(checkpoint, images, out, frames_camera, prior=prior, store=store, device=device,
+                            keep_store=keep_store, within=within, overlay=overlay, mask_video=mask_video, ego=ego,
+                            progress=not quiet)
+    for p in result.written:
+        print(p)
+    if not quiet:
+        err(f"{out}: {result.line()}")
+
+
+@app.command("export")
+def export_cmd(
+    checkpoint: Path = typer.Argument(..., help="model written by 'vctrain fit' (virtual-camera or resize baseline)"),
+    camera: str = typer.Option(..., "--camera", "-c", help="the camera the graph is for: preset or file (.yaml, KITTI "
+                                                          ".txt, Cityscapes .json); its image size is the graph's "
+                                                          "input size, its ego_rows are never warped"),
+    out: Path = typer.Option(..., "--out", "-o", help="the ONNX file to write"),
+    vp_input: bool = typer.Option(False, "--vp-input", help="the graph takes each frame's road VP (u, v) as a second "
+                                                            "input and corrects pan/tilt per frame (else the "
+                                                            "camera's mount pose is built in)"),
+    pose_range: float = typer.Option(5.0, "--pose-range", min=0.0,
+                                     help="with --vp-input: the virtual rectangle holds the camera at pan and tilt "
+                                          "within this many degrees of its mount"),
+    frame: Optional[Path] = typer.Option(None, "--frame", help="a frame of the camera (gives the image size to "
+                                                               "calibration files that carry none)"),
+    as_json: bool = typer.Option(False, "--json", help="print the graph's description as one JSON object"),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="no summary on stderr"),
+):
+    """Export a model with its camera inside as one ONNX graph (needs pip install 'vcseg[deploy]').
+
+    The graph takes the camera's raw frame (uint8 H x W x 3 BGR, as cv2.imread gives it, at the
+    camera's image size) and returns P(road) (float32 H x W) in the camera's own pixels: inside
+    are the warp into the model's virtual camera with the training store's completion, the
+    normalisation, the network, softmax and the back-projection -- what 'vctrain predict' does
+    for this camera (a resize baseline: resize in and back). Run it with 'vctrain predict
+    OUT.onnx FRAMES --out DIR' or any ONNX runtime. Prints the ONNX path.
+
+    \b
+    Example:
+      vctrain export runs/vc.pt --camera kitti --frame data/kitti/image_2/000000.png -o road.onnx
+      vctrain export runs/vc.pt --camera mycam.yaml --vp-input -o road_vp.onnx
+      vctrain predict road.onnx data/kitti/image_2 --out preds/kitti
+    """
+    from vcprep.cli import camera_for
+
+    from ..export import export_onnx
+
+    cam = camera_for(camera, frame, per_frame=False, quiet=quiet)
+    ensure_parent(out)
+    info = export_onnx(checkpoint, cam, out, vp_input=vp_input, pose_range=(pose_range, pose_range))
+    if not quiet:
+        w, h = info["inputs"]["frame"][1][1], info["inputs"]["frame"][1][0]
+        inner = (f"virtual store {info['store_size'][0]}x{info['store_size'][1]}, completion {info['completion']}"
+                 if info["mode"] == "virtual" else f"resized to {info['work'][0]}x{info['work'][1]}")
+        err(f"{out}: {info['mode']} model for camera {info['camera_name']} ({w}x{h}; {inner}; "
+            f"{'VP input' if vp_input else 'mount pose built in'}; opset {info['opset']}; onnxruntime vs torch max "
+            f"|diff| {info['max_abs_diff_vs_torch']:.1e})")
+    path_or_json(out, info, as_json)

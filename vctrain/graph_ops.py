@@ -1,0 +1,269 @@
+"""The road graph's tensor operations (:mod:`vctrain.export`): OpenCV's bilinear sampling and
+resize written as ONNX-exportable torch ops, and the homography and projective completion of a
+VP given at run time, in float64 (:func:`_store_maps_from_vp`).
+
+Sampling convention: every bilinear sample is the one OpenCV computes -- source coordinates
+rounded to 1/32 px, weights from those fractions, 8-bit images rounded half up (``cv2.remap``
+on uint8; the store holds exactly that), float maps with float weights (``cv2.warpPerspective``
+for the back-projection). Layout for onnxruntime (whose gathers cost per index, not per byte):
+the warp gathers 6-byte pixel pairs (:func:`_sample_u8`), the back-projection each pixel's four
+taps at once (:func:`_sample_f`), the fixed mount's taps are constants (int32 index, int16
+fractions to 1/65536: the fill table's float fractions lose < 2e-5 px) and its back-projection
+covers only the box of frame pixels that see the store;
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import torch
+from torch.nn import functional as F
+
+from vcprep.camera import Camera
+
+TABLE_ARC, FALLBACK_TOWARD = 0.5, 0.1  # as vcprep.completion (checked by vctrain.export against its constants)
+
+
+
+# -- OpenCV's bilinear sampling as tensor ops ---------------------------------------------------------
+
+def _padded_width(w: int) -> int:
+    """Width of an image of width ``w`` padded by :func:`_padded`: one zero column left, one or
+    two right (an even width, so that the padded image splits into pixel pairs)."""
+    return w + 2 + w % 2
+
+
+def _padded(img: torch.Tensor) -> torch.Tensor:
+    """``img`` (h, w[, C]) with zeros around it (one row above and below, :func:`_padded_width`),
+    flattened to ((h+2) * padded width[, C])."""
+    right = 1 + img.shape[1] % 2
+    p = F.pad(img, (1, right, 1, 1) if img.dim() == 2 else (0, 0, 1, right, 1, 1))
+    return p.reshape((p.shape[0] * p.shape[1],) + tuple(p.shape[2:]))
+
+
+def _taps(x: torch.Tensor, y: torch.Tensor, w: int, h: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Bilinear taps of source coordinates ``x``/``y`` (float32 px, pixel centres at integers, shape
+    (S,)) in a ``w`` x ``h`` image padded by :func:`_padded`: the flat index (int32) of each
+    top-left tap in the padded image and the fractions ``ax``, ``ay`` (float32) toward the right and
+    lower taps. A tap outside the image reads the zero border (BORDER_CONSTANT); a coordinate more
+    than one pixel outside reads the corner's zeros (index 0, fractions 0).
+
+    This is OpenCV's arithmetic: with coordinates already rounded to 1/32 px (what ``cv2.remap``
+    does with fixed-point maps, :func:`_fixed_point`) every fraction is a multiple of 1/32 and each
+    step of :func:`_sample_u8` is exact in float32 and equals OpenCV's integer result; with plain
+    float32 coordinates it is OpenCV 5's float-map path (float weights), which the completion's
+    fill table and ``warpPerspective`` use."""
+    x0, y0 = torch.floor(x), torch.floor(y)
+    ok = (x0 >= -1) & (x0 <= w - 1) & (y0 >= -1) & (y0 <= h - 1)
+    zero = torch.zeros_like(x)
+    idx = (y0.clamp(-1, h - 1) + 1) * _padded_width(w) + (x0.clamp(-1, w - 1) + 1)
+    return (torch.where(ok, idx, zero).to(torch.int32), torch.where(ok, x - x0, zero),
+            torch.where(ok, y - y0, zero))
+
+
+def _sample_u8(src: torch.Tensor, w: int, idx: torch.Tensor, ax: torch.Tensor, ay: torch.Tensor) -> torch.Tensor:
+    """Bilinear samples (float32 (3, S), rounded half up: what ``cv2.remap`` writes to uint8) of
+    the padded uint8 image ``src`` (P, 3) (:func:`_padded` of a ``w``-wide image) at the taps of
+    :func:`_taps`. One gather of 6-byte pixel pairs (the padded image read as pairs starting at
+    even pixels, then at odd ones): the upper pair and the lower pair of every sample; then two
+    linear interpolations along x and one along y (channels first: what the network takes)."""
+    n = src.shape[0]  # even (padded width even)
+    pairs = torch.cat([src.reshape(n // 2, 6), src[1:n - 1].reshape(n // 2 - 1, 6)], 0)
+    idx = idx.to(torch.int32)
+    W2 = _padded_width(w)
+    rows = torch.stack([idx, idx + W2])  # (2, S): the upper and lower pair's first pixel
+    rows = torch.where(rows % 2 == 0, rows // 2, rows // 2 + n // 2)
+    v = torch.index_select(pairs, 0, rows.reshape(-1)).reshape(2, -1, 2, 3).permute(0, 2, 3, 1).to(torch.float32)
+    left, right = v[:, 0], v[:, 1]  # (2, 3, S): upper and lower row
+    row = left + ax * (right - left)
+    return torch.floor(row[0] + ay * (row[1] - row[0]) + 0.5)
+
+
+def _sample_f(src: torch.Tensor, w: int, idx: torch.Tensor, ax: torch.Tensor, ay: torch.Tensor) -> torch.Tensor:
+    """Bilinear samples (float32 (S,)) of the padded float map ``src`` (P,) (:func:`_padded` of a
+    ``w``-wide map) at the taps of :func:`_taps`: one gather of each sample's four taps (a (P, 4)
+    table of every pixel with its right, lower and lower-right neighbours), weighted and summed."""
+    W2 = _padded_width(w)
+    n = src.shape[0] - W2 - 1
+    quads = torch.stack([src[0:n], src[1:n + 1], src[W2:W2 + n], src[W2 + 1:W2 + 1 + n]], -1)
+    wts = torch.stack([(1 - ax) * (1 - ay), ax * (1 - ay), (1 - ax) * ay, ax * ay], -1)
+    return (torch.index_select(quads, 0, idx.to(torch.int32)) * wts).sum(-1)
+
+
+FRACTION = 65536  # fixed-mount fractions are stored as int16: round(a * FRACTION) - 32768
+
+
+def _store_fraction(a: torch.Tensor) -> torch.Tensor:
+    """int16 of a fraction in [0, 1] (1.0 occurs: ``x - floor(x)`` of a tiny negative float32)."""
+    return (torch.round(a.double() * FRACTION) - 32768).clamp(-32768, 32767).to(torch.int16)
+
+
+def _load_fraction(q: torch.Tensor) -> torch.Tensor:
+    return (q.to(torch.float32) + 32768) * (1 / FRACTION)
+
+
+def _resize_taps(n_in: int, n_out: int):
+    """``cv2.resize`` INTER_LINEAR's taps and 11-bit weights along one axis (uint8 images)."""
+    f = ((np.arange(n_out) + 0.5) * (1.0 / (n_out / n_in)) - 0.5).astype(np.float32)
+    i0 = np.floor(f).astype(np.int64)
+    a = (f - i0.astype(np.float32)).astype(np.float32)
+    a = np.where((i0 < 0) | (i0 >= n_in - 1), np.float32(0), a)
+    i0 = np.clip(i0, 0, n_in - 1)
+    i1 = np.minimum(i0 + 1, n_in - 1)
+    w0 = np.rint((np.float32(1) - a) * np.float32(2048)).astype(np.int64)
+    w1 = np.rint(a * np.float32(2048)).astype(np.int64)
+    return torch.from_numpy(i0), torch.from_numpy(i1), torch.from_numpy(w0), torch.from_numpy(w1)
+
+
+def _resize_u8(x: torch.Tensor, src: tuple[int, int], dst: tuple[int, int]) -> torch.Tensor:
+    """``cv2.resize(img, dst, INTER_LINEAR)`` of a uint8 image held as float (N, C, h, w): the
+    same integer arithmetic (11-bit weights; the vertical pass as OpenCV's SIMD code rounds it,
+    checked bit-exact against cv2 for down- and upscaling). Returns float (N, C, dst_h, dst_w)."""
+    xi0, xi1, a0, a1 = _resize_taps(src[0], dst[0])
+    yi0, yi1, b0, b1 = _resize_taps(src[1], dst[1])
+    v = x.to(torch.int64)
+    hor = v.index_select(3, xi0) * a0 + v.index_select(3, xi1) * a1
+    s0 = torch.div(hor.index_select(2, yi0), 16, rounding_mode="floor") * b0[:, None]
+    s1 = torch.div(hor.index_select(2, yi1), 16, rounding_mode="floor") * b1[:, None]
+    out = torch.div(torch.div(s0, 65536, rounding_mode="floor") + torch.div(s1, 65536, rounding_mode="floor") + 2, 4,
+                    rounding_mode="floor")
+    return out.clamp(0, 255).to(x.dtype)
+
+
+def _fixed_point(c: torch.Tensor) -> torch.Tensor:
+    """Float coordinates rounded to OpenCV's fixed point (1/32 px, half to even), float32."""
+    return torch.round(c.float() * 32) * (1 / 32)
+
+
+def _backproject_coords(H: torch.Tensor, w: int, h: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """Store coordinates (float32) of every source pixel centre, ``H @ (u, v, 1)`` with H =
+    virt_H_src, as ``cv2.warpPerspective(..., WARP_INVERSE_MAP)`` samples them ((h, w) each)."""
+    u = torch.arange(w, dtype=torch.float64)[None, :]
+    v = torch.arange(h, dtype=torch.float64)[:, None]
+    W = H[2, 0] * u + H[2, 1] * v + H[2, 2]
+    ok = W != 0
+    W = torch.where(ok, W, torch.ones_like(W))
+    lim = 1e6  # far outside any store: 0 (and no inf/nan where the road plane's horizon maps)
+    far = torch.full_like(W, -64.0)
+    X = torch.where(ok, ((H[0, 0] * u + H[0, 1] * v + H[0, 2]) / W).clamp(-lim, lim), far)
+    Y = torch.where(ok, ((H[1, 0] * u + H[1, 1] * v + H[1, 2]) / W).clamp(-lim, lim), far)
+    return X.float(), Y.float()
+
+
+# -- the homography and completion from a VP, in the graph (float64) ---------------------------------
+
+def _mat(rows) -> torch.Tensor:
+    return torch.stack([torch.stack(list(r)) for r in rows])
+
+
+def _adjugate(A: torch.Tensor) -> torch.Tensor:
+    """det(A) * inv(A) of a 3x3 (elementwise; the scale of a homography does not matter)."""
+    c = lambda i, j, k, l: A[i, j] * A[k, l] - A[i, l] * A[k, j]  # noqa: E731
+    return _mat([[c(1, 1, 2, 2), -c(0, 1, 2, 2), c(0, 1, 1, 2)],
+                 [-c(1, 0, 2, 2), c(0, 0, 2, 2), -c(0, 0, 1, 2)],
+                 [c(1, 0, 2, 1), -c(0, 0, 2, 1), c(0, 0, 1, 1)]])
+
+
+def _virt_H_src(vp: torch.Tensor, cam: Camera, Gv: torch.Tensor) -> torch.Tensor:
+    """``vcprep.homography.virt_H_src(cam, virt, *pose_from_vp(cam, vp))`` (pose_axes written
+    with square roots instead of the angles: cos/sin of pan and tilt follow from the VP ray)."""
+    d0, d1 = (vp[0] - cam.cx) / cam.fx, (vp[1] - cam.cy) / cam.fy
+    r = torch.sqrt(d0 * d0 + d1 * d1 + 1)
+    ca = 1 / torch.sqrt(1 + d0 * d0)  # cos(pan), sin(pan) = d0 * ca
+    R1 = [ca, torch.zeros_like(ca), -d0 * ca]
+    R3 = [d0 / r, d1 / r, 1 / r]
+    R2 = [R3[1] * R1[2] - R3[2] * R1[1], R3[2] * R1[0] - R3[0] * R1[2], R3[0] * R1[1] - R3[1] * R1[0]]
+    K = torch.tensor(cam.K, dtype=torch.float64)
+    Gp = K @ _mat([[R1[i], R3[i], cam.height * R2[i]] for i in range(3)])
+    H = Gv @ _adjugate(Gp)
+    s = H[2, 0] * cam.cx + H[2, 1] * cam.cy + H[2, 2]
+    H = torch.where(s < 0, -H, H)
+    return H / H.abs().max()
+
+
+def _jacobian(M: torch.Tensor, c: tuple[torch.Tensor, torch.Tensor]):
+    """Source point of store point ``c`` and the 2x2 ray Jacobian (vcprep.completion._to_source)."""
+    V = [M[i, 0] * c[0] + M[i, 1] * c[1] + M[i, 2] for i in range(3)]
+    J = [[M[0, 0] * V[2] - V[0] * M[2, 0], M[0, 1] * V[2] - V[0] * M[2, 1]],
+         [M[1, 0] * V[2] - V[1] * M[2, 0], M[1, 1] * V[2] - V[1] * M[2, 1]]]
+    return (V[0] / V[2], V[1] / V[2]), J, V[2]
+
+
+def _store_maps_from_vp(vp: torch.Tensor, cam: Camera, Gv: torch.Tensor, store_size: tuple[int, int],
+                        vis: tuple[int, int], completion: str):
+    """(H, fixed-point qx, qy of every store pixel): vcprep.warp.build_maps plus the completion
+    (vcprep.completion.complete_maps) for a VP given at run time. See the module docstring."""
+    Ws, Hs = store_size
+    w, h = vis
+    H = _virt_H_src(vp, cam, Gv)
+    Minv = _adjugate(H)  # src_H_virt up to scale (complete_maps' M; sign-free where used)
+    mid = Minv[2, 0] * (Ws / 2) + Minv[2, 1] * (Hs / 2) + Minv[2, 2]
+    M = torch.where(mid < 0, -Minv, Minv)  # build_maps: the store's middle in front
+    u = torch.arange(Ws, dtype=torch.float64)[None, :]
+    v = torch.arange(Hs, dtype=torch.float64)[:, None]
+    den = M[2, 0] * u + (M[2, 1] * v + M[2, 2])
+    front = den > 0
+    inv = 1 / torch.where(front, den, torch.ones_like(den))
+    x = (M[0, 0] * u + (M[0, 1] * v + M[0, 2])) * inv
+    y = (M[1, 0] * u + (M[1, 1] * v + M[1, 2])) * inv
+    valid = front & (x >= -0.5) & (x < w - 0.5) & (y >= -0.5) & (y < h - 0.5)
+    mx = torch.where(valid, x.clamp(0, w - 1), torch.full_like(x, -64.0))
+    my = torch.where(valid, y.clamp(0, h - 1), torch.full_like(y, -64.0))
+    if completion == "projective":
+        # the ray centre: the VP in the store (= the virtual principal point), or the fallback
+        pv = [H[i, 0] * vp[0] + H[i, 1] * vp[1] + H[i, 2] for i in range(3)]
+        cu, cv = pv[0] / pv[2], pv[1] / pv[2]
+        (sx, sy), _, sw = _jacobian(Minv, (cu, cv))
+        inside = ((torch.sign(sw) == torch.sign(mid)) & (sx >= 0) & (sx <= w - 1) & (sy >= 0) & (sy <= h - 1))
+        vf = valid.to(torch.float64)
+        uu, vv = u.expand(Hs, Ws), v.expand(Hs, Ws)
+        d2 = torch.where(valid, (uu - cu) ** 2 + (vv - cv) ** 2, torch.full_like(uu, float("inf")))
+        k = torch.argmin(d2.reshape(-1))
+        kf = k.to(torch.float64)
+        qv = torch.floor(kf / Ws)
+        qu = kf - qv * Ws
+        n_valid = vf.sum().clamp_min(1)
+        gu, gv = (uu * vf).sum() / n_valid, (vv * vf).sum() / n_valid
+        fu, fv = qu + FALLBACK_TOWARD * (gu - qu), qv + FALLBACK_TOWARD * (gv - qv)
+        ok = lambda a, b: valid.reshape(-1)[(torch.round(b).clamp(0, Hs - 1) * Ws  # noqa: E731
+                                             + torch.round(a).clamp(0, Ws - 1)).to(torch.int64)]
+        fb_u = torch.where(ok(fu, fv), fu, torch.where(ok(gu, gv), gu, qu))
+        fb_v = torch.where(ok(fu, fv), fv, torch.where(ok(gu, gv), gv, qv))
+        cu, cv = torch.where(inside, cu, fb_u), torch.where(inside, cv, fb_v)
+        (sx, sy), J, _ = _jacobian(Minv, (cu, cv))
+        sx, sy = sx.clamp(0, w - 1), sy.clamp(0, h - 1)
+        # the fill table's angle of every pixel (float32, as vcprep.completion._build_angle_index)
+        far = torch.stack([torch.sqrt((a - cu) ** 2 + (b - cv) ** 2) for a in (0, Ws - 1) for b in (0, Hs - 1)]).max()
+        n = torch.ceil(2 * math.pi * far / TABLE_ARC).clamp_min(1024)
+        du = torch.arange(Ws, dtype=torch.float32)[None, :] - cu.float()
+        dv = torch.arange(Hs, dtype=torch.float32)[:, None] - cv.float()
+        kk = torch.round(torch.atan2(dv, du) * (n / (2 * math.pi)).float())
+        n32 = n.float()
+        kk = (kk - n32 * torch.floor(kk / n32)).double()
+        phi = kk * (2 * math.pi / n)
+        c, s = torch.cos(phi), torch.sin(phi)
+        dx, dy = J[0][0] * c + J[0][1] * s, J[1][0] * c + J[1][1] * s
+        big = torch.full_like(dx, float("inf"))
+        one = torch.ones_like(dx)
+        tx = torch.where(dx > 0, (w - 1 - sx) / torch.where(dx > 0, dx, one),
+                         torch.where(dx < 0, -sx / torch.where(dx < 0, dx, one), big))
+        ty = torch.where(dy > 0, (h - 1 - sy) / torch.where(dy > 0, dy, one),
+                         torch.where(dy < 0, -sy / torch.where(dy < 0, dy, one), big))
+        t = torch.minimum(tx, ty)
+        t = torch.where(torch.isinf(t), torch.zeros_like(t), t)
+        ex, ey = (sx + t * dx).clamp(0, w - 1), (sy + t * dy).clamp(0, h - 1)
+        # covered pixels: fixed-point maps (cv2.convertMaps); the fill table: float maps
+        return H, torch.where(valid, _fixed_point(mx), ex.float()), torch.where(valid, _fixed_point(my), ey.float())
+    return H, _fixed_point(mx), _fixed_point(my)
+
+
+# -- the graph -----------------------------------------------------------------------------------------
+
+
+def _vp_map(vp_src: torch.Tensor, work: tuple[int, int], src: tuple[int, int]) -> torch.Tensor:
+    """vctrain.data.vp_proximity at the working size for a source-pixel VP (float64)."""
+    ww, wh = work
+    vx, vy = vp_src[0] * (ww / src[0]), vp_src[1] * (wh / src[1])
+    x = (torch.arange(ww, dtype=torch.float64)[None, :] - vx).abs() / ww
+    y = (torch.arange(wh, dtype=torch.float64)[:, None] - vy).abs() / wh
+    return 1 - torch.maximum(x, y)
