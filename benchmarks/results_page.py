@@ -508,7 +508,9 @@ def r_video(d: dict) -> list[str]:
         f"threads {d['cpu_threads']}. within / between (time per frame): **{h['within_over_between']:.2f}** end to "
         f"end (target ≤ 1.3), {d['stages_within_over_between']:.2f} over the stages. The own-vehicle search "
         f"(48 frames spread over the video; part of every command) took {d['ego_search_s']:.1f} s and found "
-        f"{d['ego_rows']} rows.", ""]
+        f"{d['ego_rows']} rows."
+        + (f" 1-minute load average before and after: {', '.join(num(x) for x in d['loadavg_1min'])} (other "
+           f"jobs on the 2 cores slow both conditions)." if d.get("loadavg_1min") else ""), ""]
 
 
 RENDER: dict[str, Callable[[dict], list[str]]] = {

@@ -13,7 +13,8 @@ Model: untrained (speed only): resfpn (1.3 M parameters, seed 0) at the cpu reci
 344x176 on the default 688x350 canvas (scale 0.125), projective completion, as ``vctrain fit
 --size 344x176`` writes it; its ``vp_status`` says per-image VPs, so ``--within auto`` is ``estimate``.
 
-Measured, on the machine's 2 cores (torch and OpenCV at 2 threads):
+Measured, on the machine's 2 cores (torch and OpenCV at ``--threads``, default 2; the 1-minute load
+average before and after is recorded, as other jobs on the machine slow both conditions):
   end to end   ``vctrain predict MODEL --camera CAM video.mp4 --out OUT --overlay --quiet`` timed as a
                subprocess (model load, own-vehicle search, decode, VPs, warp, network, back-projection,
                a mask and a probability PNG per frame, the overlay video), ``--within none`` (between:
@@ -140,11 +141,16 @@ def stages(pred: Predictor, cam, clip: Path, out: Path, within: str) -> dict:
 
 
 def main() -> None:
+    global THREADS
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seconds", type=float, default=60.0, help="length of the video (s)")
     ap.add_argument("--stage-frames", type=int, default=300, help="frames of the per-stage runs")
     ap.add_argument("--workdir", type=Path, default=ROOT / "benchmarks" / "out" / "video")
+    ap.add_argument("--threads", type=int, default=THREADS, help="torch and OpenCV threads (the machine's 2 cores; "
+                                                                 "1 when other jobs load them)")
     args = ap.parse_args()
+    THREADS = args.threads
+    load_before = os.getloadavg()[0]
     cv2.setNumThreads(THREADS)
     torch.set_num_threads(THREADS)
     wd = args.workdir
@@ -207,6 +213,7 @@ def main() -> None:
                 "fps_within": round(fps["within"], 2), "fps_one_minute_720p": round(fps["within"], 2)}
     out = {"headline": headline, "date": today(), "command": "benchmarks/video.py",
            "machine": machine(), "cpu_threads": THREADS,
+           "loadavg_1min": [round(load_before, 2), round(os.getloadavg()[0], 2)],  # before, after: other jobs
            "video": {"frames": frames, "size": list(info.size), "fps": info.fps, "source": "BDD100K frames (40 "
                      "dashcams), 1.5 s each, smooth pan/tilt about the optical centre; mp4v"},
            "model": "resfpn, untrained (seed 0), 344x176 on the 688x350 canvas, projective completion",

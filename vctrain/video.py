@@ -287,20 +287,10 @@ def predict_video(predictor, video: str | Path, out: str | Path, camera: Camera 
     estimated in a worker thread ahead of the one predicted (0: in this thread, in turn)."""
     from vcprep.vanishing_point import read_vp_csv
 
-    from .predict import write_prediction
-
     video = Path(video)
     cap, info = open_video(video)
-    stem = video.stem
     try:
-        if camera is None:
-            if predictor.mode == "virtual":
-                raise InputError("a virtual-camera model needs the camera of the video", video,
-                                 "add --camera (preset or calibration file)")
-        cam = camera.for_image_size(info.size, video) if camera is not None else None
-        if cam is not None and predictor.mode == "virtual":
-            say = (lambda msg: tqdm.write(f"{video}: {msg}", file=sys.stderr)) if progress else None
-            cam = ego_camera(cam, info, ego, say)
+        cam = _video_camera(predictor, camera, video, info, ego, progress)
         mode = _within_mode(predictor, within)
         given = None
         if mode not in ("estimate", "none"):
@@ -311,85 +301,140 @@ def predict_video(predictor, video: str | Path, out: str | Path, camera: Camera 
         if mode == "estimate" and fp.camera is None:
             raise InputError("per-frame VPs need the camera of the video", video, "add --camera, or --within none")
         vps = StreamingVPs(fp.camera, vp_window, times=fp.times) if mode == "estimate" else None
-        out = Path(out)
-        if out.exists() and not out.is_dir():
-            raise InputError("exists and is not a directory", out, "choose another --out")
-        frame_dir = out / stem
-        (out if mask_video else frame_dir).mkdir(parents=True, exist_ok=True)
-        outs: list[_VideoOut] = []
-        written: list[Path] = []
+        out = _out_folder(out, video.stem, mask_video)
         pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="vp") if vps is not None and vp_ahead else None
-        submit = pool.submit if pool is not None else _now
+        sink = None
         try:
-            mv = _VideoOut(out / f"{stem}_mask.mkv", "FFV1", info.fps, info.size) if mask_video else None
-            outs += [mv] if mv else []
-            ov = _VideoOut(out / f"{stem}_overlay.mp4", "mp4v", info.fps, info.size) if overlay else None
-            outs += [ov] if ov else []
-            bar = tqdm(total=info.frames or None, desc=stem, unit="frame", disable=None if progress else True,
-                       leave=False)
-            held: dict[int, np.ndarray | None] = {}  # frames read, waiting for their VP (per-frame VPs)
-            order: list[int] = []
-            # the VP of the frame just read is estimated in another thread while the frames before it
-            # are predicted and written (the estimate is pure: the same numbers, in the same order)
-            ahead: deque[tuple[int, Future]] = deque()
-
-            def emit(i: int, vp) -> None:
-                frame = held.pop(i)
-                if frame is None:
-                    for o in outs:
-                        o.write(None)
-                else:
-                    prob = fp.predict(frame, vp)
-                    if mv is None:
-                        written.append(write_prediction(frame_dir, f"{stem}_{i:06d}", prob)[0])
-                    mask = np.where(prob >= 0.5, 255, 0).astype(np.uint8)
-                    if mv is not None:
-                        mv.write(cv2.cvtColor(mask, cv2.COLOR_GRAY2BGR))
-                    if ov is not None:
-                        ov.write(draw_overlay(frame, mask, fp.camera, vp))
-                bar.update(1)
-
-            def release(final: list[tuple[int, object]]) -> None:
-                """Predict, in order, every held frame up to the last whose VP is final."""
-                done = {i: r.vp for i, r in final}
-                while order and (held[order[0]] is None or order[0] in done):
-                    i = order.pop(0)
-                    emit(i, done.get(i))
-
-            for i, frame in read_frames(cap, info, lambda msg: tqdm.write(msg, file=sys.stderr)):
-                if vps is None:
-                    held[i] = frame
-                    vp = None
-                    if given is not None and frame is not None:
-                        key = f"{stem}_{i:06d}"
-                        if key not in given:
-                            raise InputError(f"no VP row for frame id '{key}'", mode, "add an 'id,u,v' row per frame")
-                        vp = given[key]
-                    emit(i, vp)
-                    continue
-                held[i] = frame
-                order.append(i)
-                if frame is not None:
-                    ahead.append((i, submit(vps.estimate, frame)))
-                while len(ahead) > vp_ahead:
-                    j, est = ahead.popleft()
-                    release(vps.push(j, estimate=est.result()))
-            if vps is not None:
-                while ahead:
-                    j, est = ahead.popleft()
-                    release(vps.push(j, estimate=est.result()))
-                release(vps.flush())
-            bar.close()
-            for o in outs:
-                o.close()
-                written.append(o.path)
+            sink = _FrameSink(fp, out, video.stem, info, mask_video, overlay, progress)
+            frames = read_frames(cap, info, lambda msg: tqdm.write(msg, file=sys.stderr))
+            _stream(frames, sink, vps, given, mode, pool.submit if pool is not None else _now, vp_ahead)
+            return sink.close()
         except BaseException:
-            for o in outs:
-                o.abort()
+            if sink is not None:
+                sink.abort()
             raise
         finally:
             if pool is not None:
                 pool.shutdown(wait=True, cancel_futures=True)
     finally:
         cap.release()
-    return written
+
+
+def _video_camera(predictor, camera: Camera | None, video: Path, info: VideoInfo, ego: str,
+                  progress: bool) -> Camera | None:
+    """The camera at the video's frame size (a virtual-camera model needs one), with its own
+    vehicle's rows (:func:`ego_camera`) for a virtual-camera model."""
+    if camera is None:
+        if predictor.mode == "virtual":
+            raise InputError("a virtual-camera model needs the camera of the video", video,
+                             "add --camera (preset or calibration file)")
+        return None
+    cam = camera.for_image_size(info.size, video)
+    if predictor.mode == "virtual":
+        say = (lambda msg: tqdm.write(f"{video}: {msg}", file=sys.stderr)) if progress else None
+        cam = ego_camera(cam, info, ego, say)
+    return cam
+
+
+def _out_folder(out: str | Path, stem: str, mask_video: bool) -> Path:
+    """OUT (a folder, created), and OUT/<stem> for the mask PNGs unless ``mask_video``."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise InputError("exists and is not a directory", out, "choose another --out")
+    (out if mask_video else out / stem).mkdir(parents=True, exist_ok=True)
+    return out
+
+
+class _FrameSink:
+    """Where a video's predicted frames go, in frame order: the mask PNGs (or the mask video), the
+    overlay video and the progress bar. Frames read wait in ``held`` (in ``order``) until their
+    VP is final (per-frame VPs)."""
+
+    def __init__(self, fp: FramePredictor, out: Path, stem: str, info: VideoInfo, mask_video: bool,
+                 overlay: bool, progress: bool):
+        from .predict import write_prediction
+
+        self.fp, self.stem, self.frame_dir, self._write_prediction = fp, stem, out / stem, write_prediction
+        self.outs: list[_VideoOut] = []
+        self.written: list[Path] = []
+        self.mv = self.ov = None
+        try:
+            self.mv = _VideoOut(out / f"{stem}_mask.mkv", "FFV1", info.fps, info.size) if mask_video else None
+            self.outs += [self.mv] if self.mv else []
+            self.ov = _VideoOut(out / f"{stem}_overlay.mp4", "mp4v", info.fps, info.size) if overlay else None
+            self.outs += [self.ov] if self.ov else []
+        except BaseException:
+            self.abort()  # the one opened before
+            raise
+        self.bar = tqdm(total=info.frames or None, desc=stem, unit="frame", disable=None if progress else True,
+                        leave=False)
+        self.held: dict[int, np.ndarray | None] = {}
+        self.order: list[int] = []
+
+    def emit(self, i: int, vp) -> None:
+        """Predict held frame ``i`` with ``vp`` and write it (an undecodable frame: the videos
+        repeat their last frame)."""
+        frame = self.held.pop(i)
+        if frame is None:
+            for o in self.outs:
+                o.write(None)
+        else:
+            prob = self.fp.predict(frame, vp)
+            if self.mv is None:
+                self.written.append(self._write_prediction(self.frame_dir, f"{self.stem}_{i:06d}", prob)[0])
+            mask = np.where(prob >= 0.5, 255, 0).astype(np.uint8)
+            if self.mv is not None:
+                self.mv.write(cv2.cvtColor(mask, cv2.COLOR_GRAY2BGR))
+            if self.ov is not None:
+                self.ov.write(draw_overlay(frame, mask, self.fp.camera, vp))
+        self.bar.update(1)
+
+    def release(self, final: list[tuple[int, object]]) -> None:
+        """Predict, in order, every held frame up to the last whose VP is final."""
+        done = {i: r.vp for i, r in final}
+        while self.order and (self.held[self.order[0]] is None or self.order[0] in done):
+            i = self.order.pop(0)
+            self.emit(i, done.get(i))
+
+    def close(self) -> list[Path]:
+        """Finish the videos; the paths written (mask PNGs or mask video, then the overlay video)."""
+        self.bar.close()
+        for o in self.outs:
+            o.close()
+            self.written.append(o.path)
+        return self.written
+
+    def abort(self) -> None:
+        for o in self.outs:
+            o.abort()
+
+
+def _stream(frames: Iterator[tuple[int, np.ndarray | None]], sink: _FrameSink, vps: StreamingVPs | None, given,
+            mode: str, submit: Callable[..., Future], vp_ahead: int) -> None:
+    """Every frame into ``sink``, in order: at once with a given VP (``given``, read from the CSV
+    ``mode``) or none; with per-frame VPs (``vps``) once its VP is final. The VP of the frame just
+    read is estimated (``submit``: in another thread) while the frames before it are predicted and
+    written, ``vp_ahead`` frames ahead (the estimate is pure: the same numbers, in the same order)."""
+    ahead: deque[tuple[int, Future]] = deque()
+    for i, frame in frames:
+        sink.held[i] = frame
+        if vps is None:
+            vp = None
+            if given is not None and frame is not None:
+                key = f"{sink.stem}_{i:06d}"
+                if key not in given:
+                    raise InputError(f"no VP row for frame id '{key}'", mode, "add an 'id,u,v' row per frame")
+                vp = given[key]
+            sink.emit(i, vp)
+            continue
+        sink.order.append(i)
+        if frame is not None:
+            ahead.append((i, submit(vps.estimate, frame)))
+        while len(ahead) > vp_ahead:
+            j, est = ahead.popleft()
+            sink.release(vps.push(j, estimate=est.result()))
+    if vps is not None:
+        while ahead:
+            j, est = ahead.popleft()
+            sink.release(vps.push(j, estimate=est.result()))
+        sink.release(vps.flush())
