@@ -140,6 +140,25 @@ def stages(pred: Predictor, cam, clip: Path, out: Path, within: str) -> dict:
     return ms
 
 
+def _print_tables(video: Path, info, ego_rows: int, ego_s: float, stage: dict, keys: tuple, wall: dict,
+                  fps: dict) -> float:
+    """Print the stage and end-to-end tables; returns within / between (time per frame, end to end)."""
+    frames = info.frames
+    print(f"video: {video.name}, {info.size[0]}x{info.size[1]}, {frames} frames at {info.fps:g} fps "
+          f"({frames / info.fps:.0f} s); {THREADS} threads; own vehicle: {ego_rows} rows ({ego_s:.1f} s)")
+    print("\n| stage (ms per frame) | between | within |\n|---|---|---|")
+    for k in keys:
+        cell = lambda n: f"{stage[n][k]['median']:.1f} ({stage[n][k]['min']:.1f}-{stage[n][k]['max']:.1f})"
+        print(f"| {k} | {cell('between')} | {cell('within')} |")
+    print("\n| end to end (1 command) | wall s | frames/s | ms/frame |\n|---|---|---|---|")
+    for n in ("between", "within"):
+        print(f"| {n} | {wall[n]:.1f} | {fps[n]:.2f} | {1000 * wall[n] / frames:.1f} |")
+    ratio = wall["within"] / wall["between"]
+    print(f"\nwithin / between (time per frame): end to end {ratio:.3f}; stages "
+          f"{stage['within']['total']['median'] / stage['between']['total']['median']:.3f}")
+    return ratio
+
+
 def main() -> None:
     global THREADS
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
@@ -197,18 +216,7 @@ def main() -> None:
         wall[name] = end_to_end(model, cam_file, video, wd / f"out_{name}", within)
     fps = {n: frames / s for n, s in wall.items()}
 
-    print(f"video: {video.name}, {info.size[0]}x{info.size[1]}, {frames} frames at {info.fps:g} fps "
-          f"({frames / info.fps:.0f} s); {THREADS} threads; own vehicle: {ego.ego_rows} rows ({ego_s:.1f} s)")
-    print("\n| stage (ms per frame) | between | within |\n|---|---|---|")
-    for k in keys:
-        cell = lambda n: f"{stage[n][k]['median']:.1f} ({stage[n][k]['min']:.1f}-{stage[n][k]['max']:.1f})"
-        print(f"| {k} | {cell('between')} | {cell('within')} |")
-    print("\n| end to end (1 command) | wall s | frames/s | ms/frame |\n|---|---|---|---|")
-    for n in ("between", "within"):
-        print(f"| {n} | {wall[n]:.1f} | {fps[n]:.2f} | {1000 * wall[n] / frames:.1f} |")
-    ratio = wall["within"] / wall["between"]
-    print(f"\nwithin / between (time per frame): end to end {ratio:.3f}; stages "
-          f"{stage['within']['total']['median'] / stage['between']['total']['median']:.3f}")
+    ratio = _print_tables(video, info, ego.ego_rows, ego_s, stage, keys, wall, fps)
     headline = {"within_over_between": round(ratio, 3), "fps_between": round(fps["between"], 2),
                 "fps_within": round(fps["within"], 2), "fps_one_minute_720p": round(fps["within"], 2)}
     out = {"headline": headline, "date": today(), "command": "benchmarks/video.py",

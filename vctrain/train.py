@@ -371,6 +371,14 @@ def _replicas_identical(model: nn.Module, world: int) -> bool:
     return same
 
 
+def _steps_per_epoch(cfg: TrainConfig, n_train: int, world: int) -> tuple[int, int]:
+    """(batch per rank, optimiser steps per epoch): every training item once per epoch over all
+    ranks, capped at ``cfg.max_steps``."""
+    per_rank_batch = max(1, math.ceil(cfg.batch_size / world))
+    steps = math.ceil(n_train / (per_rank_batch * world))
+    return per_rank_batch, (min(steps, cfg.max_steps) if cfg.max_steps else steps)
+
+
 def fit(cfg: TrainConfig) -> dict[str, Any]:
     """Train according to ``cfg``; returns a summary (best val IoU, timings, paths)."""
     rank, world, local_rank = _dist()
@@ -401,10 +409,7 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
     train_ds, val_ds = _datasets(cfg, train_s, val_s, info)
     weight = _class_weight(cfg, train_ds, info, device)
 
-    per_rank_batch = max(1, math.ceil(cfg.batch_size / world))
-    steps_per_epoch = math.ceil(len(train_ds) / (per_rank_batch * world))
-    if cfg.max_steps:
-        steps_per_epoch = min(steps_per_epoch, cfg.max_steps)
+    per_rank_batch, steps_per_epoch = _steps_per_epoch(cfg, len(train_ds), world)
     total_steps = steps_per_epoch * cfg.epochs
     opt = _optimizer(cfg, model)
     val_loader = torch.utils.data.DataLoader(val_ds, batch_size=per_rank_batch, shuffle=False,
