@@ -237,7 +237,7 @@ def main() -> None:
     (res_dir / "multi_camera.md").write_text(table)
     command = (f"benchmarks/multi_camera.py {'--quick' if a.quick else '--seeds ' + a.seeds} "
                f"--conditions {a.conditions} --threads {a.threads}"
-               + (f" --epochs {a.epochs}" if a.epochs else ""))
+               + (f" --epochs {a.epochs}" if a.epochs else "") + (" --collect" if a.collect else ""))
     write_json(res_dir / "multi_camera.json", {
         "headline": head, "targets": targets, "cells": cells, "seeds": seeds, "conditions": conds, "held_out": LOO,
         "test_only": TEST_ONLY, "steps_per_epoch": steps, "epochs": a.epochs, "balance": "datasets",
