@@ -7,7 +7,8 @@ completion order) and owns everything shared, such as the manifest.
 
 Stopping: the callback returns False to stop (e.g. at the first bad item). Ctrl-C (SIGINT) is
 deferred to the end of the items in flight (a second Ctrl-C interrupts at once); workers ignore
-SIGINT. Either way no new item starts, the items running finish and reach the callback, and then
+SIGINT (a worker still starting when Ctrl-C reaches the process group may die of it: that is read
+as the Ctrl-C, not as a crashed worker; it had written nothing). Either way no new item starts, the items running finish and reach the callback, and then
 the loop returns (or raises ``KeyboardInterrupt``): nothing finished is lost.
 """
 from __future__ import annotations
@@ -170,6 +171,8 @@ def _run_pool(fn, ctx, tasks, on_result, jobs, bar, interrupted) -> None:
                     on_result(task, result)
                 raise
     except cf.process.BrokenProcessPool:
+        if interrupted:  # Ctrl-C reached the whole process group, and a worker still starting (before it
+            raise KeyboardInterrupt from None  # ignores SIGINT) died of it: the stop is the user's, not a crash
         raise StoreError("a worker process died (out of memory or killed)", None,
                          "re-run the same command, with fewer --jobs if memory is short; finished items are kept") from None
 
