@@ -9,7 +9,7 @@ import yaml
 from vcprep.camera import PRESETS, camera_to_yaml
 from vcprep.homography import vp_from_pose
 
-from conftest import write_synthetic_dataset
+from conftest import assert_one_error_line, run_cli, write_synthetic_dataset
 
 CONDS = ["resize", "between", "within", "within-gt", "zero"]
 CAMS = {
@@ -131,3 +131,15 @@ def _store_ego_rows(out: Path, dataset: str) -> set:
     stores = [m.parent for m in (out / "stores" / dataset).rglob("manifest.jsonl")]
     assert stores
     return {r.get("ego_rows", 0) for s in stores for r in Store.open(s)}
+
+
+def assert_bad_study_fails(study: Path, edit, out: Path, needle: str) -> None:
+    """``edit`` the study file's dict; crossval then ends in one error line with ``needle`` that
+    names the study file, and writes nothing to ``out``."""
+    d = yaml.safe_load(study.read_text())
+    edit(d)
+    study.write_text(yaml.safe_dump(d))
+    proc = run_cli("crossval", study, "--out", out, prog="vctrain")
+    assert_one_error_line(proc, needle)
+    assert str(study) in proc.stderr
+    assert not out.exists()

@@ -9,8 +9,8 @@ import yaml
 from vcprep.homography import vp_from_pose
 from vcprep.store import Store
 
-from conftest import assert_one_error_line, run_cli
-from studies import CAMS, CONDS, OFFSETS, _study
+from conftest import run_cli
+from studies import assert_bad_study_fails, CAMS, CONDS, OFFSETS, _study
 
 
 @pytest.fixture(scope="module")
@@ -159,11 +159,4 @@ def test_within_gt_is_skipped_without_given_vps(tmp_path):
 ])
 def test_bad_study_files_give_one_error_line(tmp_path, edit, needle):
     study = _study(tmp_path / "data")
-    d = yaml.safe_load(study.read_text())
-    edit(d)
-    study.write_text(yaml.safe_dump(d))
-    out = tmp_path / "out"
-    proc = run_cli("crossval", study, "--out", out, prog="vctrain")
-    assert_one_error_line(proc, needle)
-    assert str(study) in proc.stderr
-    assert not out.exists()
+    assert_bad_study_fails(study, edit, tmp_path / "out", needle)

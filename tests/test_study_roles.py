@@ -12,7 +12,7 @@ from vcprep.camera import camera_to_yaml
 from vcprep.store import Store
 
 from conftest import assert_one_error_line, run_cli
-from studies import CAMS, MIXED_CONDS, _dataset, _mixed_study, _rows, _study
+from studies import assert_bad_study_fails, CAMS, MIXED_CONDS, _dataset, _mixed_study, _rows, _study
 
 
 @pytest.fixture(scope="module")
@@ -170,14 +170,7 @@ def test_a_split_that_selects_nothing_is_one_error_line(tmp_path):
 ])
 def test_bad_roles_and_selections_give_one_error_line(tmp_path, edit, needle):
     study = _mixed_study(tmp_path / "data")
-    d = yaml.safe_load(study.read_text())
-    edit(d)
-    study.write_text(yaml.safe_dump(d))
-    out = tmp_path / "out"
-    proc = run_cli("crossval", study, "--out", out, prog="vctrain")
-    assert_one_error_line(proc, needle)
-    assert str(study) in proc.stderr
-    assert not out.exists()
+    assert_bad_study_fails(study, edit, tmp_path / "out", needle)
 
 
 def test_heldout_must_name_an_evaluated_dataset(tmp_path):
