@@ -53,12 +53,17 @@ def train_config(study: Study, stores: list[Path], out: Path, baseline: str, siz
         raise InputError(f"'train': {e.problem}", study.path, e.fix) from None
 
 
+# settings added after studies were first keyed, and the value that leaves training as it was
+SETTINGS_ADDED: dict[str, Any] = {"balance": "items", "height_aug": 0.0}
+
+
 def training_settings(study: Study, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
     """The training settings every run of ``study`` shares (the effective config, defaults included)."""
     cfg = train_config(study, [], Path("."), "none", None, False, dict(overrides or {}))
     out = {k: v for k, v in cfg.to_dict().items() if k not in RUN_KEYS and k != "workers"}
-    if out.get("balance") == "items":  # (the default: the keys of studies from before the setting are as before)
-        del out["balance"]
+    for k, off in SETTINGS_ADDED.items():  # at their default the keys of studies from before them are as before
+        if out.get(k) == off:
+            del out[k]
     return out
 
 
