@@ -233,11 +233,14 @@ def loo_study_file(wd: Path, quick: bool, epochs: int | None) -> Path:
     return _write(wd / "loo", "study.yaml", datasets, train_cfg)
 
 
-def run_study(study: Path, out: Path, conds: list[str], seed: int, threads: int) -> tuple[list[dict], dict]:
-    """One crossval run (resumed where it stopped): its result rows and its study.json."""
+def run_study(study: Path, out: Path, conds: list[str], seed: int, threads: int,
+              heldout: list[str] | None = None) -> tuple[list[dict], dict]:
+    """One crossval run (resumed where it stopped; only the evaluated datasets ``heldout`` when
+    given): its result rows and its study.json."""
     t0 = time.time()
+    pick = ["--heldout", ",".join(heldout)] if heldout else []
     run(BIN / "vctrain", "crossval", study, "--out", out, "--conditions", ",".join(conds), "--seed", seed,
-        "--jobs", threads, "--json", stream=True, env={"OMP_NUM_THREADS": str(threads)})
+        "--jobs", threads, "--json", *pick, stream=True, env={"OMP_NUM_THREADS": str(threads)})
     print(f"{out}: {time.time() - t0:.0f} s", flush=True)
     rows = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
     return rows, json.loads((out / "study.json").read_text())

@@ -21,7 +21,10 @@ KITTI. Training: crossval's defaults plus ``balance: datasets`` (each training s
 an epoch: 41 BDD frames weigh as much as 1,403 IDD frames) and the step budget of the single-camera
 CamVid model of benchmarks/as_shipped.py (``max_steps`` per epoch = its steps per epoch, 305 frames less
 the 10 % validation share at batch 8), so every fold costs one model's time whatever its union's size.
-The checkpoint of each model is chosen on its training frames' validation share, never on a test set.
+``shading_aug: 0.4`` (``--shading-aug``; vctrain.data: half the items get a smooth per-channel colour
+gain field, the lens shading of cheap cameras: LUMS's bottom corners are tinted green and magenta, which
+a model trained without it reads as "not road"; both conditions). The checkpoint of each model is
+chosen on its training frames' validation share, never on a test set.
 
 **Baseline**: condition ``resize``, the same network on the same training frames simply resized (the
 resize twin draws exactly the same items, steps and sampling: same stores, seed and balance). Reported:
@@ -61,6 +64,7 @@ LOO = ["lums", "bdd", "camvid", "cityscapes", "idd"]  # held out in turn (LUMS f
 TEST_ONLY = ["kitti"]                                  # tested by the model trained on all five
 TARGET_GAIN, TARGET_WORST = 5.0, -1.0
 QUICK_FRAMES = 6
+SHADING_AUG = 0.4  # the multi-camera recipe: colour shading (vctrain.data), both conditions
 
 
 def _link_all(dst: Path, parts: list[tuple[Path, Path]], n: int | None = None) -> dict[str, str]:
@@ -77,7 +81,7 @@ def _link_all(dst: Path, parts: list[tuple[Path, Path]], n: int | None = None) -
     return {"images": str(dst / "images"), "labels": str(dst / "labels")}
 
 
-def study_file(wd: Path, quick: bool, epochs: int | None) -> Path:
+def study_file(wd: Path, quick: bool, epochs: int | None, shading_aug: float = SHADING_AUG) -> Path:
     """The study: the five real datasets held out in turn, KITTI a test set."""
     n = QUICK_FRAMES if quick else None
     camvid = _link_all(wd / "frames" / "camvid", [(DATA / "train", DATA / "trainannot"),
@@ -99,7 +103,8 @@ def study_file(wd: Path, quick: bool, epochs: int | None) -> Path:
              {"max_steps": camvid_steps_per_epoch(), **({"epochs": epochs} if epochs else {})})
     path = wd / "study.yaml"
     path.write_text(yaml.safe_dump({"datasets": [datasets[k] for k in LOO] + [kitti],
-                                    "train": {**train, "balance": "datasets"}}, sort_keys=False))
+                                    "train": {**train, "balance": "datasets", "shading_aug": shading_aug}},
+                                   sort_keys=False))
     return path
 
 
@@ -205,6 +210,9 @@ def main() -> None:
     ap.add_argument("--epochs", type=int, default=None, help="default: crossval's (the recipe's)")
     ap.add_argument("--workdir", type=Path, default=ROOT / "benchmarks" / "out" / "multi_camera")
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--shading-aug", type=float, default=SHADING_AUG, help="study train: shading_aug (0: off)")
+    ap.add_argument("--no-test-only", action="store_true", help="skip the all-five model tested on KITTI "
+                    "(benchmarks/shipped_model.py scores KITTI too)")
     ap.add_argument("--quick", action="store_true", help="smoke run: a few frames, 2 steps, seed 0")
     ap.add_argument("--collect", action="store_true", help="run nothing: report what is finished and what is missing")
     a = ap.parse_args()
@@ -218,11 +226,11 @@ def main() -> None:
     steps = 2 if a.quick else camvid_steps_per_epoch()
 
     if not a.collect:
-        study = study_file(wd, a.quick, a.epochs)
+        study = study_file(wd, a.quick, a.epochs, a.shading_aug)
         for seed in seeds:
             if seed != seeds[0]:
                 link_stores(wd / f"seed{seed}", wd / f"seed{seeds[0]}")
-            run_study(study, wd / f"seed{seed}", conds, seed, a.threads)
+            run_study(study, wd / f"seed{seed}", conds, seed, a.threads, LOO if a.no_test_only else None)
 
     cells, missing, minutes = collect(wd, seeds, conds)
     head, targets = summarise(cells, seeds, conds)
@@ -237,10 +245,12 @@ def main() -> None:
     (res_dir / "multi_camera.md").write_text(table)
     command = (f"benchmarks/multi_camera.py {'--quick' if a.quick else '--seeds ' + a.seeds} "
                f"--conditions {a.conditions} --threads {a.threads}"
-               + (f" --epochs {a.epochs}" if a.epochs else "") + (" --collect" if a.collect else ""))
+               + (f" --epochs {a.epochs}" if a.epochs else "") + f" --shading-aug {a.shading_aug:g}"
+               + (" --collect" if a.collect else ""))
     write_json(res_dir / "multi_camera.json", {
         "headline": head, "targets": targets, "cells": cells, "seeds": seeds, "conditions": conds, "held_out": LOO,
         "test_only": TEST_ONLY, "steps_per_epoch": steps, "epochs": a.epochs, "balance": "datasets",
+        "shading_aug": a.shading_aug,
         "threads": a.threads, "machine": machine(), "date": today(), "command": command})
     print(json.dumps(head))
     sys.stdout.flush()

@@ -50,6 +50,7 @@ from pathlib import Path
 import yaml
 
 from as_shipped import BDD, CITYSCAPES, IDD, LUMS, run_study
+from multi_camera import SHADING_AUG
 from measure.data import CS_FORMAT, DATA, KITTI, LUMS_FORMAT, ROOT, native_camera
 from measure.report import machine, today, write_json
 
@@ -102,7 +103,8 @@ def study_file(wd: Path, quick: bool, epochs: int) -> Path:
                      "test": {"images": str(KITTI / "image_2"), "labels": str(KITTI / "gt_image_2")}})
     train = {"epochs": 1, "max_steps": 2} if quick else {"epochs": epochs, "max_steps": STEPS}
     path = wd / "study.yaml"
-    path.write_text(yaml.safe_dump({"datasets": datasets, "train": {**train, "balance": "datasets"}},
+    path.write_text(yaml.safe_dump({"datasets": datasets, "train": {**train, "balance": "datasets",
+                                                                     "shading_aug": SHADING_AUG}},
                                    sort_keys=False))
     return path
 

@@ -12,14 +12,11 @@ random shift of up to ``shift_aug`` of the width/height — one affine map, imag
 reflected borders, labels nearest with 255 (ignore) outside the item. In the virtual camera a
 scale about the VP is exactly a change of camera height for the road plane (and the shift a
 small pan/tilt), so the network learns a tolerance to the pose errors it meets at test time.
-Height (``height_aug`` p, the near field of cameras lower than the training ones): with probability p an
-item is seen from a camera ``t`` times higher, ``t`` log-uniform in [1, T]: a vertical stretch about the
-VP row, which in a level virtual camera is exactly a camera-height change for the road plane (a ground
-point at depth Z is at y - y_vp = f h / Z, x unchanged). T takes the item's lowest real row (the median
-over columns of the last row its ``valid`` map marks, the own vehicle excluded) to the image's last row,
-so the network sees real road texture at every row a lower camera's near field can reach in the virtual
-camera, not only the completion's streaks. Items real down to the last row (every resize item) have
-T = 1: the rule leaves them as they are. It composes with the scale and shift into the same affine map.
+Colour shading (``shading_aug`` a, lens shading of cheap cameras: a low camera's bottom corners tinted
+green and magenta, which a network reads as "not road"): with probability 1/2 each channel is multiplied
+by a smooth gain field exp(g), g bicubically interpolated from a 3 x 3 grid of values uniform in [-a, a]
+(per channel, so both the brightness and the colour vary over the image). Applied after the
+photometric jitter below, to the image only.
 Photometric: brightness, contrast and per-channel gain drawn in 1 ± ``color_aug`` (gain ±1/3 of it)
 and a gamma in [1/(1+c), 1+c] (dusk and over-exposed frames differ by more than a linear map).
 
@@ -80,7 +77,6 @@ class Sample:
     label_format: str | None = None
     vp: tuple[float, float] | None = None
     source: str = ""
-    valid: Path | None = None  # store items: where the pixels are real (not completed); None: everywhere
 
 
 def vp_in_store(record: dict[str, Any], store: Store | None = None) -> tuple[float, float]:
@@ -107,7 +103,7 @@ def store_samples(store: Store) -> list[Sample]:
         if not rec.get("label"):
             continue
         out.append(Sample(rec["id"], store.path(rec["image"]), store.path(rec["label"]), None, vp_in_store(rec, store),
-                          str(store.root), store.path(rec["valid"]) if rec.get("valid") else None))
+                          str(store.root)))
     return out
 
 
@@ -171,7 +167,7 @@ class RoadDataset(torch.utils.data.Dataset):
 
     def __init__(self, samples: Sequence[Sample], size: tuple[int, int], hflip: bool = False,
                  greyscale: float = 0.0, vp_channel: bool = False, scale_aug: float = 0.0, shift_aug: float = 0.0,
-                 color_aug: float = 0.0, crop: tuple[int, int] | None = None, height_aug: float = 0.0):
+                 color_aug: float = 0.0, crop: tuple[int, int] | None = None, shading_aug: float = 0.0):
         self.samples = list(samples)
         self.size = (int(size[0]), int(size[1]))
         self.crop = None
@@ -181,11 +177,10 @@ class RoadDataset(torch.utils.data.Dataset):
             self.crop = (int(crop[0]), int(crop[1]))
         self.hflip = bool(hflip)
         self.scale_aug, self.shift_aug, self.color_aug = float(scale_aug or 0), float(shift_aug or 0), float(color_aug or 0)
-        self.height_aug = float(height_aug or 0)
+        self.shading_aug = float(shading_aug or 0)
         self.greyscale = float(greyscale)
         self.vp_channel = vp_channel
         self._cache: dict[int, tuple[np.ndarray, np.ndarray, tuple[float, float] | None]] = {}
-        self._bottom: dict[int, float] = {}
 
     def __len__(self) -> int:
         return len(self.samples)
@@ -209,35 +204,6 @@ class RoadDataset(torch.utils.data.Dataset):
             self._cache[i] = hit
         return hit
 
-    def real_bottom(self, i: int) -> float:
-        """The lowest real row of item ``i`` at the working size: the median over the columns with a
-        real pixel of each one's last real row (``Sample.valid``); the last row without a valid map."""
-        hit = self._bottom.get(i)
-        if hit is None:
-            s, (w, h) = self.samples[i], self.size
-            hit = float(h - 1)
-            if s.valid is not None:
-                v = read_image(s.valid, label=True).array
-                v = ((v if v.ndim == 2 else v[..., 0]) > 0).astype(np.uint8)
-                v = cv2.resize(v, (w, h), interpolation=cv2.INTER_NEAREST)
-                cols = v.any(axis=0)
-                if cols.any():
-                    last = h - 1 - np.argmax(v[::-1, cols] > 0, axis=0)
-                    hit = float(np.median(last))
-            self._bottom[i] = hit
-        return hit
-
-    def _height_stretch(self, i: int, vp: tuple[float, float] | None) -> float:
-        """The vertical stretch ``t`` >= 1 about the VP row of one draw of ``height_aug`` (module docstring)."""
-        r = torch.rand(2).tolist()  # torch RNG: seeded per run, epoch and worker
-        if vp is None or r[0] >= self.height_aug:
-            return 1.0
-        b, h = self.real_bottom(i), self.size[1]
-        if b <= vp[1] + 1:
-            return 1.0
-        top = max(1.0, (h - 1 - vp[1]) / (b - vp[1]))
-        return math.exp(r[1] * math.log(top))
-
     def _crop_origin(self) -> tuple[int, int]:
         """A random window position (x0, y0) for ``crop``, uniform over those inside the image."""
         (w, h), (cw, ch) = self.size, self.crop
@@ -245,23 +211,21 @@ class RoadDataset(torch.utils.data.Dataset):
         return min(int(r[0] * (w - cw + 1)), w - cw), min(int(r[1] * (h - ch + 1)), h - ch)
 
     def _affine(self, img: np.ndarray, lab: np.ndarray, vp: tuple[float, float] | None,
-                origin: tuple[int, int] = (0, 0), t: float = 1.0):
-        """Random scale about the VP (or the centre) plus a random shift, after a vertical stretch
-        ``t`` about the VP row (``height_aug``), then the window at ``origin`` of the crop size (the
-        whole image without a crop); see the module docstring."""
+                origin: tuple[int, int] = (0, 0)):
+        """Random scale about the VP (or the centre) plus a random shift, then the window at
+        ``origin`` of the crop size (the whole image without a crop); see the module docstring."""
         w, h = self.size
         r = torch.rand(3).tolist()  # torch RNG: seeded per run, epoch and worker
         s = math.exp((2 * r[0] - 1) * math.log1p(self.scale_aug))
         ax, ay = vp if vp is not None else ((w - 1) / 2.0, (h - 1) / 2.0)
         dx, dy = (2 * r[1] - 1) * self.shift_aug * w, (2 * r[2] - 1) * self.shift_aug * h
-        sy = s * t  # y -> ay + t (y - ay), then the scale about (ax, ay): one vertical factor
-        M = np.array([[s, 0.0, (1 - s) * ax + dx - origin[0]], [0.0, sy, (1 - sy) * ay + dy - origin[1]]])
+        M = np.array([[s, 0.0, (1 - s) * ax + dx - origin[0]], [0.0, s, (1 - s) * ay + dy - origin[1]]])
         out = self.crop or self.size
         img = cv2.warpAffine(img, M, out, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_REFLECT_101)
         lab = cv2.warpAffine(lab, M, out, flags=cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT,
                              borderValue=IGNORE)
         if vp is not None:
-            vp = (s * vp[0] + M[0, 2], sy * vp[1] + M[1, 2])
+            vp = (s * vp[0] + M[0, 2], s * vp[1] + M[1, 2])
         return img, lab, vp
 
     def _photometric_draw(self) -> tuple[float, float, np.ndarray, float]:
@@ -281,6 +245,20 @@ class RoadDataset(torch.utils.data.Dataset):
         x[:3] = np.clip(img, 0.0, 1.0) * 2 - 1
         return x
 
+    def _shading(self, x: np.ndarray) -> np.ndarray:
+        """One draw of ``shading_aug`` on an input in [-1, 1] (C, h, w): the colour channels times a
+        smooth per-channel gain field (module docstring); unchanged in half the draws."""
+        r = torch.rand(28).tolist()  # torch RNG: seeded per run, epoch and worker
+        if r[0] >= 0.5:
+            return x
+        h, w = x.shape[1:]
+        a = self.shading_aug
+        grid = np.array(r[1:], dtype=np.float32).reshape(3, 3, 3) * (2 * a) - a  # (gy, gx, channel)
+        gain = np.exp(np.clip(cv2.resize(grid, (w, h), interpolation=cv2.INTER_CUBIC), -a, a))  # (h, w, 3)
+        x = x.copy()
+        x[:3] = np.clip((x[:3] + 1) * 0.5 * gain.transpose(2, 0, 1), 0.0, 1.0) * 2 - 1
+        return x
+
     def _photometric_u8(self, img: np.ndarray) -> np.ndarray:
         """:meth:`_photometric` of ``to_input(img)`` for an 8-bit BGR ``img`` (h, w, 3), in one
         table lookup: every output value is a function of its channel's input byte, so the whole
@@ -297,9 +275,8 @@ class RoadDataset(torch.utils.data.Dataset):
     def __getitem__(self, i: int):
         img, lab, vp = self.item(i)
         origin = self._crop_origin() if self.crop else (0, 0)
-        t = self._height_stretch(i, vp) if self.height_aug > 0 else 1.0
-        if self.scale_aug > 0 or self.shift_aug > 0 or t != 1.0:
-            img, lab, vp = self._affine(img, lab, vp, origin, t)
+        if self.scale_aug > 0 or self.shift_aug > 0:
+            img, lab, vp = self._affine(img, lab, vp, origin)
         elif self.crop:
             (x0, y0), (cw, ch) = origin, self.crop
             img = np.ascontiguousarray(img[y0:y0 + ch, x0:x0 + cw])
@@ -313,6 +290,8 @@ class RoadDataset(torch.utils.data.Dataset):
             x = to_input(img, greyscale=grey)
             if self.color_aug > 0:
                 x = self._photometric(x)
+        if self.shading_aug > 0 and not grey:
+            x = self._shading(x)
         y = lab
         if self.hflip and float(torch.rand(())) < 0.5:  # torch RNG: seeded per run and per worker
             x = np.ascontiguousarray(x[:, :, ::-1])

@@ -91,9 +91,9 @@ def fit_cmd(
                                                                         "about the VP (cpu: 0.25, paper: 0)"),
     shift_aug: Optional[float] = typer.Option(None, "--shift-aug", help="augment: random shift up to this share of "
                                                                         "the size (cpu: 0.05)"),
-    height_aug: Optional[float] = typer.Option(None, "--height-aug", help="augment: probability that an item is "
-                                               "seen from a higher camera, its real rows stretched down to the last "
-                                               "row (the near field of lower cameras; store items only)"),
+    shading_aug: Optional[float] = typer.Option(None, "--shading-aug", help="augment: colour shading, a smooth "
+                                                "per-channel gain field exp(+-A) over the image, half the items "
+                                                "(lens shading of cheap cameras)"),
     color_aug: Optional[float] = typer.Option(None, "--color-aug", help="augment: brightness/contrast/gain jitter "
                                                                         "(cpu: 0.3)"),
     greyscale: float = typer.Option(TRAIN.greyscale, "--greyscale", help="augment: probability of greyscale (1 = a greyscale model)"),
