@@ -32,8 +32,9 @@ checkpoint <= 20 MB. The predict time of a 1280x720 frame (the BDD held-out fram
 :class:`vctrain.frames.FramePredictor`, the camera's average pose; warp, network, back-projection)
 is reported at 1 and 2 threads.
 
-``--ship DIR`` copies the ``within`` model to DIR/road.pt and writes DIR/results.json (the model
-card, DIR/README.md, is written by hand from it). Outputs: benchmarks/results/shipped_model.{md,json};
+``--ship DIR`` copies the ``within`` model to DIR/road.pt, writes DIR/results.json (the model card,
+DIR/README.md, is written by hand from it) and the figure benchmarks/results/shipped_model.png (the
+shipped model on held-out frames of KITTI, CamVid val and LUMS, the last with ``--camera estimate``). Outputs: benchmarks/results/shipped_model.{md,json};
 the last stdout line is one JSON object (``within_<set>``, ``resize_<set>``, ``within_minus_resize_<set>``,
 ``checkpoint_mb``, ``predict_ms_1280x720_t1``/``_t2``, ``minutes_per_model``, ``missing``).
 """
@@ -51,7 +52,7 @@ import yaml
 
 from as_shipped import BDD, CITYSCAPES, IDD, LUMS, run_study
 from multi_camera import SHADING_AUG
-from measure.data import CS_FORMAT, DATA, KITTI, LUMS_FORMAT, ROOT, native_camera
+from measure.data import BIN, CS_FORMAT, DATA, KITTI, LUMS_FORMAT, ROOT, native_camera, run
 from measure.report import machine, today, write_json
 
 STEPS = 35  # a LOO fold's steps an epoch (benchmarks/multi_camera.py: the CamVid model's)
@@ -149,6 +150,43 @@ def predict_ms(model: Path, threads: int, frames: int = 8) -> float:
     return 1000.0 * (time.perf_counter() - t0) / len(imgs)
 
 
+def figure(model: Path, wd: Path, out_png: Path) -> Path:
+    """``out_png``: the shipped model's road (green) on held-out frames of three cameras, each as a user
+    would run it: KITTI with its calibration file, CamVid val with the camvid preset, LUMS's held-out
+    captures with ``--camera estimate`` (nobody calibrated it; estimated from those 36 frames)."""
+    import cv2
+
+    lums = wd / "frames" / "lums-heldout"
+    if lums.exists():
+        shutil.rmtree(lums)
+    lums.mkdir(parents=True)
+    for p in sorted((LUMS / "images").glob("*.jpg")):
+        if any(fnmatch(p.stem, g) for g in LUMS_HELD):
+            (lums / p.name).symlink_to(p)
+    views = [("KITTI, its calibration file", KITTI / "image_2", KITTI / "calib", "um_000000"),
+             ("CamVid val, --camera camvid", DATA / "val", native_camera(wd), "0016E5_08159"),
+             ("LUMS held out, --camera estimate", lums, "estimate", "color_51_png.rf.9d2006df9e405caecb43f428bcd8fbd5")]
+    tiles = []
+    for i, (title, images, camera, stem) in enumerate(views):
+        out = wd / "figure" / str(i)
+        src = images
+        if images == DATA / "val":  # one frame is enough for a calibrated camera
+            src = wd / "figure" / "camvid-one"
+            shutil.rmtree(src, ignore_errors=True)
+            src.mkdir(parents=True)
+            (src / f"{stem}.png").symlink_to(images / f"{stem}.png")
+        run(BIN / "vctrain", "predict", model, src, "--camera", camera, "--out", out, "--overlay", "-q")
+        tile = cv2.imread(str(out / f"{stem}_overlay.png"))
+        tile = cv2.resize(tile, (round(tile.shape[1] * 300 / tile.shape[0]), 300), interpolation=cv2.INTER_AREA)
+        cv2.rectangle(tile, (0, 0), (tile.shape[1], 30), (0, 0, 0), -1)
+        tw = cv2.getTextSize(title, cv2.FONT_HERSHEY_SIMPLEX, 0.65, 1)[0][0]
+        cv2.putText(tile, title, (8, 22), cv2.FONT_HERSHEY_SIMPLEX, min(0.65, 0.65 * (tile.shape[1] - 16) / tw),
+                    (255, 255, 255), 1, cv2.LINE_AA)
+        tiles.append(tile)
+    cv2.imwrite(str(out_png), cv2.hconcat(tiles))
+    return out_png
+
+
 def render(cells: dict, minutes: dict, head: dict, missing: list[str]) -> str:
     f = lambda v: "-" if v is None else f"{v:.1f}"
     lines = ["The shipped model: trained once on the five development sets' training splits (balance: datasets), "
@@ -218,6 +256,7 @@ def main() -> None:
         a.ship.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(model, a.ship / "road.pt")
         write_json(a.ship / "results.json", result)
+        print(figure(a.ship / "road.pt", wd, res_dir / "shipped_model.png"))
     print(json.dumps(head))
     sys.stdout.flush()
 
