@@ -465,6 +465,32 @@ def r_multi_camera(d: dict) -> list[str]:
     return out + r_generic({"headline": {k: v for k, v in h.items() if k != "folds_missing"}})
 
 
+def r_shipped_model(d: dict) -> list[str]:
+    """The shipped model (benchmarks/shipped_model.py): one model, each development set's held-out split."""
+    h, t = d["headline"], d.get("targets", {})
+    out = [f"One model trained on the five development sets' training splits (`balance: datasets`, "
+           f"{d.get('epochs')} epochs of {d.get('steps_per_epoch')} steps, seed {d.get('seed')}), road IoU (%) on each "
+           "set's held-out split in its own camera; KITTI never trained on. The resize twin: the same network, "
+           "frames, steps and sampling, the images resized.", ""]
+    out += table(["held-out split", "within (shipped)", "resize twin", "within − resize"],
+                 [[k, num(h.get(f"within_{k}")), num(h.get(f"resize_{k}")), num(h.get(f"within_minus_resize_{k}"))]
+                  for k in d.get("sets", [])])
+    out += [f"Checkpoint {num(h.get('checkpoint_mb'))} MB; predict per 1280×720 frame (warp, network, "
+            f"back-projection) {num(h.get('predict_ms_1280x720_t1'))} ms at 1 thread, "
+            f"{num(h.get('predict_ms_1280x720_t2'))} ms at 2.", ""]
+    return out + table(["target (issue 34)", "met"], [[k, "not measured" if v is None else num(v)] for k, v in t.items()])
+
+
+def r_finetune(d: dict) -> list[str]:
+    """Fine-tuning on 20 LUMS frames (benchmarks/finetune.py)."""
+    c, seeds, h = d["cells"], d.get("seeds", []), d["headline"]
+    out = [f"{d.get('n_train')} labelled LUMS frames (captures 400–466), scored on the 118 frames of the other "
+           f"captures; {d.get('epochs')} epochs; road IoU (%) per seed {seeds}.", ""]
+    out += table(["condition"] + [f"seed {s}" for s in seeds] + ["mean"],
+                 [[k] + [num(x) for x in v] + [num(h.get(k))] for k, v in c.items()])
+    return out + table(["target (issue 34)", "met"], [[k, num(v)] for k, v in d.get("targets", {}).items()])
+
+
 def r_generic(d: dict) -> list[str]:
     h = d.get("headline") if isinstance(d.get("headline"), dict) else d
     rows = [[k, f"{v:.4g}" if isinstance(v, float) else num(v)] for k, v in h.items()
@@ -517,6 +543,7 @@ RENDER: dict[str, Callable[[dict], list[str]]] = {
     "warp": r_warp, "video": r_video, "completion": r_completion, "deploy": r_deploy, "store": r_store, "stages": r_stages, "train": r_train,
     "camera_estimate": r_camera_estimate, "focal_from_verticals": r_focal_from_verticals, "as_shipped": r_as_shipped, "vp": r_vp, "vp.dev": r_vp, "cross_camera": r_cross_camera, "real_cameras": r_real_cameras,
     "real_cameras_within_seq_fallback": r_real_cameras, "multi_camera": r_multi_camera,
+    "shipped_model": r_shipped_model, "finetune": r_finetune,
 }
 
 
