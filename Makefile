@@ -1,5 +1,6 @@
 # Two commands do everything on a fresh machine:
-#   make demo   - create .venv, install, warp the shipped example frames, write a figure
+#   make demo   - create .venv, install, warp the shipped example frames, write a figure, segment them
+#                 with the shipped road model and score it on the KITTI frame (never trained on)
 #   make test   - create .venv, install, run the test suite
 PYTHON ?= python3
 VENV   ?= .venv
@@ -7,6 +8,7 @@ PY     := $(VENV)/bin/python
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= out/demo
+MODEL  ?= models/road-multicamera/road.pt
 
 .PHONY: install test demo bench clean fuzz docs
 
@@ -30,7 +32,12 @@ demo: $(STAMP)
 		--labels examples/kitti/gt_image_2 --label-format kitti --out $(OUT)/store --quiet
 	$(BIN)/vcprep store show $(OUT)/store
 	$(BIN)/vcprep figure warp $(OUT)/store -o $(OUT)/warp.png
+	$(BIN)/vctrain predict $(MODEL) --camera examples/kitti/calib/um_000000.txt examples/kitti/image_2 \
+		--out $(OUT)/road-kitti --overlay --quiet
+	$(BIN)/vctrain predict $(MODEL) --camera camvid examples/camvid/images --out $(OUT)/road-camvid --overlay --quiet
+	$(BIN)/vctrain eval $(OUT)/road-kitti --labels examples/kitti/gt_image_2 --label-format kitti --quiet
 	@echo "demo: open $(OUT)/warp.png (original | virtual camera; road green, ignore dark, real pixels outlined in yellow, red + = the road vanishing point)"
+	@echo "demo: the shipped road model on the examples: $(OUT)/road-kitti/um_000000_overlay.png, $(OUT)/road-camvid/*_overlay.png (road in green)"
 
 bench: $(STAMP)
 	$(PY) benchmarks/warp.py

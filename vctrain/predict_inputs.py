@@ -97,6 +97,12 @@ def _predictor(checkpoint: Optional[Path], prior: Optional[Path], device: str):
     return Predictor(checkpoint, device)
 
 
+def _needs_no_camera(predictor) -> bool:
+    """A resize model without the VP channel reads frames as they are: --camera changes nothing (and
+    is not estimated: a folder of three frames is enough for it)."""
+    return getattr(predictor, "mode", None) == "resize" and not getattr(predictor, "vp_channel", False)
+
+
 def _predict_image_files(predictor, images: Sequence[Path], out: Path, camera_for: Optional[CameraFor],
                          keep_store: Optional[Path], within: str, overlay: bool, progress: bool) -> list[Path]:
     """Image files and folders: their camera from ``camera_for`` (a virtual-camera model needs
@@ -104,7 +110,7 @@ def _predict_image_files(predictor, images: Sequence[Path], out: Path, camera_fo
     from .predict import collect_images, predict_images
 
     cam = None
-    if camera_for is not None:
+    if camera_for is not None and not _needs_no_camera(predictor):
         cam = camera_for(collect_images(images)[0].image, frames=[j.image for j in collect_images(images)])
     elif predictor.mode == "virtual":
         raise InputError("a virtual-camera model needs the camera of the images", predictor.path,
