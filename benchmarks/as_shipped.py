@@ -88,7 +88,7 @@ import yaml
 
 import cv2
 
-from measure.data import (BIN, CS_FORMAT, DATA, KITTI, LUMS_FORMAT, ROOT, SHARED_DATA, SIM, link_files, native_camera,
+from measure.data import (BIN, CS_FORMAT, DATA, KITTI, LUMS_FORMAT, ROOT, SHARED_DATA, SIM, link_files, native_camera, require_data,
                           run, simulate)
 from measure.report import machine, today
 from measure.stats import format_stat, seed_stats
@@ -339,9 +339,7 @@ def parse_args() -> argparse.Namespace:
 
 def plan(a: argparse.Namespace) -> Runs:
     """The seeds, conditions and canvases the options ask for (checked), nothing measured yet."""
-    for need in (CITYSCAPES, IDD, DATA, KITTI, BDD, LUMS):
-        if not need.is_dir():
-            raise SystemExit(f"needs {need} (../shared/data); not found")
+    require_data(CITYSCAPES, IDD, DATA, KITTI, BDD, LUMS)
     seeds = [0] if a.quick else [int(s) for s in a.seeds.split(",") if s]
     loo_seeds = [0] if a.quick else [int(s) for s in a.loo_seeds.split(",") if s]
     abl_seeds = ([0] if a.ablation_seeds else []) if a.quick else [int(s) for s in a.ablation_seeds.split(",") if s]

@@ -56,7 +56,7 @@ import numpy as np
 import yaml
 
 from as_shipped import BDD, CITYSCAPES, IDD, LUMS, camvid_steps_per_epoch, link_stores, run_study
-from measure.data import CS_FORMAT, DATA, KITTI, LUMS_FORMAT, ROOT, native_camera
+from measure.data import CS_FORMAT, DATA, KITTI, LUMS_FORMAT, ROOT, native_camera, require_data
 from measure.report import machine, today, write_json
 from measure.stats import seed_stats
 
@@ -216,9 +216,7 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="smoke run: a few frames, 2 steps, seed 0")
     ap.add_argument("--collect", action="store_true", help="run nothing: report what is finished and what is missing")
     a = ap.parse_args()
-    for need in (CITYSCAPES, IDD, DATA, KITTI, BDD, LUMS):
-        if not need.is_dir():
-            raise SystemExit(f"needs {need} (../shared/data); not found")
+    require_data(CITYSCAPES, IDD, DATA, KITTI, BDD, LUMS)
     seeds = [0] if a.quick else [int(s) for s in a.seeds.split(",") if s]
     conds = a.conditions.split(",")
     wd = a.workdir / "quick" if a.quick else a.workdir

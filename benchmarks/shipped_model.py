@@ -53,7 +53,7 @@ import yaml
 
 from as_shipped import BDD, CITYSCAPES, IDD, LUMS, run_study
 from multi_camera import SHADING_AUG
-from measure.data import BIN, CS_FORMAT, DATA, KITTI, LUMS_FORMAT, ROOT, native_camera, run
+from measure.data import BIN, CS_FORMAT, DATA, KITTI, LUMS_FORMAT, ROOT, native_camera, require_data, run
 from measure.report import machine, today, write_json
 
 STEPS = 35  # a LOO fold's steps an epoch (benchmarks/multi_camera.py: the CamVid model's)
@@ -221,9 +221,7 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="smoke run: a few frames, 2 steps")
     ap.add_argument("--collect", action="store_true", help="run nothing: report what is finished")
     a = ap.parse_args()
-    for need in (CITYSCAPES, IDD, DATA, KITTI, BDD, LUMS):
-        if not need.is_dir():
-            raise SystemExit(f"needs {need} (../shared/data); not found")
+    require_data(CITYSCAPES, IDD, DATA, KITTI, BDD, LUMS)
     conds = a.conditions.split(",")
     wd = a.workdir / "quick" if a.quick else a.workdir
     wd.mkdir(parents=True, exist_ok=True)

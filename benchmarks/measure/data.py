@@ -50,6 +50,13 @@ def run(*args, stream: bool = False, env: dict[str, str] | None = None) -> str:
 
 # -- cameras and study datasets ----------------------------------------------------------------
 
+def require_data(*folders: Path) -> None:
+    """Exit with one line naming the first of ``folders`` (../shared/data) that is missing."""
+    for need in folders:
+        if not need.is_dir():
+            raise SystemExit(f"needs {need} (../shared/data); not found")
+
+
 def native_camera(wd: Path) -> Path:
     """wd/native.yaml: the camvid preset at the 480x360 size of the SegNet release."""
     from vcprep.camera import PRESETS, camera_to_yaml

@@ -91,9 +91,8 @@ def fit_cmd(
                                                                         "about the VP (cpu: 0.25, paper: 0)"),
     shift_aug: Optional[float] = typer.Option(None, "--shift-aug", help="augment: random shift up to this share of "
                                                                         "the size (cpu: 0.05)"),
-    shading_aug: Optional[float] = typer.Option(None, "--shading-aug", help="augment: colour shading, a smooth "
-                                                "per-channel gain field exp(+-A) over the image, half the items "
-                                                "(lens shading of cheap cameras)"),
+    shading_aug: Optional[float] = typer.Option(None, "--shading-aug", help="augment: lens shading, a smooth "
+                                                "per-channel gain field exp(+-A) on half the items"),
     color_aug: Optional[float] = typer.Option(None, "--color-aug", help="augment: brightness/contrast/gain jitter "
                                                                         "(cpu: 0.3)"),
     greyscale: float = typer.Option(TRAIN.greyscale, "--greyscale", help="augment: probability of greyscale (1 = a greyscale model)"),
