@@ -119,14 +119,16 @@ def _resize_u8(x: torch.Tensor, src: tuple[int, int], dst: tuple[int, int]) -> t
     """``cv2.resize(img, dst, INTER_LINEAR)`` of a uint8 image held as float (N, C, h, w): the
     same integer arithmetic (11-bit weights; the vertical pass as OpenCV's SIMD code rounds it,
     checked bit-exact against cv2 for down- and upscaling). Returns float (N, C, dst_h, dst_w)."""
-    xi0, xi1, a0, a1 = _resize_taps(src[0], dst[0])
-    yi0, yi1, b0, b1 = _resize_taps(src[1], dst[1])
-    v = x.to(torch.int64)
+    xi0, xi1, a0, a1 = (t.to(torch.int32) for t in _resize_taps(src[0], dst[0]))
+    yi0, yi1, b0, b1 = (t.to(torch.int32) for t in _resize_taps(src[1], dst[1]))
+    # int32 holds every step (at most 255 * 2048 / 16 * 2048 < 2^27), and every value is >= 0, so
+    # truncating division is OpenCV's shift (one ONNX Div; a floor division exports as seven ops)
+    v = x.to(torch.int32)
     hor = v.index_select(3, xi0) * a0 + v.index_select(3, xi1) * a1
-    s0 = torch.div(hor.index_select(2, yi0), 16, rounding_mode="floor") * b0[:, None]
-    s1 = torch.div(hor.index_select(2, yi1), 16, rounding_mode="floor") * b1[:, None]
-    out = torch.div(torch.div(s0, 65536, rounding_mode="floor") + torch.div(s1, 65536, rounding_mode="floor") + 2, 4,
-                    rounding_mode="floor")
+    s0 = torch.div(hor.index_select(2, yi0), 16, rounding_mode="trunc") * b0[:, None]
+    s1 = torch.div(hor.index_select(2, yi1), 16, rounding_mode="trunc") * b1[:, None]
+    out = torch.div(torch.div(s0, 65536, rounding_mode="trunc") + torch.div(s1, 65536, rounding_mode="trunc") + 2, 4,
+                    rounding_mode="trunc")
     return out.clamp(0, 255).to(x.dtype)
 
 
