@@ -88,8 +88,8 @@ import yaml
 
 import cv2
 
-from measure.data import (BIN, CS_FORMAT, DATA, KITTI, LUMS_FORMAT, ROOT, SHARED_DATA, SIM, link_files, native_camera, require_data,
-                          run, simulate)
+from measure.data import (BIN, CS_FORMAT, DATA, KITTI, LUMS_FORMAT, ROOT, SHARED_DATA, SIM, link_files, native_camera,
+                          require_data, run, simulate)
 from measure.report import machine, today
 from measure.stats import format_stat, seed_stats
 from measure.tables import bar_plot

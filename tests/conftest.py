@@ -1,8 +1,13 @@
 """Shared fixtures: synthetic scenes with exact geometry, and a runner for the real CLI."""
 from __future__ import annotations
 
+import contextlib
+import importlib
+import io
+import os
 import subprocess
 import sys
+import traceback
 from pathlib import Path
 
 import cv2
@@ -49,12 +54,6 @@ def _in_process(prog: str, args: list[str], cwd: Path | None) -> subprocess.Comp
     this process, as the interpreter would run it: its own argv, stdin empty, stdout and stderr
     captured apart, the exit status from SystemExit, an uncaught exception printed as a traceback
     on stderr with status 1."""
-    import contextlib
-    import importlib
-    import io
-    import os
-    import traceback
-
     main = importlib.import_module(f"{prog}.cli").main
     out, err = io.StringIO(), io.StringIO()
     argv, stdin, here = sys.argv, sys.stdin, os.getcwd()

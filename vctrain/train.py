@@ -368,9 +368,18 @@ def _import_before_group() -> None:
     import torch.distributed.nn.functional  # noqa: F401
 
 
+def _leave_group(loop: _Loop, model: nn.Module, world: int) -> bool:
+    """The end of a multi-process run: the DDP wrapper dropped and collected (it sits in a
+    reference cycle that holds the process group, so that destroy_process_group ends gloo's
+    threads here, not at interpreter exit); then :func:`_replicas_identical`."""
+    loop.net = model
+    gc.collect()
+    return _replicas_identical(model, world)
+
+
 def _replicas_identical(model: nn.Module, world: int) -> bool:
     """Whether every process ends with the same weights (DDP keeps them in lockstep); then the
-    process group is torn down. Call it with the DDP wrapper dropped (see :func:`fit`)."""
+    process group is torn down."""
     flat = torch.cat([t.detach().float().reshape(-1) for t in model.state_dict().values()])
     copies = [torch.empty_like(flat) for _ in range(world)]
     torch.distributed.all_gather(copies, flat)
@@ -414,9 +423,8 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
     # channels-last runs resfpn's convolutions ~20 % faster on the CPU; SegNet's unpooling wants NCHW
     fmt = torch.channels_last if model_args["arch"] == "resfpn" else torch.contiguous_format
     model.to(device, memory_format=fmt)
-    net = model
-    if distributed:
-        net = nn.parallel.DistributedDataParallel(model, device_ids=[device.index] if device.type == "cuda" else None)
+    net = nn.parallel.DistributedDataParallel(model, device_ids=[device.index] if device.type == "cuda" else None) \
+        if distributed else model
 
     train_ds, val_ds = _datasets(cfg, train_s, val_s, info)
     weight = _class_weight(cfg, train_ds, info, device)
@@ -431,6 +439,7 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
     # the weights a fine-tuning run started from (a resumed one keeps its first run's record)
     init_from = (resume or {}).get("init") or (_init_record(cfg.init, init) if init is not None else None)
     loop = _Loop(net, opt, cfg, device, fmt, weight, world, steps_per_epoch, total_steps, cfg.progress and master)
+    del net  # the loop holds it (and _leave_group drops it)
 
     def checkpoint(epoch: int, metrics: dict[str, Any]) -> dict[str, Any]:
         return {"model": model.state_dict(), "model_args": model_args, "config": cfg.to_dict(), "data": info,
@@ -462,13 +471,7 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
                 save_checkpoint(out, ck)
             if cfg.progress:
                 _say_epoch(row, cfg.epochs, improved)
-    replicas_identical = None
-    if distributed:
-        # the DDP wrapper sits in a reference cycle that holds the process group: free it now, so
-        # that destroy_process_group ends gloo's threads here, not at interpreter exit
-        del loop, net
-        gc.collect()
-        replicas_identical = _replicas_identical(model, world)
+    replicas_identical = _leave_group(loop, model, world) if distributed else None
     return {"replicas_identical": replicas_identical, "world_size": world,
             "out": str(out), "last": str(last_path(out)), "log": str(log_path), "epochs": cfg.epochs,
             "best_val_iou": best_iou if best_iou >= 0 else None, "best_epoch": best_epoch,
