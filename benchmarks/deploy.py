@@ -19,11 +19,15 @@ Measured per frame (ms):
                            per-stage split from FramePredictor.times
   onnx_fixed / onnx_vp     the exported graph (frame -> P(road)) in onnxruntime: mount pose built in /
                            ``--vp-input`` (homography and completion built in the graph from the VP)
+  torch_path_vp            the torch path with a VP per frame (what ``vctrain predict --within`` does),
+                           on the --vp-input graph's rectangle; like onnx_vp, every call a new VP (a pose
+                           within 90 % of the pose range), so no map is reused
   resize_torch / resize_onnx   the resize twin: FramePredictor (resize, network, resize back) / its graph
 Ratios (issue 35): geometry share = (warp + back-projection) / network, of the torch path
 (target <= 0.15) and of the graph ((onnx_fixed - net_ort) / net_ort); onnx_over_torch =
-onnx_fixed / torch_path (target <= 1); agreement of the graph with the torch path: max |dP| (<= 1e-3)
-and the share of pixels whose mask (P >= 0.5) agrees (>= 0.999). Results:
+onnx_fixed / torch_path (target <= 1) and onnx_vp / torch_path_vp; agreement of the graph with the
+torch path: max |dP| (<= 1e-3) and the share of pixels whose mask (P >= 0.5) agrees (>= 0.999), for
+the --vp-input graph the worst of the mount VP and 5 per-frame VPs. Results:
 benchmarks/results/deploy.json; the last stdout line is one JSON object of headline figures.
 """
 from __future__ import annotations
@@ -149,13 +153,24 @@ def measure(name: str, frame: np.ndarray, cam, vc: Path, rs: Path, tmp: Path, th
     # the --vp-input graph's rectangle holds every pose in the range: the torch path with the same one
     poses = [(cam.pan + a * POSE_RANGE[0], cam.tilt + b * POSE_RANGE[1]) for a in (-1, 0, 1) for b in (-1, 0, 1)]
     fp_vp = FramePredictor(p, cam, (w, h), poses)
+    c = cam.for_image_size((w, h))
+
+    def frame_vps(seed: int, k: int) -> list[np.ndarray]:
+        """Per-frame VPs (float32) of poses drawn within 90 % of the range: every timed call gets
+        a VP no earlier call had (the torch path reuses no map)."""
+        poses = np.random.default_rng(seed).uniform(-0.9, 0.9, (k, 2))
+        return [np.array(vp_from_pose(c, c.pan + a * POSE_RANGE[0], c.tilt + b * POSE_RANGE[1]), np.float32)
+                for a, b in poses]
     d = {"frame_size": [w, h], "store_size": list(fp.store_size), "working_size": list(work),
          "resize_working_size": list(RESIZE_SIZE), "vp_store_size": list(fp_vp.store_size),
          "graph_mb": {k: os.path.getsize(tmp / f"{name}{k}.onnx") / 1e6 for k in ("", "_vp", "_rs")}}
     with torch.no_grad():
         d["agreement_fixed"] = agreement(OnnxPredictor(tmp / f"{name}.onnx", 1).road_probability(frame), fp.predict(frame))
-        d["agreement_vp"] = agreement(OnnxPredictor(tmp / f"{name}_vp.onnx", 1).road_probability(frame, vp),
-                                      fp_vp.predict(frame, vp))
+        g = OnnxPredictor(tmp / f"{name}_vp.onnx", 1)
+        each = [agreement(g.road_probability(frame, v), fp_vp.predict(frame, v.astype(np.float64)))
+                for v in [np.array(vp, np.float32)] + frame_vps(100, 5)]
+        d["agreement_vp"] = {"max_abs_diff": max(a["max_abs_diff"] for a in each),
+                             "mask_agreement": min(a["mask_agreement"] for a in each), "vps": len(each)}
         d["agreement_resize"] = agreement(OnnxPredictor(tmp / f"{name}_rs.onnx", 1).road_probability(frame),
                                           fp_rs.predict(frame))
     img, _ = fp.warp(frame)
@@ -175,6 +190,8 @@ def measure(name: str, frame: np.ndarray, cam, vc: Path, rs: Path, tmp: Path, th
             r["torch_path"] = stat(timed(lambda: fp.predict(frame), repeats))
             r["torch_stages"] = fp.times.per_frame_ms()
             r["resize_torch"] = stat(timed(lambda: fp_rs.predict(frame), repeats))
+            vps = iter(frame_vps(2 * t, repeats + 1))
+            r["torch_path_vp"] = stat(timed(lambda: fp_vp.predict(frame, next(vps).astype(np.float64)), repeats))
         s = ort_session(net_vc, t)
         r["net_ort"] = stat(timed(lambda: s.run(None, {"x": x.numpy()}), repeats))
         s = ort_session(net_rs, t)
@@ -182,7 +199,8 @@ def measure(name: str, frame: np.ndarray, cam, vc: Path, rs: Path, tmp: Path, th
         g = OnnxPredictor(tmp / f"{name}.onnx", t)
         r["onnx_fixed"] = stat(timed(lambda: g.road_probability(frame), repeats))
         g = OnnxPredictor(tmp / f"{name}_vp.onnx", t)
-        r["onnx_vp"] = stat(timed(lambda: g.road_probability(frame, vp), repeats))
+        vps = iter(frame_vps(2 * t + 1, repeats + 1))
+        r["onnx_vp"] = stat(timed(lambda: g.road_probability(frame, next(vps)), repeats))
         g = OnnxPredictor(tmp / f"{name}_rs.onnx", t)
         r["resize_onnx"] = stat(timed(lambda: g.road_probability(frame), repeats))
         st = r["torch_stages"]
@@ -190,6 +208,7 @@ def measure(name: str, frame: np.ndarray, cam, vc: Path, rs: Path, tmp: Path, th
         r["geometry_share_graph"] = (r["onnx_fixed"]["median"] - r["net_ort"]["median"]) / r["net_ort"]["median"]
         r["onnx_over_torch"] = r["onnx_fixed"]["median"] / r["torch_path"]["median"]
         r["onnx_vp_over_torch"] = r["onnx_vp"]["median"] / r["torch_path"]["median"]
+        r["onnx_vp_over_torch_vp"] = r["onnx_vp"]["median"] / r["torch_path_vp"]["median"]
         r["resize_onnx_over_torch"] = r["resize_onnx"]["median"] / r["resize_torch"]["median"]
         d["threads"][str(t)] = r
     return d
@@ -212,8 +231,8 @@ def main() -> None:
         for name, (frame, cam, _) in sets.items():
             print(f"{name}: measuring ...", file=sys.stderr)
             detail[name] = measure(name, frame, cam, vc, rs, tmp, threads, args.repeats)
-    cols = ["frames", "thr", "net torch", "net ort", "torch path (warp/net/back)", "onnx fixed", "onnx vp",
-            "resize torch", "resize onnx", "geom/net torch", "geom/net graph", "onnx/torch"]
+    cols = ["frames", "thr", "net torch", "net ort", "torch path (warp/net/back)", "onnx fixed", "torch path vp",
+            "onnx vp", "resize torch", "resize onnx", "geom/net torch", "geom/net graph", "onnx/torch", "vp: onnx/torch"]
     print(" | ".join(cols))
     for name, d in detail.items():
         for t, r in d["threads"].items():
@@ -221,13 +240,16 @@ def main() -> None:
             print(" | ".join([f"{name} {d['frame_size'][0]}x{d['frame_size'][1]}", t,
                               *(f"{r[k]['median']:.1f}" for k in ("net_torch", "net_ort")),
                               f"{r['torch_path']['median']:.1f} ({st['warp']:.1f}/{st['network']:.1f}/{st['backproject']:.1f})",
-                              *(f"{r[k]['median']:.1f}" for k in ("onnx_fixed", "onnx_vp", "resize_torch", "resize_onnx")),
+                              *(f"{r[k]['median']:.1f}" for k in ("onnx_fixed", "torch_path_vp", "onnx_vp",
+                                                                   "resize_torch", "resize_onnx")),
                               f"{r['geometry_share_torch']:.3f}", f"{r['geometry_share_graph']:.3f}",
-                              f"{r['onnx_over_torch']:.2f}"]))
+                              f"{r['onnx_over_torch']:.2f}", f"{r['onnx_vp_over_torch_vp']:.2f}"]))
         a = d["agreement_fixed"]
         print(f"  {name}: store {d['store_size'][0]}x{d['store_size'][1]} (vp graph {d['vp_store_size'][0]}x"
               f"{d['vp_store_size'][1]}); graph vs torch path: max |dP| {a['max_abs_diff']:.2e}, masks agree "
-              f"{100 * a['mask_agreement']:.3f} %; graphs {d['graph_mb']['']:.1f} MB (vp {d['graph_mb']['_vp']:.1f})")
+              f"{100 * a['mask_agreement']:.3f} %; --vp-input graph ({d['agreement_vp']['vps']} VPs): max |dP| "
+              f"{d['agreement_vp']['max_abs_diff']:.2e}, masks agree {100 * d['agreement_vp']['mask_agreement']:.3f} %; "
+              f"graphs {d['graph_mb']['']:.1f} MB (vp {d['graph_mb']['_vp']:.1f})")
     headline = {}
     for name, d in detail.items():
         r = d["threads"][str(threads[0])]
@@ -235,6 +257,9 @@ def main() -> None:
                          f"graph_geometry_share_of_network_{name}": round(r["geometry_share_graph"], 3),
                          f"onnx_over_torch_{name}": round(r["onnx_over_torch"], 3),
                          f"onnx_vp_over_torch_{name}": round(r["onnx_vp_over_torch"], 3),
+                         f"onnx_vp_over_torch_vp_{name}": round(r["onnx_vp_over_torch_vp"], 3),
+                         f"vp_max_abs_diff_{name}": float(f"{d['agreement_vp']['max_abs_diff']:.3g}"),
+                         f"vp_mask_agreement_{name}": round(d["agreement_vp"]["mask_agreement"], 5),
                          f"resize_onnx_over_torch_{name}": round(r["resize_onnx_over_torch"], 3),
                          f"max_abs_diff_{name}": float(f"{d['agreement_fixed']['max_abs_diff']:.3g}"),
                          f"mask_agreement_{name}": round(d["agreement_fixed"]["mask_agreement"], 5),

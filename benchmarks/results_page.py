@@ -510,18 +510,22 @@ def r_deploy(d: dict) -> list[str]:
             m = lambda k: f"{r[k]['median']:.1f} ({r[k]['min']:.1f}–{r[k]['max']:.1f})"  # noqa: E731
             rows.append([f"{name} {num(v['frame_size'])}", t, m("net_torch"), m("net_ort"),
                          f"{m('torch_path')}: {st['warp']:.1f} / {st['network']:.1f} / {st['backproject']:.1f}",
-                         m("onnx_fixed"), m("onnx_vp"), m("resize_torch"), m("resize_onnx"),
+                         m("onnx_fixed"), m("torch_path_vp") if "torch_path_vp" in r else "–", m("onnx_vp"),
+                         m("resize_torch"), m("resize_onnx"),
                          num(r["geometry_share_torch"], 3), num(r["geometry_share_graph"], 3),
-                         num(r["onnx_over_torch"], 2)])
+                         num(r["onnx_over_torch"], 2), num(r.get("onnx_vp_over_torch_vp"), 2)])
     out = table(["frame", "threads", "network torch ms", "network onnxruntime ms",
-                 "torch path ms: warp / network / back-projection", "graph (mount) ms", "graph (--vp-input) ms",
+                 "torch path ms: warp / network / back-projection", "graph (mount) ms",
+                 "torch path, VP per frame ms", "graph (--vp-input) ms",
                  "resize twin torch ms", "resize twin graph ms", "geometry / network, torch path",
-                 "geometry / network, graph", "graph / torch path"], rows)
+                 "geometry / network, graph", "graph / torch path", "--vp-input graph / torch path, VP per frame"],
+                rows)
     agree = [[name, num(v["store_size"]), num(v["working_size"]), f"{v['agreement_fixed']['max_abs_diff']:.1e}",
               f"{100 * v['agreement_fixed']['mask_agreement']:.3f}", f"{v['agreement_vp']['max_abs_diff']:.1e}",
+              f"{100 * v['agreement_vp']['mask_agreement']:.3f}",
               f"{v['graph_mb']['']:.1f}", f"{v['graph_mb']['_vp']:.1f}"] for name, v in d["detail"].items()]
     return out + table(["frame", "store", "working size", "graph vs torch path: max abs dP", "masks agree %",
-                        "--vp-input graph: max abs dP", "graph MB", "--vp-input graph MB"], agree)
+                        "--vp-input graph: max abs dP", "masks agree %", "graph MB", "--vp-input graph MB"], agree)
 
 
 def r_video(d: dict) -> list[str]:

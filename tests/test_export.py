@@ -142,6 +142,64 @@ def test_vp_input_graph_follows_each_frames_pose(models, tmp_path):
     _agree(OnnxPredictor(tmp_path / "steep.onnx", threads=1).road_probability(img, (u, v)), ref)
 
 
+def test_vp_input_graph_builds_the_librarys_maps_in_float64(models):
+    """The store maps a --vp-input graph builds in onnxruntime, for a 1280x720 dashcam at two
+    poses, equal the library's (vcprep.build.item_maps: covered pixels at OpenCV's 1/32 px fixed
+    point, the completion's fill table in float) on all but tie pixels. Traced with float32
+    scalars, the exporter computed the homography and the completion centre in float32 and 20 of
+    12320 pixels moved by 1/32 px or more."""
+    import onnxruntime as ort
+
+    from vcprep.build import item_geometry, item_maps, store_params
+    from vcprep.camera import camera_from_dict
+    from vcprep.homography import apply_homography, pose_from_vp
+    from vctrain.export import RoadGraph, _geometry, _session, trace_onnx
+
+    cam = Camera("dash", (1280, 720), 1000.0, 1000.0, 639.5, 359.5, 1.25, tilt=2.0)
+    p = Predictor(models / "vc.pt", "cpu")
+    geom = _geometry(p, cam, True, (5.0, 5.0))
+    graph = RoadGraph(p.model.eval(), geom).eval()
+
+    class Maps(torch.nn.Module):
+        def forward(self, vp):
+            return graph.store_maps(vp)[1:]
+
+    vs = camera_from_dict(store_params(camera_from_dict(geom["virtual"]), geom["scale"])["virtual_scaled"])
+    c, size = geom["camera"], tuple(geom["store_size"])
+    bad = 0
+    for pose in [(3.0, 0.5), (-4.0, 4.5)]:
+        vp = np.array(vp_from_pose(cam, *pose), np.float32)
+        qx, qy = _session(ort, trace_onnx(Maps(), (torch.from_numpy(vp),), ["vp"], ["qx", "qy"])).run(None, {"vp": vp})
+        u, v = float(vp[0]), float(vp[1])
+        _, H = item_geometry(c, c.size, vs, None, *pose_from_vp(c, (u, v)))
+        maps = item_maps(H, tuple(geom["visible"]), size, "projective", tuple(apply_homography(H, [(u, v)])[0]))
+        covered = maps.valid.astype(bool)
+        for got, ref in ((qx, maps.exact_maps.map_x), (qy, maps.exact_maps.map_y)):
+            ref = np.where(covered, np.round(ref * np.float32(32)) / np.float32(32), ref)
+            assert got.shape == ref.shape == (size[1], size[0])
+            bad += int((np.abs(got - ref) > 1e-3).sum())
+        assert (~covered).sum() > 100  # the completion is in play
+    assert bad <= 3
+
+
+def test_predict_says_which_frames_lie_beyond_the_pose_range(models, tmp_path):
+    """vctrain predict GRAPH.onnx with per-frame VPs: a frame panned 8 degrees, beyond the
+    graph's 5, is counted in the summary line (its P(road) is cut to the graph's rectangle)."""
+    cam = PRESETS["camvid"].resized(0.1)
+    export_onnx(models / "vc.pt", cam, tmp_path / "vp.onnx", vp_input=True)
+    poses = [(3.0, -2.0), (8.0, 0.0)]
+    _frames(tmp_path / "frames", cam, poses)
+    rows = "".join(f"f{i},{u},{v}\n" for i, (u, v) in enumerate(vp_from_pose(cam, *p) for p in poses))
+    (tmp_path / "vps.csv").write_text("id,u,v\n" + rows)
+    r = run_cli("predict", tmp_path / "vp.onnx", tmp_path / "frames", "--within", tmp_path / "vps.csv", "--out",
+                tmp_path / "pred", prog="vctrain")
+    assert r.returncode == 0, r.stderr
+    assert "1 frame with a VP beyond the graph's pose range (5, 5 deg)" in r.stderr
+    r = run_cli("predict", tmp_path / "vp.onnx", tmp_path / "frames", "--within", "none", "--out", tmp_path / "p2",
+                prog="vctrain")
+    assert r.returncode == 0 and "beyond" not in r.stderr
+
+
 def test_resize_baseline_graph_agrees(models, tmp_path):
     """Resize in, network, resize back. (At this exact factor 2 the graph's uint8 resize equals
     cv2.resize; at other factors OpenCV's fixed-point weights differ by one grey level on ~13 % of

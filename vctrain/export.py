@@ -18,9 +18,12 @@ the back-projection another. ``vp_input=True``: the graph takes the frame's road
 :func:`~vcprep.homography.pose_from_vp`, in float64) and the projective completion in the graph:
 every uncovered store pixel takes the source point where the ray from the VP, at the fill
 table's quantised angle, leaves the source rectangle (:func:`vcprep.completion.exit_points_rectangle`
--- elementwise), and a VP outside the image starts the rays from the nearest covered pixel moved
-10 % toward the centroid, as the library does. Its rectangle is fixed: the training's, extended
-to hold the camera at every pose within ``pose_range`` (pan, tilt degrees) of its mount.
+-- once per angle of the table), and a VP outside the image starts the rays from the nearest
+covered pixel moved 10 % toward the centroid, as the library does. Its rectangle is fixed: the
+training's, extended to hold the camera at every pose within ``pose_range`` (pan, tilt degrees)
+of its mount, and so is the box of frame pixels it back-projects to (every pixel that sees the
+store at one of 5 x 5 poses spanning the range, grown by ``BOX_MARGIN``): a frame whose VP lies
+beyond the range gets P(road) cut to both, where ``vctrain predict`` would extend them.
 
 Sampling convention and the layout of the taps: :mod:`vctrain.graph_ops`. P(road) of a
 two-class network is ``sigmoid(l1 - l0)`` (softmax's value; onnxruntime's channel softmax is
@@ -30,6 +33,7 @@ at the camera's image size, ``vp`` float32 (2,) with ``vp_input``; output ``road
 """
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import warnings
@@ -44,14 +48,21 @@ from torch.nn import functional as F
 from vcprep.camera import Camera, camera_from_dict, scale_matrix
 from vcprep.errors import InputError
 
-from .graph_ops import (FALLBACK_TOWARD, TABLE_ARC, _backproject_coords, _fixed_point, _load_fraction, _padded,
-                        _resize_u8, _sample_f, _sample_u8, _store_fraction, _store_maps_from_vp, _taps, _vp_map)
+from .graph_ops import (FALLBACK_TOWARD, TABLE_ARC, _backproject_coords, _backproject_grid, _fixed_point,
+                        _load_fraction, _padded, _pair_rows, _resize_u8, _sample_f, _sample_u8, _seen_box, _store_fraction,
+                        _store_maps_from_vp, _taps, _vp_map)
 from .onnx_predict import (GRAPH_FORMAT, OnnxPredictor, _session, predict_images_onnx,  # noqa: F401
                            require, vp_from_cam)
 
 __all__ = ["OPSET", "RoadGraph", "export_onnx", "OnnxPredictor", "predict_images_onnx", "require"]
 
 OPSET = 17
+BOX_MARGIN = 4  # px around the --vp-input graph's back-projection box (poses between the sampled ones)
+
+
+def _sees_store(idx: torch.Tensor, ax: torch.Tensor, ay: torch.Tensor) -> torch.Tensor:
+    """Which samples of :func:`~vctrain.graph_ops._taps` read any store pixel (not the corner's zeros)."""
+    return (idx > 0) | (ax > 0) | (ay > 0)
 
 
 # -- the graph -----------------------------------------------------------------------------------------
@@ -67,6 +78,8 @@ class RoadGraph(nn.Module):
         self.model, self.g = model, geom
         if geom.get("vp_map") is not None:
             self.register_buffer("vp_map", torch.from_numpy(np.ascontiguousarray(geom["vp_map"])), persistent=False)
+        if geom.get("angle_index") is not None:
+            self.register_buffer("angle_index", torch.from_numpy(geom["angle_index"]), persistent=False)
         if geom.get("warp_qx") is None:
             return
         # fixed mount: every tap index and weight is a constant (computed once, here)
@@ -74,14 +87,12 @@ class RoadGraph(nn.Module):
         Ws, Hs = geom["store_size"]
         w, h = geom["size"]
         x, y = (torch.from_numpy(np.ascontiguousarray(geom[k])).reshape(-1) for k in ("warp_qx", "warp_qy"))
-        self._constants("warp", *_taps(x, y, wv, hv))
+        idx, ax, ay = _taps(x, y, wv, hv)
+        self._constants("warp", _pair_rows(idx, wv, hv), ax, ay)
         # the back-projection only where a frame pixel reads the store: its bounding box (0 around it)
         idx, ax, ay = _taps(torch.from_numpy(geom["back_qx"]).reshape(-1), torch.from_numpy(geom["back_qy"]).reshape(-1),
                             Ws, Hs)
-        rows, cols = np.nonzero(((idx > 0) | (ax > 0) | (ay > 0)).reshape(h, w).numpy())
-        r0, r1 = (int(rows.min()), int(rows.max()) + 1) if rows.size else (0, 1)
-        c0, c1 = (int(cols.min()), int(cols.max()) + 1) if cols.size else (0, 1)
-        self.back_box = (r0, r1, c0, c1)
+        self.back_box = r0, r1, c0, c1 = _seen_box(_sees_store(idx, ax, ay).reshape(h, w).numpy())
         self._constants("back", *(t.reshape(h, w)[r0:r1, c0:c1].reshape(-1) for t in (idx, ax, ay)))
 
     def _constants(self, name: str, idx: torch.Tensor, ax: torch.Tensor, ay: torch.Tensor) -> None:
@@ -116,6 +127,18 @@ class RoadGraph(nn.Module):
             prob = F.interpolate(prob, size=(hs, ws), mode="bilinear", align_corners=False)
         return prob[0, 0]
 
+    def store_maps(self, vp: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """``--vp-input``: (virt_H_src, qx, qy) of the frame whose road VP is ``vp`` (float32 (2,)):
+        :func:`~vctrain.graph_ops._store_maps_from_vp` with this graph's camera and rectangle."""
+        g = self.g
+        known = getattr(self, "angle_index", None)
+        if known is not None:
+            known = (torch.tensor(g["angle_centre"][0], dtype=torch.float32),
+                     torch.tensor(g["angle_centre"][1], dtype=torch.float32),
+                     torch.tensor(float(g["angle_n"]), dtype=torch.float64), known)
+        return _store_maps_from_vp(vp.double(), g["camera"], torch.tensor(g["Gv"], dtype=torch.float64),
+                                   tuple(g["store_size"]), tuple(g["visible"]), g["completion"], known)
+
     def forward(self, frame: torch.Tensor, vp: torch.Tensor | None = None) -> torch.Tensor:
         g = self.g
         w, h = g["size"]
@@ -131,18 +154,18 @@ class RoadGraph(nn.Module):
         if vp is None:
             taps = self._taps_of("warp")
         else:
-            H, qx, qy = _store_maps_from_vp(vp.double(), g["camera"], torch.tensor(g["Gv"], dtype=torch.float64),
-                                            (Ws, Hs), (wv, hv), g["completion"])
-            taps = _taps(qx.reshape(-1), qy.reshape(-1), wv, hv)
+            H, qx, qy = self.store_maps(vp)
+            idx, ax, ay = _taps(qx.reshape(-1), qy.reshape(-1), wv, hv, inside=g["completion"] == "projective")
+            taps = _pair_rows(idx, wv, hv), ax, ay
         store = _sample_u8(src, wv, *taps)  # (3, Hs*Ws) 0-255, exactly the store image
         prob = self._net(store.reshape(3, Hs, Ws), vp_map, Ws, Hs)
         if vp is None:
             r0, r1, c0, c1 = self.back_box
             out = _sample_f(_padded(prob), Ws, *self._taps_of("back")).reshape(r1 - r0, c1 - c0)
-            out = F.pad(out, (c0, w - c1, r0, h - r1))
-        else:
-            bx, by = _backproject_coords(H, w, h)
-            out = _sample_f(_padded(prob), Ws, *_taps(bx.reshape(-1), by.reshape(-1), Ws, Hs)).reshape(h, w)
+        else:  # only the frame pixels that can see the store at some pose in the range
+            r0, r1, c0, c1 = g["back_box"]
+            out = _backproject_grid(prob, H, (r0, r1, c0, c1))
+        out = F.pad(out, (c0, w - c1, r0, h - r1))
         return out.clamp(0, 1)
 
 
@@ -201,6 +224,22 @@ def _geometry(predictor, camera: Camera, vp_input: bool, pose_range: tuple[float
 
         g["camera"] = cam
         g["Gv"] = ground_to_image(vs)
+        # the back-projection's box: every frame pixel that sees the store at a pose of the range
+        seen = np.zeros((h, w), bool)
+        for a in np.linspace(-1, 1, 5):
+            for b in np.linspace(-1, 1, 5):
+                _, Hp = item_geometry(cam, (w, h), vs, None, cam.pan + a * pose_range[0], cam.tilt + b * pose_range[1])
+                bx, by = _backproject_coords(torch.tensor(np.asarray(Hp, dtype=np.float64)), w, h)
+                seen |= _sees_store(*_taps(bx.reshape(-1), by.reshape(-1), *store_size)).reshape(h, w).numpy()
+        g["back_box"] = list(_seen_box(seen, BOX_MARGIN))
+        if completion == "projective":  # the fill table's angles seen from the mount pose's centre (module doc)
+            from vcprep.completion_tables import TABLE_COLS, _all_angles
+
+            mount = C.completion_maps(H, vis, store_size, completion, vp_store)
+            n, cu, cv = mount.angles.n, np.float32(mount.centre[0]), np.float32(mount.centre[1])
+            pair = _all_angles((store_size[1], store_size[0]), cu, cv, n).astype(np.int32)
+            g["angle_index"] = (pair[..., 0] + pair[..., 1] * TABLE_COLS).astype(np.int16)
+            g["angle_centre"], g["angle_n"] = [float(cu), float(cv)], n
         return g
     maps = item_maps(H, vis, store_size, completion, vp_store)
     covered = torch.from_numpy(maps.valid.astype(bool))
@@ -211,6 +250,32 @@ def _geometry(predictor, camera: Camera, vp_input: bool, pose_range: tuple[float
     bx, by = _backproject_coords(torch.tensor(np.asarray(H, dtype=np.float64)), w, h)
     g["back_qx"], g["back_qy"] = bx.numpy(), by.numpy()
     return g
+
+
+@contextlib.contextmanager
+def _float64_scalars():
+    """The TorchScript exporter types arithmetic among 0-d tensors (``H[0, 0] * vp[0]``) as the
+    default dtype: float32 would cast the graph's float64 homography and completion centre to
+    float32 (~3e-8 relative: a centre one float32 step off, fixed-point maps rounding the other
+    way). Exporting with float64 as the default keeps them float64; tensors of a stated dtype
+    (the network's, the uint8 frame's) are unaffected."""
+    old = torch.get_default_dtype()
+    torch.set_default_dtype(torch.float64)
+    try:
+        yield
+    finally:
+        torch.set_default_dtype(old)
+
+
+def trace_onnx(module: nn.Module, args: tuple, inputs: list[str], outputs: list[str], fold: bool = True) -> bytes:
+    """``module`` traced to ONNX (opset :data:`OPSET`, TorchScript exporter) with float64 scalars
+    (:func:`_float64_scalars`); ``fold``: constant folding."""
+    buf = io.BytesIO()
+    with warnings.catch_warnings(), _float64_scalars():
+        warnings.simplefilter("ignore")  # the TorchScript exporter's deprecation and tracer notes
+        torch.onnx.export(module, args, buf, dynamo=False, opset_version=OPSET, input_names=inputs,
+                          output_names=outputs, do_constant_folding=fold)
+    return buf.getvalue()
 
 
 def export_onnx(checkpoint: str | Path, camera: Camera, out: str | Path, vp_input: bool = False,
@@ -232,13 +297,9 @@ def export_onnx(checkpoint: str | Path, camera: Camera, out: str | Path, vp_inpu
     vp = torch.tensor(vp_from_cam(camera), dtype=torch.float32)
     args = (frame, vp) if vp_input else (frame,)
     names = ["frame", "vp"] if vp_input else ["frame"]
-    buf = io.BytesIO()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # the TorchScript exporter's deprecation and tracer notes
-        torch.onnx.export(graph, args, buf, dynamo=False, opset_version=OPSET, input_names=names,
-                          output_names=["road_prob"],
-                          do_constant_folding=vp_input)  # fixed mount: int16 taps stay small in the file
-    model = onnx.load_from_string(buf.getvalue())
+    graph_bytes = trace_onnx(graph, args, names, ["road_prob"],
+                             fold=vp_input)  # fixed mount: int16 taps stay small in the file
+    model = onnx.load_from_string(graph_bytes)
     info = {"format": GRAPH_FORMAT, "checkpoint": str(checkpoint), "mode": geom["mode"],
             "camera": camera.to_dict(), "camera_name": camera.name, "opset": OPSET,
             "inputs": {"frame": ["uint8", [h, w, 3], "BGR"], **({"vp": ["float32", [2], "u, v source px"]}
@@ -252,7 +313,7 @@ def export_onnx(checkpoint: str | Path, camera: Camera, out: str | Path, vp_inpu
         rng = np.random.default_rng(0)
         test = rng.integers(0, 256, (h, w, 3), dtype=np.uint8)
         feeds = {"frame": test, **({"vp": vp.numpy()} if vp_input else {})}
-        got = _session(ort, buf.getvalue()).run(None, feeds)[0]
+        got = _session(ort, graph_bytes).run(None, feeds)[0]
         with torch.no_grad():
             ref = graph(torch.from_numpy(test), *((vp,) if vp_input else ())).numpy()
         info["max_abs_diff_vs_torch"] = float(np.abs(got - ref).max())

@@ -1,15 +1,20 @@
 """The road graph's tensor operations (:mod:`vctrain.export`): OpenCV's bilinear sampling and
 resize written as ONNX-exportable torch ops, and the homography and projective completion of a
-VP given at run time, in float64 (:func:`_store_maps_from_vp`).
+VP given at run time, in float64 (:func:`_store_maps_from_vp`; traced with float64 scalars,
+:func:`vctrain.export.trace_onnx`).
 
 Sampling convention: every bilinear sample is the one OpenCV computes -- source coordinates
 rounded to 1/32 px, weights from those fractions, 8-bit images rounded half up (``cv2.remap``
 on uint8; the store holds exactly that), float maps with float weights (``cv2.warpPerspective``
 for the back-projection). Layout for onnxruntime (whose gathers cost per index, not per byte):
-the warp gathers 6-byte pixel pairs (:func:`_sample_u8`), the back-projection each pixel's four
-taps at once (:func:`_sample_f`), the fixed mount's taps are constants (int32 index, int16
-fractions to 1/65536: the fill table's float fractions lose < 2e-5 px) and its back-projection
-covers only the box of frame pixels that see the store;
+the warp gathers 6-byte pixel pairs (:func:`_sample_u8`, addressed by :func:`_pair_rows`), the
+fixed mount's back-projection each pixel's four taps at once (:func:`_sample_f`), only in the
+box of frame pixels that see the store; the fixed mount's taps are constants (int32 pair rows
+and indices, int16 fractions to 1/65536: the fill table's float fractions lose < 2e-5 px).
+With a VP at run time the completion's exit points are a 1-D table over the fill table's angles
+(every pixel reads its angle's entry), the angle index is a constant while the ray centre is the
+mount pose's (every VP in the image), and the back-projection is GridSample in bands of rows
+(:func:`_backproject_grid`) over the box of pixels that see the store at some pose in the range.
 """
 from __future__ import annotations
 
@@ -41,7 +46,8 @@ def _padded(img: torch.Tensor) -> torch.Tensor:
     return p.reshape((p.shape[0] * p.shape[1],) + tuple(p.shape[2:]))
 
 
-def _taps(x: torch.Tensor, y: torch.Tensor, w: int, h: int) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+def _taps(x: torch.Tensor, y: torch.Tensor, w: int, h: int,
+          inside: bool = False) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Bilinear taps of source coordinates ``x``/``y`` (float32 px, pixel centres at integers, shape
     (S,)) in a ``w`` x ``h`` image padded by :func:`_padded`: the flat index (int32) of each
     top-left tap in the padded image and the fractions ``ax``, ``ay`` (float32) toward the right and
@@ -52,8 +58,11 @@ def _taps(x: torch.Tensor, y: torch.Tensor, w: int, h: int) -> tuple[torch.Tenso
     does with fixed-point maps, :func:`_fixed_point`) every fraction is a multiple of 1/32 and each
     step of :func:`_sample_u8` is exact in float32 and equals OpenCV's integer result; with plain
     float32 coordinates it is OpenCV 5's float-map path (float weights), which the completion's
-    fill table and ``warpPerspective`` use."""
+    fill table and ``warpPerspective`` use. ``inside``: every coordinate is known to lie in
+    [0, w-1] x [0, h-1] (maps with projective completion), so no test is needed."""
     x0, y0 = torch.floor(x), torch.floor(y)
+    if inside:
+        return ((y0 + 1) * _padded_width(w) + (x0 + 1)).to(torch.int32), x - x0, y - y0
     ok = (x0 >= -1) & (x0 <= w - 1) & (y0 >= -1) & (y0 <= h - 1)
     zero = torch.zeros_like(x)
     idx = (y0.clamp(-1, h - 1) + 1) * _padded_width(w) + (x0.clamp(-1, w - 1) + 1)
@@ -61,19 +70,36 @@ def _taps(x: torch.Tensor, y: torch.Tensor, w: int, h: int) -> tuple[torch.Tenso
             torch.where(ok, y - y0, zero))
 
 
-def _sample_u8(src: torch.Tensor, w: int, idx: torch.Tensor, ax: torch.Tensor, ay: torch.Tensor) -> torch.Tensor:
+def _quads(src: torch.Tensor, w: int) -> torch.Tensor:
+    """Every pixel of the padded map ``src`` (P,) (:func:`_padded` of a ``w``-wide map) with its
+    right, lower and lower-right neighbours: (P - W2 - 1, 4), W2 the padded width. A sample's four
+    taps are one row of it: one gather per sample (onnxruntime's gathers cost per index)."""
+    W2 = _padded_width(w)
+    n = src.shape[0] - W2 - 1
+    return torch.stack([src[0:n], src[1:n + 1], src[W2:W2 + n], src[W2 + 1:W2 + 1 + n]], -1)
+
+
+def _pair_rows(idx: torch.Tensor, w: int, h: int) -> torch.Tensor:
+    """The row (int32) of :func:`_sample_u8`'s pair table holding the pixel pair that starts at
+    each tap index ``idx`` of :func:`_taps` in the padded ``w`` x ``h`` image: the pairs that
+    start at even pixels come first, then those at odd ones."""
+    idx = idx.to(torch.int32)
+    odd = idx % 2
+    return torch.div(idx - odd, 2, rounding_mode="trunc") + odd * ((h + 2) * _padded_width(w) // 2)
+
+
+def _sample_u8(src: torch.Tensor, w: int, rows: torch.Tensor, ax: torch.Tensor, ay: torch.Tensor) -> torch.Tensor:
     """Bilinear samples (float32 (3, S), rounded half up: what ``cv2.remap`` writes to uint8) of
     the padded uint8 image ``src`` (P, 3) (:func:`_padded` of a ``w``-wide image) at the taps of
-    :func:`_taps`. One gather of 6-byte pixel pairs (the padded image read as pairs starting at
-    even pixels, then at odd ones): the upper pair and the lower pair of every sample; then two
-    linear interpolations along x and one along y (channels first: what the network takes)."""
+    :func:`_taps`, their index given as :func:`_pair_rows`. One gather of 6-byte pixel pairs (the
+    padded image read as pairs starting at even pixels, then at odd ones): the upper pair and the
+    lower pair (the padded width is even: the same parity, half a padded row further) of every
+    sample; then two linear interpolations along x and one along y (channels first: what the
+    network takes)."""
     n = src.shape[0]  # even (padded width even)
     pairs = torch.cat([src.reshape(n // 2, 6), src[1:n - 1].reshape(n // 2 - 1, 6)], 0)
-    idx = idx.to(torch.int32)
-    W2 = _padded_width(w)
-    rows = torch.stack([idx, idx + W2])  # (2, S): the upper and lower pair's first pixel
-    rows = torch.where(rows % 2 == 0, rows // 2, rows // 2 + n // 2)
-    v = torch.index_select(pairs, 0, rows.reshape(-1)).reshape(2, -1, 2, 3).permute(0, 2, 3, 1).to(torch.float32)
+    rows = torch.cat([rows, rows + _padded_width(w) // 2])  # (2S): the upper and lower pairs
+    v = torch.index_select(pairs, 0, rows).reshape(2, -1, 2, 3).permute(0, 2, 3, 1).to(torch.float32)
     left, right = v[:, 0], v[:, 1]  # (2, 3, S): upper and lower row
     row = left + ax * (right - left)
     return torch.floor(row[0] + ay * (row[1] - row[0]) + 0.5)
@@ -83,13 +109,12 @@ def _sample_f(src: torch.Tensor, w: int, idx: torch.Tensor, ax: torch.Tensor, ay
     """Bilinear samples (float32 (S,)) of the padded float map ``src`` (P,) (:func:`_padded` of a
     ``w``-wide map) at the taps of :func:`_taps`: one gather of each sample's four taps (a (P, 4)
     table of every pixel with its right, lower and lower-right neighbours), weighted and summed."""
-    W2 = _padded_width(w)
-    n = src.shape[0] - W2 - 1
-    quads = torch.stack([src[0:n], src[1:n + 1], src[W2:W2 + n], src[W2 + 1:W2 + 1 + n]], -1)
+    quads = _quads(src, w)
     wts = torch.stack([(1 - ax) * (1 - ay), ax * (1 - ay), (1 - ax) * ay, ax * ay], -1)
     return (torch.index_select(quads, 0, idx.to(torch.int32)) * wts).sum(-1)
 
 
+GRID_BAND = 128  # rows per GridSample of the back-projection (benchmarks/deploy.py)
 FRACTION = 65536  # fixed-mount fractions are stored as int16: round(a * FRACTION) - 32768
 
 
@@ -152,6 +177,41 @@ def _backproject_coords(H: torch.Tensor, w: int, h: int) -> tuple[torch.Tensor, 
     return X.float(), Y.float()
 
 
+def _backproject_grid(prob: torch.Tensor, H: torch.Tensor, box: tuple[int, int, int, int]) -> torch.Tensor:
+    """P(road) (float32, rows r0:r1, cols c0:c1 of the frame; ``box`` = (r0, r1, c0, c1)) of the
+    store map ``prob`` (Hs, Ws) back-projected through ``H`` = virt_H_src: every frame pixel centre
+    sampled bilinearly at ``H @ (u, v, 1)``, 0 outside the store (``kind="prob"``), as
+    :func:`_backproject_coords` with :func:`_sample_f` does, in one GridSample (float32
+    coordinates: ~1e-4 px from float64's, far below the 1e-3 agreement on smooth P maps)."""
+    r0, r1, c0, c1 = box
+    Hs, Ws = prob.shape
+    # the store's pixel coordinates to GridSample's normalised ones (align_corners=False) folded into H
+    N = torch.tensor([[2 / Ws, 0, 1 / Ws - 1], [0, 2 / Hs, 1 / Hs - 1], [0, 0, 1]], dtype=torch.float64)
+    G = (N @ H).float()
+    u = torch.arange(c0, c1, dtype=torch.float32)[None, :]
+    v = torch.arange(r0, r1, dtype=torch.float32)[:, None]
+    W = G[2, 0] * u + (G[2, 1] * v + G[2, 2])
+    ok = W != 0
+    inv = 1 / torch.where(ok, W, torch.ones_like(W))
+    gx = torch.where(ok, ((G[0, 0] * u + (G[0, 1] * v + G[0, 2])) * inv).clamp(-1e4, 1e4), torch.full_like(W, -2.0))
+    gy = ((G[1, 0] * u + (G[1, 1] * v + G[1, 2])) * inv).clamp(-1e4, 1e4)
+    grid = torch.stack([gx, gy], -1)[None]
+    # in bands of rows: onnxruntime's GridSample takes ~3x longer per pixel on a 1280x712 grid than on bands
+    return torch.cat([F.grid_sample(prob[None, None], grid[:, i:i + GRID_BAND], mode="bilinear", padding_mode="zeros",
+                                    align_corners=False)[0, 0] for i in range(0, r1 - r0, GRID_BAND)], 0)
+
+
+def _seen_box(seen: np.ndarray, margin: int = 0) -> tuple[int, int, int, int]:
+    """(r0, r1, c0, c1): the bounding box of the True pixels of ``seen`` (h, w), grown by
+    ``margin`` and clipped to the frame; one pixel when none is."""
+    rows, cols = np.nonzero(seen)
+    if not rows.size:
+        return 0, 1, 0, 1
+    h, w = seen.shape
+    return (max(0, int(rows.min()) - margin), min(h, int(rows.max()) + 1 + margin),
+            max(0, int(cols.min()) - margin), min(w, int(cols.max()) + 1 + margin))
+
+
 # -- the homography and completion from a VP, in the graph (float64) ---------------------------------
 
 def _mat(rows) -> torch.Tensor:
@@ -191,10 +251,44 @@ def _jacobian(M: torch.Tensor, c: tuple[torch.Tensor, torch.Tensor]):
     return (V[0] / V[2], V[1] / V[2]), J, V[2]
 
 
+def _angle_index(cu: torch.Tensor, cv: torch.Tensor, n: torch.Tensor, store_size: tuple[int, int],
+                 known: tuple | None) -> torch.Tensor:
+    """The fill table's angle index (int32 (Hs, Ws)) of every store pixel seen from (cu, cv)
+    (float32) with ``n`` angles: vcprep.completion_tables._all_angles (atan2 to float64 precision,
+    rounded to float32: onnxruntime's float32 Atan is too coarse to round to the same entry). ``known``
+    (see :func:`_store_maps_from_vp`): when the centre and n are its, its index, and the rows
+    computed here are none (an empty range: a branch without control flow)."""
+    Ws, Hs = store_size
+    rows = torch.tensor(Hs)
+    if known is not None:
+        kcu, kcv, kn, index = known
+        same = (cu == kcu) & (cv == kcv) & (n == kn)
+        rows = torch.where(same, torch.zeros_like(rows), rows)
+    du = (torch.arange(Ws, dtype=torch.float32)[None, :] - cu).double()  # float32 differences, as the library's
+    dv = (torch.arange(rows.to(torch.int64), dtype=torch.float32)[:, None] - cv).double()
+    # onnxruntime has Atan in float32 only (and too coarse): one Newton step of x sin t = y cos t in float64
+    t = torch.atan2(dv.float(), du.float()).double()
+    c, s = torch.cos(t), torch.sin(t)
+    slope = du * c + dv * s
+    t = t - (du * s - dv * c) / torch.where(slope == 0, torch.ones_like(slope), slope)
+    kk = torch.round(t.float() * (n / (2 * math.pi)).float())
+    n32 = n.float()
+    kk = (kk - n32 * torch.floor(kk / n32)).to(torch.int32)
+    if known is None:
+        return kk
+    return torch.cat([kk, index.to(torch.int32)], 0)[:Hs]
+
+
 def _store_maps_from_vp(vp: torch.Tensor, cam: Camera, Gv: torch.Tensor, store_size: tuple[int, int],
-                        vis: tuple[int, int], completion: str):
+                        vis: tuple[int, int], completion: str, angles: tuple | None = None):
     """(H, fixed-point qx, qy of every store pixel): vcprep.warp.build_maps plus the completion
-    (vcprep.completion.complete_maps) for a VP given at run time. See the module docstring."""
+    (vcprep.completion.complete_maps) for a VP given at run time. See the module docstring.
+
+    ``angles``: (cu, cv, n, index): the fill table's angle index of every store pixel (int16
+    (Hs, Ws)) seen from the ray centre (cu, cv) (float32) with n angles, as the library computes
+    it (:func:`vcprep.completion_tables._all_angles`): the graph uses it whenever the frame's
+    centre is that one (every VP in the image: the centre is the virtual camera's VP) and computes
+    the index only otherwise (:func:`_angle_index`)."""
     Ws, Hs = store_size
     w, h = vis
     H = _virt_H_src(vp, cam, Gv)
@@ -218,14 +312,13 @@ def _store_maps_from_vp(vp: torch.Tensor, cam: Camera, Gv: torch.Tensor, store_s
         (sx, sy), _, sw = _jacobian(Minv, (cu, cv))
         inside = ((torch.sign(sw) == torch.sign(mid)) & (sx >= 0) & (sx <= w - 1) & (sy >= 0) & (sy <= h - 1))
         vf = valid.to(torch.float64)
-        uu, vv = u.expand(Hs, Ws), v.expand(Hs, Ws)
-        d2 = torch.where(valid, (uu - cu) ** 2 + (vv - cv) ** 2, torch.full_like(uu, float("inf")))
-        k = torch.argmin(d2.reshape(-1))
+        d2 = (u - cu) ** 2 + (v - cv) ** 2  # (1, Ws) + (Hs, 1): the one full-size op is this sum
+        k = torch.argmin(torch.where(valid, d2, torch.full_like(d2, float("inf"))).reshape(-1))
         kf = k.to(torch.float64)
         qv = torch.floor(kf / Ws)
         qu = kf - qv * Ws
-        n_valid = vf.sum().clamp_min(1)
-        gu, gv = (uu * vf).sum() / n_valid, (vv * vf).sum() / n_valid
+        n_valid = vf.sum().clamp_min(1)  # the centroid from row and column counts (exact integer sums)
+        gu, gv = (vf.sum(0) * u[0]).sum() / n_valid, (vf.sum(1) * v[:, 0]).sum() / n_valid
         fu, fv = qu + FALLBACK_TOWARD * (gu - qu), qv + FALLBACK_TOWARD * (gv - qv)
         ok = lambda a, b: valid.reshape(-1)[(torch.round(b).clamp(0, Hs - 1) * Ws  # noqa: E731
                                              + torch.round(a).clamp(0, Ws - 1)).to(torch.int64)]
@@ -234,15 +327,12 @@ def _store_maps_from_vp(vp: torch.Tensor, cam: Camera, Gv: torch.Tensor, store_s
         cu, cv = torch.where(inside, cu, fb_u), torch.where(inside, cv, fb_v)
         (sx, sy), J, _ = _jacobian(Minv, (cu, cv))
         sx, sy = sx.clamp(0, w - 1), sy.clamp(0, h - 1)
-        # the fill table's angle of every pixel (float32, as vcprep.completion._build_angle_index)
+        # the fill table: the exit point of each of its n angles (a 1-D table, float64 as the
+        # library computes it), looked up by every pixel's angle index (float32, as
+        # vcprep.completion._build_angle_index); n varies with the centre: a Range in the graph
         far = torch.stack([torch.sqrt((a - cu) ** 2 + (b - cv) ** 2) for a in (0, Ws - 1) for b in (0, Hs - 1)]).max()
         n = torch.ceil(2 * math.pi * far / TABLE_ARC).clamp_min(1024)
-        du = torch.arange(Ws, dtype=torch.float32)[None, :] - cu.float()
-        dv = torch.arange(Hs, dtype=torch.float32)[:, None] - cv.float()
-        kk = torch.round(torch.atan2(dv, du) * (n / (2 * math.pi)).float())
-        n32 = n.float()
-        kk = (kk - n32 * torch.floor(kk / n32)).double()
-        phi = kk * (2 * math.pi / n)
+        phi = torch.arange(n.to(torch.int64), dtype=torch.float64) * (2 * math.pi / n)
         c, s = torch.cos(phi), torch.sin(phi)
         dx, dy = J[0][0] * c + J[0][1] * s, J[1][0] * c + J[1][1] * s
         big = torch.full_like(dx, float("inf"))
@@ -253,9 +343,12 @@ def _store_maps_from_vp(vp: torch.Tensor, cam: Camera, Gv: torch.Tensor, store_s
                          torch.where(dy < 0, -sy / torch.where(dy < 0, dy, one), big))
         t = torch.minimum(tx, ty)
         t = torch.where(torch.isinf(t), torch.zeros_like(t), t)
-        ex, ey = (sx + t * dx).clamp(0, w - 1), (sy + t * dy).clamp(0, h - 1)
+        exits = torch.stack([(sx + t * dx).clamp(0, w - 1), (sy + t * dy).clamp(0, h - 1)], -1).float()
+        kk = _angle_index(cu.float(), cv.float(), n, (Ws, Hs), angles)
+        e = torch.index_select(exits, 0, kk.reshape(-1)).reshape(Hs, Ws, 2)
+        ex, ey = e[..., 0], e[..., 1]
         # covered pixels: fixed-point maps (cv2.convertMaps); the fill table: float maps
-        return H, torch.where(valid, _fixed_point(mx), ex.float()), torch.where(valid, _fixed_point(my), ey.float())
+        return H, torch.where(valid, _fixed_point(mx), ex), torch.where(valid, _fixed_point(my), ey)
     return H, _fixed_point(mx), _fixed_point(my)
 
 

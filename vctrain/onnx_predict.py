@@ -64,6 +64,19 @@ class OnnxPredictor:
         self.vp_input = "vp" in info["inputs"]
         self.camera = camera_from_dict(info["camera"], self.path)
         self.mode = info["mode"]
+        self.beyond = 0  # frames of the last predict_images_onnx whose VP was beyond the pose range
+
+    def beyond_range(self, vp: tuple[float, float] | None) -> bool:
+        """Whether a ``--vp-input`` graph's pose range (``vctrain export --pose-range``) does not
+        hold the pose of ``vp``: the graph's rectangle and back-projection box then cut P(road)."""
+        pose_range = self.info.get("pose_range")
+        if vp is None or not pose_range:
+            return False
+        from vcprep.homography import pose_from_vp
+
+        cam = self.camera.for_image_size(self.camera.size)
+        pan, tilt = pose_from_vp(cam, (float(vp[0]), float(vp[1])))
+        return abs(pan - cam.pan) > pose_range[0] + 1e-6 or abs(tilt - cam.tilt) > pose_range[1] + 1e-6
 
     def road_probability(self, frame: np.ndarray, vp: tuple[float, float] | None = None,
                          name: str | Path | None = None) -> np.ndarray:
@@ -86,7 +99,8 @@ def predict_images_onnx(predictor: OnnxPredictor, images: Iterable[str | Path], 
     """:func:`vctrain.predict.predict_images` for an exported graph: writes ``<stem>_prob.png`` and
     ``<stem>_mask.png``. A ``--vp-input`` graph gets each frame's VP: ``within`` 'auto'/'estimate'
     estimates it (with ``camera``, default the graph's), a CSV ``id,u,v`` gives it, 'none' takes
-    the camera's mount pose; a fixed graph takes only 'auto' or 'none'."""
+    the camera's mount pose; a fixed graph takes only 'auto' or 'none'. ``predictor.beyond``
+    counts the frames whose VP lies beyond the graph's pose range (:meth:`OnnxPredictor.beyond_range`)."""
     from tqdm import tqdm
 
     from vcprep.imageio import read_image
@@ -108,6 +122,7 @@ def predict_images_onnx(predictor: OnnxPredictor, images: Iterable[str | Path], 
                             "estimate" if within == "auto" else within)
         vps = {j.id: (float(r.vp[0]), float(r.vp[1])) for j, r in zip(jobs, res)}
     written = []
+    predictor.beyond = sum(predictor.beyond_range(vp) for vp in vps.values())
     for job in tqdm(jobs, desc="predict", unit="img", disable=None if progress else True, leave=False):
         img = read_image(job.image).array
         prob = predictor.road_probability(img, vps.get(job.id), job.image)

@@ -134,4 +134,9 @@ def _predict_onnx(graph: Path, images, out: Path, camera_for: Optional[CameraFor
         frames = [j.image for j in collect_images(images)]
         cam = camera_for(frames[0], per_frame=False, frames=frames)
     written = predict_images_onnx(predictor, images, out, cam, progress=progress, overlay=overlay, within=within)
-    return Predicted(written, len(written), 0, f"ONNX graph, {predictor.mode} model")
+    source = f"ONNX graph, {predictor.mode} model"
+    if predictor.beyond:
+        pan, tilt = predictor.info["pose_range"]
+        source += (f"; {count(predictor.beyond, 'frame')} with a VP beyond the graph's pose range ({pan:g}, {tilt:g} deg):"
+                   " P(road) cut to its rectangle, export with a larger --pose-range")
+    return Predicted(written, len(written), 0, source)
