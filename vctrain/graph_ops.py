@@ -181,24 +181,27 @@ def _backproject_grid(prob: torch.Tensor, H: torch.Tensor, box: tuple[int, int, 
     """P(road) (float32, rows r0:r1, cols c0:c1 of the frame; ``box`` = (r0, r1, c0, c1)) of the
     store map ``prob`` (Hs, Ws) back-projected through ``H`` = virt_H_src: every frame pixel centre
     sampled bilinearly at ``H @ (u, v, 1)``, 0 outside the store (``kind="prob"``), as
-    :func:`_backproject_coords` with :func:`_sample_f` does, in one GridSample (float32
-    coordinates: ~1e-4 px from float64's, far below the 1e-3 agreement on smooth P maps)."""
+    :func:`_backproject_coords` with :func:`_sample_f` does, by GridSample (float32 coordinates:
+    ~1e-4 px from float64's, far below the 1e-3 agreement on smooth P maps). A pixel on the line
+    that maps to infinity (W = 0 exactly) divides by 1 instead. Built and sampled in bands of
+    :data:`GRID_BAND` rows: onnxruntime's GridSample takes ~3x longer per pixel on a 1280x712
+    grid than on bands, and a band's grid needs no copy into a large one."""
     r0, r1, c0, c1 = box
     Hs, Ws = prob.shape
     # the store's pixel coordinates to GridSample's normalised ones (align_corners=False) folded into H
     N = torch.tensor([[2 / Ws, 0, 1 / Ws - 1], [0, 2 / Hs, 1 / Hs - 1], [0, 0, 1]], dtype=torch.float64)
     G = (N @ H).float()
     u = torch.arange(c0, c1, dtype=torch.float32)[None, :]
-    v = torch.arange(r0, r1, dtype=torch.float32)[:, None]
-    W = G[2, 0] * u + (G[2, 1] * v + G[2, 2])
-    ok = W != 0
-    inv = 1 / torch.where(ok, W, torch.ones_like(W))
-    gx = torch.where(ok, ((G[0, 0] * u + (G[0, 1] * v + G[0, 2])) * inv).clamp(-1e4, 1e4), torch.full_like(W, -2.0))
-    gy = ((G[1, 0] * u + (G[1, 1] * v + G[1, 2])) * inv).clamp(-1e4, 1e4)
-    grid = torch.stack([gx, gy], -1)[None]
-    # in bands of rows: onnxruntime's GridSample takes ~3x longer per pixel on a 1280x712 grid than on bands
-    return torch.cat([F.grid_sample(prob[None, None], grid[:, i:i + GRID_BAND], mode="bilinear", padding_mode="zeros",
-                                    align_corners=False)[0, 0] for i in range(0, r1 - r0, GRID_BAND)], 0)
+    bands = []
+    for i in range(r0, r1, GRID_BAND):
+        v = torch.arange(i, min(i + GRID_BAND, r1), dtype=torch.float32)[:, None]
+        W = G[2, 0] * u + (G[2, 1] * v + G[2, 2])
+        inv = 1 / (W + (W == 0).to(torch.float32))
+        gx = ((G[0, 0] * u + (G[0, 1] * v + G[0, 2])) * inv).clamp(-1e4, 1e4)
+        gy = ((G[1, 0] * u + (G[1, 1] * v + G[1, 2])) * inv).clamp(-1e4, 1e4)
+        bands.append(F.grid_sample(prob[None, None], torch.stack([gx, gy], -1)[None], mode="bilinear",
+                                   padding_mode="zeros", align_corners=False)[0, 0])
+    return torch.cat(bands, 0)
 
 
 def _seen_box(seen: np.ndarray, margin: int = 0) -> tuple[int, int, int, int]:
