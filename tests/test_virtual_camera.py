@@ -69,3 +69,28 @@ def test_a_wider_steeper_camera_extends_the_canvas_minimally_and_exactly(pan, ti
     # the own vehicle's rows are not held: with them the bottom would reach further
     full = extend_canvas(v, [(replace(steep, ego_rows=0), steep.pan + pan, steep.tilt)])
     assert full.size[1] > ext.size[1] if ext.size[1] > v.size[1] else full.size[1] >= ext.size[1]
+
+
+def test_median_extent_holds_the_middle_camera_and_cuts_the_extremes():
+    """extent='median' over three cameras (CamVid, a steep LUMS-like low camera, KITTI's 81 deg):
+    sideways and downward the rectangle reaches as far as the median camera does, checked against
+    the exact projection of each camera's lower half."""
+    low = replace(CAMVID, name="low", height=0.8, tilt=8.0)
+    cams = [CAMVID, low, KITTI]
+    v = design_virtual_camera(cams, 5, 3, above=8, f=600.0, height=1.2, extent="median").camera
+    full = design_virtual_camera(cams, 5, 3, above=8, f=600.0, height=1.2).camera
+    assert same_camera_other_canvas(v.to_dict(), full.to_dict()) and v.cy == pytest.approx(full.cy)
+
+    def reach(cam):  # half width and lowest row reached by the lower half's pixel edges, with the pose margins
+        w, h = cam.size
+        edges = np.array([[-0.5, (h - 1) / 2], [w - 0.5, (h - 1) / 2], [w - 0.5, h - 0.5], [-0.5, h - 0.5]])
+        p = apply_homography(virt_H_src(cam, v), edges)
+        return np.abs(p[:, 0] - v.cx).max() + 600 * np.tan(np.radians(5)), p[:, 1].max() + 600 * np.tan(np.radians(3))
+
+    sides, depths = zip(*(reach(c) for c in cams))
+    assert max(sides) > np.median(sides) + 50 and max(depths) > np.median(depths) + 50  # the extremes are cut
+    # centred, sides rounded up to the size multiple (2 px); the bottom edge just below the median's lowest row
+    assert 0 <= v.size[0] / 2 - np.median(sides) < 1 and 0 <= (v.size[1] - 0.5) - np.median(depths) < 2
+    assert 0 <= full.size[0] / 2 - max(sides) < 1 and 0 <= (full.size[1] - 0.5) - max(depths) < 2
+    with pytest.raises(Exception, match="extent"):
+        design_virtual_camera(cams, 5, 3, extent="mean")

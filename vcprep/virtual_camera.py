@@ -34,7 +34,9 @@ from .camera import Camera, camera_from_dict
 from .errors import InputError
 from .homography import apply_homography, virt_H_src
 
-__all__ = ["VirtualDesign", "design_virtual_camera", "same_camera_other_canvas", "extend_canvas"]
+__all__ = ["VirtualDesign", "design_virtual_camera", "same_camera_other_canvas", "extend_canvas", "EXTENTS"]
+
+EXTENTS = ("max", "median")  # design_virtual_camera's rectangle: every camera's reach, or the median's
 
 
 @dataclass(frozen=True)
@@ -65,37 +67,43 @@ def _lower_half_corners(cam: Camera) -> np.ndarray:
 def design_virtual_camera(cameras: list[Camera], pan_range: float = 20.0, tilt_range: float = 15.0,
                           rule: str = "shift", name: str = "virtual", multiple: int = 2,
                           above: float | None = None, f: float | None = None,
-                          height: float | None = None) -> VirtualDesign:
+                          height: float | None = None, extent: str = "max") -> VirtualDesign:
     """The virtual camera holding ``cameras`` (module docstring). ``f`` and ``height`` fix the focal
     length and height instead of the rule's (a *canvas*: the same virtual camera, sized to hold
     only these cameras; its rectangle differs from another canvas of the same ``f``, ``height``,
-    ranges and ``above`` only by ``cx``, ``cy`` and the size: an exact crop or extension)."""
+    ranges and ``above`` only by ``cx``, ``cy`` and the size: an exact crop or extension).
+    ``extent``: ``max`` holds every camera (the paper's rule); ``median`` holds, sideways and
+    downward, the median camera's reach (plus the pose margins): the widest and the lowest cameras
+    are cut (their outer parts never reach the store) so that the others get more pixels."""
     if not cameras:
         raise InputError("no cameras given", None, "name at least one camera")
     if rule not in ("shift", "exact"):
         raise InputError(f"unknown design rule '{rule}'", None, "use 'shift' or 'exact'")
     if not (0 <= pan_range < 60 and 0 <= tilt_range < 60):
         raise InputError("pose ranges must be in [0, 60) degrees", None, "e.g. --pan-range 20 --tilt-range 15")
+    if extent not in EXTENTS:
+        raise InputError(f"unknown extent '{extent}'", None, f"use one of {', '.join(EXTENTS)}")
     if above is not None and not 0 <= above < 60:
         raise InputError(f"'above' must be degrees in [0, 60), got {above}", None, "e.g. --above 8")
     height = float(np.mean([c.height for c in cameras])) if height is None else float(height)
     f = float(max(max(c.fx, c.fy) for c in cameras)) if f is None else float(f)
     # a virtual camera centred at the origin: extents are read off directly
     probe = Camera("probe", (1, 1), f, f, 0.0, 0.0, height)
-    mx = my = bottom = 0.0
+    reach = []  # per camera: (max |x|, max |y|, max y) reached, pose variation included
     for cam in cameras:
         pts = _lower_half_corners(cam.without_ego())  # ego-vehicle rows: as if cropped off (never warped)
         if rule == "shift":
             p = apply_homography(virt_H_src(cam, probe), pts)
-            mx = max(mx, np.abs(p[:, 0]).max() + f * math.tan(math.radians(pan_range)))
-            my = max(my, np.abs(p[:, 1]).max() + f * math.tan(math.radians(tilt_range)))
-            bottom = max(bottom, p[:, 1].max() + f * math.tan(math.radians(tilt_range)))
+            dx, dy = f * math.tan(math.radians(pan_range)), f * math.tan(math.radians(tilt_range))
+            reach.append((np.abs(p[:, 0]).max() + dx, np.abs(p[:, 1]).max() + dy, p[:, 1].max() + dy))
         else:
+            r = (0.0, 0.0, 0.0)
             for dp in np.linspace(-pan_range, pan_range, 9):
                 for dt in np.linspace(-tilt_range, tilt_range, 7):
                     p = apply_homography(virt_H_src(cam, probe, pan=cam.pan + dp, tilt=cam.tilt + dt), pts)
-                    mx, my = max(mx, np.abs(p[:, 0]).max()), max(my, np.abs(p[:, 1]).max())
-                    bottom = max(bottom, p[:, 1].max())
+                    r = (max(r[0], np.abs(p[:, 0]).max()), max(r[1], np.abs(p[:, 1]).max()), max(r[2], p[:, 1].max()))
+            reach.append(r)
+    mx, my, bottom = (float(np.max(v) if extent == "max" else np.median(v)) for v in zip(*reach))
     W = int(math.ceil(2 * mx / multiple) * multiple)
     if above is None:
         H = int(math.ceil(2 * my / multiple) * multiple)
