@@ -48,10 +48,12 @@ class VirtualDesign:
     tilt_range: float
     sources: tuple[str, ...]
     above: float | None = None  # degrees kept above the horizon (None: the paper's centred rectangle)
+    extent: str = "max"         # the rectangle holds every camera ('max') or the median camera's reach
 
     def report(self) -> str:
         hf, vf = self.camera.fov_deg()
         crop = "" if self.above is None else f", cropped to {self.above:g} deg above the horizon"
+        crop += ", sized by the median camera" if self.extent == "median" else ""
         return (f"# designed from {', '.join(self.sources)} by rule '{self.rule}' "
                 f"(pan +/-{self.pan_range:g} deg, tilt +/-{self.tilt_range:g} deg{crop})\n"
                 f"# size {self.camera.size[0]}x{self.camera.size[1]}, FOV {hf:.1f} x {vf:.1f} deg, "
@@ -114,7 +116,7 @@ def design_virtual_camera(cameras: list[Camera], pan_range: float = 20.0, tilt_r
         cy = top - 0.5
     virt = camera_from_dict({"name": name, "image_size": [W, H], "fx": f, "fy": f, "cx": (W - 1) / 2.0,
                              "cy": cy, "height": height, "tilt": 0.0, "pan": 0.0})
-    return VirtualDesign(virt, (mx, my), rule, pan_range, tilt_range, tuple(c.name for c in cameras), above)
+    return VirtualDesign(virt, (mx, my), rule, pan_range, tilt_range, tuple(c.name for c in cameras), above, extent)
 
 
 def same_camera_other_canvas(a: dict | None, b: dict | None) -> bool:

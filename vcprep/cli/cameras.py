@@ -70,20 +70,25 @@ def camera_design(cameras: List[str] = typer.Argument(..., help="physical camera
                   above: Optional[float] = typer.Option(None, "--above",
                                                         help="crop to the road: keep only this many degrees above "
                                                              "the horizon (plus the tilt range); default: the "
-                                                             "paper's rectangle centred on the horizon")):
+                                                             "paper's rectangle centred on the horizon"),
+                  extent: str = typer.Option("max", help="'max': the rectangle holds every camera; 'median': it "
+                                                         "reaches sideways and down as far as the median camera "
+                                                         "(the widest and lowest cameras are cut)")):
     """Derive a virtual camera from physical cameras (paper §4.1.2): mean height, max focal,
     central principal point, FOV that holds the lower half of every camera under the pose ranges.
     --above crops the rows above the horizon that can never be road (an exact crop: only cy and
-    the height change).
+    the height change). --extent median sizes the rectangle by the median camera, so that one very
+    wide or very low camera does not shrink every other camera's images at a fixed pixel budget.
 
     \b
     Example:
       vcprep camera design camvid cityscapes kitti qian toronto2020 -o virtual.yaml
       vcprep camera design camvid kitti --pan-range 10 --tilt-range 5 --above 8 -o road.yaml
+      vcprep camera design camvid cityscapes lums.yaml idd.yaml --above 8 --extent median -o road.yaml
     """
     cams = [load_camera(c) for c in cameras]
     design = design_virtual_camera(cams, pan_range=pan_range, tilt_range=tilt_range, rule=rule, name=name,
-                                   above=above)
+                                   above=above, extent=extent)
 
     text = camera_to_yaml(design.camera) + design.report()
     write_bytes_atomic(ensure_parent(out), text.encode())
