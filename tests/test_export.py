@@ -228,6 +228,8 @@ def test_bad_inputs_give_one_error_line(models, tmp_path):
     with pytest.raises(InputError, match="--vp-input"):  # a fixed graph cannot take per-frame VPs
         predict_images_onnx(OnnxPredictor(tmp_path / "road.onnx"), [tmp_path / "other"], tmp_path / "o",
                             within="estimate", progress=False)
+    assert_one_error_line(run_cli("export", root / "rs.pt", "--camera", tmp_path / "cam.yaml", "--vp-input", "-o",
+                                  tmp_path / "rs.onnx", prog="vctrain"), "takes no VP", "without --vp-input")
     (tmp_path / "junk.onnx").write_bytes(b"not a graph")
     with pytest.raises(InputError, match="cannot load ONNX graph"):
         OnnxPredictor(tmp_path / "junk.onnx")

@@ -186,6 +186,9 @@ def _geometry(predictor, camera: Camera, vp_input: bool, pose_range: tuple[float
                          "vp_channel": predictor.vp_channel, "vp_input": vp_input}
     vp_src = vp_from_pose(cam)
     if predictor.mode == "resize":
+        if vp_input and not predictor.vp_channel:
+            raise InputError("a resize model without the VP channel takes no VP (the frame is only resized)",
+                             predictor.path, "export without --vp-input")
         g["work"] = list(predictor.size)
         if predictor.vp_channel:
             S = scale_matrix(g["work"][0] / w, g["work"][1] / h)
