@@ -156,6 +156,8 @@ def test_within_gt_is_skipped_without_given_vps(tmp_path):
     (lambda d: d.update(canvas="round"), "'canvas' must be one of shared, footprint"),
     (lambda d: d.update(canvas="footprint", virtual="virtual", above=None), "'canvas' sizes a designed virtual camera"),
     (lambda d: d.update(canvas="footprint", conditions=["prior"]), "conditions prior, adapt and adapt-fuse"),
+    (lambda d: d.update(extent="mean"), "'extent' must be one of max, median"),
+    (lambda d: d.update(extent="median", virtual="virtual", above=None), "'extent' sizes a designed virtual camera"),
 ])
 def test_bad_study_files_give_one_error_line(tmp_path, edit, needle):
     study = _study(tmp_path / "data")

@@ -102,6 +102,9 @@ def _write_study_json(out: Path, res: Resolution, conditions: list[str], trainin
                                     "canvas": res.canvas,
                                     **({"canvases": {d.name: list(res.virtual_for(d).size) for d in study.datasets}}
                                        if res.canvas != "shared" else {}),
+                                    **({"extent": study.extent, "test_canvases": {
+                                        d.name: list(res.virtual_for(d, "test").size) for d in study.datasets}}
+                                       if study.extent != "max" else {}),
                                     **({"ego_found": res.ego_found} if res.ego_found else {}),
                                     **({"cameras_estimated": {k: v["camera"] for k, v in res.estimated.items()}}
                                        if res.estimated else {})})

@@ -63,6 +63,9 @@ class Keys:
         self.entry = {d.name: self._entry(d) for d in study.datasets}
         settings = {**self.common, "datasets": [self.entry[d.name]["dataset"] for d in study.datasets]}
         canvases = {d.name: res.virtual_for(d).to_dict() for d in study.datasets}
+        if study.extent != "max":  # (only then do the test splits' stores have rectangles of their own)
+            settings["extent"] = study.extent
+            canvases.update({d.name + ":test": res.virtual_for(d, "test").to_dict() for d in study.datasets})
         if any(c != virt.to_dict() for c in canvases.values()):  # (every store in the shared rectangle: as before)
             settings["canvas"] = canvases
         ego = {n: e["ego_rows"] for n, e in self.entry.items() if e.get("ego_rows")}
@@ -77,6 +80,7 @@ class Keys:
         # (a preset is written preset:NAME since the one naming rule; bare, as before, in the settings)
         e = {"dataset": [d.name, d.role, d.camera.removeprefix(PRESET_PREFIX), d.label_format, repr(d.train),
                          repr(d.test)], "canvas": res.virtual_for(d).to_dict(),
+             **({"test_canvas": res.virtual_for(d, "test").to_dict()} if res.study.extent != "max" else {}),
              "camera_params": res.nominal_camera(d).to_dict()}  # (the file's contents, not only its name)
         cam = res.camera(d)
         if isinstance(cam, Camera) and cam.ego_rows:

@@ -184,36 +184,55 @@ class Resolution:
                 from vcprep.virtual_camera import design_virtual_camera
 
                 design = design_virtual_camera([self.nominal_camera(d) for d in self.study.datasets], self.study.pan_range,
-                                               self.study.tilt_range, name="study-virtual", above=self.study.above)
+                                               self.study.tilt_range, name="study-virtual", above=self.study.above,
+                                               extent=self.study.extent)
                 self._virtual = design.camera
             else:
                 self._virtual = load_camera(self.study.virtual)
         return self._virtual
 
-    def virtual_for(self, ds: Dataset) -> Camera:
-        """The virtual camera of ``ds``'s stores. ``canvas: shared`` (or a given virtual camera):
-        :meth:`virtual` for every dataset. ``canvas: footprint``: the virtual camera designed from
-        the trainable datasets' cameras alone (focal length, height, level pose, top edge, and the
-        rectangle that holds them: every trainable dataset's stores, so a model's training images
-        share one size and no test camera shapes the training), and for a test-only dataset that
-        camera's rectangle extended to its own camera (the network runs on it at the training's
-        pixels per degree)."""
+    def virtual_for(self, ds: Dataset, split: str | None = None) -> Camera:
+        """The virtual camera of ``ds``'s stores (of ``split``: only ``extent: median`` tells the
+        test split apart). ``canvas: shared`` (or a given virtual camera): :meth:`virtual` for every
+        dataset. ``canvas: footprint``: the virtual camera designed from the trainable datasets'
+        cameras alone (focal length, height, level pose, top edge, and the rectangle that holds
+        them: every trainable dataset's stores, so a model's training images share one size and no
+        test camera shapes the training), and for a test-only dataset that camera's rectangle
+        extended to its own camera (the network runs on it at the training's pixels per degree).
+        ``extent: median``: the training rectangle reaches only as far as the median camera, and
+        the stores of every test split (and of a test-only dataset) are that rectangle extended to
+        hold the dataset's camera at every pose of the ranges (:func:`~vcprep.virtual_camera.extend_canvas`)."""
+        base = self._canvas_of(ds)
+        if self.study.extent == "max" or self.study.virtual != "design" or (split != "test" and ds.role != "test"):
+            return base
+        key = ds.name + "\0test"
+        if key not in self._canvas:
+            from vcprep.virtual_camera import extend_canvas
+
+            cam, st = self.nominal_camera(ds), self.study
+            views = [(cam, cam.pan + a * st.pan_range, cam.tilt + b * st.tilt_range) for a in (-1, 0, 1) for b in (-1, 0, 1)]
+            self._canvas[key] = extend_canvas(base, views)
+        return self._canvas[key]
+
+    def _canvas_of(self, ds: Dataset) -> Camera:
+        """:meth:`virtual_for` before the test splits' extension (``extent: median``)."""
         if self.study.virtual != "design" or self.canvas == "shared":
             return self.virtual()
-        key = "\0train" if ds.role != "test" else ds.name
+        median = self.study.extent != "max"
+        key = "\0train" if ds.role != "test" or median else ds.name
         if key not in self._canvas:
             from vcprep.virtual_camera import design_virtual_camera
 
             cams = [self.nominal_camera(d) for d in self.study.datasets if d.role != "test"]
-            if ds.role == "test":
-                ref = self.virtual_for(next(d for d in self.study.datasets if d.role != "test"))
+            if key != "\0train":
+                ref = self._canvas_of(next(d for d in self.study.datasets if d.role != "test"))
                 cams.append(self.nominal_camera(ds))
                 f, height = ref.fx, ref.height
             else:
                 f = height = None
             self._canvas[key] = design_virtual_camera(cams, self.study.pan_range, self.study.tilt_range,
                                                       name="study-virtual", above=self.study.above, f=f,
-                                                      height=height).camera
+                                                      height=height, extent=self.study.extent).camera
         return self._canvas[key]
 
     def training_virtual(self) -> Camera:

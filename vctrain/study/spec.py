@@ -164,6 +164,9 @@ class Study:
                                      # training stores hold the trainable datasets' cameras, a test-only
                                      # dataset's stores also its own (CANVASES); None: DEFAULT_CANVAS, or
                                      # 'shared' for conditions prior/adapt (vctrain.study.run_study)
+    extent: str = "max"              # the designed rectangle holds every camera ('max') or reaches as far as
+                                     # the median camera ('median'; every test split's stores extended to
+                                     # hold their own camera: vctrain.study.resolve.Resolution.virtual_for)
     train: dict[str, Any] = field(default_factory=dict)  # TrainConfig overrides
 
     def dataset(self, name: str) -> Dataset:
@@ -261,7 +264,7 @@ def load_study(path: str | Path) -> Study:
         raise InputError("not valid YAML", path, "fix the syntax; see the study schema in docs/studies.md") from None
     d = _mapping(d, "the study file", path)
     _keys(d, ("datasets", "conditions", "virtual", "pan_range", "tilt_range", "store_width", "store_pixels", "above",
-              "canvas", "train"), ("datasets",),
+              "canvas", "extent", "train"), ("datasets",),
           "the study file", path)
     raw = d["datasets"]
     if not isinstance(raw, list) or len(raw) < 2:
@@ -378,6 +381,15 @@ def _read_settings(d: dict, study: Study) -> None:
         if v != "shared" and study.virtual != "design":
             raise InputError("'canvas' sizes a designed virtual camera", path, "use it with virtual: design")
         study.canvas = v
+    if "extent" in d:
+        from vcprep.virtual_camera import EXTENTS
+
+        v = d["extent"]
+        if v not in EXTENTS:
+            raise InputError(f"'extent' must be one of {', '.join(EXTENTS)}, got {v!r}", path, "e.g. extent: median")
+        if study.virtual != "design":
+            raise InputError("'extent' sizes a designed virtual camera", path, "use it with virtual: design")
+        study.extent = v
     if "train" in d:
         t = _mapping(d["train"], "'train'", path)
         _check_train_keys(t, path)

@@ -90,7 +90,7 @@ class Stores:
         """How the store of ``ds``'s ``split`` in ``geometry`` is built: the dataset's camera into
         the study's virtual camera and scale, with the geometry's poses and completion."""
         source, completion = GEOMETRIES[geometry]
-        return WarpSettings(camera=self.res.camera(ds), virtual=self.res.virtual_for(ds), scale=self.res.scale(),
+        return WarpSettings(camera=self.res.camera(ds), virtual=self.res.virtual_for(ds, split), scale=self.res.scale(),
                             label_format=get_label_format(ds.label_format), completion=completion,
                             poses=self.poses(ds, split, source), workers=self.jobs, progress=self.progress)
 
