@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/multi_camera.py [--seeds 0,1] [--conditions within,resize] [--epochs N]
                                                 [--workdir benchmarks/out/multi_camera] [--threads 2]
-                                                [--quick] [--collect]
+                                                [--quick] [--collect] [--extent max|median]
 
 **Data** (../shared/data, each with the camera it ships with), every one ``role: both``:
 ``camvid`` (CamVid train + val, 468 frames of the SegNet release, the camvid preset scaled to 480x360;
@@ -36,6 +36,12 @@ resize - 1.
 
 **Threads**: ``--threads`` (default 2) is crossval's ``--jobs`` and OMP_NUM_THREADS; the minutes per model
 are wall-clock training minutes on this machine at that thread count.
+
+**Rectangle rule** (``--extent``): ``max`` (default) designs the virtual camera's rectangle to hold every
+camera; ``median`` sizes it by the median camera (IDD-Lite's assumed 90 deg and LUMS's low, tilted view no
+longer shrink every other camera's images; each test split extended to hold its own camera): the
+virtual-camera conditions run in WORKDIR/median, ``resize`` (which no rectangle touches) is read from
+WORKDIR's studies of the same seeds, results in multi_camera_median.{md,json}.
 
 Outputs: benchmarks/results/multi_camera.{md,json} (``--quick``: a smoke run, a few frames, 2 steps, into
 WORKDIR/results). ``--collect`` runs nothing: it reports the folds finished so far (a cut-off run's) and
@@ -81,8 +87,10 @@ def _link_all(dst: Path, parts: list[tuple[Path, Path]], n: int | None = None) -
     return {"images": str(dst / "images"), "labels": str(dst / "labels")}
 
 
-def study_file(wd: Path, quick: bool, epochs: int | None, shading_aug: float = SHADING_AUG) -> Path:
-    """The study: the five real datasets held out in turn, KITTI a test set."""
+def study_file(wd: Path, quick: bool, epochs: int | None, shading_aug: float = SHADING_AUG,
+               extent: str = "max") -> Path:
+    """The study: the five real datasets held out in turn, KITTI a test set; ``extent`` the designed
+    rectangle's rule (study key ``extent``)."""
     n = QUICK_FRAMES if quick else None
     camvid = _link_all(wd / "frames" / "camvid", [(DATA / "train", DATA / "trainannot"),
                                                   (DATA / "val", DATA / "valannot")], n)
@@ -103,6 +111,7 @@ def study_file(wd: Path, quick: bool, epochs: int | None, shading_aug: float = S
              {"max_steps": camvid_steps_per_epoch(), **({"epochs": epochs} if epochs else {})})
     path = wd / "study.yaml"
     path.write_text(yaml.safe_dump({"datasets": [datasets[k] for k in LOO] + [kitti],
+                                    **({"extent": extent} if extent != "max" else {}),
                                     "train": {**train, "balance": "datasets", "shading_aug": shading_aug}},
                                    sort_keys=False))
     return path
@@ -115,14 +124,16 @@ def result_files(sd: Path, cond: str) -> dict[str, Path]:
     return out
 
 
-def collect(wd: Path, seeds: list[int], conds: list[str]) -> tuple[dict[str, list], list[str], list[float]]:
+def collect(wd: Path, seeds: list[int], conds: list[str],
+            base: Path | None = None) -> tuple[dict[str, list], list[str], list[float]]:
     """(cells {'<test>|<cond>': road IoU points per seed, None where not finished}, the missing
-    '<test>|<cond>|seed<k>' folds, the training minutes of every finished model)."""
+    '<test>|<cond>|seed<k>' folds, the training minutes of every finished model). ``base``: the
+    workdir whose studies hold ``resize`` (another rectangle rule's: resize meets no rectangle)."""
     cells: dict[str, list] = {}
     missing, minutes = [], {}
     for i, seed in enumerate(seeds):
-        sd = wd / f"seed{seed}"
         for cond in conds:
+            sd = (base if base is not None and cond == "resize" else wd) / f"seed{seed}"
             for t, f in result_files(sd, cond).items():
                 cell = cells.setdefault(f"{t}|{cond}", [None] * len(seeds))
                 if not f.is_file():
@@ -215,22 +226,28 @@ def main() -> None:
                     "(benchmarks/shipped_model.py scores KITTI too)")
     ap.add_argument("--quick", action="store_true", help="smoke run: a few frames, 2 steps, seed 0")
     ap.add_argument("--collect", action="store_true", help="run nothing: report what is finished and what is missing")
+    ap.add_argument("--extent", choices=("max", "median"), default="max",
+                    help="the designed rectangle's rule (study 'extent'); median: the virtual-camera conditions "
+                    "in WORKDIR/median, resize taken from WORKDIR's studies of the same seeds, results "
+                    "multi_camera_median.{md,json}")
     a = ap.parse_args()
     require_data(CITYSCAPES, IDD, DATA, KITTI, BDD, LUMS)
     seeds = [0] if a.quick else [int(s) for s in a.seeds.split(",") if s]
     conds = a.conditions.split(",")
-    wd = a.workdir / "quick" if a.quick else a.workdir
+    base = a.workdir / "quick" if a.quick else a.workdir
+    wd = base / "median" if a.extent == "median" else base
     wd.mkdir(parents=True, exist_ok=True)
     steps = 2 if a.quick else camvid_steps_per_epoch()
+    run_conds = [k for k in conds if k != "resize"] if a.extent != "max" else conds
 
     if not a.collect:
-        study = study_file(wd, a.quick, a.epochs, a.shading_aug)
+        study = study_file(wd, a.quick, a.epochs, a.shading_aug, a.extent)
         for seed in seeds:
             if seed != seeds[0]:
                 link_stores(wd / f"seed{seed}", wd / f"seed{seeds[0]}")
-            run_study(study, wd / f"seed{seed}", conds, seed, a.threads, LOO if a.no_test_only else None)
+            run_study(study, wd / f"seed{seed}", run_conds, seed, a.threads, LOO if a.no_test_only else None)
 
-    cells, missing, minutes = collect(wd, seeds, conds)
+    cells, missing, minutes = collect(wd, seeds, conds, base if a.extent != "max" else None)
     head, targets = summarise(cells, seeds, conds)
     head["minutes_per_model"] = round(float(np.mean(minutes)), 2) if minutes else None
     head["minutes_per_model_max"] = round(float(np.max(minutes)), 2) if minutes else None
@@ -240,15 +257,16 @@ def main() -> None:
     print(table)
     res_dir = (wd / "results") if a.quick else (ROOT / "benchmarks" / "results")
     res_dir.mkdir(parents=True, exist_ok=True)
-    (res_dir / "multi_camera.md").write_text(table)
+    name = "multi_camera" + ("_median" if a.extent != "max" else "")
+    (res_dir / f"{name}.md").write_text(table)
     command = (f"benchmarks/multi_camera.py {'--quick' if a.quick else '--seeds ' + a.seeds} "
                f"--conditions {a.conditions} --threads {a.threads}"
                + (f" --epochs {a.epochs}" if a.epochs else "") + f" --shading-aug {a.shading_aug:g}"
-               + (" --collect" if a.collect else ""))
-    write_json(res_dir / "multi_camera.json", {
+               + (f" --extent {a.extent}" if a.extent != "max" else "") + (" --collect" if a.collect else ""))
+    write_json(res_dir / f"{name}.json", {
         "headline": head, "targets": targets, "cells": cells, "seeds": seeds, "conditions": conds, "held_out": LOO,
         "test_only": TEST_ONLY, "steps_per_epoch": steps, "epochs": a.epochs, "balance": "datasets",
-        "shading_aug": a.shading_aug,
+        "shading_aug": a.shading_aug, "extent": a.extent,
         "threads": a.threads, "machine": machine(), "date": today(), "command": command})
     print(json.dumps(head))
     sys.stdout.flush()
