@@ -223,27 +223,7 @@ def _geometry(predictor, camera: Camera, vp_input: bool, pose_range: tuple[float
         p = S @ np.array([vp_store[0], vp_store[1], 1.0])
         g["vp_map"] = vp_proximity(work, (p[0], p[1])).astype(np.float32)
     if vp_input:
-        from vcprep.homography import ground_to_image
-
-        g["camera"] = cam
-        g["Gv"] = ground_to_image(vs)
-        # the back-projection's box: every frame pixel that sees the store at a pose of the range
-        seen = np.zeros((h, w), bool)
-        for a in np.linspace(-1, 1, 5):
-            for b in np.linspace(-1, 1, 5):
-                _, Hp = item_geometry(cam, (w, h), vs, None, cam.pan + a * pose_range[0], cam.tilt + b * pose_range[1])
-                bx, by = _backproject_coords(torch.tensor(np.asarray(Hp, dtype=np.float64)), w, h)
-                seen |= _sees_store(*_taps(bx.reshape(-1), by.reshape(-1), *store_size)).reshape(h, w).numpy()
-        g["back_box"] = list(_seen_box(seen, BOX_MARGIN))
-        if completion == "projective":  # the fill table's angles seen from the mount pose's centre (module doc)
-            from vcprep.completion_tables import TABLE_COLS, _all_angles
-
-            mount = C.completion_maps(H, vis, store_size, completion, vp_store)
-            n, cu, cv = mount.angles.n, np.float32(mount.centre[0]), np.float32(mount.centre[1])
-            pair = _all_angles((store_size[1], store_size[0]), cu, cv, n).astype(np.int32)
-            g["angle_index"] = (pair[..., 0] + pair[..., 1] * TABLE_COLS).astype(np.int16)
-            g["angle_centre"], g["angle_n"] = [float(cu), float(cv)], n
-        return g
+        return _vp_geometry(g, cam, vs, H, vp_store, pose_range)
     maps = item_maps(H, vis, store_size, completion, vp_store)
     covered = torch.from_numpy(maps.valid.astype(bool))
     mx, my = torch.from_numpy(maps.exact_maps.map_x), torch.from_numpy(maps.exact_maps.map_y)
@@ -279,6 +259,38 @@ def trace_onnx(module: nn.Module, args: tuple, inputs: list[str], outputs: list[
         torch.onnx.export(module, args, buf, dynamo=False, opset_version=OPSET, input_names=inputs,
                           output_names=outputs, do_constant_folding=fold)
     return buf.getvalue()
+
+
+def _vp_geometry(g: dict[str, Any], cam: Camera, vs: Camera, H: np.ndarray, vp_store: tuple[float, float],
+                 pose_range: tuple[float, float]) -> dict[str, Any]:
+    """What a ``--vp-input`` graph holds besides :func:`_geometry`'s sizes: the camera and the
+    virtual camera's ground homography, the back-projection's box over the pose range and (projective
+    completion) the fill table's angle index seen from the mount pose's ray centre."""
+    from vcprep import completion as C
+    from vcprep.build import item_geometry
+    from vcprep.homography import ground_to_image
+
+    w, h = g["size"]
+    vis, store_size, completion = tuple(g["visible"]), tuple(g["store_size"]), g["completion"]
+    g["camera"] = cam
+    g["Gv"] = ground_to_image(vs)
+    # the back-projection's box: every frame pixel that sees the store at a pose of the range
+    seen = np.zeros((h, w), bool)
+    for a in np.linspace(-1, 1, 5):
+        for b in np.linspace(-1, 1, 5):
+            _, Hp = item_geometry(cam, (w, h), vs, None, cam.pan + a * pose_range[0], cam.tilt + b * pose_range[1])
+            bx, by = _backproject_coords(torch.tensor(np.asarray(Hp, dtype=np.float64)), w, h)
+            seen |= _sees_store(*_taps(bx.reshape(-1), by.reshape(-1), *store_size)).reshape(h, w).numpy()
+    g["back_box"] = list(_seen_box(seen, BOX_MARGIN))
+    if completion == "projective":  # the fill table's angles seen from the mount pose's centre (module doc)
+        from vcprep.completion_tables import TABLE_COLS, _all_angles
+
+        mount = C.completion_maps(H, vis, store_size, completion, vp_store)
+        n, cu, cv = mount.angles.n, np.float32(mount.centre[0]), np.float32(mount.centre[1])
+        pair = _all_angles((store_size[1], store_size[0]), cu, cv, n).astype(np.int32)
+        g["angle_index"] = (pair[..., 0] + pair[..., 1] * TABLE_COLS).astype(np.int16)
+        g["angle_centre"], g["angle_n"] = [float(cu), float(cv)], n
+    return g
 
 
 def export_onnx(checkpoint: str | Path, camera: Camera, out: str | Path, vp_input: bool = False,
