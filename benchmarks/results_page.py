@@ -495,6 +495,21 @@ def r_finetune(d: dict) -> list[str]:
     return out + table(["target (issue 34)", "met"], [[k, num(v)] for k, v in d.get("targets", {}).items()])
 
 
+def r_loo_diagnose(d: dict) -> list[str]:
+    h = d["headline"]
+    out = [f"Held out {d['heldout']}, seed {d['seed']}, {h['frames']} frames: road IoU within {pct(h['iou']['within'])} "
+           f"(precision {pct(h['precision']['within'])}, recall {pct(h['recall']['within'])}), resize "
+           f"{pct(h['iou']['resize'])} ({pct(h['precision']['resize'])}, {pct(h['recall']['resize'])}). Road pixels no "
+           f"store pixel reaches: {pct(h['road_uncovered_share'])} %; road within misses inside the covered part: "
+           f"{pct(h['road_missed_inside_coverage_share'])} %. Within at a multiple of its working size: "
+           + ", ".join(f"{s}x {pct(v)}" for s, v in h["within_iou_by_scale"].items()) + ".", ""]
+    n = len(h["fn_share_by_band"]["within"])
+    rows = [[f"{what}, {k} (%)"] + [pct(v) for v in h[key][k]]
+            for what, key in (("missed road", "fn_share_by_band"), ("false road", "fp_share_by_band"))
+            for k in ("within", "resize")]
+    return out + table(["band, top to bottom"] + [str(i + 1) for i in range(n)], rows)
+
+
 def r_generic(d: dict) -> list[str]:
     h = d.get("headline") if isinstance(d.get("headline"), dict) else d
     rows = [[k, f"{v:.4g}" if isinstance(v, float) else num(v)] for k, v in h.items()
@@ -573,7 +588,7 @@ def render_page(results: Path = RESULTS) -> str:
             d = {"headline": {"entries": len(d) if isinstance(d, list) else d}}
         out += [f"## {p.stem}", ""]
         out += table(["", ""], run_facts(p.stem, d))
-        out += RENDER.get(p.stem, r_generic)(d)
+        out += RENDER.get(p.stem, r_loo_diagnose if p.stem.startswith("loo_diagnose_") else r_generic)(d)
     return "\n".join(out).rstrip("\n") + "\n"
 
 
