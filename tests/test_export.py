@@ -233,3 +233,22 @@ def test_bad_inputs_give_one_error_line(models, tmp_path):
     (tmp_path / "junk.onnx").write_bytes(b"not a graph")
     with pytest.raises(InputError, match="cannot load ONNX graph"):
         OnnxPredictor(tmp_path / "junk.onnx")
+
+
+def test_graph_resize_is_cv2s_in_either_layout():
+    """The graph's uint8 resize (the resize twin's input: the frame itself, HWC) is cv2.resize's
+    INTER_LINEAR bit for bit when shrinking dashcam-size frames to the working size, and the frame
+    layout (gathered before the cast) gives exactly what the (N, C, h, w) float layout gives."""
+    import cv2
+
+    from vctrain.graph_ops import _resize_u8
+
+    rng = np.random.default_rng(0)
+    for (sw, sh), (dw, dh) in (((1280, 720), (480, 360)), ((1242, 375), (480, 360)), ((97, 53), (300, 211))):
+        img = rng.integers(0, 256, (sh, sw, 3), dtype=np.uint8)
+        img[: sh // 2] = cv2.GaussianBlur(img[: sh // 2], (0, 0), 3)  # smooth and noisy halves
+        hwc = _resize_u8(torch.from_numpy(img), (sw, sh), (dw, dh), hwc=True)[0].permute(1, 2, 0).numpy()
+        chw = _resize_u8(torch.from_numpy(img).float().permute(2, 0, 1)[None], (sw, sh), (dw, dh))[0]
+        assert np.array_equal(hwc, chw.permute(1, 2, 0).numpy())
+        if sw > dw:  # (enlarging: OpenCV's fixed-point weights differ by a grey level here and there)
+            assert np.array_equal(hwc, cv2.resize(img, (dw, dh), interpolation=cv2.INTER_LINEAR))

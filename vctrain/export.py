@@ -106,12 +106,14 @@ class RoadGraph(nn.Module):
         return (getattr(self, f"{name}_idx"), _load_fraction(getattr(self, f"{name}_ax")),
                 _load_fraction(getattr(self, f"{name}_ay")))
 
-    def _net(self, x: torch.Tensor, vp_map: torch.Tensor | None, ws: int, hs: int) -> torch.Tensor:
-        """(3, hs, ws) float 0-255 BGR image -> P(road) (hs, ws) at that size (working size inside)."""
+    def _net(self, x: torch.Tensor, vp_map: torch.Tensor | None, ws: int, hs: int, hwc: bool = False) -> torch.Tensor:
+        """(3, hs, ws) float 0-255 BGR image (``hwc``: the uint8 frame (hs, ws, 3) itself) -> P(road)
+        (hs, ws) at that size (working size inside)."""
         g = self.g
-        x = x[None]
         if tuple(g["work"]) != (ws, hs):  # resize_pair: cv2.resize bilinear on the uint8 image
-            x = _resize_u8(x, (ws, hs), tuple(g["work"]))
+            x = _resize_u8(x if hwc else x[None], (ws, hs), tuple(g["work"]), hwc=hwc)
+        else:
+            x = x.to(torch.float32).permute(2, 0, 1)[None] if hwc else x[None]
         x = x * (2 / 255) - 1 if not g["greyscale"] else x
         if g["greyscale"]:  # to_input: cvtColor BGR2GRAY on [0, 1] floats, replicated
             grey = (x[:, 0:1] * 0.114 + x[:, 1:2] * 0.587 + x[:, 2:3] * 0.299) / 255
@@ -146,7 +148,7 @@ class RoadGraph(nn.Module):
             vp_map = None
             if g["vp_channel"]:
                 vp_map = self.vp_map if vp is None else _vp_map(vp.double(), g["work"], (w, h)).float()
-            return self._net(frame.to(torch.float32).permute(2, 0, 1), vp_map, w, h).clamp(0, 1)
+            return self._net(frame, vp_map, w, h, hwc=True).clamp(0, 1)
         wv, hv = g["visible"]
         src = _padded(frame[:hv])  # (P, 3) uint8; the own vehicle's rows are never warped
         Ws, Hs = g["store_size"]
