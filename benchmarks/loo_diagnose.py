@@ -56,7 +56,6 @@ def diagnose(within_ckpt: Path, resize_ckpt: Path, store_dir: Path, every: int) 
     from vctrain.predict import Predictor
 
     pw, pr = Predictor(within_ckpt, device="cpu"), Predictor(resize_ckpt, device="cpu")
-    working = pw.working_size
     st = Store.open(store_dir)
     recs = [r for r in st if r.get("label_source")][::every]
     scale_m = {s: RoadMetrics() for s in SCALES}
@@ -70,10 +69,10 @@ def diagnose(within_ckpt: Path, resize_ckpt: Path, store_dir: Path, every: int) 
         store_img = read_image(st.path(rec["image"])).array
         covered = backproject_array(np.ones(store_img.shape[:2], np.float32), rec, kind="prob") > 0.5
         preds = {}
+        work = pw.working_size((store_img.shape[1], store_img.shape[0]))
         for s in SCALES:
-            pw.working_size = lambda size, s=s: tuple(max(8, int(round(v * s))) for v in working(size))
-            prob = np.clip(backproject_array(pw.road_probability(store_img, None, pw.working_size(
-                (store_img.shape[1], store_img.shape[0]))), rec, kind="prob"), 0, 1)
+            size = tuple(max(8, int(round(v * s))) for v in work)
+            prob = np.clip(backproject_array(pw.road_probability(store_img, None, size), rec, kind="prob"), 0, 1)
             scale_m[s].add(prob >= 0.5, lab)
             if s == 1.0:
                 preds["within"] = prob >= 0.5
@@ -88,7 +87,6 @@ def diagnose(within_ckpt: Path, resize_ckpt: Path, store_dir: Path, every: int) 
         road_total += int(road.sum())
         uncovered += int((road & ~covered).sum())
         missed_covered += int((road & covered & ~preds["within"]).sum())
-    pw.working_size = working
     r4 = lambda x: round(float(x), 4)
     share = lambda a, b: [r4(x) for x in a / np.maximum(b, 1)]
     return {

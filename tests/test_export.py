@@ -239,8 +239,6 @@ def test_graph_resize_is_cv2s_in_either_layout():
     """The graph's uint8 resize (the resize twin's input: the frame itself, HWC) is cv2.resize's
     INTER_LINEAR bit for bit when shrinking dashcam-size frames to the working size, and the frame
     layout (gathered before the cast) gives exactly what the (N, C, h, w) float layout gives."""
-    import cv2
-
     from vctrain.graph_ops import _resize_u8
 
     rng = np.random.default_rng(0)
