@@ -499,6 +499,17 @@ def test_resume_continues_exactly(trained, tmp_path):
         assert torch.allclose(a["model"][k].float(), b["model"][k].float(), atol=1e-6), k
 
 
+def _json_objects(text: str) -> list:
+    """Every JSON object in ``text``: the ranks of a torchrun job share one stdout, so two ranks'
+    lines can land on one line, one object right after the other."""
+    dec, out, i = json.JSONDecoder(), [], text.find("{")
+    while i >= 0:
+        obj, end = dec.raw_decode(text, i)
+        out.append(obj)
+        i = text.find("{", end)
+    return out
+
+
 def test_two_process_training_keeps_replicas_identical(trained, tmp_path):
     root, _, _ = trained
     torchrun = Path(sys.executable).with_name("torchrun")
@@ -519,7 +530,7 @@ def test_two_process_training_keeps_replicas_identical(trained, tmp_path):
                        capture_output=True, text=True, env=env, timeout=120)
     # a failing rank's own message comes first; torchrun's summary of it last
     assert r.returncode == 0, r.stderr[:1500] + "\n...\n" + r.stderr[-800:]
-    rows = [json.loads(l) for l in r.stdout.splitlines() if l.startswith("{")]
+    rows = _json_objects(r.stdout)
     summaries = [row for row in rows if "world_size" in row]
     assert len(summaries) == 2 and all(row["world_size"] == 2 and row["replicas_identical"] for row in summaries)
     threads = [row["threads"] for row in rows if "threads" in row]
