@@ -26,7 +26,7 @@ fold's budget). The checkpoint is chosen on the training splits' validation shar
 **Baseline**: ``resize``, the same network on the same training frames, steps, sampling and seed,
 the images simply resized.
 
-**Targets** (issue 34, checked, not asserted): CamVid val >= 92, Cityscapes and IDD >= 88, LUMS >= 85,
+**Targets** (issue 34, checked, not asserted): the shipped model's CamVid val >= 92, Cityscapes and IDD >= 88, LUMS >= 85,
 BDD100K >= 60, KITTI >= 85 (road IoU %); ``within`` above ``resize`` on every held-out split;
 checkpoint <= 20 MB. The predict time of a 1280x720 frame (the BDD held-out frames through
 :class:`vctrain.frames.FramePredictor`, the camera's average pose; warp, network, back-projection)
@@ -223,7 +223,7 @@ def main() -> None:
     a = ap.parse_args()
     require_data(CITYSCAPES, IDD, DATA, KITTI, BDD, LUMS)
     conds = a.conditions.split(",")
-    wd = a.workdir / "quick" if a.quick else a.workdir
+    wd = (a.workdir / "quick" if a.quick else a.workdir).resolve()  # the study file holds absolute paths
     wd.mkdir(parents=True, exist_ok=True)
     sd = wd / f"seed{a.seed}"
     if not a.collect:
@@ -250,7 +250,8 @@ def main() -> None:
         head[f"predict_ms_1280x720_t{th}"] = head.get(f"predict_ms_1280x720_{ship}_t{th}")
     head["minutes_per_model"] = minutes
     head["missing"] = missing
-    targets = {f"{t} >= {TARGETS[t]:g}": None if head[f"within_{t}"] is None else head[f"within_{t}"] >= TARGETS[t]
+    # the IoU targets are the shipped model's (the condition shipped), not always within's
+    targets = {f"{t} >= {TARGETS[t]:g}": None if head[f"{ship}_{t}"] is None else head[f"{ship}_{t}"] >= TARGETS[t]
                for t in SETS}
     targets["within above resize on every split"] = (None if any(head[f"within_minus_resize_{t}"] is None for t in SETS)
                                                      else all(head[f"within_minus_resize_{t}"] > 0 for t in SETS))
