@@ -23,6 +23,8 @@ from typer.testing import CliRunner
 from conftest import assert_one_error_line, run_cli
 from vcprep.build import WarpSettings, list_dataset, warp_dataset
 from vcprep.camera import PRESETS, camera_to_yaml
+from vcprep.dataset import Job
+from vcprep.errors import InputError
 from vcprep.homography import virt_H_src, virtual_at_scale
 from vcprep.imageio import read_image, write_png
 from vcprep.labels import get_label_format
@@ -167,6 +169,33 @@ def test_adapt_with_per_frame_calibration(world, tmp_path):
         H = np.asarray(rec["H"], np.float64).reshape(3, 3)
         np.testing.assert_allclose(H / H[2, 2], virt_H_src(cam, vs, cam.pan, cam.tilt) /
                                    virt_H_src(cam, vs, cam.pan, cam.tilt)[2, 2], rtol=1e-7, atol=1e-7)
+
+
+def test_adapt_keeps_the_ids_of_the_items_it_is_given(world, tmp_path):
+    """A study hands adapt its items (IDD-Lite's ids are '<drive>_<frame>': two drives may hold one
+    file name): adapt warps each under its own id, with that id's VP, instead of refusing two images
+    of one stem."""
+    frames = sorted((world / "tgt_train/images").glob("*.png"))[:2]
+    jobs = []
+    for drive in ("d1", "d2"):
+        (tmp_path / drive).mkdir()
+        for f in frames:
+            (tmp_path / drive / f.name).write_bytes(f.read_bytes())
+            jobs.append(Job(f"{drive}_{f.stem}", tmp_path / drive / f.name))
+    vps = tmp_path / "vps.csv"  # distinct VPs per id: the store must use each id's own
+    u0, v0 = TGT.cx, TGT.cy
+    vps.write_text("id,u,v\n" + "".join(f"{j.id},{u0 + 2 * k - 3:.3f},{v0 - k:.3f}\n" for k, j in enumerate(jobs)))
+    with pytest.raises(InputError, match="two images named"):  # paths alone: ids are stems, and they collide
+        adapt(world / "model.pt", [j.image for j in jobs], TGT, world / "prior.npy", tmp_path / "p.pt",
+              AdaptSettings(epochs=1, within=str(vps), progress=False))
+    adapt(world / "model.pt", jobs, TGT, world / "prior.npy", tmp_path / "a.pt",
+          AdaptSettings(epochs=1, within=str(vps), progress=False))
+    st = Store.open(tmp_path / "a.store")
+    assert sorted(rec["id"] for rec in st) == sorted(j.id for j in jobs)
+    want = {j.id: (u0 + 2 * k - 3, v0 - k) for k, j in enumerate(jobs)}
+    for rec in st:
+        assert rec["vp"] == pytest.approx(want[rec["id"]], abs=1e-3), rec["id"]
+    assert load_checkpoint(tmp_path / "a.pt")["adapted"]["images"] == [str(j.image) for j in jobs]
 
 
 def test_fuse_and_surrogate_for_item():

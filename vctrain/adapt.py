@@ -31,12 +31,13 @@ from __future__ import annotations
 import hashlib
 from dataclasses import fields
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Iterable, Sequence
 
 import numpy as np
 
 from vcprep.backproject import backproject_array
 from vcprep.camera import Camera, FrameCameras
+from vcprep.dataset import Job
 from vcprep.errors import InputError
 from vcprep.imageio import read_image, write_png
 from vcprep.labels import IGNORE, ROAD
@@ -170,9 +171,10 @@ def _prior_for(prior: str | Path | np.ndarray, store_params: dict[str, Any],
     return p, None, None
 
 
-def adapt(model: str | Path, images: str | Path | Iterable[str | Path], camera: Camera | FrameCameras,
+def adapt(model: str | Path, images: str | Path | Iterable[str | Path] | Sequence[Job], camera: Camera | FrameCameras,
           prior: str | Path | np.ndarray, out: str | Path, settings: AdaptSettings = AdaptSettings()) -> dict[str, Any]:
-    """Fine-tune the virtual-camera ``model`` on unlabelled ``images`` of ``camera`` with surrogate
+    """Fine-tune the virtual-camera ``model`` on unlabelled ``images`` (a folder, image files, or
+    :class:`vcprep.dataset.Job` items whose ids are kept) of ``camera`` with surrogate
     labels from ``prior`` (a ``.npy``/``.png`` written by ``vcprep prior``, or the array of
     :func:`vcprep.prior.compute_prior`); ``camera`` may be per-frame calibration (every frame
     its exact pose, no VP estimated); writes ``out`` (and ``OUT-stem.last.pt``, the log).
@@ -203,7 +205,9 @@ def adapt(model: str | Path, images: str | Path | Iterable[str | Path], camera: 
         raise InputError("output folder does not exist", out.parent, "create it first")
     if out.resolve() == model.resolve():
         raise InputError("--out is the model being adapted", out, "write the adapted model to another file")
-    jobs = collect_images([images] if isinstance(images, (str, Path)) else images)
+    images = [images] if isinstance(images, (str, Path)) else list(images)
+    # Jobs keep their ids (a study's: IDD-Lite's '<drive>_<frame>', as its VP files name them); paths get stems
+    jobs = images if images and all(isinstance(j, Job) for j in images) else collect_images(images)
     root = Path(settings.store) if settings.store is not None else adapt_store_path(out)
     # the surrogate labels come from the prior, an image of the training rectangle: no extension
     target = warp_like_training(data, model, jobs, camera, root, settings.within, settings.progress, extend=False)

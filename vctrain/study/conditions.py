@@ -285,7 +285,7 @@ class Adapt:
         settings = AdaptSettings(store=adir / "target.store", within=poses, combine=ADAPT_COMBINE[self.run.condition],
                                  device=self.cfg.device, seed=self.cfg.seed, max_steps=self.cfg.max_steps,
                                  progress=self.ctx.progress)
-        summary = adapt(self.source, [j.image for j in jobs], res.camera(ds), self.prior_path, model, settings)
+        summary = adapt(self.source, jobs, res.camera(ds), self.prior_path, model, settings)
         done = {"settings_sha": self.key(ds), "from": str(self.source), "from_sha256": self.source_sha,
                 "target": split, "target_items": len(jobs), "adapt_seconds": round(time.perf_counter() - t0, 1),
                 "label_shares": summary["adapted"]["label_shares"], "epochs": summary["adapted"]["epochs"],
