@@ -173,15 +173,15 @@ def test_adapt_with_per_frame_calibration(world, tmp_path):
 
 def test_adapt_keeps_the_ids_of_the_items_it_is_given(world, tmp_path):
     """A study hands adapt its items (IDD-Lite's ids are '<drive>_<frame>': two drives may hold one
-    file name): adapt warps each under its own id, with that id's VP, instead of refusing two images
-    of one stem."""
+    file name, and the items carry their labels): adapt warps each under its own id, with that id's VP,
+    instead of refusing two images of one stem, and reads no label."""
     frames = sorted((world / "tgt_train/images").glob("*.png"))[:2]
     jobs = []
     for drive in ("d1", "d2"):
         (tmp_path / drive).mkdir()
         for f in frames:
             (tmp_path / drive / f.name).write_bytes(f.read_bytes())
-            jobs.append(Job(f"{drive}_{f.stem}", tmp_path / drive / f.name))
+            jobs.append(Job(f"{drive}_{f.stem}", tmp_path / drive / f.name, tmp_path / "no-such-label.png"))
     vps = tmp_path / "vps.csv"  # distinct VPs per id: the store must use each id's own
     u0, v0 = TGT.cx, TGT.cy
     vps.write_text("id,u,v\n" + "".join(f"{j.id},{u0 + 2 * k - 3:.3f},{v0 - k:.3f}\n" for k, j in enumerate(jobs)))
@@ -192,6 +192,7 @@ def test_adapt_keeps_the_ids_of_the_items_it_is_given(world, tmp_path):
           AdaptSettings(epochs=1, within=str(vps), progress=False))
     st = Store.open(tmp_path / "a.store")
     assert sorted(rec["id"] for rec in st) == sorted(j.id for j in jobs)
+    assert all(rec["label_kind"] == "surrogate" for rec in st)
     want = {j.id: (u0 + 2 * k - 3, v0 - k) for k, j in enumerate(jobs)}
     for rec in st:
         assert rec["vp"] == pytest.approx(want[rec["id"]], abs=1e-3), rec["id"]

@@ -206,8 +206,10 @@ def adapt(model: str | Path, images: str | Path | Iterable[str | Path] | Sequenc
     if out.resolve() == model.resolve():
         raise InputError("--out is the model being adapted", out, "write the adapted model to another file")
     images = [images] if isinstance(images, (str, Path)) else list(images)
-    # Jobs keep their ids (a study's: IDD-Lite's '<drive>_<frame>', as its VP files name them); paths get stems
-    jobs = images if images and all(isinstance(j, Job) for j in images) else collect_images(images)
+    # Jobs keep their ids (a study's: IDD-Lite's '<drive>_<frame>', as its VP files name them), never their
+    # labels (adaptation sees none); paths get their stems
+    jobs = ([Job(j.id, j.image) for j in images] if images and all(isinstance(j, Job) for j in images)
+            else collect_images(images))
     root = Path(settings.store) if settings.store is not None else adapt_store_path(out)
     # the surrogate labels come from the prior, an image of the training rectangle: no extension
     target = warp_like_training(data, model, jobs, camera, root, settings.within, settings.progress, extend=False)
