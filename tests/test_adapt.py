@@ -199,6 +199,31 @@ def test_adapt_keeps_the_ids_of_the_items_it_is_given(world, tmp_path):
     assert load_checkpoint(tmp_path / "a.pt")["adapted"]["images"] == [str(j.image) for j in jobs]
 
 
+def test_adapt_self_trains_on_the_models_own_tri_mask(world, tmp_path):
+    """``combine='self'`` (the control for what the prior adds): every surrogate label is the
+    tri-mask of the source model's own P(road) on that warped target item, computed here by hand
+    from the predictor; not the prior's."""
+    from vctrain.data import vp_in_store
+    from vcprep.prior import surrogate_labels
+
+    _render(tmp_path / "src_more", SRC, 3, seed=5)  # the source camera: the model is sure of road and verge
+    summary = adapt(world / "model.pt", tmp_path / "src_more/images", SRC, world / "prior.npy", tmp_path / "s.pt",
+                    AdaptSettings(epochs=1, combine="self", progress=False))
+    assert summary["adapted"]["combine"] == "self"
+    pred, prior = Predictor(world / "model.pt", "cpu"), np.load(world / "prior.npy")
+    st = Store.open(tmp_path / "s.store")
+    differs = False
+    for rec in st:
+        pn = pred.road_probability(read_image(st.path(rec["image"])).array, vp_in_store(rec, st))
+        lab = read_image(st.path(rec["label"]), label=True).array
+        valid = read_image(st.path(rec["valid"]), label=True).array
+        want = surrogate_labels(np.asarray(pn, np.float32), 0.25, 0.75)
+        want[valid == 0] = 255  # the model was trained without completion: uncovered pixels ignored
+        np.testing.assert_array_equal(lab, want)
+        differs |= not np.array_equal(lab, surrogate_for_item(prior, 0.25, 0.75, valid))
+    assert differs
+
+
 def test_fuse_and_surrogate_for_item():
     p = np.array([[0.9, 0.9, 0.5, 0.1, 1.0]], np.float32)
     n = np.array([[0.9, 0.1, 0.95, 0.5, 0.0]], np.float32)
@@ -208,6 +233,10 @@ def test_fuse_and_surrogate_for_item():
     assert surrogate_for_item(p, 0.25, 0.75, prob=n).tolist() == [[1, 255, 1, 0, 255]]
     valid = np.array([[1, 1, 1, 0, 1]], np.uint8)
     assert surrogate_for_item(p, 0.25, 0.75, valid=valid).tolist() == [[1, 1, 255, 255, 1]]
+    # own_only (combine 'self'): the model's prediction alone, the prior unused
+    assert surrogate_for_item(p, 0.25, 0.75, prob=n, own_only=True).tolist() == [[1, 0, 1, 255, 0]]
+    with pytest.raises(ValueError):
+        surrogate_for_item(p, 0.25, 0.75, own_only=True)
 
 
 def test_adapt_cli_fuse_and_bad_input(world, tmp_path):

@@ -155,7 +155,7 @@ def test_within_gt_is_skipped_without_given_vps(tmp_path):
     (lambda d: d.update(extra=1), "unknown key 'extra'"),
     (lambda d: d.update(canvas="round"), "'canvas' must be one of shared, footprint"),
     (lambda d: d.update(canvas="footprint", virtual="virtual", above=None), "'canvas' sizes a designed virtual camera"),
-    (lambda d: d.update(canvas="footprint", conditions=["prior"]), "conditions prior, adapt and adapt-fuse"),
+    (lambda d: d.update(canvas="footprint", conditions=["prior"]), "conditions prior, adapt, adapt-fuse and adapt-self"),
     (lambda d: d.update(extent="mean"), "'extent' must be one of max, median"),
     (lambda d: d.update(extent="median", virtual="virtual", above=None), "'extent' sizes a designed virtual camera"),
 ])

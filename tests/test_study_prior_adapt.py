@@ -1,4 +1,4 @@
-"""vctrain crossval: conditions prior, adapt and adapt-fuse."""
+"""vctrain crossval: conditions prior, adapt and adapt-fuse (adapt-self: tests/test_adapt.py)."""
 from __future__ import annotations
 
 import json

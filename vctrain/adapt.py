@@ -51,7 +51,7 @@ from .config import ADAPT_EPOCHS, ADAPT_LR_FACTOR, AdaptSettings, TrainConfig
 __all__ = ["COMBINE", "AdaptSettings", "ADAPT_EPOCHS", "ADAPT_LR_FACTOR", "PriorPredictor", "fuse", "surrogate_for_item", "write_surrogate_labels", "adapt",
            "adapt_store_path"]
 
-COMBINE = ("prior", "fuse")
+COMBINE = ("prior", "fuse", "self")  # what a surrogate label is the tri-mask of: p_g, fused, the model's p_n
 
 
 class PriorPredictor:
@@ -94,11 +94,14 @@ def fuse(prior: np.ndarray, prob: np.ndarray) -> np.ndarray:
 
 
 def surrogate_for_item(prior: np.ndarray, lo: float, hi: float, valid: np.ndarray | None = None,
-                       prob: np.ndarray | None = None) -> np.ndarray:
+                       prob: np.ndarray | None = None, own_only: bool = False) -> np.ndarray:
     """Surrogate label (uint8 0/1/255, store size) of one item: the prior's tri-mask, or with
-    ``prob`` (the model's P(road) at the store size) the tri-mask of :func:`fuse`; ``valid``
-    (1 where a source pixel landed) given: ignore where it is 0."""
-    lab = surrogate_labels(prior if prob is None else fuse(prior, prob), lo, hi)
+    ``prob`` (the model's P(road) at the store size) the tri-mask of :func:`fuse`, or with
+    ``own_only`` the tri-mask of ``prob`` alone (self-training: the control without the prior);
+    ``valid`` (1 where a source pixel landed) given: ignore where it is 0."""
+    if own_only and prob is None:
+        raise ValueError("own_only needs the model's prob")
+    lab = surrogate_labels(prior if prob is None else prob if own_only else fuse(prior, prob), lo, hi)
     if valid is not None:
         lab[np.asarray(valid) == 0] = IGNORE
     return lab
@@ -109,7 +112,7 @@ def write_surrogate_labels(store: Store | str | Path, prior: np.ndarray, lo: flo
                            ignore_uncovered: bool = False) -> dict[str, float]:
     """Write each item's surrogate label as its store label (``labels/<id>.png``) and record it
     (``label_kind`` 'surrogate'), holding the store's writer lock. ``predictor`` (a
-    :class:`vctrain.predict.Predictor`) is needed for ``combine='fuse'``. Returns the label
+    :class:`vctrain.predict.Predictor`) is needed for ``combine`` 'fuse' and 'self'. Returns the label
     shares over all pixels (road, not_road, ignore)."""
     if combine not in COMBINE:
         raise InputError(f"unknown combination '{combine}'", None, f"use one of {', '.join(COMBINE)}")
@@ -131,9 +134,9 @@ def _write_surrogates(store: Store, prior, lo, hi, combine, predictor, ids, igno
     for rec in recs:
         valid = read_image(store.path(rec["valid"]), label=True).array if ignore_uncovered else None
         prob = None
-        if combine == "fuse":
+        if combine in ("fuse", "self"):
             prob = predictor.road_probability(read_image(store.path(rec["image"])).array, vp_in_store(rec, store))
-        lab = surrogate_for_item(prior, lo, hi, valid, prob)
+        lab = surrogate_for_item(prior, lo, hi, valid, prob, own_only=combine == "self")
         rel = f"labels/{rec['id']}.png"
         sha = write_png(store.path(rel), lab, kind="mask")
         new = {**rec, "label": rel, "label_kind": "surrogate",
@@ -214,12 +217,15 @@ def adapt(model: str | Path, images: str | Path | Iterable[str | Path] | Sequenc
     # the surrogate labels come from the prior, an image of the training rectangle: no extension
     target = warp_like_training(data, model, jobs, camera, root, settings.within, settings.progress, extend=False)
     ids = [j.id for j in jobs]
-    predictor = Predictor(model, settings.device) if combine == "fuse" else None
+    predictor = Predictor(model, settings.device) if combine in ("fuse", "self") else None
     shares = write_surrogate_labels(target, p, lo, hi, combine, predictor, ids,
                                     ignore_uncovered=data.get("completion", "none") == "none")
     if shares["road"] == 0 or shares["not_road"] == 0:
-        raise InputError(f"surrogate labels hold no {'road' if shares['road'] == 0 else 'not-road'} pixel "
-                         f"(thresholds {lo:g}/{hi:g})", prior_path or model, "check the prior, or widen --lo/--hi")
+        what = f"surrogate labels hold no {'road' if shares['road'] == 0 else 'not-road'} pixel (thresholds {lo:g}/{hi:g})"
+        if combine == "self":  # the labels are the model's own: it is that sure of nothing (or of one class)
+            raise InputError(f"{what}: the model's own P(road) never crosses them on these images", model,
+                             "widen --lo/--hi, or use --combine fuse or prior")
+        raise InputError(what, prior_path or model, "check the prior, or widen --lo/--hi")
 
     # the model's own training settings (whatever this vctrain's TrainConfig knows), then ours
     known = {f.name for f in fields(TrainConfig)}

@@ -92,6 +92,7 @@ class AdaptSettings:
     lo: float = 0.25                   # surrogate 'not road' where the (fused) probability is below this
     hi: float = 0.75                   # surrogate 'road' where it is above this
     combine: str = "prior"             # 'prior' (the prior's tri-mask, paper §4.5) | 'fuse' (with the model's own)
+                                       # | 'self' (the model's own alone: the control without the prior)
     epochs: int = ADAPT_EPOCHS         # fine-tuning epochs
     lr: Optional[float] = None         # None: ADAPT_LR_FACTOR times the model's own learning rate
     store: Optional[Path] = None       # store of the warped target images; None: OUT-stem.store

@@ -29,7 +29,10 @@ def adapt_cmd(
     hi: float = typer.Option(ADAPT.hi, "--hi", help="surrogate 'road' where the (fused) probability is above this"),
     combine: str = typer.Option(ADAPT.combine, "--combine", help="'prior': the prior's tri-mask alone (paper §4.5); 'fuse': "
                                                            "prior and the model's own prediction fused per image "
-                                                           "(p_g p_n / (p_g p_n + (1-p_g)(1-p_n))) before the thresholds"),
+                                                           "(p_g p_n / (p_g p_n + (1-p_g)(1-p_n))) before the thresholds; "
+                                                           "'self': the model's own prediction alone (self-training: "
+                                                           "the control for what the prior adds; the prior is checked, "
+                                                           "not used)"),
     epochs: int = typer.Option(ADAPT.epochs, "--epochs", "-e", help="fine-tuning epochs"),
     lr: Optional[float] = typer.Option(None, "--lr", help="learning rate (default: a tenth of the model's own)"),
     store: Optional[Path] = typer.Option(None, "--store", help="store for the warped target images and their surrogate "

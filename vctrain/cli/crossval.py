@@ -40,7 +40,8 @@ def crossval_cmd(
     zero padding instead of projective completion), prior (no training: the training datasets'
     geometric prior, p_g >= 0.5), adapt (the within model adapted to the evaluated dataset's
     unlabelled images with that prior's tri-mask), adapt-fuse (as adapt, the prior fused with the
-    model's own prediction; prior, adapt and adapt-fuse are not among the defaults). Prints the
+    model's own prediction), adapt-self (as adapt, the model's own prediction alone: the control for
+    what the prior adds; prior and the adapt conditions are not among the defaults). Prints the
     table (rows: evaluated dataset and mean; columns: conditions; road IoU in %) and writes
     OUT/table.md, table.csv, results.jsonl,
     summary.json and per-run logs under OUT/runs. Training settings the study does not give are

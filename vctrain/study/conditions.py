@@ -3,7 +3,7 @@
 * :class:`Fit` (resize, between, within, within-gt, zero): a model trained with
   :func:`vctrain.train.fit` on the run's training stores of the condition's geometry;
 * :class:`Prior` (prior): no model, P(road) = the training datasets' geometric prior p_g;
-* :class:`Adapt` (adapt, adapt-fuse): the within run's model (trained once, shared with
+* :class:`Adapt` (adapt, adapt-fuse, adapt-self): the within run's model (trained once, shared with
   condition within) adapted to each evaluated dataset's unlabelled images.
 
 Nothing is tuned on an evaluated camera: the checkpoint kept is the best on a validation share of
@@ -223,7 +223,7 @@ class Prior:
 
 
 class Adapt:
-    """Conditions adapt, adapt-fuse: the within run's model (trained once, shared with condition
+    """Conditions adapt, adapt-fuse, adapt-self: the within run's model (trained once, shared with condition
     within) adapted to each evaluated dataset's unlabelled images with the training datasets' prior
     (:func:`vctrain.adapt.adapt`), then scored on its test images like every other condition; a
     result depends on the study's settings, the adaptation's and the images adapted to."""

@@ -128,7 +128,7 @@ def run_study(study: Study, out: str | Path, conditions: Sequence[str] | None = 
     if any(CONDITIONS[c][1] in ("prior", "adapt") for c in conditions):
         # the prior is an image of the training rectangle: every store must share it
         if study.canvas == "footprint":
-            raise InputError("conditions prior, adapt and adapt-fuse need every store in one rectangle", study.path,
+            raise InputError("conditions prior, adapt, adapt-fuse and adapt-self need every store in one rectangle", study.path,
                              "drop 'canvas: footprint' from the study, or those conditions")
         res.canvas = "shared"
     out.mkdir(parents=True, exist_ok=True)

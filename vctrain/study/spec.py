@@ -28,10 +28,12 @@ adapt       the ``within`` model (the within run's own checkpoint, never a secon
 adapt-fuse  as adapt, the surrogate labels from the prior FUSED with the within model's own
             prediction on each image (``vctrain adapt --combine fuse``, GeoSeg-like: a
             confident network decides where the prior is unsure, and vice versa)
+adapt-self  as adapt, the surrogate labels from the within model's own prediction alone
+            (``--combine self``: self-training, the control for what the prior adds)
 ==========  ==========================================================================
 
 A study's default conditions are the first five (:data:`DEFAULT_CONDITIONS`); ``prior``,
-``adapt`` and ``adapt-fuse`` run when asked for (study ``conditions:`` or ``--conditions``).
+``adapt``, ``adapt-fuse`` and ``adapt-self`` run when asked for (study ``conditions:`` or ``--conditions``).
 Training settings the study's ``train:`` does not give are :class:`vctrain.train.TrainConfig`'s
 defaults. How a study runs: :mod:`vctrain.study.execute`; its tables: :mod:`vctrain.report`.
 """
@@ -74,10 +76,11 @@ CONDITIONS: dict[str, tuple[str, str]] = {
     "prior": ("within", "prior"),
     "adapt": ("within", "adapt"),
     "adapt-fuse": ("within", "adapt"),
+    "adapt-self": ("within", "adapt"),
 }
 # adaptation condition -> how its surrogate labels are made (vctrain.adapt.COMBINE): the prior's
 # tri-mask alone (paper §4.5), or the prior fused with the within model's own prediction (GeoSeg-like)
-ADAPT_COMBINE = {"adapt": "prior", "adapt-fuse": "fuse"}
+ADAPT_COMBINE = {"adapt": "prior", "adapt-fuse": "fuse", "adapt-self": "self"}
 DEFAULT_CONDITIONS = ("resize", "between", "within", "within-gt", "zero")  # a study without 'conditions:'
 # The measured best design (benchmarks/real_cameras.py --dev and issue 24's real cameras: 56.7 vs 55.7
 # road IoU on four real other cameras, 81.1 vs 75.5 on CamVid's unseen rig, against store_width 320,
