@@ -424,6 +424,14 @@ def r_loo_diagnose(d: dict) -> list[str]:
     return out + table(["band, top to bottom"] + [str(i + 1) for i in range(n)], rows)
 
 
+def r_adapt_loo(d: dict) -> list[str]:
+    """Adapting without labels on LOO folds (benchmarks/adapt_loo.py)."""
+    conds = ["resize", "resize-self", "resize-fuse", "within", "adapt", "adapt-fuse", "adapt-self"]
+    out = [f"Leave-one-camera-out folds, seed {d['seed']}; every adaptation on the held-out frames it is scored on, "
+           f"without their labels (tri-mask {d['lo']:g}/{d['hi']:g}); road IoU (%).", ""]
+    return out + table(["held out"] + conds, [[f] + [num(d["cells"][f].get(k)) for k in conds] for f in d["folds"]])
+
+
 def r_generic(d: dict) -> list[str]:
     h = d.get("headline") if isinstance(d.get("headline"), dict) else d
     rows = [[k, f"{v:.4g}" if isinstance(v, float) else num(v)] for k, v in h.items()
@@ -480,5 +488,5 @@ RENDER: dict[str, Callable[[dict], list[str]]] = {
     "warp": r_warp, "video": r_video, "completion": r_completion, "deploy": r_deploy, "store": r_store, "stages": r_stages, "train": r_train,
     "camera_estimate": r_camera_estimate, "focal_from_verticals": r_focal_from_verticals, "as_shipped": r_as_shipped, "vp": r_vp, "vp.dev": r_vp, "cross_camera": r_cross_camera, "real_cameras": r_real_cameras,
     "real_cameras_within_seq_fallback": r_real_cameras, "multi_camera": r_multi_camera, "multi_camera_median": r_multi_camera,
-    "shipped_model": r_shipped_model, "finetune": r_finetune,
+    "shipped_model": r_shipped_model, "finetune": r_finetune, "adapt_loo": r_adapt_loo,
 }
