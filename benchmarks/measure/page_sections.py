@@ -488,5 +488,5 @@ RENDER: dict[str, Callable[[dict], list[str]]] = {
     "warp": r_warp, "video": r_video, "completion": r_completion, "deploy": r_deploy, "store": r_store, "stages": r_stages, "train": r_train,
     "camera_estimate": r_camera_estimate, "focal_from_verticals": r_focal_from_verticals, "as_shipped": r_as_shipped, "vp": r_vp, "vp.dev": r_vp, "cross_camera": r_cross_camera, "real_cameras": r_real_cameras,
     "real_cameras_within_seq_fallback": r_real_cameras, "multi_camera": r_multi_camera, "multi_camera_median": r_multi_camera,
-    "shipped_model": r_shipped_model, "finetune": r_finetune, "adapt_loo": r_adapt_loo,
+    "shipped_model": r_shipped_model, "shipped_model_e60": r_shipped_model, "finetune": r_finetune, "adapt_loo": r_adapt_loo,
 }
