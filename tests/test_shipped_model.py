@@ -46,7 +46,8 @@ def test_the_card_states_the_measured_figures_and_the_checkpoint_is_small():
     card = (FOLDER / "README.md").read_text()
     res = json.loads((FOLDER / "results.json").read_text())["headline"]
     for key, v in res.items():
-        if re.fullmatch(r"(within|resize)_(camvid|cityscapes|idd|bdd|lums|kitti)", key):
-            assert f"{v:.1f}" in card, key  # every held-out figure is in the card as measured
+        if re.fullmatch(r"(within|resize)_(camvid|cityscapes|idd|bdd|lums|kitti)", key) and v is not None:
+            assert f"{v:.1f}" in card, key  # every held-out figure is in the card as measured (None: not run)
+    assert any(v is not None for k, v in res.items() if k.startswith(res["shipped_condition"] + "_"))
     assert MODEL.stat().st_size <= 20e6
     assert "benchmarks/shipped_model.py" in card  # the command that reproduces it
