@@ -1,6 +1,6 @@
 """Adapting to a held-out camera without its labels: does the geometric prior beat self-training? (issue 34)
 
-    .venv/bin/python benchmarks/adapt_loo.py [--folds idd,bdd] [--seed 0] [--threads 2]
+    .venv/bin/python benchmarks/adapt_loo.py [--folds idd,bdd] [--seeds 0,1] [--threads 2]
                                             [--workdir benchmarks/out/multi_camera/adapt]
 
 A user always has unlabelled frames of their own camera. In the virtual camera the project can adapt a
@@ -141,32 +141,18 @@ def resize_adapted(model: Path, flat: Path, fmt: str, out: Path, seed: int, max_
     return res
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--folds", default="idd,bdd", help="held-out datasets of the LOO study")
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--threads", type=int, default=2)
-    ap.add_argument("--loo", type=Path, default=ROOT / "benchmarks" / "out" / "multi_camera",
-                    help="the LOO benchmark's workdir (its study.yaml; its finished resize models are reused)")
-    ap.add_argument("--workdir", type=Path, default=None, help="default: LOO/adapt")
-    a = ap.parse_args()
-    loo = a.loo.resolve()
+def one_seed(seed: int, folds: list[str], loo: Path, wd: Path, threads: int) -> tuple[dict, dict]:
+    """({fold: {condition: IoU %}}, {fold: extra figures}) of one seed (its crossval study resumes)."""
     study = loo / "study.yaml"
-    if not study.is_file():
-        raise SystemExit(f"needs {study} (run benchmarks/multi_camera.py first)")
-    wd = (a.workdir or loo / "adapt").resolve()
-    sd = wd / f"seed{a.seed}"
-    folds = [f for f in a.folds.split(",") if f]
     spec = yaml.safe_load(study.read_text())
     sets = {d["name"]: d for d in spec["datasets"]}
-    loo_seed = loo / f"seed{a.seed}"
+    sd, loo_seed = wd / f"seed{seed}", loo / f"seed{seed}"
     missing = [f for f in folds if not (loo_seed / "runs" / f / "resize" / "model.pt").is_file()]
     if missing:
         raise SystemExit(f"needs the LOO study's resize models of {', '.join(missing)} in {loo_seed} "
-                         f"(run benchmarks/multi_camera.py --seeds {a.seed} first)")
-    os.environ["OMP_NUM_THREADS"] = str(a.threads)
+                         f"(run benchmarks/multi_camera.py --seeds {seed} first)")
     run(BIN / "vctrain", "crossval", study, "--out", sd, "--conditions", ",".join(COMBINED),
-        "--heldout", ",".join(folds), "--seed", a.seed, "--jobs", a.threads, stream=True)
+        "--heldout", ",".join(folds), "--seed", seed, "--jobs", threads, stream=True)
     cells: dict[str, dict[str, float]] = {f: {} for f in folds}
     # the adapt conditions' study (one rectangle) and, for resize, the LOO study itself: no rectangle touches
     # the resize twin, and a study with adapt conditions would retrain it under another key for nothing
@@ -179,37 +165,66 @@ def main() -> None:
     for f in folds:
         flat = flat_items(sets[f], wd / "frames")
         model, fmt = loo_seed / "runs" / f / "resize" / "model.pt", sets[f]["label_format"]
-        res = resize_adapted(model, flat, fmt, wd / "resize-self" / f"seed{a.seed}" / f, a.seed, max_steps, a.threads)
+        res = resize_adapted(model, flat, fmt, wd / "resize-self" / f"seed{seed}" / f, seed, max_steps, threads)
         pg = prior_in_frames(sd / "runs" / f / "adapt", get_label_format(fmt).image_suffix)
-        fused = resize_adapted(model, flat, fmt, wd / "resize-fuse" / f"seed{a.seed}" / f, a.seed, max_steps,
-                               a.threads, pg)
+        fused = resize_adapted(model, flat, fmt, wd / "resize-fuse" / f"seed{seed}" / f, seed, max_steps, threads, pg)
         cells[f]["resize-self"], cells[f]["resize-fuse"] = res["adapted"], fused["adapted"]
         extra[f] = {"resize_by_predict_eval": res["resize"], "resize_self_label_shares": res["label_shares"],
                     "resize_fuse_label_shares": fused["label_shares"]}
+    return cells, extra
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--folds", default="idd,bdd", help="held-out datasets of the LOO study")
+    ap.add_argument("--seeds", default="0", help="comma-separated; each needs the LOO study's seed")
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--loo", type=Path, default=ROOT / "benchmarks" / "out" / "multi_camera",
+                    help="the LOO benchmark's workdir (its study.yaml; its finished resize models are reused)")
+    ap.add_argument("--workdir", type=Path, default=None, help="default: LOO/adapt")
+    a = ap.parse_args()
+    loo = a.loo.resolve()
+    if not (loo / "study.yaml").is_file():
+        raise SystemExit(f"needs {loo / 'study.yaml'} (run benchmarks/multi_camera.py first)")
+    wd = (a.workdir or loo / "adapt").resolve()
+    folds = [f for f in a.folds.split(",") if f]
+    seeds = [int(x) for x in a.seeds.split(",") if x]
+    os.environ["OMP_NUM_THREADS"] = str(a.threads)
+    per_seed, extra = {}, {}
+    for seed in seeds:
+        per_seed[seed], extra[seed] = one_seed(seed, folds, loo, wd, a.threads)
     conds = ["resize", "resize-self", "resize-fuse"] + COMBINED
+    pairs = (("adapt-fuse", "adapt-self"), ("adapt", "within"), ("adapt-fuse", "resize-self"),
+             ("adapt-self", "within"), ("resize-self", "resize"), ("resize-fuse", "resize-self"),
+             ("resize-fuse", "resize"), ("within", "resize"))
+    # cells: {fold: {condition: mean over seeds}}; per seed in per_seed
+    cells = {f: {k: round(float(np.mean([per_seed[s][f][k] for s in seeds])), 2) for k in conds
+                 if all(per_seed[s][f].get(k) is not None for s in seeds)} for f in folds}
     head: dict = {}
     for f in folds:
-        c = cells[f]
         for k in conds:
-            head[f"{k}_{f}"] = c.get(k)
-        for x, y in (("adapt-fuse", "adapt-self"), ("adapt-fuse", "resize-self"), ("adapt-self", "within"),
-                     ("resize-self", "resize"), ("resize-fuse", "resize-self"), ("resize-fuse", "resize"),
-                     ("within", "resize")):
-            if c.get(x) is not None and c.get(y) is not None:
-                head[f"{x}_minus_{y}_{f}"] = round(c[x] - c[y], 2)
-    lines = [f"Adapting to a held-out camera without its labels (LOO folds {', '.join(folds)}, seed {a.seed}; "
+            head[f"{k}_{f}"] = cells[f].get(k)
+        for x, y in pairs:
+            d = [per_seed[s][f][x] - per_seed[s][f][y] for s in seeds if x in per_seed[s][f] and y in per_seed[s][f]]
+            if len(d) == len(seeds):
+                head[f"{x}_minus_{y}_{f}"] = round(float(np.mean(d)), 2)
+                head[f"{x}_minus_{y}_{f}_std"] = round(float(np.std(d, ddof=1)), 2) if len(d) > 1 else None
+    lines = [f"Adapting to a held-out camera without its labels (LOO folds {', '.join(folds)}, seeds {seeds}; "
              "every adaptation transductive: on the frames it is scored on); road IoU (%).", "",
-             "| held out | " + " | ".join(conds) + " |", "|---|" + "---|" * len(conds)]
-    lines += [f"| {f} | " + " | ".join("-" if cells[f].get(k) is None else f"{cells[f][k]:.1f}" for k in conds) + " |"
-              for f in folds]
+             "| held out | seed | " + " | ".join(conds) + " |", "|---|---|" + "---|" * len(conds)]
+    for f in folds:
+        rows = [(str(s), per_seed[s][f]) for s in seeds] + ([("mean", cells[f])] if len(seeds) > 1 else [])
+        lines += [f"| {f} | {name} | " + " | ".join("-" if c.get(k) is None else f"{c[k]:.1f}" for k in conds) + " |"
+                  for name, c in rows]
     table = "\n".join(lines) + "\n"
     print(table)
     res_dir = ROOT / "benchmarks" / "results"
     (res_dir / "adapt_loo.md").write_text(table)
     write_json(res_dir / "adapt_loo.json", {
-        "headline": head, "cells": cells, "extra": extra, "folds": folds, "seed": a.seed, "lo": LO, "hi": HI,
+        "headline": head, "cells": cells, "per_seed": {str(s): per_seed[s] for s in seeds},
+        "extra": {str(s): extra[s] for s in seeds}, "folds": folds, "seeds": seeds, "lo": LO, "hi": HI,
         "machine": machine(), "date": today(),
-        "command": f"benchmarks/adapt_loo.py --folds {a.folds} --seed {a.seed} --threads {a.threads}"})
+        "command": f"benchmarks/adapt_loo.py --folds {a.folds} --seeds {a.seeds} --threads {a.threads}"})
     print(json.dumps(head))
     sys.stdout.flush()
 

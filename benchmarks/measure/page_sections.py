@@ -425,11 +425,18 @@ def r_loo_diagnose(d: dict) -> list[str]:
 
 
 def r_adapt_loo(d: dict) -> list[str]:
-    """Adapting without labels on LOO folds (benchmarks/adapt_loo.py)."""
+    """Adapting without labels on LOO folds (benchmarks/adapt_loo.py): per seed, and the mean."""
     conds = ["resize", "resize-self", "resize-fuse", "within", "adapt", "adapt-fuse", "adapt-self"]
-    out = [f"Leave-one-camera-out folds, seed {d['seed']}; every adaptation on the held-out frames it is scored on, "
+    seeds = d.get("seeds", [d.get("seed")])
+    per = d.get("per_seed") or {str(seeds[0]): d["cells"]}
+    out = [f"Leave-one-camera-out folds, seeds {seeds}; every adaptation on the held-out frames it is scored on, "
            f"without their labels (tri-mask {d['lo']:g}/{d['hi']:g}); road IoU (%).", ""]
-    return out + table(["held out"] + conds, [[f] + [num(d["cells"][f].get(k)) for k in conds] for f in d["folds"]])
+    rows = []
+    for f in d["folds"]:
+        rows += [[f, str(s)] + [num(per[str(s)][f].get(k)) for k in conds] for s in seeds]
+        if len(seeds) > 1:
+            rows.append([f, "mean"] + [num(d["cells"][f].get(k)) for k in conds])
+    return out + table(["held out", "seed"] + conds, rows)
 
 
 def r_generic(d: dict) -> list[str]:
