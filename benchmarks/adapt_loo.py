@@ -94,19 +94,18 @@ def pseudo_labels(pred: Path, flat: Path, out: Path, prior: dict[str, np.ndarray
     """out/<image stem>.png: the 0.25/0.75 tri-mask (0 / 1 / 255) of each frame's P(road) (pred's
     <stem>_prob.png), with ``prior`` first fused with that frame's p_g (vctrain.adapt.fuse); returns the
     label shares."""
-    import cv2
-
+    from vcprep.imageio import read_image, write_png
+    from vcprep.prior import surrogate_labels
     from vctrain.adapt import fuse
 
     out.mkdir(parents=True, exist_ok=True)
     counts = np.zeros(3, np.int64)
     for img in sorted((flat / "images").iterdir()):
-        p = cv2.imread(str(pred / f"{img.stem}_prob.png"), cv2.IMREAD_UNCHANGED).astype(np.float32) / 255.0
+        p = read_image(pred / f"{img.stem}_prob.png", label=True).array.astype(np.float32) / 255.0
         if prior is not None:
             p = fuse(prior[img.stem], p)
-        lab = np.full(p.shape, 255, np.uint8)
-        lab[p > HI], lab[p < LO] = 1, 0
-        cv2.imwrite(str(out / f"{img.stem}.png"), lab)
+        lab = surrogate_labels(p, LO, HI)  # vctrain adapt's tri-mask
+        write_png(out / f"{img.stem}.png", lab, kind="mask")
         counts += [np.count_nonzero(lab == 1), np.count_nonzero(lab == 0), np.count_nonzero(lab == 255)]
     return dict(zip(("road", "not_road", "ignore"), (counts / max(counts.sum(), 1)).round(4).tolist()))
 
