@@ -1,28 +1,39 @@
-"""Fine-tuning on a camera the model has not seen: 20 labelled LUMS frames (issue 34, item 4).
+"""Fine-tuning on a camera the model has not seen: 20 labelled frames of it (issue 34, item 4).
 
-    .venv/bin/python benchmarks/finetune.py [--condition resize] [--model M] [--seeds 0,1,2] [--epochs 40]
-                                           [--threads 2] [--workdir benchmarks/out/finetune]
+    .venv/bin/python benchmarks/finetune.py [--set lums] [--base-epochs 120 | --model M] [--seeds 0,1,2]
+                                           [--epochs 40[,120]] [--lr-factors 0.1[,0.3]] [--threads 2]
+                                           [--workdir benchmarks/out/finetune]
 
-**Model**: ``--model`` (default: the LOO benchmark's LUMS fold, seed 0, of ``--condition``: resize, the
-shipped model's (benchmarks/shipped_model.py ships the better of the two): benchmarks/out/multi_camera/
-seed0/runs/lums/<condition>/model.pt, the shipped recipe trained on every development set but LUMS). **Frames**: LUMS (../shared/data/lums_road, its camera.yaml), the first 20
-frames (capture order) of captures 400-466 to train on; scored on every frame of the other captures
-(1-79 and 160-319, 118 frames), in LUMS's own camera (back-projected; road IoU = sum TP / sum (TP+FP+FN)).
-Every frame's road VP: the LOO study's estimates (its vps/lums-test.csv), so the three conditions see
-the same poses.
+**Sets** (``--set``; ../shared/data, each with the camera it ships with; held out by capture range or city,
+never by frame):
 
-**Conditions**, each seed:
+* ``lums`` (the verdict): the first 20 frames (capture order) of captures 400-466 to train on; scored on
+  every frame of the other captures (1-79 and 160-319, 118 frames);
+* ``cityscapes`` (the development camera the fine-tuning recipe is chosen on, so LUMS's test frames
+  choose nothing): the first 20 frames in name order (cs_0001 ..., the release's first city); scored on
+  cs_25xx .. cs_29xx (43 frames, the shipped model's held-out cities).
 
-* ``as-is``: the model, no training on LUMS;
+Scored in the set's own camera (back-projected; road IoU = sum TP / sum (TP+FP+FN), ignore excluded).
+
+**Model**: ``--base-epochs N`` trains it first: the shipped recipe (benchmarks/shipped_model.py's study,
+``resize``, seed 0, N epochs) on every development set's training split but the set's own (WORKDIR/base/).
+Otherwise ``--model``, by default the LOO benchmark's fold of the set, seed 0, of ``--condition``
+(benchmarks/out/multi_camera/seed0/runs/<set>/<condition>/model.pt: a LOO fold's 20-epoch budget).
+Every frame's road VP (a virtual-camera model only): ``--vps`` or the LOO study's estimates beside it.
+
+**Conditions**, each seed and each ``--epochs`` E:
+
+* ``as-is``: the model, no training on the set;
 * ``fine-tuned``: ``vctrain fit --init MODEL`` on the 20 frames (a resize model: the frames as they are,
   ``--baseline resize``; a virtual-camera model: warped into its own virtual camera, ``vcprep warp
-  --virtual`` with the checkpoint's store parameters), ``--epochs`` at a tenth of the recipe's learning
-  rate (vctrain adapt's rule);
+  --virtual`` with the checkpoint's store parameters), E epochs at each ``--lr-factors`` share of the
+  recipe's learning rate (default a tenth, vctrain adapt's rule);
 * ``scratch``: the same frames, epochs and steps from random weights at the recipe's learning rate.
 
-No validation share (20 frames): the last epoch is the model. **Target** (checked, not asserted):
-fine-tuned >= both others + 3 points, mean over seeds. Outputs benchmarks/results/finetune.{md,json};
-the last stdout line is one JSON object.
+No validation share (20 frames): the last epoch is the model. **Target** (checked, not asserted), on the
+first epochs and the first factor (the recipe): fine-tuned >= both others + 3 points, mean over seeds.
+Outputs benchmarks/results/finetune.{md,json} (``--set lums``) or finetune_<set>.{md,json}; the last
+stdout line is one JSON object.
 """
 from __future__ import annotations
 
@@ -31,18 +42,18 @@ import json
 import re
 import shutil
 import sys
+from fnmatch import fnmatch
 from pathlib import Path
 
 import numpy as np
 import yaml
 
-from as_shipped import LUMS
-from measure.data import BIN, LUMS_FORMAT, ROOT, run
+from as_shipped import CITYSCAPES, LUMS
+from measure.data import BIN, CS_FORMAT, LUMS_FORMAT, ROOT, run
 from measure.report import machine, today, write_json
 from measure.stats import seed_stats
 
 N_TRAIN = 20
-CONDS = ["as-is", "fine-tuned", "scratch"]
 
 
 def capture(stem: str) -> int:
@@ -50,20 +61,37 @@ def capture(stem: str) -> int:
     return int(re.match(r"color_(\d+)_", stem).group(1))
 
 
-def split_frames(wd: Path) -> tuple[Path, Path]:
-    """wd/frames/{train20,test}/{images,labels}: links to the 20 training and the test frames."""
-    stems = sorted((p.stem for p in (LUMS / "images").glob("*.jpg")), key=lambda s: (capture(s), s))
-    train = [s for s in stems if 400 <= capture(s) <= 466][:N_TRAIN]
-    test = [s for s in stems if capture(s) < 400]
+def _lums(stems: list[str]) -> tuple[list[str], list[str]]:
+    stems = sorted(stems, key=lambda s: (capture(s), s))
+    return [s for s in stems if 400 <= capture(s) <= 466][:N_TRAIN], [s for s in stems if capture(s) < 400]
+
+
+def _cityscapes(stems: list[str]) -> tuple[list[str], list[str]]:
+    stems = sorted(stems)
+    return stems[:N_TRAIN], [s for s in stems if fnmatch(s, "cs_2[5-9]*")]
+
+
+# set -> (folder, label format, (train, test) stems from all stems, what the split is)
+SETS = {
+    "lums": (LUMS, LUMS_FORMAT, _lums, "LUMS: the first 20 frames of captures 400-466; scored on the 118 frames of captures 1-79 and 160-319"),
+    "cityscapes": (CITYSCAPES, CS_FORMAT, _cityscapes, "Cityscapes: the first 20 frames (cs_0001 ...); scored on the 43 frames cs_25xx-cs_29xx"),
+}
+
+
+def split_frames(name: str, wd: Path) -> tuple[Path, Path]:
+    """wd/frames/{train20,test}/{images,labels}: links to the set's 20 training and its test frames."""
+    root, _, pick, _ = SETS[name]
+    images = {p.stem: p for p in (root / "images").iterdir() if p.suffix in (".jpg", ".png")}
     out = []
-    for name, sel in (("train20", train), ("test", test)):
-        d = wd / "frames" / name
+    for sub_name, sel in zip(("train20", "test"), pick(list(images))):
+        d = wd / "frames" / sub_name
         if d.exists():
             shutil.rmtree(d)
-        for sub, ext in (("images", ".jpg"), ("labels", ".png")):
-            (d / sub).mkdir(parents=True)
-            for s in sel:
-                (d / sub / f"{s}{ext}").symlink_to(LUMS / sub / f"{s}{ext}")
+        (d / "images").mkdir(parents=True)
+        (d / "labels").mkdir(parents=True)
+        for s in sel:
+            (d / "images" / images[s].name).symlink_to(images[s])
+            (d / "labels" / f"{s}.png").symlink_to(root / "labels" / f"{s}.png")
         out.append(d)
     return out[0], out[1]
 
@@ -79,90 +107,138 @@ def virtual_of(model: Path, wd: Path) -> tuple[Path, float]:
     return path, float(sp["scale"])
 
 
-def score(model: Path, test: Path, vps: Path, out: Path, threads: int, virtual: bool) -> float:
-    """Road IoU (%) of ``model`` on the test frames."""
+def score(name: str, model: Path, test: Path, vps: Path, out: Path, threads: int, virtual: bool) -> float:
+    """Road IoU (%) of ``model`` on the test frames of set ``name``."""
+    root, fmt, _, _ = SETS[name]
     env = {"OMP_NUM_THREADS": str(threads)}
-    geo = ["--camera", LUMS / "camera.yaml", "--within", vps] if virtual else []
+    geo = ["--camera", root / "camera.yaml", "--within", vps] if virtual else []
     run(BIN / "vctrain", "predict", model, test / "images", *geo, "--out", out, "-q", env=env)
-    res = json.loads(run(BIN / "vctrain", "eval", out, "--labels", test / "labels", "--label-format", LUMS_FORMAT,
+    res = json.loads(run(BIN / "vctrain", "eval", out, "--labels", test / "labels", "--label-format", fmt,
                          "--json", "-q", env=env).strip().splitlines()[-1])
     return 100 * float(res["iou"])
 
 
-def training_data(model: Path, train: Path, vps: Path, wd: Path, threads: int) -> tuple[list, bool]:
+def training_data(name: str, model: Path, train: Path, vps: Path, wd: Path, threads: int) -> tuple[list, bool]:
     """(``vctrain fit`` arguments for the 20 frames, whether the model is a virtual-camera one): a
     store warped into the model's virtual camera, or the folders for ``--baseline resize``."""
     import torch
 
+    root, fmt, _, _ = SETS[name]
     data = torch.load(model, map_location="cpu", weights_only=False)["data"]
     if data["mode"] == "resize":
         w, h = data["input_size"]  # the model's working size (a folder's default would be the frames' own)
         return ["--baseline", "resize", "--images", train / "images", "--labels", train / "labels",
-                "--label-format", LUMS_FORMAT, "--size", f"{w}x{h}"], False
+                "--label-format", fmt, "--size", f"{w}x{h}"], False
     virtual, scale = virtual_of(model, wd)
     store = wd / "store20"
-    run(BIN / "vcprep", "warp", "--camera", LUMS / "camera.yaml", "--virtual", virtual, "--scale", scale,
-        "--images", train / "images", "--labels", train / "labels", "--label-format", LUMS_FORMAT,
+    run(BIN / "vcprep", "warp", "--camera", root / "camera.yaml", "--virtual", virtual, "--scale", scale,
+        "--images", train / "images", "--labels", train / "labels", "--label-format", fmt,
         "--within", vps, "--out", store, "-q", env={"OMP_NUM_THREADS": str(threads)})
     return [store], True
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--condition", default="resize", help="the LOO fold model's condition (default: the shipped one's)")
-    ap.add_argument("--model", type=Path, default=None)
-    ap.add_argument("--vps", type=Path, default=None, help="CSV id,u,v (default: beside the model's study)")
-    ap.add_argument("--seeds", default="0,1,2")
-    ap.add_argument("--epochs", type=int, default=40)
-    ap.add_argument("--threads", type=int, default=2)
-    ap.add_argument("--workdir", type=Path, default=ROOT / "benchmarks" / "out" / "finetune")
-    a = ap.parse_args()
-    a.model = a.model or ROOT / "benchmarks" / "out" / "multi_camera" / "seed0" / "runs" / "lums" / a.condition / "model.pt"
-    if not a.model.is_file() or not LUMS.is_dir():
-        raise SystemExit(f"needs {a.model} (run benchmarks/multi_camera.py first) and {LUMS}")
-    vps = a.vps or a.model.parents[3] / "vps" / "lums-test.csv"
-    wd = a.workdir
-    wd.mkdir(parents=True, exist_ok=True)
-    train, test = split_frames(wd)
-    data_args, is_virtual = training_data(a.model, train, vps, wd, a.threads)
+def shipped_without(name: str, wd: Path, epochs: int, threads: int) -> Path:
+    """The shipped recipe (benchmarks/shipped_model.py: its study, ``resize``, seed 0) trained on every
+    development set's training split but set ``name``'s: WORKDIR/base/seed0/runs/_all/resize/model.pt
+    (resumed where it stopped)."""
+    from as_shipped import run_study
+    from shipped_model import study_file
+
+    base = (wd / "base").resolve()
+    base.mkdir(parents=True, exist_ok=True)
+    path = study_file(base, False, epochs)
+    study = yaml.safe_load(path.read_text())
+    study["datasets"] = [d for d in study["datasets"] if d["name"] != f"{name}-train"]
+    path.write_text(yaml.safe_dump(study, sort_keys=False))
+    run_study(path, base / "seed0", ["resize"], 0, threads)
+    return base / "seed0" / "runs" / "_all" / "resize" / "model.pt"
+
+
+def grid(epochs: list[int], factors: list[float]) -> list[tuple[str, int, float | None]]:
+    """The trained conditions (label, epochs, share of the recipe's lr or None from scratch); the first
+    epochs and factor are the recipe the targets read ('fine-tuned', 'scratch')."""
+    rows = []
+    for k, e in enumerate(epochs):
+        for j, f in enumerate(factors):
+            rows.append(("fine-tuned" if k == j == 0 else f"fine-tuned lr x{f:g}, {e} epochs", e, f))
+        rows.append(("scratch" if k == 0 else f"scratch, {e} epochs", e, None))
+    return rows
+
+
+def measure(a: argparse.Namespace, wd: Path, seeds: list[int]) -> tuple[dict[str, list[float]], bool]:
+    """({condition: road IoU % per seed}, whether the model is a virtual-camera one)."""
+    train, test = split_frames(a.set, wd)
+    vps = a.vps or a.model.parents[3] / "vps" / f"{a.set}-test.csv"
+    data_args, is_virtual = training_data(a.set, a.model, train, vps, wd, a.threads)
     env = {"OMP_NUM_THREADS": str(a.threads)}
     ck = json.loads(run(BIN / "python", "-c", "import json,torch;c=torch.load(r'%s',map_location='cpu',"
                         "weights_only=False);print(json.dumps(c['config']))" % a.model).strip().splitlines()[-1])
-    seeds = [int(s) for s in a.seeds.split(",") if s]
-    cells: dict[str, list[float]] = {c: [] for c in CONDS}
-    asis = score(a.model, test, vps, wd / "pred-as-is", a.threads, is_virtual)
+    rows = grid([int(e) for e in a.epochs.split(",")], [float(f) for f in a.lr_factors.split(",")])
+    cells: dict[str, list[float]] = {"as-is": []}
+    asis = score(a.set, a.model, test, vps, wd / "pred-as-is", a.threads, is_virtual)
     for seed in seeds:
         cells["as-is"].append(asis)  # no training: the same number for every seed
-        for cond in ("fine-tuned", "scratch"):
-            out = wd / f"seed{seed}" / cond
-            extra = ["--init", a.model, "--lr", ck["lr"] / 10] if cond == "fine-tuned" else ["--lr", ck["lr"]]
+        for label, e, f in rows:
+            tag = "scratch" if f is None else "fine-tuned" if f == 0.1 else f"fine-tuned-x{f:g}"
+            out = wd / f"seed{seed}" / (tag if e == 40 else f"{tag}-e{e}")  # the first runs' folder names kept
+            extra = ["--lr", ck["lr"]] if f is None else ["--init", a.model, "--lr", ck["lr"] * f]
             if not (out / "model.pt").is_file():
-                run(BIN / "vctrain", "fit", *data_args, "--out", out / "model.pt", "--epochs", a.epochs,
+                run(BIN / "vctrain", "fit", *data_args, "--out", out / "model.pt", "--epochs", e,
                     "--val-fraction", 0, "--seed", seed, "--balance", "items", *extra, "-q", env=env)
-            cells[cond].append(score(out / "model.pt", test, vps, out / "pred", a.threads, is_virtual))
+            cells.setdefault(label, []).append(score(a.set, out / "model.pt", test, vps, out / "pred", a.threads, is_virtual))
+    return cells, is_virtual
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--set", default="lums", choices=list(SETS), help="the camera fine-tuned on (lums: the verdict)")
+    ap.add_argument("--condition", default="resize", help="the LOO fold model's condition (default: the shipped one's)")
+    ap.add_argument("--model", type=Path, default=None)
+    ap.add_argument("--base-epochs", type=int, default=0,
+                    help="train the model first: the shipped recipe without the set, this many epochs (0: --model)")
+    ap.add_argument("--vps", type=Path, default=None, help="CSV id,u,v (default: beside the model's study)")
+    ap.add_argument("--seeds", default="0,1,2")
+    ap.add_argument("--epochs", default="40", help="comma list; the first is the recipe's")
+    ap.add_argument("--lr-factors", default="0.1", help="fine-tuning lr as shares of the recipe's; the first is the recipe's")
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--workdir", type=Path, default=ROOT / "benchmarks" / "out" / "finetune")
+    a = ap.parse_args()
+    root = SETS[a.set][0]
+    if a.base_epochs:
+        a.model = shipped_without(a.set, a.workdir, a.base_epochs, a.threads)
+    a.model = a.model or ROOT / "benchmarks" / "out" / "multi_camera" / "seed0" / "runs" / a.set / a.condition / "model.pt"
+    if not a.model.is_file() or not root.is_dir():
+        raise SystemExit(f"needs {a.model} (run benchmarks/multi_camera.py first) and {root}")
+    wd = a.workdir
+    wd.mkdir(parents=True, exist_ok=True)
+    seeds = [int(s) for s in a.seeds.split(",") if s]
+    cells, is_virtual = measure(a, wd, seeds)
     head = {c: round(float(np.mean(v)), 2) for c, v in cells.items()}
     gain = {f"fine-tuned_minus_{c}": seed_stats([f - o for f, o in zip(cells["fine-tuned"], cells[c])]) for c in ("as-is", "scratch")}
     for k, s in gain.items():
         head[k], head[k + "_std"] = round(s["mean"], 2), round(s["std"] or 0.0, 2)
     targets = {f"fine-tuned >= {c} + 3": head[f"fine-tuned_minus_{c}"] >= 3 for c in ("as-is", "scratch")}
-    lines = [f"Fine-tuning on {N_TRAIN} labelled LUMS frames (captures 400-466), scored on the 118 frames of the other "
-             f"captures; model {a.model.relative_to(ROOT) if a.model.is_relative_to(ROOT) else a.model}; "
-             f"{a.epochs} epochs, seeds {seeds}; road IoU (%).", "",
+    e0, f0 = a.epochs.split(",")[0], a.lr_factors.split(",")[0]
+    model = a.model.relative_to(ROOT) if a.model.is_relative_to(ROOT) else a.model
+    lines = [f"Fine-tuning on {N_TRAIN} labelled frames, {SETS[a.set][3]}; model {model}; recipe: {e0} epochs, "
+             f"fine-tuned at lr x{f0} (scratch at the recipe's lr); seeds {seeds}; road IoU (%).", "",
              "| condition | " + " | ".join(f"seed {s}" for s in seeds) + " | mean |", "|---|" + "---|" * (len(seeds) + 1)]
-    lines += [f"| {c} | " + " | ".join(f"{v:.1f}" for v in cells[c]) + f" | {np.mean(cells[c]):.1f} |" for c in CONDS]
+    lines += [f"| {c} | " + " | ".join(f"{v:.1f}" for v in cells[c]) + f" | {np.mean(cells[c]):.1f} |" for c in cells]
     lines += ["", f"fine-tuned − as-is {head['fine-tuned_minus_as-is']:+.1f} ± {head['fine-tuned_minus_as-is_std']:.1f}; "
               f"fine-tuned − scratch {head['fine-tuned_minus_scratch']:+.1f} ± {head['fine-tuned_minus_scratch_std']:.1f}."]
     lines += ["", "| target | met |", "|---|---|"] + [f"| {k} | {'yes' if v else 'no'} |" for k, v in targets.items()]
     table = "\n".join(lines) + "\n"
     print(table)
     res = ROOT / "benchmarks" / "results"
-    (res / "finetune.md").write_text(table)
-    write_json(res / "finetune.json", {"headline": head, "targets": targets, "cells": cells, "seeds": seeds,
-                                       "epochs": a.epochs, "n_train": N_TRAIN, "model": str(a.model),
-                                       "condition": "virtual camera" if is_virtual else "resize",
-                                       "machine": machine(), "date": today(),
-                                       "command": f"benchmarks/finetune.py --condition {a.condition} --seeds {a.seeds} "
-                                                  f"--epochs {a.epochs}"})
+    stem = "finetune" if a.set == "lums" else f"finetune_{a.set}"
+    (res / f"{stem}.md").write_text(table)
+    command = (f"benchmarks/finetune.py --set {a.set} " + (f"--base-epochs {a.base_epochs} " if a.base_epochs else "")
+               + f"--seeds {a.seeds} --epochs {a.epochs} --lr-factors {a.lr_factors}")
+    write_json(res / f"{stem}.json", {"headline": head, "targets": targets, "cells": cells, "seeds": seeds,
+                                      "epochs": a.epochs, "lr_factors": a.lr_factors, "n_train": N_TRAIN,
+                                      "set": a.set, "split": SETS[a.set][3], "model": str(model),
+                                      "condition": "virtual camera" if is_virtual else "resize",
+                                      "machine": machine(), "date": today(), "command": command})
     print(json.dumps(head))
     sys.stdout.flush()
 

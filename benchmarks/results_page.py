@@ -22,8 +22,9 @@ import textwrap
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # measure/, also when loaded by path (tests)
-from measure.page_sections import (AS_SHIPPED_REAL, RENDER, _base, _diff, _mean_std, _real_mean, ms,  # noqa: E402
-                                   pct, pts, r_generic, r_loo_diagnose, table)
+from measure.page_format import _mean_std, ms, pct, pts, r_generic, table  # noqa: E402
+from measure.page_multi_camera import r_loo_diagnose  # noqa: E402
+from measure.page_sections import AS_SHIPPED_REAL, RENDER, _base, _diff, _real_mean  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks" / "results"

@@ -1,56 +1,14 @@
-"""The results page's sections (benchmarks/results_page.py): deterministic number formats and one
-renderer per benchmark JSON (``RENDER``: the JSON's stem -> the Markdown lines of its figures;
-:func:`r_generic` for a JSON without one, :func:`r_loo_diagnose` for every ``loo_diagnose_<set>``)."""
+"""The results page's sections (benchmarks/results_page.py): one renderer per benchmark JSON (``RENDER``:
+the JSON's stem -> the Markdown lines of its figures; :func:`r_generic` for a JSON without one,
+:func:`r_loo_diagnose` for every ``loo_diagnose_<set>``). Number formats: measure/page_format.py; the
+multi-camera benchmarks' renderers: measure/page_multi_camera.py."""
 from __future__ import annotations
 
-import json
 import statistics
 from typing import Callable
 
-
-# ---------------------------------------------------------------- number formats (deterministic)
-
-def pct(x: float | None) -> str:
-    """A share in [0, 1] as percent with one decimal (IoU points)."""
-    return "-" if x is None else f"{100 * x:.1f}"
-
-
-def pts(x: float | None) -> str:
-    """A signed difference of shares as IoU points."""
-    return "-" if x is None else f"{100 * x:+.1f}"
-
-
-def ms(cell: dict | None, signed: bool = False) -> str:
-    """``{"mean", "std"}`` of shares as 'mean ± std' points."""
-    if not cell:
-        return "-"
-    return f"{(pts if signed else pct)(cell['mean'])} ± {100 * cell['std']:.1f}"
-
-
-def num(x, digits: int = 2) -> str:
-    if x is None:
-        return "-"
-    if isinstance(x, bool):
-        return "yes" if x else "no"
-    if isinstance(x, int):
-        return str(x)
-    if isinstance(x, float):
-        return f"{x:.{digits}f}"
-    if isinstance(x, (list, tuple)) and len(x) == 2 and all(isinstance(v, int) for v in x):
-        return f"{x[0]}×{x[1]}"
-    if isinstance(x, (list, tuple)) and x and all(isinstance(v, (int, float)) for v in x):
-        return "×".join(f"{v:.{digits}g}" for v in x)
-    return json.dumps(x, ensure_ascii=False) if isinstance(x, (dict, list)) else str(x)
-
-
-def table(header: list[str], rows: list[list[str]]) -> list[str]:
-    out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    out += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
-    return out + [""]
-
-
-def median3(v: list[float]) -> float:
-    return sorted(v)[len(v) // 2]
+from measure.page_format import _mean_std, median3, ms, num, pct, r_generic, table
+from measure.page_multi_camera import r_adapt_loo, r_finetune, r_multi_camera, r_shipped_model
 
 
 # ---------------------------------------------------------------- one renderer per benchmark
@@ -254,14 +212,6 @@ AS_SHIPPED_ROWS = [  # (test set, what it is)
 AS_SHIPPED_REAL = ["cityscapes", "idd", "kitti", "bdd", "lums"]  # the real other cameras of the headline
 
 
-def _mean_std(v: list[float] | None, signed: bool = False) -> str:
-    """Values in IoU points (one per seed) as 'mean ± sample std'."""
-    if not v:
-        return "-"
-    m, s = statistics.fmean(v), (statistics.stdev(v) if len(v) > 1 else 0.0)
-    return f"{m:+.1f} ± {s:.1f}" if signed else f"{m:.1f} ± {s:.1f}"
-
-
 def _diff(a: list[float] | None, b: list[float] | None) -> list[float] | None:
     return [x - y for x, y in zip(a, b)] if a and b and len(a) == len(b) else None
 
@@ -351,101 +301,6 @@ def r_as_shipped(d: dict) -> list[str]:
     return out
 
 
-def r_multi_camera(d: dict) -> list[str]:
-    """Leave one real camera out (benchmarks/multi_camera.py): cells are IoU points per seed (None: not run yet)."""
-    c, seeds = d["cells"], d.get("seeds", [])
-    have = lambda v: [x for x in (v or []) if x is not None]  # noqa: E731
-    pair = lambda t: [w - r for w, r in zip(c.get(f"{t}|within") or [], c.get(f"{t}|resize") or [])  # noqa: E731
-                      if w is not None and r is not None]
-    out = [f"Road IoU (%), mean ± std over the seeds finished of {seeds}; each fold trained on the other four real "
-           f"datasets merged into one virtual camera (`balance: datasets`, {d.get('steps_per_epoch')} steps an "
-           "epoch), tested on all frames of the held-out camera in that camera; "
-           + ", ".join(d.get("test_only", [])) + " by the model trained on all five. within − resize paired per seed.",
-           ""]
-    out += table(["held out", "within", "resize", "within − resize", "seeds done (within, resize)"],
-                 [[t, _mean_std(have(c.get(f"{t}|within"))), _mean_std(have(c.get(f"{t}|resize"))),
-                   _mean_std(pair(t), signed=True),
-                   f"{len(have(c.get(f'{t}|within')))}, {len(have(c.get(f'{t}|resize')))}"]
-                  for t in d.get("held_out", []) + d.get("test_only", [])])
-    h = d["headline"]
-    if h.get("loo_within_minus_resize") is not None:
-        out += [f"Mean over the five held-out cameras (per seed, seeds {h.get('loo_complete_seeds')}): "
-                f"**{h['loo_within_minus_resize']:+.1f} ± {h['loo_within_minus_resize_std']:.1f}**.", ""]
-    if h.get("folds_missing"):
-        out += [f"Not finished yet: {', '.join(h['folds_missing'])}.", ""]
-    if d.get("targets"):
-        out += table(["target (issue 34)", "met"], [[k, "not measured" if v is None else num(v)]
-                                                   for k, v in d["targets"].items()])
-    return out + r_generic({"headline": {k: v for k, v in h.items() if k != "folds_missing"}})
-
-
-def r_shipped_model(d: dict) -> list[str]:
-    """The shipped model (benchmarks/shipped_model.py): one model, each development set's held-out split."""
-    h, t = d["headline"], d.get("targets", {})
-    out = [f"One model trained on the five development sets' training splits (`balance: datasets`, "
-           f"{d.get('epochs')} epochs of {d.get('steps_per_epoch')} steps, seed {d.get('seed')}), road IoU (%) on each "
-           "set's held-out split in its own camera; KITTI never trained on. The resize twin: the same network, "
-           "frames, steps and sampling, the images resized.", ""]
-    sh = h.get("shipped_condition", "within")
-    out += table(["held-out split", "within" + (" (shipped)" if sh == "within" else ""),
-                  "resize twin" + (" (shipped)" if sh == "resize" else ""), "within − resize"],
-                 [[k, num(h.get(f"within_{k}")), num(h.get(f"resize_{k}")), num(h.get(f"within_minus_resize_{k}"))]
-                  for k in d.get("sets", [])])
-    out += [f"Mean over the splits: within {num(h.get('mean_within'))}, resize {num(h.get('mean_resize'))}; shipped "
-            f"(the higher mean): **{sh}**. Checkpoint {num(h.get('checkpoint_mb'))} MB; predict per 1280×720 frame "
-            f"(1 / 2 threads): within (warp, network, back-projection) {num(h.get('predict_ms_1280x720_within_t1'))} / "
-            f"{num(h.get('predict_ms_1280x720_within_t2'))} ms, resize {num(h.get('predict_ms_1280x720_resize_t1'))} / "
-            f"{num(h.get('predict_ms_1280x720_resize_t2'))} ms.", ""]
-    return out + table(["target (issue 34)", "met"], [[k, "not measured" if v is None else num(v)] for k, v in t.items()])
-
-
-def r_finetune(d: dict) -> list[str]:
-    """Fine-tuning on 20 LUMS frames (benchmarks/finetune.py)."""
-    c, seeds, h = d["cells"], d.get("seeds", []), d["headline"]
-    out = [f"{d.get('n_train')} labelled LUMS frames (captures 400–466), scored on the 118 frames of the other "
-           f"captures; {d.get('epochs')} epochs; road IoU (%) per seed {seeds}.", ""]
-    out += table(["condition"] + [f"seed {s}" for s in seeds] + ["mean"],
-                 [[k] + [num(x) for x in v] + [num(h.get(k))] for k, v in c.items()])
-    return out + table(["target (issue 34)", "met"], [[k, num(v)] for k, v in d.get("targets", {}).items()])
-
-
-def r_loo_diagnose(d: dict) -> list[str]:
-    h = d["headline"]
-    out = [f"Held out {d['heldout']}, seed {d['seed']}, {h['frames']} frames: road IoU within {pct(h['iou']['within'])} "
-           f"(precision {pct(h['precision']['within'])}, recall {pct(h['recall']['within'])}), resize "
-           f"{pct(h['iou']['resize'])} ({pct(h['precision']['resize'])}, {pct(h['recall']['resize'])}). Road pixels no "
-           f"store pixel reaches: {pct(h['road_uncovered_share'])} %; road within misses inside the covered part: "
-           f"{pct(h['road_missed_inside_coverage_share'])} %. Within at a multiple of its working size: "
-           + ", ".join(f"{s}x {pct(v)}" for s, v in h["within_iou_by_scale"].items()) + ".", ""]
-    n = len(h["fn_share_by_band"]["within"])
-    rows = [[f"{what}, {k} (%)"] + [pct(v) for v in h[key][k]]
-            for what, key in (("missed road", "fn_share_by_band"), ("false road", "fp_share_by_band"))
-            for k in ("within", "resize")]
-    return out + table(["band, top to bottom"] + [str(i + 1) for i in range(n)], rows)
-
-
-def r_adapt_loo(d: dict) -> list[str]:
-    """Adapting without labels on LOO folds (benchmarks/adapt_loo.py): per seed, and the mean."""
-    conds = ["resize", "resize-self", "resize-fuse", "within", "adapt", "adapt-fuse", "adapt-self"]
-    seeds = d.get("seeds", [d.get("seed")])
-    per = d.get("per_seed") or {str(seeds[0]): d["cells"]}
-    out = [f"Leave-one-camera-out folds, seeds {seeds}; every adaptation on the held-out frames it is scored on, "
-           f"without their labels (tri-mask {d['lo']:g}/{d['hi']:g}); road IoU (%).", ""]
-    rows = []
-    for f in d["folds"]:
-        rows += [[f, str(s)] + [num(per[str(s)][f].get(k)) for k in conds] for s in seeds]
-        if len(seeds) > 1:
-            rows.append([f, "mean"] + [num(d["cells"][f].get(k)) for k in conds])
-    return out + table(["held out", "seed"] + conds, rows)
-
-
-def r_generic(d: dict) -> list[str]:
-    h = d.get("headline") if isinstance(d.get("headline"), dict) else d
-    rows = [[k, f"{v:.4g}" if isinstance(v, float) else num(v)] for k, v in h.items()
-            if k not in ("command", "date", "machine", "data") and not (isinstance(v, (list, dict)) and len(json.dumps(v)) > 200)]
-    return table(["figure", "value"], rows)
-
-
 def r_deploy(d: dict) -> list[str]:
     rows = []
     for name, v in d["detail"].items():
@@ -495,5 +350,5 @@ RENDER: dict[str, Callable[[dict], list[str]]] = {
     "warp": r_warp, "video": r_video, "completion": r_completion, "deploy": r_deploy, "store": r_store, "stages": r_stages, "train": r_train,
     "camera_estimate": r_camera_estimate, "focal_from_verticals": r_focal_from_verticals, "as_shipped": r_as_shipped, "vp": r_vp, "vp.dev": r_vp, "cross_camera": r_cross_camera, "real_cameras": r_real_cameras,
     "real_cameras_within_seq_fallback": r_real_cameras, "multi_camera": r_multi_camera, "multi_camera_median": r_multi_camera,
-    "shipped_model": r_shipped_model, "shipped_model_e60": r_shipped_model, "finetune": r_finetune, "adapt_loo": r_adapt_loo,
+    "shipped_model": r_shipped_model, "shipped_model_e60": r_shipped_model, "finetune": r_finetune, "finetune_cityscapes": r_finetune, "adapt_loo": r_adapt_loo,
 }
