@@ -16,7 +16,8 @@ never by frame):
 Scored in the set's own camera (back-projected; road IoU = sum TP / sum (TP+FP+FN), ignore excluded).
 
 **Model**: ``--base-epochs N`` trains it first: the shipped recipe (benchmarks/shipped_model.py's study,
-``resize``, seed 0, N epochs) on every development set's training split but the set's own (WORKDIR/base/).
+``resize``, seed 0, N epochs) on every development set's training split but the set's own (WORKDIR/base/;
+its scores on the shipped model's held-out splits are recorded as ``base_heldout``).
 Otherwise ``--model``, by default the LOO benchmark's fold of the set, seed 0, of ``--condition``
 (benchmarks/out/multi_camera/seed0/runs/<set>/<condition>/model.pt: a LOO fold's 20-epoch budget).
 Every frame's road VP (a virtual-camera model only): ``--vps`` or the LOO study's estimates beside it.
@@ -234,7 +235,9 @@ def main() -> None:
     (res / f"{stem}.md").write_text(table)
     command = (f"benchmarks/finetune.py --set {a.set} " + (f"--base-epochs {a.base_epochs} " if a.base_epochs else "")
                + f"--seeds {a.seeds} --epochs {a.epochs} --lr-factors {a.lr_factors}")
-    write_json(res / f"{stem}.json", {"headline": head, "targets": targets, "cells": cells, "seeds": seeds,
+    base_scores = {f.stem[len("result-"):]: round(100 * json.loads(f.read_text())["iou"], 2)
+                   for f in sorted(a.model.parent.glob("result-*.json"))} if a.base_epochs else {}
+    write_json(res / f"{stem}.json", {"headline": head, "base_heldout": base_scores, "targets": targets, "cells": cells, "seeds": seeds,
                                       "epochs": a.epochs, "lr_factors": a.lr_factors, "n_train": N_TRAIN,
                                       "set": a.set, "split": SETS[a.set][3], "model": str(model),
                                       "condition": "virtual camera" if is_virtual else "resize",

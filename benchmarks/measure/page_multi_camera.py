@@ -61,6 +61,9 @@ def r_finetune(d: dict) -> list[str]:
            f"epochs, fine-tuned at lr ×{str(d.get('lr_factors', '0.1')).split(',')[0]}; road IoU (%) per seed {seeds}.", ""]
     out += table(["condition"] + [f"seed {s}" for s in seeds] + ["mean"],
                  [[k] + [num(x) for x in v] + [num(h.get(k, sum(v) / len(v)))] for k, v in c.items()])
+    if d.get("base_heldout"):
+        out += ["The model as it is, on the shipped model's held-out splits (road IoU %): "
+                + ", ".join(f"{k} {v:.1f}" for k, v in d["base_heldout"].items()) + ".", ""]
     return out + table(["target (issue 34)", "met"], [[k, num(v)] for k, v in d.get("targets", {}).items()])
 
 
