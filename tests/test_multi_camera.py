@@ -137,6 +137,23 @@ def test_fit_init_starts_from_the_checkpoints_weights(two_stores, tmp_path):
     assert b["config"]["init"] == str(root / "a.pt") and b["init"]["epoch"] == 1 and len(b["init"]["sha256"]) == 64
 
 
+def test_fit_init_without_lr_fine_tunes_at_a_tenth_of_the_checkpoints_rate(two_stores, tmp_path):
+    root, stores = two_stores
+    a = load_checkpoint(root / "a.pt")
+    assert a["config"]["lr"] == 0.002  # the cpu recipe's, resolved into the checkpoint
+    r = CliRunner().invoke(app, ["fit", stores[1], "--init", str(root / "a.pt"), "--epochs", "1", "--val-fraction",
+                                 "0", "--out", str(tmp_path / "b.pt"), "--quiet"])
+    assert r.exit_code == 0, r.output
+    b = load_checkpoint(tmp_path / "b.pt")
+    assert b["config"]["lr"] == pytest.approx(0.0002)
+    assert max(row["lr"] for row in b["history"]) <= 0.0002 + 1e-12  # the schedule peaks at it
+    # a run given --lr keeps it; a fresh run without --init keeps the recipe's
+    r = CliRunner().invoke(app, ["fit", stores[1], "--init", str(root / "a.pt"), "--lr", "0.001", "--epochs", "1",
+                                 "--val-fraction", "0", "--out", str(tmp_path / "c.pt"), "--quiet"])
+    assert r.exit_code == 0, r.output
+    assert load_checkpoint(tmp_path / "c.pt")["config"]["lr"] == 0.001
+
+
 @pytest.mark.parametrize("extra, needle", [(["--model", "segnet-narrow"], "checkpoint is a 'resfpn'"),
                                            (["--width", "8"], "checkpoint has width 4"),
                                            (["--vp-channel"], "input channels"),

@@ -127,6 +127,8 @@ def test_cosine_schedule_warms_up_then_decays():
     assert get_lr(1000, 1000, cfg) == pytest.approx(0.0, abs=1e-12)
     lrs = [get_lr(i, 1000, cfg) for i in range(30, 1001)]
     assert all(a >= b for a, b in zip(lrs, lrs[1:]))                    # monotone after the warm-up
+    for total in (120, 7, 1):  # a warm-up of a fraction of steps (3.6 of 120) never overshoots the peak
+        assert max(get_lr(i, total, cfg) for i in range(total + 1)) == pytest.approx(0.01)
 
 
 def test_recipes_fill_only_unset_fields():

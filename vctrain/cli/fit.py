@@ -76,7 +76,7 @@ def fit_cmd(
     epochs: Optional[int] = typer.Option(None, "--epochs", "-e", help="epochs (cpu recipe: 20, paper recipe: 30; the paper: 600 on a GPU)"),
     batch_size: Optional[int] = typer.Option(None, "--batch-size", "-b", help="global batch size (recipes: 8)"),
     optimizer: Optional[str] = typer.Option(None, "--optimizer", help="sgd (momentum 0.9; paper) or adamw (cpu)"),
-    lr: Optional[float] = typer.Option(None, "--lr", help="peak learning rate (paper: 0.005, cpu: 0.002)"),
+    lr: Optional[float] = typer.Option(None, "--lr", help="peak learning rate (paper: 0.005, cpu: 0.002; with --init: a tenth of the checkpoint's)"),
     weight_decay: Optional[float] = typer.Option(None, "--weight-decay", help="weight decay (paper: 0.0005, cpu: 0.01)"),
     schedule: Optional[str] = typer.Option(None, "--schedule", help="'poly' (lr*(1-it/total)^0.9; paper), 'cosine' "
                                                                     "(3 % warm-up; cpu) or 'constant'"),
