@@ -1,7 +1,8 @@
 """Fine-tuning on a camera the model has not seen: 20 labelled frames of it (issue 34, item 4).
 
     .venv/bin/python benchmarks/finetune.py [--set lums] [--base-epochs 120 | --model M] [--seeds 0,1,2]
-                                           [--epochs 40[,120]] [--lr-factors 0.1[,0.3]] [--threads 2]
+                                           [--epochs 40[,120]] [--lr-factors 0.1[,0.3]] [--frames 20[,10,5]]
+                                           [--threads 2]
                                            [--workdir benchmarks/out/finetune]
 
 **Sets** (``--set``; ../shared/data, each with the camera it ships with; held out by capture range or city,
@@ -31,7 +32,8 @@ Every frame's road VP (a virtual-camera model only): ``--vps`` or the LOO study'
   recipe's learning rate (default a tenth, vctrain adapt's rule);
 * ``scratch``: the same frames, epochs and steps from random weights at the recipe's learning rate.
 
-No validation share (20 frames): the last epoch is the model. **Target** (checked, not asserted), on the
+``--frames 20,10,5`` also runs the recipe (first epochs and factor) and scratch on the first 10 and 5 of
+the 20 frames. No validation share (20 frames): the last epoch is the model. **Target** (checked, not asserted), on the
 first epochs and the first factor (the recipe): fine-tuned >= both others + 3 points, mean over seeds.
 Outputs benchmarks/results/finetune.{md,json} (``--set lums``) or finetune_<set>.{md,json}; the last
 stdout line is one JSON object.
@@ -79,12 +81,14 @@ SETS = {
 }
 
 
-def split_frames(name: str, wd: Path) -> tuple[Path, Path]:
-    """wd/frames/{train20,test}/{images,labels}: links to the set's 20 training and its test frames."""
+def split_frames(name: str, wd: Path, n: int = N_TRAIN) -> tuple[Path, Path]:
+    """wd/frames/{train<n>,test}/{images,labels}: links to the first ``n`` of the set's 20 training
+    frames and to its test frames."""
     root, _, pick, _ = SETS[name]
     images = {p.stem: p for p in (root / "images").iterdir() if p.suffix in (".jpg", ".png")}
+    train, test = pick(list(images))
     out = []
-    for sub_name, sel in zip(("train20", "test"), pick(list(images))):
+    for sub_name, sel in ((f"train{n}", train[:n]), ("test", test)):
         d = wd / "frames" / sub_name
         if d.exists():
             shutil.rmtree(d)
@@ -130,6 +134,7 @@ def training_data(name: str, model: Path, train: Path, vps: Path, wd: Path, thre
         w, h = data["input_size"]  # the model's working size (a folder's default would be the frames' own)
         return ["--baseline", "resize", "--images", train / "images", "--labels", train / "labels",
                 "--label-format", fmt, "--size", f"{w}x{h}"], False
+    wd.mkdir(parents=True, exist_ok=True)
     virtual, scale = virtual_of(model, wd)
     store = wd / "store20"
     run(BIN / "vcprep", "warp", "--camera", root / "camera.yaml", "--virtual", virtual, "--scale", scale,
@@ -168,19 +173,29 @@ def grid(epochs: list[int], factors: list[float]) -> list[tuple[str, int, float 
 
 def measure(a: argparse.Namespace, wd: Path, seeds: list[int]) -> tuple[dict[str, list[float]], bool]:
     """({condition: road IoU % per seed}, whether the model is a virtual-camera one)."""
-    train, test = split_frames(a.set, wd)
+    ns = [int(n) for n in a.frames.split(",")]
+    _, test = split_frames(a.set, wd, ns[0])
     vps = a.vps or a.model.parents[3] / "vps" / f"{a.set}-test.csv"
-    data_args, is_virtual = training_data(a.set, a.model, train, vps, wd, a.threads)
     env = {"OMP_NUM_THREADS": str(a.threads)}
     ck = json.loads(run(BIN / "python", "-c", "import json,torch;c=torch.load(r'%s',map_location='cpu',"
                         "weights_only=False);print(json.dumps(c['config']))" % a.model).strip().splitlines()[-1])
-    rows = grid([int(e) for e in a.epochs.split(",")], [float(f) for f in a.lr_factors.split(",")])
+    epochs, factors = [int(e) for e in a.epochs.split(",")], [float(f) for f in a.lr_factors.split(",")]
+    # (frames, label, epochs, lr share): the grid on the recipe's frames, then the recipe on fewer frames
+    rows = [(ns[0], *r) for r in grid(epochs, factors)]
+    rows += [(n, f"{what}, {n} frames", epochs[0], f) for n in ns[1:] for what, f in (("fine-tuned", factors[0]), ("scratch", None))]
+    data = {}
+    for n in ns:
+        train, _ = split_frames(a.set, wd, n)
+        data[n] = training_data(a.set, a.model, train, vps, wd / (f"n{n}" if n != N_TRAIN else ""), a.threads)
+    is_virtual = data[ns[0]][1]
     cells: dict[str, list[float]] = {"as-is": []}
     asis = score(a.set, a.model, test, vps, wd / "pred-as-is", a.threads, is_virtual)
     for seed in seeds:
         cells["as-is"].append(asis)  # no training: the same number for every seed
-        for label, e, f in rows:
+        for n, label, e, f in rows:
+            data_args = data[n][0]
             tag = "scratch" if f is None else "fine-tuned" if f == 0.1 else f"fine-tuned-x{f:g}"
+            tag += f"-n{n}" if n != N_TRAIN else ""
             out = wd / f"seed{seed}" / (tag if e == 40 else f"{tag}-e{e}")  # the first runs' folder names kept
             extra = ["--lr", ck["lr"]] if f is None else ["--init", a.model, "--lr", ck["lr"] * f]
             if not (out / "model.pt").is_file():
@@ -201,6 +216,7 @@ def main() -> None:
     ap.add_argument("--seeds", default="0,1,2")
     ap.add_argument("--epochs", default="40", help="comma list; the first is the recipe's")
     ap.add_argument("--lr-factors", default="0.1", help="fine-tuning lr as shares of the recipe's; the first is the recipe's")
+    ap.add_argument("--frames", default="20", help="labelled frames to train on, comma list (at most 20; the first is the recipe's)")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--workdir", type=Path, default=ROOT / "benchmarks" / "out" / "finetune")
     a = ap.parse_args()
@@ -210,6 +226,8 @@ def main() -> None:
     a.model = a.model or ROOT / "benchmarks" / "out" / "multi_camera" / "seed0" / "runs" / a.set / a.condition / "model.pt"
     if not a.model.is_file() or not root.is_dir():
         raise SystemExit(f"needs {a.model} (run benchmarks/multi_camera.py first) and {root}")
+    if not all(1 <= int(n) <= N_TRAIN for n in a.frames.split(",")):
+        raise SystemExit(f"--frames {a.frames}: each count must be 1..{N_TRAIN}")
     wd = a.workdir
     wd.mkdir(parents=True, exist_ok=True)
     seeds = [int(s) for s in a.seeds.split(",") if s]
@@ -221,7 +239,7 @@ def main() -> None:
     targets = {f"fine-tuned >= {c} + 3": head[f"fine-tuned_minus_{c}"] >= 3 for c in ("as-is", "scratch")}
     e0, f0 = a.epochs.split(",")[0], a.lr_factors.split(",")[0]
     model = a.model.relative_to(ROOT) if a.model.is_relative_to(ROOT) else a.model
-    lines = [f"Fine-tuning on {N_TRAIN} labelled frames, {SETS[a.set][3]}; model {model}; recipe: {e0} epochs, "
+    lines = [f"Fine-tuning on {a.frames.split(',')[0]} labelled frames, {SETS[a.set][3]}; model {model}; recipe: {e0} epochs, "
              f"fine-tuned at lr x{f0} (scratch at the recipe's lr); seeds {seeds}; road IoU (%).", "",
              "| condition | " + " | ".join(f"seed {s}" for s in seeds) + " | mean |", "|---|" + "---|" * (len(seeds) + 1)]
     lines += [f"| {c} | " + " | ".join(f"{v:.1f}" for v in cells[c]) + f" | {np.mean(cells[c]):.1f} |" for c in cells]
@@ -234,11 +252,11 @@ def main() -> None:
     stem = "finetune" if a.set == "lums" else f"finetune_{a.set}"
     (res / f"{stem}.md").write_text(table)
     command = (f"benchmarks/finetune.py --set {a.set} " + (f"--base-epochs {a.base_epochs} " if a.base_epochs else "")
-               + f"--seeds {a.seeds} --epochs {a.epochs} --lr-factors {a.lr_factors}")
+               + f"--seeds {a.seeds} --epochs {a.epochs} --lr-factors {a.lr_factors} --frames {a.frames}")
     base_scores = {f.stem[len("result-"):]: round(100 * json.loads(f.read_text())["iou"], 2)
                    for f in sorted(a.model.parent.glob("result-*.json"))} if a.base_epochs else {}
     write_json(res / f"{stem}.json", {"headline": head, "base_heldout": base_scores, "targets": targets, "cells": cells, "seeds": seeds,
-                                      "epochs": a.epochs, "lr_factors": a.lr_factors, "n_train": N_TRAIN,
+                                      "epochs": a.epochs, "lr_factors": a.lr_factors, "n_train": int(a.frames.split(",")[0]), "frames": a.frames,
                                       "set": a.set, "split": SETS[a.set][3], "model": str(model),
                                       "condition": "virtual camera" if is_virtual else "resize",
                                       "machine": machine(), "date": today(), "command": command})
