@@ -152,6 +152,12 @@ def test_fit_init_without_lr_fine_tunes_at_a_tenth_of_the_checkpoints_rate(two_s
                                  "--val-fraction", "0", "--out", str(tmp_path / "c.pt"), "--quiet"])
     assert r.exit_code == 0, r.output
     assert load_checkpoint(tmp_path / "c.pt")["config"]["lr"] == 0.001
+    # resumed without --lr (and without --init), the fine-tuning run keeps its own peak rate
+    r = CliRunner().invoke(app, ["fit", stores[1], "--epochs", "2", "--val-fraction", "0", "--resume",
+                                 str(tmp_path / "b.last.pt"), "--out", str(tmp_path / "b.pt"), "--quiet"])
+    assert r.exit_code == 0, r.output
+    resumed = load_checkpoint(tmp_path / "b.last.pt")
+    assert resumed["epoch"] == 2 and resumed["config"]["lr"] == pytest.approx(0.0002)
 
 
 @pytest.mark.parametrize("extra, needle", [(["--model", "segnet-narrow"], "checkpoint is a 'resfpn'"),

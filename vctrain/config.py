@@ -82,7 +82,7 @@ class TrainConfig:
 
 
 ADAPT_EPOCHS = 5       # a short fine-tune
-ADAPT_LR_FACTOR = 0.1  # of the model's own training learning rate
+ADAPT_LR_FACTOR = 0.1  # of the model's own training learning rate (vctrain adapt; vctrain fit --init without --lr)
 
 
 @dataclass(frozen=True)
