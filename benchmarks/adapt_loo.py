@@ -35,7 +35,6 @@ import os
 import shutil
 import sys
 import time
-from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
@@ -54,7 +53,6 @@ def flat_items(ds: dict, wd: Path) -> Path:
     """wd/<name>: images/ and labels/ of the dataset's test split as links named by item id (IDD-Lite's
     '<drive>_<frame>' ids collide as file stems), each in the dataset's own naming rule."""
     from vcprep.build import list_dataset
-    from vcprep.labels import get_label_format
 
     fmt = get_label_format(ds["label_format"])
     split = ds["test"]
@@ -115,8 +113,9 @@ def resize_adapted(model: Path, flat: Path, fmt: str, out: Path, seed: int, max_
     """The resize twin fine-tuned on the tri-mask of its own P(road) on the flat frames (``prior``: fused
     with the prior carried into each frame first), as ``vctrain adapt`` would (the model's own training
     settings, 5 epochs, a tenth of its learning rate, no validation)."""
+    from vctrain.adapt import own_settings
     from vctrain.checkpoint import load_checkpoint
-    from vctrain.config import ADAPT_EPOCHS, ADAPT_LR_FACTOR, TrainConfig
+    from vctrain.config import ADAPT_EPOCHS, ADAPT_LR_FACTOR
     from vctrain.train import fit
 
     if (out / "result.json").is_file():
@@ -124,14 +123,12 @@ def resize_adapted(model: Path, flat: Path, fmt: str, out: Path, seed: int, max_
     asis = score(model, flat, fmt, out / "pred-as-is", threads)
     shares = pseudo_labels(out / "pred-as-is", flat, out / "pseudo", prior)
     ck = load_checkpoint(model)
-    known = {f.name for f in fields(TrainConfig)}
-    base = {k: v for k, v in (ck.get("config") or {}).items() if k in known}
-    cfg = TrainConfig(**{**base, **dict(
-        stores=[], baseline="resize", images=str(flat / "images"), labels=str(out / "pseudo"),
+    cfg = own_settings(
+        ck, stores=[], baseline="resize", images=str(flat / "images"), labels=str(out / "pseudo"),
         label_format=PSEUDO_FORMAT, out=str(out / "model.pt"), init=str(model), resume=None, log=None,
         val_fraction=0.0, val_stores=[], size=tuple(ck["data"]["input_size"]), epochs=ADAPT_EPOCHS,
-        lr=ADAPT_LR_FACTOR * float(base["lr"]), seed=seed, max_steps=max_steps, balance="items", progress=False,
-        workers=0, arch=ck["model_args"]["arch"], base_width=ck["model_args"]["base_width"])})
+        lr=ADAPT_LR_FACTOR * float(ck["config"]["lr"]), seed=seed, max_steps=max_steps, balance="items",
+        progress=False, workers=0)
     t0 = time.perf_counter()
     fit(cfg)
     res = {"resize": round(asis, 2), "adapted": round(score(out / "model.pt", flat, fmt, out / "pred", threads), 2),

@@ -55,6 +55,7 @@ from as_shipped import CITYSCAPES, LUMS
 from measure.data import BIN, CS_FORMAT, LUMS_FORMAT, ROOT, run
 from measure.report import machine, today, write_json
 from measure.stats import seed_stats
+from vctrain.checkpoint import load_checkpoint
 
 N_TRAIN = 20
 
@@ -101,12 +102,10 @@ def split_frames(name: str, wd: Path, n: int = N_TRAIN) -> tuple[Path, Path]:
     return out[0], out[1]
 
 
-def virtual_of(model: Path, wd: Path) -> tuple[Path, float]:
-    """(wd/virtual.yaml, scale): the virtual camera and store scale the model was trained in."""
-    import torch
-
-    ck = torch.load(model, map_location="cpu", weights_only=False)
-    sp = ck["data"]["store_params"]
+def virtual_of(data: dict, wd: Path) -> tuple[Path, float]:
+    """(wd/virtual.yaml, scale): the virtual camera and store scale a model was trained in (its
+    checkpoint's ``data``)."""
+    sp = data["store_params"]
     path = wd / "virtual.yaml"
     path.write_text(yaml.safe_dump(sp["virtual"], sort_keys=False))
     return path, float(sp["scale"])
@@ -123,19 +122,17 @@ def score(name: str, model: Path, test: Path, vps: Path, out: Path, threads: int
     return 100 * float(res["iou"])
 
 
-def training_data(name: str, model: Path, train: Path, vps: Path, wd: Path, threads: int) -> tuple[list, bool]:
-    """(``vctrain fit`` arguments for the 20 frames, whether the model is a virtual-camera one): a
-    store warped into the model's virtual camera, or the folders for ``--baseline resize``."""
-    import torch
-
+def training_data(name: str, data: dict, train: Path, vps: Path, wd: Path, threads: int) -> tuple[list, bool]:
+    """(``vctrain fit`` arguments for the training frames, whether the model is a virtual-camera one): a
+    store warped into the model's virtual camera (``data``: its checkpoint's), or the folders for
+    ``--baseline resize``."""
     root, fmt, _, _ = SETS[name]
-    data = torch.load(model, map_location="cpu", weights_only=False)["data"]
     if data["mode"] == "resize":
         w, h = data["input_size"]  # the model's working size (a folder's default would be the frames' own)
         return ["--baseline", "resize", "--images", train / "images", "--labels", train / "labels",
                 "--label-format", fmt, "--size", f"{w}x{h}"], False
     wd.mkdir(parents=True, exist_ok=True)
-    virtual, scale = virtual_of(model, wd)
+    virtual, scale = virtual_of(data, wd)
     store = wd / "store20"
     run(BIN / "vcprep", "warp", "--camera", root / "camera.yaml", "--virtual", virtual, "--scale", scale,
         "--images", train / "images", "--labels", train / "labels", "--label-format", fmt,
@@ -177,8 +174,8 @@ def measure(a: argparse.Namespace, wd: Path, seeds: list[int]) -> tuple[dict[str
     _, test = split_frames(a.set, wd, ns[0])
     vps = a.vps or a.model.parents[3] / "vps" / f"{a.set}-test.csv"
     env = {"OMP_NUM_THREADS": str(a.threads)}
-    ck = json.loads(run(BIN / "python", "-c", "import json,torch;c=torch.load(r'%s',map_location='cpu',"
-                        "weights_only=False);print(json.dumps(c['config']))" % a.model).strip().splitlines()[-1])
+    model_ck = load_checkpoint(a.model)
+    ck = model_ck["config"]
     epochs, factors = [int(e) for e in a.epochs.split(",")], [float(f) for f in a.lr_factors.split(",")]
     # (frames, label, epochs, lr share): the grid on the recipe's frames, then the recipe on fewer frames
     rows = [(ns[0], *r) for r in grid(epochs, factors)]
@@ -186,7 +183,7 @@ def measure(a: argparse.Namespace, wd: Path, seeds: list[int]) -> tuple[dict[str
     data = {}
     for n in ns:
         train, _ = split_frames(a.set, wd, n)
-        data[n] = training_data(a.set, a.model, train, vps, wd / (f"n{n}" if n != N_TRAIN else ""), a.threads)
+        data[n] = training_data(a.set, model_ck["data"], train, vps, wd / (f"n{n}" if n != N_TRAIN else ""), a.threads)
     is_virtual = data[ns[0]][1]
     cells: dict[str, list[float]] = {"as-is": []}
     asis = score(a.set, a.model, test, vps, wd / "pred-as-is", a.threads, is_virtual)

@@ -48,7 +48,7 @@ from vcprep.store import Store, store_lock
 from .checkpoint import load_checkpoint, save_checkpoint
 from .config import ADAPT_EPOCHS, ADAPT_LR_FACTOR, AdaptSettings, TrainConfig
 
-__all__ = ["COMBINE", "AdaptSettings", "ADAPT_EPOCHS", "ADAPT_LR_FACTOR", "PriorPredictor", "fuse", "surrogate_for_item", "write_surrogate_labels", "adapt",
+__all__ = ["COMBINE", "AdaptSettings", "own_settings", "ADAPT_EPOCHS", "ADAPT_LR_FACTOR", "PriorPredictor", "fuse", "surrogate_for_item", "write_surrogate_labels", "adapt",
            "adapt_store_path"]
 
 COMBINE = ("prior", "fuse", "self")  # what a surrogate label is the tri-mask of: p_g, fused, the model's p_n
@@ -174,6 +174,15 @@ def _prior_for(prior: str | Path | np.ndarray, store_params: dict[str, Any],
     return p, None, None
 
 
+
+def own_settings(ck: dict, **overrides) -> TrainConfig:
+    """The training settings of a run that continues checkpoint ``ck``'s training: its own settings
+    (whatever this vctrain's TrainConfig knows), its network (architecture, width), then ``overrides``."""
+    known = {f.name for f in fields(TrainConfig)}
+    base = {k: v for k, v in (ck.get("config") or {}).items() if k in known}
+    return TrainConfig(**{**base, "arch": ck["model_args"]["arch"], "base_width": ck["model_args"]["base_width"],
+                          **overrides})
+
 def adapt(model: str | Path, images: str | Path | Iterable[str | Path] | Sequence[Job], camera: Camera | FrameCameras,
           prior: str | Path | np.ndarray, out: str | Path, settings: AdaptSettings = AdaptSettings()) -> dict[str, Any]:
     """Fine-tune the virtual-camera ``model`` on unlabelled ``images`` (a folder, image files, or
@@ -227,12 +236,8 @@ def adapt(model: str | Path, images: str | Path | Iterable[str | Path] | Sequenc
                              "widen --lo/--hi, or use --combine fuse or prior")
         raise InputError(what, prior_path or model, "check the prior, or widen --lo/--hi")
 
-    # the model's own training settings (whatever this vctrain's TrainConfig knows), then ours
-    known = {f.name for f in fields(TrainConfig)}
-    base = {k: v for k, v in (ck.get("config") or {}).items() if k in known}
     overrides = dict(stores=[str(target.root)], out=str(out), init=str(model), resume=None, baseline="none",
                      images=None, labels=None, label_format=None, val_fraction=0.0, val_stores=[], log=None,
-                     arch=ck["model_args"]["arch"], base_width=ck["model_args"]["base_width"],
                      size=tuple(data.get("input_size") or size),
                      epochs=epochs, lr=lr, device=settings.device, progress=settings.progress,
                      max_steps=settings.max_steps, workers=0,
@@ -241,7 +246,7 @@ def adapt(model: str | Path, images: str | Path | Iterable[str | Path] | Sequenc
         overrides["seed"] = int(settings.seed)
     if settings.batch_size is not None:
         overrides["batch_size"] = int(settings.batch_size)
-    cfg = TrainConfig(**{**base, **overrides})
+    cfg = own_settings(ck, **overrides)
     summary = fit(cfg)
 
     adapted = {"from": str(model), "from_sha256": hashlib.sha256(model.read_bytes()).hexdigest(),

@@ -233,6 +233,16 @@ def _init_network(cfg: TrainConfig, init: dict[str, Any]) -> None:
         cfg.base_width = int(init["model_args"]["base_width"])
 
 
+def _unset_from_checkpoints(cfg: TrainConfig, resume: dict[str, Any] | None, init: dict[str, Any] | None) -> None:
+    """Fill what a run left unset from the checkpoints it starts from (in place), before the recipe
+    fills the rest: a resumed run keeps its own peak rate (a fine-tuning run's too); a fine-tuning run
+    takes its network and rate from ``init`` (:func:`_init_network`)."""
+    if resume is not None and cfg.lr is None:
+        cfg.lr = (resume.get("config") or {}).get("lr")
+    if init is not None:
+        _init_network(cfg, init)
+
+
 def _init_record(path: str, init: dict[str, Any]) -> dict[str, Any]:
     """What a fine-tuned checkpoint records of the one it started from."""
     return {"path": str(path), "sha256": hashlib.sha256(Path(path).read_bytes()).hexdigest(),
@@ -419,10 +429,7 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
 
     resume = load_checkpoint(cfg.resume) if cfg.resume else None
     init = load_checkpoint(cfg.init) if cfg.init and resume is None else None
-    if resume is not None and cfg.lr is None:  # a resumed run keeps its own peak rate (a fine-tuning run's too)
-        cfg.lr = (resume.get("config") or {}).get("lr")
-    if init is not None:
-        _init_network(cfg, init)
+    _unset_from_checkpoints(cfg, resume, init)
     resolve_recipe(cfg, device)
     train_s, val_s, info = prepare_data(cfg)
     model, model_args = _network(cfg, resume, init, info)
