@@ -7,14 +7,15 @@ completion order) and owns everything shared, such as the manifest.
 
 Stopping: the callback returns False to stop (e.g. at the first bad item). Ctrl-C (SIGINT) is
 deferred to the end of the items in flight (a second Ctrl-C interrupts at once); workers ignore
-SIGINT (a worker still starting when Ctrl-C reaches the process group may die of it: that is read
-as the Ctrl-C, not as a crashed worker; it had written nothing). Either way no new item starts, the items running finish and reach the callback, and then
+SIGINT from birth (the forkserver is started with it ignored; should a worker still die of one, the
+broken pool is read as the Ctrl-C, not as a crashed worker). Either way no new item starts, the items running finish and reach the callback, and then
 the loop returns (or raises ``KeyboardInterrupt``): nothing finished is lost.
 """
 from __future__ import annotations
 
 import concurrent.futures as cf
 import multiprocessing as mp
+import multiprocessing.forkserver as forkserver
 import os
 import signal
 import sys
@@ -127,6 +128,15 @@ def _context():
     never inherit a parent's OpenCV thread pool (forking after OpenCV ran threads can deadlock)."""
     ctx = mp.get_context("forkserver")
     ctx.set_forkserver_preload(["numpy", "cv2", "vcprep.build", "vcprep.completion"])
+    # Workers get the SIGINT disposition the server was started with. Started with SIGINT ignored (a
+    # disposition exec keeps), every worker ignores Ctrl-C from birth: none can die of one before its
+    # initializer runs, which would break the pool and kill the other workers mid-write (orphans).
+    if threading.current_thread() is threading.main_thread():
+        old = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        try:
+            forkserver.ensure_running()
+        finally:
+            signal.signal(signal.SIGINT, old)
     return ctx
 
 
