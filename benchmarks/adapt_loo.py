@@ -52,7 +52,7 @@ PSEUDO_FORMAT = "values:road=1;ignore=255;max=255"
 def flat_items(ds: dict, wd: Path) -> Path:
     """wd/<name>: images/ and labels/ of the dataset's test split as links named by item id (IDD-Lite's
     '<drive>_<frame>' ids collide as file stems), each in the dataset's own naming rule."""
-    from vcprep.build import list_dataset
+    from vcprep.dataset import list_dataset
 
     fmt = get_label_format(ds["label_format"])
     split = ds["test"]
@@ -92,7 +92,7 @@ def pseudo_labels(pred: Path, flat: Path, out: Path, prior: dict[str, np.ndarray
     """out/<image stem>.png: the 0.25/0.75 tri-mask (0 / 1 / 255) of each frame's P(road) (pred's
     <stem>_prob.png), with ``prior`` first fused with that frame's p_g (vctrain.adapt.fuse); returns the
     label shares."""
-    from vcprep.imageio import read_image, write_png
+    from vcprep.io import read_image, write_png
     from vcprep.prior import surrogate_labels
     from vctrain.adapt import fuse
 

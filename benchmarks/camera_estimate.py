@@ -3,7 +3,7 @@
     .venv/bin/python benchmarks/camera_estimate.py [--frames 8] [--quick]
 
 Threads: cv2.setNumThreads(1) (one core). Nothing here trains; the estimator has no parameter fitted
-to these frames (its constants are in vcprep/camera_estimate.py and vcprep/vanishing_point.py).
+to these frames (its constants are in vcprep/camera/estimate.py and vcprep/vp/reliability.py).
 
 Sets (truth -> what is compared):
 
@@ -33,7 +33,7 @@ at (``ROAD_WIDTH``) is measured beside: the median visible road width of CamVid 
 Cityscapes set under their true calibrations. Targets of
 the issue: |tilt error| <= 1 deg, |horizon error| <= 2 % of the height, fx within 10 % (median over
 cameras) -- the last is reported as the error of the assumption, since road frames do not fix fx
-(vcprep/camera_estimate.py). Speed: seconds per 100 frames of the estimate outside VP detection
+(vcprep/camera/estimate.py). Speed: seconds per 100 frames of the estimate outside VP detection
 (total minus the time spent in ``estimate_vp``, measured in the same run), beside VP detection's own.
 The last stdout line is one JSON object: ``tilt_abs_err_median``, ``tilt_abs_err_max``,
 ``horizon_err_pct_median``, ``horizon_err_pct_max`` (synthetic, fx given), the same with fx assumed
@@ -55,11 +55,11 @@ import numpy as np
 
 from measure.data import BIN, CS_FORMAT, DATA, ROOT, SHARED_DATA, run
 from measure.report import machine, today, write_json
-import vcprep.vanishing_point as vpmod
+import vcprep.vp.reliability as vpmod
 from vcprep.camera import PRESETS, Camera, load_camera
-from vcprep.camera_estimate import ASSUMED_HEIGHT, ROAD_WIDTH, estimate_camera, road_widths
+from vcprep.camera import ASSUMED_HEIGHT, ROAD_WIDTH, estimate_camera, road_widths
 from vcprep.errors import InputError
-from vcprep.homography import vp_from_pose
+from vcprep.warp import vp_from_pose
 from vcprep.labels import get_label_format
 from vcprep.synthetic import RoadScene, render_road
 

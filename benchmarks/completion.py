@@ -16,10 +16,10 @@ Timed, per frame, median over repeats (spread = 10th..90th percentile and min..m
 * ``ours``: ``vcprep.warp.warp_image`` with the cached warp + projective-completion maps (what
   every image of a camera costs in between-camera mode, where H and the VP are shared): one
   pass, covered pixels remapped from the source, uncovered ones looked up in the per-image
-  angle table (see ``vcprep.completion.CompletionMaps``);
+  angle table (see ``vcprep.warp.completion.CompletionMaps``);
 * ``ours_cold``: building those maps from scratch + the remap (one-off per camera; per image in
   within-camera mode, where H differs per image), reported, not a target;
-* ``back``: ``vcprep.backproject.backproject_array`` of a store-sized probability map to the
+* ``back``: ``vcprep.warp.backproject.backproject_array`` of a store-sized probability map to the
   source size (maps cached), vs ``bare_back``: ``cv2.warpPerspective`` of the same map with
   ``WARP_INVERSE_MAP`` to the same size.
 
@@ -41,11 +41,11 @@ import cv2
 import numpy as np
 
 from measure.data import DATA as CAMVID, ROOT
-from vcprep import completion, warp
-from vcprep.backproject import backproject_array
+from vcprep.warp import completion, remap as warp
+from vcprep.warp import backproject_array
 from vcprep.camera import PRESETS
-from vcprep.completion import border_ignore, completion_maps, store_vp
-from vcprep.homography import virt_H_src, virtual_at_scale, vp_from_pose
+from vcprep.warp import border_ignore, completion_maps, store_vp
+from vcprep.warp import virt_H_src, virtual_at_scale, vp_from_pose
 from vcprep.labels import LABEL_FORMATS, decode_label
 from vcprep.synthetic import render_road
 from vcprep.warp import warp_image, warp_label

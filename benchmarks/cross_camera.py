@@ -73,7 +73,7 @@ def deal(split: str, k: int, n: int, dest: Path) -> Path:
 def make_cameras(wd: Path) -> dict[str, dict]:
     """The four cameras' train/test folders, camera files and given VPs."""
     from vcprep.camera import load_camera
-    from vcprep.homography import vp_from_pose
+    from vcprep.warp import vp_from_pose
 
     native = load_camera(str(native_camera(wd)))
     out: dict[str, dict] = {}

@@ -14,7 +14,7 @@ folder's assumed camera) from ../shared/data; the virtual rectangle extended to 
 
 Measured per frame (ms):
   net_torch / net_ort      the network alone (input at the working size, logits out) in torch / onnxruntime
-  torch_path               vctrain.frames.FramePredictor.predict: warp + completion (cv2.remap, cached
+  torch_path               vctrain.predict.frames.FramePredictor.predict: warp + completion (cv2.remap, cached
                            maps), the network (+ softmax), back-projection (cv2.warpPerspective); its
                            per-stage split from FramePredictor.times
   onnx_fixed / onnx_vp     the exported graph (frame -> P(road)) in onnxruntime: mount pose built in /
@@ -52,14 +52,14 @@ import torch
 
 from measure.data import ROOT, SHARED_DATA
 from measure.report import write_json
-from vcprep.build import store_params
+from vcprep.store import store_params
 from vcprep.camera import PRESETS, load_camera
-from vcprep.homography import vp_from_pose
-from vcprep.virtual_camera import design_virtual_camera
+from vcprep.warp import vp_from_pose
+from vcprep.camera import design_virtual_camera
 from vctrain.checkpoint import save_checkpoint
 from vctrain.data import to_input
-from vctrain.export import OnnxPredictor, export_onnx
-from vctrain.frames import FramePredictor, StageTimes
+from vctrain.deploy import OnnxPredictor, export_onnx
+from vctrain.predict import FramePredictor, StageTimes
 from vctrain.model import build_model, model_args_for
 from vctrain.predict import Predictor
 from vctrain.study.spec import DEFAULT_ABOVE, DEFAULT_STORE_PIXELS

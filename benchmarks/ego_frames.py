@@ -2,8 +2,8 @@
 
     .venv/bin/python benchmarks/ego_frames.py
 
-Per set, in the same run: ``ego_rows`` from the labels (:func:`vcprep.ego.ego_rows_from_label_files`)
-and from the frames without their labels (:func:`vcprep.ego.ego_rows_from_frame_files`), both at the
+Per set, in the same run: ``ego_rows`` from the labels (:func:`vcprep.camera.ego.ego_rows_from_label_files`)
+and from the frames without their labels (:func:`vcprep.camera.ego.ego_rows_from_frame_files`), both at the
 frames' own size, and the difference. Also the frame method on windows of consecutive frames
 (a few dozen each), to show it does not need the whole drive. Threads: cv2.setNumThreads(1).
 
@@ -26,7 +26,7 @@ import cv2
 
 from measure.data import ROOT, SHARED_DATA
 from measure.report import machine, today, write_json
-from vcprep.ego import MIN_DISTINCT, ego_rows_from_frame_files, ego_rows_from_label_files
+from vcprep.camera import MIN_DISTINCT, ego_rows_from_frame_files, ego_rows_from_label_files
 from vcprep.errors import InputError
 from vcprep.labels import get_label_format, label_stem_for
 

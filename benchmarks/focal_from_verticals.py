@@ -35,7 +35,7 @@ Sets (truth -> compared):
   256x256 squashed from 2048x1024) against its camera.yaml (tilt 2.4, typical extrinsics).
 
 Each set twice: with the road VP row of the true camera (the horizon known exactly: the best case)
-and with each frame's detected road VP (``vcprep.vanishing_point.estimate_vp`` with the true
+and with each frame's detected road VP (``vcprep.vp.estimate_vp`` with the true
 camera's search window; frames without an accepted VP are left out): what a tool would have.
 Beside it, the error of the 60-degree assumption the tool makes, in fx and in fy (square pixels
 assumed). Nothing here is fitted to these frames. Threads: cv2.setNumThreads(1).
@@ -59,10 +59,10 @@ import numpy as np
 from measure.data import BIN, DATA, ROOT, SHARED_DATA, native_camera, run
 from measure.report import machine, today, write_json
 from vcprep.camera import PRESETS, Camera, load_camera
-from vcprep.camera_estimate import ASSUMED_HFOV, whole_frame_vp_config
-from vcprep.homography import vp_from_pose
-from vcprep.imageio import read_image
-from vcprep.vanishing_point import estimate_vp
+from vcprep.camera import ASSUMED_HFOV, whole_frame_vp_config
+from vcprep.warp import vp_from_pose
+from vcprep.io import read_image
+from vcprep.vp import estimate_vp
 
 CITYSCAPES = SHARED_DATA / "cityscapes_pix2pix"
 SIM = [(hf, t) for hf in (20, 30) for t in (-8, -4, 0, 4, 8)]

@@ -48,8 +48,8 @@ def _fold(workdir: Path, heldout: str, seed: int) -> tuple[Path, Path, Path]:
 
 
 def diagnose(within_ckpt: Path, resize_ckpt: Path, store_dir: Path, every: int) -> dict:
-    from vcprep.backproject import backproject_array
-    from vcprep.imageio import read_image
+    from vcprep.warp import backproject_array
+    from vcprep.io import read_image
     from vcprep.labels import decode_label, get_label_format
     from vcprep.store import Store
     from vctrain.metrics import RoadMetrics

@@ -29,7 +29,7 @@ the images simply resized.
 **Targets** (issue 34, checked, not asserted): the shipped model's CamVid val >= 92, Cityscapes and IDD >= 88, LUMS >= 85,
 BDD100K >= 60, KITTI >= 85 (road IoU %); ``within`` above ``resize`` on every held-out split;
 checkpoint <= 20 MB. The predict time of a 1280x720 frame (the BDD held-out frames through
-:class:`vctrain.frames.FramePredictor`, the camera's average pose; warp, network, back-projection)
+:class:`vctrain.predict.frames.FramePredictor`, the camera's average pose; warp, network, back-projection)
 is reported at 1 and 2 threads.
 
 ``--ship DIR`` copies the model of the condition with the higher mean over the held-out splits (the
@@ -136,7 +136,7 @@ def predict_ms(model: Path, threads: int, frames: int = 8) -> float:
     import torch
 
     from vcprep.camera import load_camera
-    from vctrain.frames import FramePredictor
+    from vctrain.predict import FramePredictor
     from vctrain.predict import Predictor
 
     torch.set_num_threads(threads)

@@ -4,7 +4,7 @@
 
 Data: ../shared/data/camvid/val (480x360, camvid preset) when present, else synthetic renders (and
 says so). One thread for OpenCV and PyTorch; CPU. Stages (ms per image, median over frames):
-  line detection     LSD segments (vcprep.vanishing_point.detect_segments)
+  line detection     LSD segments (vcprep.vp.detect_segments)
   VP                 vanishing point from those segments (estimate_vp with segments given)
   projection         warp into the virtual camera (one remap, cached maps, per-image pose)
   completion         warp + projective completion minus projection, maps built for each distinct
@@ -28,11 +28,11 @@ import torch
 
 from measure.data import ROOT, SHARED_DATA
 from measure.report import write_json
-from vcprep.backproject import backproject_array
+from vcprep.warp import backproject_array
 from vcprep.camera import PRESETS
-from vcprep.completion import completion_maps
-from vcprep.homography import apply_homography, pose_from_vp, virt_H_src, virtual_at_scale
-from vcprep.vanishing_point import detect_segments, estimate_vp, to_gray
+from vcprep.warp import completion_maps
+from vcprep.warp import apply_homography, pose_from_vp, virt_H_src, virtual_at_scale
+from vcprep.vp import detect_segments, estimate_vp, to_gray
 from vcprep.warp import build_maps, warp_image
 from vctrain.model import build_model, model_args_for
 

@@ -13,7 +13,7 @@ folder is absent the script says so and uses synthetic ``render_road`` frames of
 
 Timed per repeat (wall clock, fresh store each time, order of the three stages rotated):
 
-* ``jobs1`` / ``jobs2``: :func:`vcprep.build.warp_dataset` with ``workers=1`` / ``2`` - the
+* ``jobs1`` / ``jobs2``: :func:`vcprep.store.build.warp_dataset` with ``workers=1`` / ``2`` - the
   code of ``vcprep warp --jobs N`` (hash the sources, H, up-to-date check, warp + completion,
   three atomic PNG writes and a journalled record per item, the manifest at the end); the pool
   start-up is included;
@@ -21,7 +21,7 @@ Timed per repeat (wall clock, fresh store each time, order of the three stages r
   default settings) and write them atomically - plain PNG I/O of the same frames, the issue's
   baseline (``ratio_vs_png_io``);
 * ``png_io_same_encoder``: the same, but encoding with the store's own PNG writer
-  (``vcprep.png``, ISA-L deflate; image 'photo', label 'mask' settings of ``vcprep.imageio``).
+  (``vcprep.io.png``, ISA-L deflate; image 'photo', label 'mask' settings of ``vcprep.io.images``).
   The store encodes 3-4x faster than OpenCV does, so against ``png_io`` part of its ratio is
   the faster encoder; ``ratio_vs_same_encoder`` = jobs1 / this one is the store's cost over
   I/O done equally fast (reported, no target).
@@ -57,11 +57,12 @@ import numpy as np
 
 from measure.data import ROOT, SHARED_DATA
 from measure.report import write_json
-from vcprep.build import Job, WarpSettings, list_dataset, warp_dataset
+from vcprep.dataset import Job, list_dataset
+from vcprep.store import WarpSettings, warp_dataset
 from vcprep.camera import PRESETS
-from vcprep.imageio import write_bytes_atomic, write_png
+from vcprep.io import write_bytes_atomic, write_png
 from vcprep.labels import LABEL_FORMATS
-from vcprep.parallel import default_jobs
+from vcprep.store import default_jobs
 from vcprep.synthetic import RoadScene, render_road
 
 CAMVID = SHARED_DATA / "camvid"

@@ -20,7 +20,7 @@ average before and after is recorded, as other jobs on the machine slow both con
                a mask and a probability PNG per frame, the overlay video), ``--within none`` (between:
                the camera's average pose) and ``--within estimate`` (within: each frame's own road VP,
                smoothed over 2 frames either side); frames per second = frames / wall seconds;
-  per stage    :func:`vctrain.video.predict_video` in this process on the video's first
+  per stage    :func:`vctrain.predict.video.predict_video` in this process on the video's first
                ``--stage-frames`` frames, between and within alternated twice after a warm-up on 20
                frames (median and range over the two): ms per frame of VP detection, warp (pose, homography, warp + completion
                maps, remap), network, back-projection, and the rest (decode, PNG and video writing).
@@ -47,13 +47,13 @@ import torch
 
 from measure.data import BIN, ROOT, SHARED_DATA
 from measure.report import machine, today, write_json
-from vcprep.build import store_params
+from vcprep.store import store_params
 from vcprep.camera import PRESETS, load_camera
 from vctrain.checkpoint import save_checkpoint
-from vctrain.frames import StageTimes
+from vctrain.predict import StageTimes
 from vctrain.model import build_model, model_args_for
 from vctrain.predict import Predictor
-from vctrain.video import ego_camera, open_video, predict_video
+from vctrain.predict import ego_camera, open_video, predict_video
 
 BDD = SHARED_DATA / "bdd100k_drivable"
 FPS, HOLD = 30.0, 45                      # video frame rate; frames each BDD100K frame is shown

@@ -151,7 +151,7 @@ scene by scene.
 
 The tail, split (``tail`` per set): every frame with an error above 1 % of the width is a
 *search miss* if the reference VP scores higher than the detection under the detector's own score
-(``vcprep.vanishing_point.score_vps``), else *lines elsewhere*: the image's lines, as the detector
+(``vcprep.vp.score_vps``), else *lines elsewhere*: the image's lines, as the detector
 weighs them, converge away from the reference. First run: 99 of 100 tail frames over all sets are
 lines-elsewhere (reference / detection score 0.61-0.67, median per set), one tele frame a miss.
 
@@ -213,7 +213,7 @@ from measure.report import write_json
 from measure.vp_scoring import TAIL_PCT, camera_consistency, evaluate_vps, fallback_loo
 from measure.vp_sets import camvid_vp_set, kitti_vp_set, simulated_vp_sets, synthetic_vp_set
 from vcprep.camera import PRESETS
-from vcprep.vanishing_point import VPConfig
+from vcprep.vp import VPConfig
 
 
 def _row(label, size, r):

@@ -27,7 +27,7 @@ import numpy as np
 from measure.data import ROOT, SHARED_DATA
 from measure.report import write_json
 from vcprep.camera import PRESETS
-from vcprep.homography import virt_H_src, virtual_at_scale
+from vcprep.warp import virt_H_src, virtual_at_scale
 from vcprep.warp import build_maps, maps_for, warp_image
 
 DATA = SHARED_DATA / "camvid" / "train"

@@ -7,7 +7,7 @@ from pathlib import Path
 import yaml
 
 from vcprep.camera import PRESETS, camera_to_yaml
-from vcprep.homography import vp_from_pose
+from vcprep.warp import vp_from_pose
 
 from conftest import assert_one_error_line, run_cli, write_synthetic_dataset
 

@@ -21,12 +21,13 @@ import torch
 from typer.testing import CliRunner
 
 from conftest import assert_one_error_line, run_cli
-from vcprep.build import WarpSettings, list_dataset, warp_dataset
+from vcprep.store import WarpSettings, warp_dataset
+from vcprep.dataset import list_dataset
 from vcprep.camera import PRESETS, camera_to_yaml
 from vcprep.dataset import Job
 from vcprep.errors import InputError
-from vcprep.homography import virt_H_src, virtual_at_scale
-from vcprep.imageio import read_image, write_png
+from vcprep.warp import virt_H_src, virtual_at_scale
+from vcprep.io import read_image, write_png
 from vcprep.labels import get_label_format
 from vcprep.prior import compute_prior, prior_meta, write_prior
 from vcprep.store import Store

@@ -1,7 +1,7 @@
-"""Estimating a camera from its own frames (vcprep.camera_estimate; issue 25).
+"""Estimating a camera from its own frames (vcprep.camera.estimate; issue 25).
 
 Oracle: synthetic roads rendered through cameras whose K, height and pose we choose, so the true
-tilt, pan and horizon row are known exactly (:func:`vcprep.homography.vp_from_pose`)."""
+tilt, pan and horizon row are known exactly (:func:`vcprep.warp.homography.vp_from_pose`)."""
 from __future__ import annotations
 
 import json
@@ -14,12 +14,12 @@ import pytest
 
 from conftest import assert_one_error_line, run_cli
 from vcprep.camera import Camera, read_camera_yaml
-from vcprep.camera_estimate import ASSUMED_HFOV, ROAD_WIDTH, estimate_camera, exif_focal_35mm, road_widths
+from vcprep.camera import ASSUMED_HFOV, ROAD_WIDTH, estimate_camera, exif_focal_35mm, road_widths
 from vcprep.errors import InputError
-from vcprep.homography import virt_H_src, vp_from_pose
+from vcprep.warp import virt_H_src, vp_from_pose
 from vcprep.labels import get_label_format
 from vcprep.synthetic import RoadScene, render_road
-from vcprep.vanishing_point import read_vp_csv
+from vcprep.vp import read_vp_csv
 
 PANS = [0.0, 1.5, -1.0, 2.0, -2.0, 0.5]   # per-frame heading of the road relative to the camera
 

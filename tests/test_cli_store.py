@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from vcprep.camera import PRESETS, camera_to_yaml
-from vcprep.homography import virt_H_src, virtual_at_scale
+from vcprep.warp import virt_H_src, virtual_at_scale
 
 from conftest import EXAMPLES, assert_one_error_line, run_cli, write_synthetic_dataset
 
@@ -312,7 +312,7 @@ def test_camera_design_above_is_an_exact_crop_that_keeps_the_road(tmp_path):
     that lands inside the uncropped design lands inside the cropped one too (rendered roads:
     the exact road mask is known), while a large share of the uncropped image is cut."""
     from vcprep.camera import PRESETS, read_camera_yaml
-    from vcprep.homography import apply_homography, virt_H_src
+    from vcprep.warp import apply_homography, virt_H_src
     from vcprep.synthetic import render_road
 
     names = ["camvid", "kitti", "toronto2020"]

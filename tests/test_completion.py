@@ -1,4 +1,4 @@
-"""Completion (vcprep.completion, paper §4.3): one remap for warp + completion, its ablations,
+"""Completion (vcprep.warp.completion, paper §4.3): one remap for warp + completion, its ablations,
 the edge cases of issue 4, and the `complete` / `warp --complete` / `figure completion` commands.
 
 Oracle: synthetic road renders (vcprep.synthetic). The virtual camera rendered directly sees the
@@ -14,12 +14,13 @@ import cv2
 import numpy as np
 import pytest
 
-from vcprep.build import ItemPose, WarpSettings, list_dataset, warp_dataset
+from vcprep.store import ItemPose, WarpSettings, warp_dataset
+from vcprep.dataset import list_dataset
 from vcprep.camera import PRESETS
-from vcprep.completion import (LABEL_RIM, METHODS, TABLE_ARC, CompletionMaps, border_ignore, check_method, complete_maps,
+from vcprep.warp import (LABEL_RIM, METHODS, TABLE_ARC, CompletionMaps, border_ignore, check_method, complete_maps,
                                completion_maps, exit_points_rectangle, label_exit_points, store_vp)
 from vcprep.errors import InputError
-from vcprep.homography import apply_homography, virt_H_src, virtual_at_scale, vp_from_pose
+from vcprep.warp import apply_homography, virt_H_src, virtual_at_scale, vp_from_pose
 from vcprep.labels import LABEL_FORMATS
 from vcprep.synthetic import RoadScene, render_road
 from vcprep.warp import OUTSIDE, maps_for, warp_image, warp_label
@@ -93,7 +94,7 @@ def test_methods_shapes_and_borders(camvid_half):
 def test_clear_cache_builds_the_maps_afresh(camvid_half):
     """The public cache resets (a benchmark's cold start): after them the maps are built again (new
     objects, where without them the cached ones come back), equal to what was cached."""
-    from vcprep import completion, warp
+    from vcprep.warp import completion, remap as warp
 
     img, _, H, vp = _setup(camvid_half)
     build = lambda: (maps_for(H, camvid_half.size, V8.size),  # noqa: E731

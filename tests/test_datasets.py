@@ -19,7 +19,7 @@ import yaml
 
 from conftest import assert_one_error_line, run_cli
 from vcprep.camera import PRESETS, Camera
-from vcprep.homography import apply_homography, virt_H_src, virtual_at_scale, vp_from_pose
+from vcprep.warp import apply_homography, virt_H_src, virtual_at_scale, vp_from_pose
 from vcprep.store import Store
 from vcprep.synthetic import RoadScene, render_road
 
@@ -363,9 +363,9 @@ def write_idd_tree(root: Path, cam: Camera) -> dict[str, np.ndarray]:
 
 
 def test_idd_tree_as_shipped(tmp_path):
-    from vcprep.build import list_dataset
+    from vcprep.dataset import list_dataset
     from vcprep.labels import decode_label, get_label_format
-    from vcprep.vanishing_point import sequence_key
+    from vcprep.vp import sequence_key
 
     root = tmp_path / "idd"
     want = write_idd_tree(root, KITTI)
@@ -406,7 +406,7 @@ def test_idd_eval_finds_labels_by_item_id(tmp_path):
 
 def test_list_dataset_names_the_missing_images_before_the_labels(tmp_path):
     """A caller that skips the CLI's check (a study) is told about the images folder first."""
-    from vcprep.build import list_dataset
+    from vcprep.dataset import list_dataset
     from vcprep.errors import InputError
     from vcprep.labels import get_label_format
 

@@ -14,11 +14,11 @@ import cv2
 import numpy as np
 import pytest
 
-from vcprep.backproject import backproject_array
-from vcprep.build import store_params
+from vcprep.warp import backproject_array
+from vcprep.store import store_params
 from vcprep.camera import PRESETS, Camera, camera_to_yaml, read_camera_yaml
 from vcprep.errors import InputError
-from vcprep.homography import vp_from_pose
+from vcprep.warp import vp_from_pose
 from vcprep.synthetic import RoadScene, render_road
 
 from conftest import assert_one_error_line, run_cli
@@ -268,7 +268,8 @@ def test_a_record_without_ego_rows_backprojects_as_before(stores):
 @pytest.fixture(scope="module")
 def tiny_model(tmp_path_factory):
     """A tiny virtual-camera checkpoint (2 epochs, width 4) on synthetic 96x72 CamVid-camera frames."""
-    from vcprep.build import WarpSettings, list_dataset, warp_dataset
+    from vcprep.store import WarpSettings, warp_dataset
+    from vcprep.dataset import list_dataset
     from vcprep.labels import get_label_format
     from vctrain.train import TrainConfig, fit
 
@@ -340,7 +341,7 @@ def test_help_says_what_ego_rows_do(prog, cmd):
 
 
 def test_virtual_camera_design_sees_the_camera_as_cropped():
-    from vcprep.virtual_camera import design_virtual_camera
+    from vcprep.camera import design_virtual_camera
 
     cam = replace(PRESETS["camvid"], name="rig", ego_rows=200)
     a = design_virtual_camera([cam, PRESETS["kitti"]], above=8)
@@ -355,7 +356,7 @@ def test_vp_estimation_ignores_lines_on_the_bonnet(camvid_half):
     the detector reads the frame as its exact bottom crop: the VP equals the one found on the
     hand-cropped image, lies at the rendered scene's VP, and the bonnet's lines (which pull the
     detection away without ego_rows) do not vote."""
-    from vcprep.vanishing_point import estimate_vp
+    from vcprep.vp import estimate_vp
 
     pan, tilt = 3.0, -2.0
     img, _ = render_road(camvid_half, RoadScene(texture_seed=4), pan=pan, tilt=tilt, supersample=1)
@@ -376,7 +377,7 @@ def test_vp_estimation_ignores_lines_on_the_bonnet(camvid_half):
     assert np.abs(np.array(without.vp) - np.array(with_ego.vp)).max() > 0.01 * w
 
 
-# -- finding the own vehicle from labels (vcprep.ego; issue 24.2) ----------------------------------
+# -- finding the own vehicle from labels (vcprep.camera.ego; issue 24.2) ----------------------------------
 # Oracle: label sets drawn with a bonnet whose top row we choose, plus scene content that is
 # ignored in some frames only (never in >= 90 % of them), rims, and an ornament above a gap.
 
@@ -412,14 +413,14 @@ def _label_set(n=12, size=(240, 160), bonnet=0, ornament=0, rims=0, seed=0, scen
 
 @pytest.mark.parametrize("bonnet", [12, 30, 57])
 def test_ego_rows_from_labels_is_the_bonnet_top(bonnet):
-    from vcprep.ego import ego_rows_from_labels
+    from vcprep.camera import ego_rows_from_labels
     est = ego_rows_from_labels(_label_set(bonnet=bonnet, seed=bonnet))
     assert est.rows == bonnet and est.size == (240, 160) and est.frames == 12
     assert "bottom 57 of 160 rows" in ego_rows_from_labels(_label_set(bonnet=57)).describe()
 
 
 def test_no_own_vehicle_gives_0_despite_ignored_scene_content():
-    from vcprep.ego import ego_rows_from_labels
+    from vcprep.camera import ego_rows_from_labels
     for seed in range(5):
         est = ego_rows_from_labels(_label_set(n=20, seed=seed))
         assert est.rows == 0, seed
@@ -427,7 +428,7 @@ def test_no_own_vehicle_gives_0_despite_ignored_scene_content():
 
 
 def test_ornament_above_a_gap_and_rims_up_the_sides():
-    from vcprep.ego import ego_rows_from_labels
+    from vcprep.camera import ego_rows_from_labels
     assert ego_rows_from_labels(_label_set(bonnet=20, ornament=6)).rows == 20 + 3 + 6  # the ornament counts
     assert ego_rows_from_labels(_label_set(bonnet=20, rims=4)).rows == 20              # rims do not
     assert ego_rows_from_labels(_label_set(rims=4)).rows == 0
@@ -435,7 +436,7 @@ def test_ornament_above_a_gap_and_rims_up_the_sides():
 
 def test_the_vehicle_must_be_common_to_the_frames():
     """A bonnet-shaped ignore region in fewer than 90 % of the frames is scene content."""
-    from vcprep.ego import ego_rows_from_labels
+    from vcprep.camera import ego_rows_from_labels
     labs = _label_set(n=10, bonnet=30)[:8] + _label_set(n=2, scene_ignore=False)   # in 80 % of the frames
     assert ego_rows_from_labels(labs).rows == 0
     labs = _label_set(n=10, bonnet=30)[:9] + _label_set(n=1, scene_ignore=False)   # in 90 %
@@ -443,7 +444,7 @@ def test_the_vehicle_must_be_common_to_the_frames():
 
 
 def test_ego_detection_refuses_what_it_cannot_decide():
-    from vcprep.ego import ego_rows_from_labels
+    from vcprep.camera import ego_rows_from_labels
     with pytest.raises(InputError, match="too few"):
         ego_rows_from_labels(_label_set(n=4, bonnet=20))
     with pytest.raises(InputError, match="two sizes"):
@@ -453,7 +454,7 @@ def test_ego_detection_refuses_what_it_cannot_decide():
 
 
 def test_ego_rows_at_another_height_cover_the_vehicle():
-    from vcprep.ego import EgoEstimate, rows_at_height
+    from vcprep.camera import EgoEstimate, rows_at_height
     est = EgoEstimate(36, (480, 360), 10, 0.5)
     assert rows_at_height(est, 360) == 36 and rows_at_height(est, 720) == 72
     assert rows_at_height(est, 100) == 10           # 36 * 100 / 360 = 10.0
@@ -466,7 +467,7 @@ def test_ego_rows_at_another_height_cover_the_vehicle():
 
 
 def test_ego_rows_from_label_files_read_with_the_format(tmp_path):
-    from vcprep.ego import ego_rows_from_label_files
+    from vcprep.camera import ego_rows_from_label_files
     from vcprep.labels import get_label_format
     files = []
     for i, lab in enumerate(_label_set(bonnet=25)):
@@ -507,7 +508,7 @@ def test_vcprep_camera_ego_prints_and_writes_the_rows(tmp_path):
                           "no --camera")
 
 
-# -- finding the own vehicle from frames alone (vcprep.ego; issue 35) -------------------------------
+# -- finding the own vehicle from frames alone (vcprep.camera.ego; issue 35) -------------------------------
 # Oracle: a drive rendered with varying lateral offset, pan, tilt, asphalt texture and moving boxes
 # (other traffic: horizontal edges anywhere, different in every frame), and a bonnet painted as a
 # fixed ellipse cap with its own shading and highlight whose top we choose.
@@ -547,14 +548,14 @@ def drive():
 
 @pytest.mark.parametrize("bonnet", [12, 25, 40])
 def test_ego_rows_from_frames_is_the_bonnet_top(drive, bonnet):
-    from vcprep.ego import ego_rows_from_frames
+    from vcprep.camera import ego_rows_from_frames
     est = ego_rows_from_frames(_paint_bonnet(f, bonnet) for f in drive)
     assert abs(est.rows - bonnet) <= 2 and est.size == (240, 180) and est.method == "frames"
     assert est.to_dict()["method"].startswith("frames") and "found from the frames" in est.describe()
 
 
 def test_frames_without_a_vehicle_give_0(drive):
-    from vcprep.ego import ego_rows_from_frames
+    from vcprep.camera import ego_rows_from_frames
     for seed in (0, 1):
         est = ego_rows_from_frames(drive if seed == 0 else _drive(seed=seed))
         assert est.rows == 0, seed
@@ -562,7 +563,7 @@ def test_frames_without_a_vehicle_give_0(drive):
 
 
 def test_ego_rows_from_frames_refuses_repeats_and_two_sizes(drive):
-    from vcprep.ego import ego_rows_from_frames
+    from vcprep.camera import ego_rows_from_frames
     with pytest.raises(InputError, match="distinct frame"):   # a stopped car: every edge would stay put
         ego_rows_from_frames([_paint_bonnet(drive[0], 20)] * 40)
     with pytest.raises(InputError, match="two sizes"):

@@ -15,10 +15,11 @@ import numpy as np
 import pytest
 import torch
 
-from vcprep.build import WarpSettings, list_dataset, warp_dataset
+from vcprep.store import WarpSettings, warp_dataset
+from vcprep.dataset import list_dataset
 from vcprep.camera import PRESETS, Camera, camera_to_yaml
-from vcprep.homography import vp_from_pose
-from vcprep.imageio import read_image, write_png
+from vcprep.warp import vp_from_pose
+from vcprep.io import read_image, write_png
 from vcprep.labels import get_label_format
 from vcprep.store import Store
 from vcprep.synthetic import RoadScene, render_road
@@ -28,7 +29,7 @@ from conftest import assert_one_error_line, run_cli
 pytest.importorskip("onnxruntime")
 pytest.importorskip("onnx")
 
-from vctrain.export import OnnxPredictor, export_onnx  # noqa: E402
+from vctrain.deploy import OnnxPredictor, export_onnx  # noqa: E402
 from vctrain.predict import Predictor, predict_images  # noqa: E402
 from vctrain.train import TrainConfig, fit  # noqa: E402
 
@@ -144,16 +145,17 @@ def test_vp_input_graph_follows_each_frames_pose(models, tmp_path):
 
 def test_vp_input_graph_builds_the_librarys_maps_in_float64(models):
     """The store maps a --vp-input graph builds in onnxruntime, for a 1280x720 dashcam at two
-    poses, equal the library's (vcprep.build.item_maps: covered pixels at OpenCV's 1/32 px fixed
+    poses, equal the library's (vcprep.store.build.item_maps: covered pixels at OpenCV's 1/32 px fixed
     point, the completion's fill table in float) on all but tie pixels. Traced with float32
     scalars, the exporter computed the homography and the completion centre in float32 and 20 of
     12320 pixels moved by 1/32 px or more."""
     import onnxruntime as ort
 
-    from vcprep.build import item_geometry, item_maps, store_params
+    from vcprep.store import item_geometry, item_maps, store_params
     from vcprep.camera import camera_from_dict
-    from vcprep.homography import apply_homography, pose_from_vp
-    from vctrain.export import RoadGraph, _geometry, _session, trace_onnx
+    from vcprep.warp import apply_homography, pose_from_vp
+    from vctrain.deploy import RoadGraph, trace_onnx
+    from vctrain.deploy.export import _geometry, _session
 
     cam = Camera("dash", (1280, 720), 1000.0, 1000.0, 639.5, 359.5, 1.25, tilt=2.0)
     p = Predictor(models / "vc.pt", "cpu")
@@ -223,11 +225,11 @@ def test_bad_inputs_give_one_error_line(models, tmp_path):
     assert_one_error_line(run_cli("predict", tmp_path / "road.onnx", tmp_path / "other", "--out", tmp_path / "o",
                                   prog="vctrain"), "102x58", "96x72")
     from vcprep.errors import InputError
-    from vctrain.export import predict_images_onnx
+    from vctrain.predict import predict_images
 
     with pytest.raises(InputError, match="--vp-input"):  # a fixed graph cannot take per-frame VPs
-        predict_images_onnx(OnnxPredictor(tmp_path / "road.onnx"), [tmp_path / "other"], tmp_path / "o",
-                            within="estimate", progress=False)
+        predict_images(OnnxPredictor(tmp_path / "road.onnx"), [tmp_path / "other"], tmp_path / "o", None,
+                       within="estimate", progress=False)
     assert_one_error_line(run_cli("export", root / "rs.pt", "--camera", tmp_path / "cam.yaml", "--vp-input", "-o",
                                   tmp_path / "rs.onnx", prog="vctrain"), "takes no VP", "without --vp-input")
     (tmp_path / "junk.onnx").write_bytes(b"not a graph")
@@ -239,7 +241,7 @@ def test_graph_resize_is_cv2s_in_either_layout():
     """The graph's uint8 resize (the resize twin's input: the frame itself, HWC) is cv2.resize's
     INTER_LINEAR bit for bit when shrinking dashcam-size frames to the working size, and the frame
     layout (gathered before the cast) gives exactly what the (N, C, h, w) float layout gives."""
-    from vctrain.graph_ops import _resize_u8
+    from vctrain.deploy.graph_ops import _resize_u8
 
     rng = np.random.default_rng(0)
     for (sw, sh), (dw, dh) in (((1280, 720), (480, 360)), ((1242, 375), (480, 360)), ((97, 53), (300, 211))):

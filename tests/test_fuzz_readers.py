@@ -99,7 +99,7 @@ def test_cityscapes_json_bytes(tmp_path_factory, data):
     _accepts(read_cityscapes_camera, p)
 
 
-from vcprep.vanishing_point import read_vp_csv  # noqa: E402
+from vcprep.vp import read_vp_csv  # noqa: E402
 
 csv_cell = st.one_of(st.text(alphabet="0123456789.-eE+nai,f #\"", max_size=8), st.floats(allow_nan=True),
                      st.integers(-10**9, 10**9))

@@ -9,7 +9,7 @@ import pytest
 
 from vcprep.camera import PRESETS, Camera
 from vcprep.errors import GeometryError
-from vcprep.homography import apply_homography, check_not_folded, pose_axes, pose_from_vp, virt_H_src, \
+from vcprep.warp import apply_homography, check_not_folded, pose_axes, pose_from_vp, virt_H_src, \
     virtual_at_scale, vp_from_pose
 from vcprep.synthetic import ground_points
 from vcprep.warp import build_maps

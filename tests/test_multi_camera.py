@@ -10,10 +10,11 @@ import pytest
 import torch
 from typer.testing import CliRunner
 
-from vcprep.build import WarpSettings, list_dataset, warp_dataset
+from vcprep.store import WarpSettings, warp_dataset
+from vcprep.dataset import list_dataset
 from vcprep.camera import PRESETS
 from vcprep.errors import InputError
-from vcprep.imageio import write_png
+from vcprep.io import write_png
 from vcprep.labels import get_label_format
 from vcprep.synthetic import RoadScene, render_road
 from vctrain.checkpoint import load_checkpoint

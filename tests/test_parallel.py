@@ -1,10 +1,10 @@
-"""vcprep.parallel: the process pool the store commands share (Ctrl-C handling at its source)."""
+"""vcprep.store.parallel: the process pool the store commands share (Ctrl-C handling at its source)."""
 from __future__ import annotations
 
 import concurrent.futures as cf
 import signal
 
-from vcprep.parallel import _context
+from vcprep.store.parallel import _context
 
 
 def test_pool_workers_ignore_ctrl_c_from_birth():

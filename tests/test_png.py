@@ -1,4 +1,4 @@
-"""The PNG encoder (vcprep.png): every file it writes decodes, in OpenCV's libpng reader, to
+"""The PNG encoder (vcprep.io.png): every file it writes decodes, in OpenCV's libpng reader, to
 exactly the array it was given."""
 from __future__ import annotations
 
@@ -10,10 +10,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from vcprep import png
+from vcprep.io import png
 from vcprep.errors import InputError
-from vcprep.imageio import PNG_KINDS, write_png
-from vcprep.png import encode_png
+from vcprep.io import PNG_KINDS, write_png
+from vcprep.io import encode_png
 
 
 def _decode(data: bytes) -> np.ndarray:

@@ -9,10 +9,11 @@ import numpy as np
 import pytest
 
 from conftest import assert_one_error_line, run_cli, write_synthetic_dataset
-from vcprep.build import WarpSettings, list_dataset, warp_dataset
+from vcprep.store import WarpSettings, warp_dataset
+from vcprep.dataset import list_dataset
 from vcprep.camera import PRESETS
 from vcprep.errors import InputError
-from vcprep.imageio import read_image, write_png
+from vcprep.io import read_image, write_png
 from vcprep.labels import get_label_format
 from vcprep.prior import (compute_prior, meta_path, read_prior, surrogate_labels, write_prior)
 from vcprep.store import Store

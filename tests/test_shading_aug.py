@@ -8,7 +8,7 @@ import torch
 import yaml
 
 from vcprep.errors import InputError
-from vcprep.imageio import write_png
+from vcprep.io import write_png
 from vctrain.config import TrainConfig
 from vctrain.data import RoadDataset, Sample
 from vctrain.train import resolve_recipe

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 
 from conftest import assert_one_error_line, run_cli, write_synthetic_dataset
-from vcprep.build import Job, list_dataset
+from vcprep.dataset import Job, list_dataset
 from vcprep.camera import PRESETS, Camera, load_camera
 from vcprep.errors import InputError
-from vcprep.homography import vp_from_pose
+from vcprep.warp import vp_from_pose
 from vcprep.labels import get_label_format
 from vcprep.simulate import (SimulateParams, covered, draw_offsets, plan_simulation, recorded_homographies,
                              relative_rotation, simulate_arrays,

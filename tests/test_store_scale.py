@@ -167,7 +167,7 @@ def test_valid_masks_are_shared_per_geometry_and_pruned(ds, reference, tmp_path,
     """One valid mask per geometry (H, sizes): between-camera, all items share one file, equal to
     the coverage of the source rectangle; per-image VPs give one per pose; a rebuild that changes
     the geometry leaves no unused mask; repairing one item keeps the mask the others use."""
-    from vcprep.homography import vp_from_pose
+    from vcprep.warp import vp_from_pose
 
     images, labels = ds
     out, files = reference

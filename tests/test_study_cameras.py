@@ -147,7 +147,7 @@ def test_extent_median_trains_in_the_median_rectangle_and_extends_each_test_spli
     each dataset's test split gets that rectangle extended to hold its own camera at every pose of
     the ranges (checked: extending it once more for those views changes nothing); a crossval run
     builds and scores the test stores in their own rectangles."""
-    from vcprep.virtual_camera import extend_canvas, same_camera_other_canvas
+    from vcprep.camera import extend_canvas, same_camera_other_canvas
     from vctrain.study import Resolution, load_study
 
     study = _study(tmp_path / "data")

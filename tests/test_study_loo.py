@@ -6,7 +6,7 @@ import json
 import pytest
 import yaml
 
-from vcprep.homography import vp_from_pose
+from vcprep.warp import vp_from_pose
 from vcprep.store import Store
 
 from conftest import run_cli

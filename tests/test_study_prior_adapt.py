@@ -82,7 +82,7 @@ def test_adapt_reuses_the_within_model_and_never_reads_test_labels(geo_run):
     import numpy as np
     import torch
 
-    from vcprep.imageio import read_image
+    from vcprep.io import read_image
     from vcprep.prior import surrogate_labels
 
     _, out, proc = geo_run
@@ -148,7 +148,7 @@ def test_adapt_fuse_fuses_the_prior_with_the_within_models_own_prediction(geo_ru
     import numpy as np
     import torch
 
-    from vcprep.imageio import read_image
+    from vcprep.io import read_image
     from vcprep.prior import surrogate_labels
     from vctrain.data import vp_in_store
     from vctrain.predict import Predictor

@@ -265,11 +265,11 @@ def test_footprint_canvas_keeps_the_budget_for_training_and_covers_every_test_pi
     import cv2
     import numpy as np
 
-    from vcprep.backproject import backproject_array
+    from vcprep.warp import backproject_array
     from vcprep.camera import camera_from_dict
-    from vcprep.homography import virt_H_src
+    from vcprep.warp import virt_H_src
     from vcprep.labels import decode_label, get_label_format
-    from vcprep.virtual_camera import design_virtual_camera, same_camera_other_canvas
+    from vcprep.camera import design_virtual_camera, same_camera_other_canvas
     from vctrain.predict import Predictor
 
     study = _footprint_study(tmp_path / "data")

@@ -12,9 +12,9 @@ import pytest
 
 from vcprep.camera import PRESETS
 from vcprep.errors import InputError
-from vcprep.homography import apply_homography, pose_from_vp, virtual_at_scale, vp_from_pose
+from vcprep.warp import apply_homography, pose_from_vp, virtual_at_scale, vp_from_pose
 from vcprep.synthetic import RoadScene, render_road
-from vcprep.vanishing_point import (VPConfig, VPResult, apply_reliability, detect_segments, estimate_vp,
+from vcprep.vp import (VPConfig, VPResult, apply_reliability, detect_segments, estimate_vp,
                                     read_vp_csv, refine_segments, score_vps, sequence_key, smooth_sequences,
                                     write_vp_csv)
 
@@ -202,7 +202,7 @@ def test_pose_prior_is_a_gaussian_of_the_implied_pose(camvid_half):
     on a camera with a non-zero average pose so that a sign error shows."""
     from dataclasses import replace
 
-    from vcprep.vanishing_point import _scores
+    from vcprep.vp.estimate import _scores
 
     cam = replace(camvid_half, pan=3.0, tilt=-2.0)
     cfg = VPConfig(one_sided=1.0)
@@ -266,7 +266,7 @@ def _res(cam, vp, n=10, status="accepted"):
 
 
 def test_reliability_rule_thresholds(camvid_half):
-    from vcprep.vanishing_point import is_reliable
+    from vcprep.vp import is_reliable
 
     cfg = VPConfig()
     assert is_reliable(camvid_half, 19.9, 0, 10, cfg) == ""

@@ -13,10 +13,11 @@ import pytest
 import torch
 from typer.testing import CliRunner
 
-from vcprep.build import WarpSettings, list_dataset, warp_dataset
+from vcprep.store import WarpSettings, warp_dataset
+from vcprep.dataset import list_dataset
 from vcprep.camera import PRESETS
 from vcprep.errors import InputError
-from vcprep.imageio import read_image, write_png
+from vcprep.io import read_image, write_png
 from vcprep.labels import get_label_format
 from vcprep.synthetic import RoadScene, render_road
 from vctrain.checkpoint import load_checkpoint, model_from_checkpoint
@@ -384,11 +385,11 @@ def test_predict_a_wider_steeper_camera_predicts_its_whole_frame(trained, tmp_pa
     'not road' for falling outside. (How well a model does there is the benchmarks' question.)"""
     from dataclasses import replace as dc_replace
 
-    from vcprep.backproject import backproject_array
+    from vcprep.warp import backproject_array
     from vcprep.camera import Camera, camera_to_yaml
-    from vcprep.homography import virt_H_src
+    from vcprep.warp import virt_H_src
     from vcprep.store import Store
-    from vcprep.virtual_camera import same_camera_other_canvas
+    from vcprep.camera import same_camera_other_canvas
 
     root, store, _ = trained
     # 110 x 94 deg, tilted 12 deg down: beyond the paper's virtual camera (101 x 64 deg) on every side
@@ -615,7 +616,7 @@ def test_predict_with_given_vps_and_overlay(trained, tmp_path):
     import cv2
 
     from vcprep.camera import camera_to_yaml
-    from vcprep.homography import apply_homography, vp_from_pose
+    from vcprep.warp import apply_homography, vp_from_pose
     from vcprep.store import Store
     from vcprep.synthetic import render_road
 

@@ -1,5 +1,5 @@
-"""Video in, masks and overlay videos out (vctrain.video), and the in-memory frame predictor it
-runs on (vctrain.frames). The oracle is the folder path of ``vctrain predict`` (warp into a
+"""Video in, masks and overlay videos out (vctrain.predict.video), and the in-memory frame predictor it
+runs on (vctrain.predict.frames). The oracle is the folder path of ``vctrain predict`` (warp into a
 temporary store, infer, back-project) on the same frames as PNG files: the in-memory path must
 give the same numbers, and a video the same masks as its decoded frames."""
 from __future__ import annotations
@@ -14,16 +14,17 @@ import torch
 from typer.testing import CliRunner
 
 from conftest import assert_one_error_line, run_cli
-from vcprep.build import WarpSettings, list_dataset, warp_dataset
+from vcprep.store import WarpSettings, warp_dataset
+from vcprep.dataset import list_dataset
 from vcprep.camera import PRESETS, camera_to_yaml
 from vcprep.errors import InputError
-from vcprep.homography import pose_from_vp, vp_from_pose
-from vcprep.imageio import read_image, write_png
+from vcprep.warp import pose_from_vp, vp_from_pose
+from vcprep.io import read_image, write_png
 from vcprep.labels import get_label_format
 from vcprep.synthetic import RoadScene, render_road
-from vcprep.vanishing_point import estimate_files
+from vcprep.vp import estimate_files
 from vctrain.cli import app
-from vctrain.frames import FramePredictor, StreamingVPs
+from vctrain.predict import FramePredictor, StreamingVPs
 from vctrain.predict import Predictor, predict_images
 from vctrain.train import TrainConfig, fit
 
@@ -273,7 +274,7 @@ def test_video_finds_its_own_vehicle_and_predicts_with_it(model, ego_drive, tmp_
 
 
 def test_video_without_own_vehicle_finds_none(ego_drive, drive):
-    from vctrain.video import ego_camera, open_video
+    from vctrain.predict import ego_camera, open_video
 
     root, cam = ego_drive
     said: list[str] = []

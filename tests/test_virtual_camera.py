@@ -1,5 +1,5 @@
 """Canvases of one virtual camera: design with a given focal length, and the extension that holds a
-wider or steeper camera (vcprep.virtual_camera), checked against exact projections of the frames."""
+wider or steeper camera (vcprep.camera.virtual), checked against exact projections of the frames."""
 from __future__ import annotations
 
 from dataclasses import replace
@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from vcprep.camera import PRESETS
-from vcprep.homography import apply_homography, virt_H_src
-from vcprep.virtual_camera import design_virtual_camera, extend_canvas, same_camera_other_canvas
+from vcprep.warp import apply_homography, virt_H_src
+from vcprep.camera import design_virtual_camera, extend_canvas, same_camera_other_canvas
 
 CAMVID = PRESETS["camvid"].for_image_size((240, 180))
 KITTI = PRESETS["kitti"].for_image_size((414, 125))   # 81 deg wide against CamVid's 58

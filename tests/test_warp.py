@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from vcprep.camera import PRESETS, Camera
-from vcprep.homography import virt_H_src, virtual_at_scale
+from vcprep.warp import virt_H_src, virtual_at_scale
 from vcprep.synthetic import RoadScene, render_road
 from vcprep.warp import build_maps, warp_image, warp_label
-from vcprep.backproject import backproject_array
+from vcprep.warp import backproject_array
 
 SCENE = RoadScene(offset=0.4, texture_seed=3)
 # a virtual camera at 1/6 scale (917x467): finer than the narrow sources it receives

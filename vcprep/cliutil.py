@@ -155,7 +155,7 @@ def _interrupted() -> None:
 
 def parse_size(text: str, what: str = "--size") -> tuple[int, int]:
     """A 'WIDTHxHEIGHT' option -> (w, h) in whole pixels (the one parser of every command)."""
-    from .imageio import MAX_PIXELS
+    from .io.images import MAX_PIXELS
 
     parts = str(text).lower().replace(" ", "").split("x")
     if len(parts) != 2 or not all(p.isdigit() for p in parts):

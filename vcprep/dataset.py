@@ -1,6 +1,6 @@
 """Datasets on disk: find the images of a folder tree, pair them with their labels, name the items.
 
-Three entry points, one rule for what an image file is (:data:`vcprep.imageio.IMAGE_EXTENSIONS`,
+Three entry points, one rule for what an image file is (:data:`vcprep.io.images.IMAGE_EXTENSIONS`,
 names starting with '.' skipped, subfolders included, sorted by relative path):
 
 - :func:`find_images`: every image file under one folder;
@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Iterable
 
 from .errors import InputError
-from .imageio import IMAGE_EXTENSIONS
+from .io.images import IMAGE_EXTENSIONS
 from .labels import LabelFormat, image_id, label_stem_for
 
 __all__ = ["Job", "find_images", "list_dataset", "collect_images", "OUTPUTS_BY_STEM"]

@@ -4,9 +4,9 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from .imageio import read_image
+from .io.images import read_image
 from .labels import IGNORE, ROAD, decode_label, get_label_format
-from .store import Store
+from .store.layout import Store
 
 __all__ = ["to_bgr8", "overlay_label", "warp_figure", "vp_figure", "completion_figure", "footprints_figure", "fov_figure",
            "prior_figure"]
@@ -107,7 +107,7 @@ def _warp_legend(width: int, h: int = 28) -> np.ndarray:
 
 
 def vp_figure(image: np.ndarray, result, cam=None, prior_box=None) -> np.ndarray:
-    """The road-VP evidence of one image (``result``: a :class:`vcprep.vanishing_point.VPResult`):
+    """The road-VP evidence of one image (``result``: a :class:`vcprep.vp.VPResult`):
     all line segments thin grey, supporting segments green and extended to the VP (thin), the
     prior window (VPs allowed by the reliability rule) as a cyan box, the detector's VP as a red
     cross, the final VP as a yellow circle (differs after a fallback), and a status caption."""
@@ -225,7 +225,7 @@ def _legend(img: np.ndarray, names: list[str], x: int = 12, y: int = 24) -> None
 def footprints_figure(cameras: list, fraction: float = 0.25, size: int = 800, max_z: float | None = None) -> np.ndarray:
     """Paper Fig. 3: the road-plane footprint (top view, X across, Z ahead, metres) of the lower
     ``fraction`` of each camera's image at its average pose."""
-    from .homography import apply_homography, ground_to_image
+    from .warp.homography import apply_homography, ground_to_image
 
     polys = []
     for cam in cameras:
@@ -265,7 +265,7 @@ def footprints_figure(cameras: list, fraction: float = 0.25, size: int = 800, ma
 
 def fov_figure(cameras: list, virtual, width: int = 1100) -> np.ndarray:
     """Paper Fig. 4: each camera's image outline (average pose) drawn in the virtual image plane."""
-    from .homography import apply_homography, check_not_folded, virt_H_src
+    from .warp.homography import apply_homography, check_not_folded, virt_H_src
 
     s = width / virtual.size[0]
     H_img = int(round(virtual.size[1] * s))
@@ -334,7 +334,7 @@ def camera_figure(images: list, camera, vps: dict | None = None, width: int = 14
     (the row of the camera's average road VP; roll 0), that VP, each frame's own road VP from
     ``vps`` (id -> (u, v), source pixels), the own-vehicle rows shaded, the principal point, and
     a caption with the pose and focal length. ``images``: paths (ids = file stems)."""
-    from .homography import vp_from_pose
+    from .warp.homography import vp_from_pose
 
     tiles = []
     cw = width // columns
@@ -377,10 +377,12 @@ def camera_figure(images: list, camera, vps: dict | None = None, width: int = 14
 
 def vp_figure_of_file(image, camera) -> np.ndarray:
     """:func:`vp_figure` of one image file alone (``vcprep figure vp``): its road VP detected
-    and judged by the reliability rule with the default :class:`~vcprep.vanishing_point.VPConfig`;
+    and judged by the reliability rule with the default :class:`~vcprep.vp.VPConfig`;
     with no dataset to fall back to, a rejected VP falls back to the camera's average-pose VP.
     ``camera``: the camera of the image at any size (scaled to the image's)."""
-    from .vanishing_point import VPConfig, apply_reliability, estimate_vp, prior_window
+    from .vp.estimate import VPConfig, estimate_vp
+    from .vp.reliability import apply_reliability
+    from .vp.segments import prior_window
 
     img = read_image(image).array
     cam = camera.for_image_size((img.shape[1], img.shape[0]), image)

@@ -27,12 +27,12 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
-from . import __version__
+from vcprep import __version__
 from .errors import InputError
 from .figures import to_bgr8
-from .imageio import read_image, write_bytes_atomic, write_png
+from .io.images import read_image, write_bytes_atomic, write_png
 from .labels import IGNORE, ROAD
-from .store import Store
+from .store.layout import Store
 
 __all__ = ["PRIOR_FORMAT", "PRIOR_SUFFIXES", "open_stores", "compute_prior", "prior_counts", "prior_from_counts",
            "check_thresholds", "prior_meta", "surrogate_labels",

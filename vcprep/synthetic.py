@@ -4,7 +4,7 @@ A flat road plane (world Y = 0, X right, Z along the road) with an asphalt textu
 and kerbs, grass beside it and a sky above the horizon, ray-traced through any :class:`Camera`
 at any pan/tilt. Because texture and masks are functions of the world point, two cameras that see
 the same road point see the same colour: you know the road mask, the vanishing point
-(:func:`vcprep.homography.vp_from_pose`) and the exact ground homography.
+(:func:`vcprep.warp.homography.vp_from_pose`) and the exact ground homography.
 """
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .camera import Camera
-from .homography import pose_axes
+from .camera.pinhole import Camera
+from .warp.homography import pose_axes
 
 __all__ = ["RoadScene", "render_road", "ground_points"]
 

@@ -35,11 +35,11 @@ from typing import Any, Iterable, Sequence
 
 import numpy as np
 
-from vcprep.backproject import backproject_array
+from vcprep.warp import backproject_array
 from vcprep.camera import Camera, FrameCameras
 from vcprep.dataset import Job
 from vcprep.errors import InputError
-from vcprep.imageio import read_image, write_png
+from vcprep.io import read_image, write_png
 from vcprep.labels import IGNORE, ROAD
 from vcprep.prior import check_prior_fits, check_thresholds, meta_path, read_prior, surrogate_labels
 from vcprep.cliutil import err
@@ -192,7 +192,8 @@ def adapt(model: str | Path, images: str | Path | Iterable[str | Path] | Sequenc
     its exact pose, no VP estimated); writes ``out`` (and ``OUT-stem.last.pt``, the log).
     Returns :func:`vctrain.train.fit`'s summary plus ``adapted`` (what the checkpoint records).
     See the module docstring for the steps and :class:`vctrain.config.AdaptSettings` for the settings."""
-    from .predict import Predictor, collect_images, warp_like_training
+    from .predict.predictor import Predictor, warp_like_training
+    from vcprep.dataset import collect_images
     from .train import fit, last_path
 
     model = Path(model)

@@ -22,9 +22,9 @@ from typing import Any
 import torch
 
 from vcprep.errors import InputError
-from vcprep.imageio import write_bytes_atomic
+from vcprep.io import write_bytes_atomic
 
-from . import __version__
+from vctrain import __version__
 from torch import nn
 
 from .model import ARCHITECTURES, build_model

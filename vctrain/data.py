@@ -45,11 +45,11 @@ import cv2
 import numpy as np
 import torch
 
-from vcprep.build import list_dataset
+from vcprep.dataset import list_dataset
 from vcprep.camera import scale_matrix
 from vcprep.errors import InputError
-from vcprep.homography import apply_homography
-from vcprep.imageio import read_image
+from vcprep.warp import apply_homography
+from vcprep.io import read_image
 from vcprep.labels import IGNORE, decode_label, get_label_format
 from vcprep.store import Store
 
@@ -407,7 +407,7 @@ def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str
     elif stores:
         size = stores[0].store_size
     else:
-        from vcprep.imageio import read_image
+        from vcprep.io import read_image
 
         size = read_image(train[0].image).size
     if min(size) < MIN_SIDE:

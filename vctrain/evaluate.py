@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from vcprep.build import find_images
+from vcprep.dataset import find_images
 from vcprep.errors import InputError
-from vcprep.imageio import read_image
+from vcprep.io import read_image
 from vcprep.labels import LabelFormat, decode_label, label_stem_for
 
 from .metrics import KittiMetrics, RoadMetrics

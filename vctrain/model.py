@@ -107,7 +107,7 @@ class SegNet(nn.Module):
 
 def _max_unpool(x: torch.Tensor, idx: torch.Tensor, size) -> torch.Tensor:
     """2x2 max-unpooling to ``size`` (h, w). ONNX has no export of ``max_unpool2d``: while
-    exporting (vctrain.export) the same values are scattered to their per-plane argmax index."""
+    exporting (vctrain.deploy.export) the same values are scattered to their per-plane argmax index."""
     if not torch.onnx.is_in_onnx_export():
         return F.max_unpool2d(x, idx, 2, 2, output_size=size)
     h, w = int(size[0]), int(size[1])

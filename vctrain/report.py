@@ -1,4 +1,4 @@
-"""The tables of a cross-camera study (:mod:`vctrain.crossval`): its result rows, summarised.
+"""The tables of a cross-camera study (:mod:`vctrain.study`): its result rows, summarised.
 
 One row per evaluated dataset and condition (``heldout``, ``condition``, road ``iou`` and the
 run's facts); the table has the evaluated datasets (and their mean) as rows, the conditions as
@@ -14,7 +14,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from vcprep.imageio import write_bytes_atomic
+from vcprep.io import write_bytes_atomic
 
 __all__ = ["summary_of", "format_table", "write_tables", "write_json"]
 

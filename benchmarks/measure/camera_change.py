@@ -25,8 +25,8 @@ def no_shift_reference(sd: Path, wd: Path, source: dict, conditions: list[str], 
     nothing, so (simulated score - this) is the cost of the camera change alone. Checked against
     the files: every source label carried over must equal the simulated label, or the benchmark
     stops. Kept in runs/_all/<condition>/no_shift.json (keyed by the training and the simulations)."""
-    from vcprep.build import list_dataset
-    from vcprep.imageio import read_image
+    from vcprep.dataset import list_dataset
+    from vcprep.io import read_image
     from vcprep.labels import decode_label, get_label_format
     from vcprep.simulate import recorded_homographies, simulate_arrays
     from vcprep.store import Store
@@ -83,11 +83,12 @@ def exact_vp_scores(sd: Path, wd: Path, sets: list[str], threads: int) -> dict:
     perfect per-frame calibration gives) instead of its estimated road VP, into the same virtual
     camera and scale (stores under ``exact_vp/<set>``). Kept in runs/_all/within/exact_vp.json
     (keyed by the training and the VP files)."""
-    from vcprep.build import ItemPose, WarpSettings, list_dataset, warp_dataset
+    from vcprep.store import ItemPose, WarpSettings, warp_dataset
+    from vcprep.dataset import list_dataset
     from vcprep.camera import camera_from_dict, load_camera
     from vcprep.labels import get_label_format
-    from vcprep.vanishing_point import vps_for_items
-    from vctrain.crossval import evaluate_heldout
+    from vcprep.vp import vps_for_items
+    from vctrain.study import evaluate_heldout
 
     run_dir = sd / "runs" / "_all" / "within"
     sims = [n for n in SIM if n in sets]

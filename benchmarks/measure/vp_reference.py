@@ -9,7 +9,7 @@ import math
 import cv2
 import numpy as np
 
-from vcprep.vanishing_point import prior_window, to_gray
+from vcprep.vp import prior_window, to_gray
 
 STATIC = np.array([0, 1, 4, 5, 7])  # CamVid classes whose border with road is a real road edge (reference VP)
 

@@ -16,7 +16,7 @@ import numpy as np
 
 from measure.data import DATA
 from measure.vp_reference import baseline_vp
-from vcprep.vanishing_point import VPConfig, apply_reliability, estimate_vp, score_vps, sequence_key
+from vcprep.vp import VPConfig, apply_reliability, estimate_vp, score_vps, sequence_key
 
 TAIL_PCT = 1.0  # the tail: errors above this (% width), split into search misses and lines-elsewhere
 SCENE_GAP = 30  # frames of one sequence at most this many frame numbers apart are one scene (1 s at 30 fps)
@@ -172,7 +172,7 @@ def camera_consistency(source_vps: dict, sim_items, sim_vps: dict, sim_dir: Path
     carried over (its VP vs its reference, both through the same homography), i.e. the simulated
     set's error if the detector did exactly as well on every simulated frame as on its source;
     a crop/zoom makes it larger in % of the (narrower) width."""
-    from vcprep.homography import apply_homography
+    from vcprep.warp import apply_homography
     from vcprep.simulate import recorded_homographies
 
     H = recorded_homographies(sim_dir)

@@ -13,7 +13,7 @@ import numpy as np
 
 from measure.data import BIN, DATA, KITTI, SIMULATED, native_camera, run
 from measure.vp_reference import kitti_reference_vp, reference_vp
-from vcprep.homography import vp_from_pose
+from vcprep.warp import vp_from_pose
 from vcprep.synthetic import RoadScene, render_road
 
 

@@ -10,7 +10,7 @@ commands share (help texts, ``--camera`` loading, image arguments, the end of a 
 from __future__ import annotations
 
 from ..cliutil import run_app
-from . import cameras, store, vp, simulate, figures  # noqa: F401  (registers the commands, in this order)
+from ..cli import cameras, store, vp, simulate, figures  # noqa: F401  (registers the commands, in this order)
 from .common import app, camera_for, image_files, save_figure
 
 __all__ = ["app", "main", "camera_for", "image_files", "save_figure"]

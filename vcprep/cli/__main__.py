@@ -1,4 +1,4 @@
 """``python -m vcprep.cli``: the same as the ``vcprep`` command."""
-from . import main
+from ..cli import main
 
 main()

@@ -8,16 +8,18 @@ from typing import List, Optional
 import typer
 from tqdm import tqdm
 
-from ..camera import PRESETS, camera_to_yaml, load_camera
-from ..camera_estimate import estimate_camera, estimate_to_yaml
+from ..camera.pinhole import PRESETS
+from ..camera.files import camera_to_yaml
+from ..camera.sources import load_camera
+from ..camera.estimate import estimate_camera, estimate_to_yaml
 from ..cliutil import count, emit_json, ensure_parent, err, parse_size
 from ..dataset import find_images
-from ..ego import ego_rows_from_frame_files, ego_rows_from_label_files, rows_at_height
+from ..camera.ego import ego_rows_from_frame_files, ego_rows_from_label_files, rows_at_height
 from ..errors import InputError
-from ..imageio import write_bytes_atomic
+from ..io.images import write_bytes_atomic
 from ..labels import get_label_format
-from ..vanishing_point import write_vp_csv
-from ..virtual_camera import design_virtual_camera
+from ..vp.reliability import write_vp_csv
+from ..camera.virtual import design_virtual_camera
 from .common import CAMERA_HELP, LABEL_FORMAT_HELP, app, camera_app, check_label_format, image_files
 
 

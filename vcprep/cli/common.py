@@ -9,13 +9,14 @@ from typing import List
 
 import typer
 
-from .. import __version__
-from ..camera import PRESETS, load_cameras
-from ..camera_estimate import estimate_camera
+from vcprep import __version__
+from ..camera.pinhole import PRESETS
+from ..camera.sources import load_cameras
+from ..camera.estimate import estimate_camera
 from ..cliutil import count, ensure_parent, err
 from ..dataset import collect_images
 from ..errors import InputError, StoreError
-from ..imageio import write_png
+from ..io.images import write_png
 from ..labels import LABEL_FORMATS
 
 app = typer.Typer(rich_markup_mode=None, pretty_exceptions_enable=False, add_completion=False, no_args_is_help=True,
@@ -76,7 +77,7 @@ def camera_for(spec: str, sample_image: Path | None = None, per_frame: bool = Tr
     """Load ``spec`` (:func:`vcprep.camera.load_cameras`): calibration files (.txt/.json) carry
     no image size, so it is taken from a frame; a folder is per-frame calibration
     (:class:`~vcprep.camera.FrameCameras`) where ``per_frame``, else an error. ``estimate``:
-    the camera estimated from ``frames`` (:mod:`vcprep.camera_estimate`; said on stderr)."""
+    the camera estimated from ``frames`` (:mod:`vcprep.camera.estimate`; said on stderr)."""
     if spec == "estimate":
         if frames is None:
             raise InputError("this command cannot estimate a camera", None,

@@ -6,14 +6,14 @@ from typing import List, Optional
 
 import typer
 
-from ..camera import load_camera
+from ..camera.sources import load_camera
 from ..cliutil import count
 from ..errors import InputError
 from ..figures import (camera_figure, completion_figure, evenly_spread, footprints_figure, fov_figure, prior_figure,
                        vp_figure_of_file, warp_figure)
 from ..prior import check_thresholds, mean_image, open_stores, prior_counts, prior_from_counts
-from ..store import Store
-from ..vanishing_point import read_vp_csv
+from ..store.layout import Store
+from ..vp.reliability import read_vp_csv
 from .common import CAMERA_HELP, ESTIMATE_HELP, camera_for, figure_app, image_files, save_figure
 
 

@@ -9,7 +9,8 @@ import typer
 from ..cliutil import check_data_folders, err, parse_size
 from ..dataset import list_dataset
 from ..labels import get_label_format
-from ..simulate import SimulateParams, simulate_dataset
+from ..simulate.plan import SimulateParams
+from ..simulate.writer import simulate_dataset
 from .common import CAMERA_HELP, LABEL_FORMAT_HELP, app, camera_for, check_label_format
 
 

@@ -8,21 +8,22 @@ from typing import List, Optional
 import typer
 from tqdm import tqdm
 
-from ..backproject import backproject_folder
-from ..build import ItemPose, WarpSettings, say_on_stderr, warp_dataset
-from ..camera import Camera, load_camera
-from ..camera_estimate import estimate_camera, estimate_to_yaml
+from ..warp.backproject import backproject_folder
+from ..store.build import ItemPose, WarpSettings, say_on_stderr, warp_dataset
+from ..camera.pinhole import Camera
+from ..camera.sources import load_camera
+from ..camera.estimate import estimate_camera, estimate_to_yaml
 from ..cliutil import check_data_folders, count, emit_json, ensure_parent, err
 from ..dataset import list_dataset
 from ..errors import InputError, StoreError
-from ..imageio import write_bytes_atomic
+from ..io.images import write_bytes_atomic
 from ..labels import get_label_format
-from ..parallel import default_jobs
+from ..store.parallel import default_jobs
 from ..prior import compute_prior, open_stores, prior_meta, write_prior
-from ..store import Shard, Store
-from ..store_check import merge_store, store_info, verify_and_repair, verify_store
-from ..store_complete import CompleteSettings, complete_store
-from ..vanishing_point import vps_for_items
+from ..store.layout import Shard, Store
+from ..store.check import merge_store, store_info, verify_and_repair, verify_store
+from ..store.complete import CompleteSettings, complete_store
+from ..vp.reliability import vps_for_items
 from .common import (COMPLETE_HELP, FRAMES_HELP, JOBS_HELP, KEEP_GOING_HELP, LABEL_FORMAT_HELP, SHARD_HELP,
                      SMOOTH_HELP, WITHIN_HELP, app, camera_for, check_label_format, estimated_line, finish, store_app,
                      vp_counts)
@@ -120,7 +121,7 @@ def _warp_camera(camera: str, items: list, fmt, quiet: bool):
 
 
 def _within_poses(jobs, cam: Camera, within: str, smooth: int, id_prefix: str, quiet: bool):
-    """The ``poses`` mapping of :class:`vcprep.build.WarpSettings` from ``--within`` (None for 'none')."""
+    """The ``poses`` mapping of :class:`vcprep.store.build.WarpSettings` from ``--within`` (None for 'none')."""
     if within == "none":
         if smooth:
             raise InputError("--vp-smooth needs --within estimate", None, "add --within estimate or drop --vp-smooth")

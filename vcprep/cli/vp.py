@@ -9,7 +9,7 @@ import typer
 from tqdm import tqdm
 
 from ..cliutil import count, emit_json, ensure_parent, err
-from ..vanishing_point import estimate_files, format_vp_csv, write_vp_csv
+from ..vp.reliability import estimate_files, format_vp_csv, write_vp_csv
 from .common import CAMERA_HELP, ESTIMATE_HELP, SMOOTH_HELP, app, camera_for, image_files, vp_counts
 
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from vcprep.cliutil import run_app
 
-from . import fit, predict, adapt, evaluate, crossval  # noqa: F401  (registers the commands, in this order)
+from ..cli import fit, predict, adapt, evaluate, crossval  # noqa: F401  (registers the commands, in this order)
 from .common import app
 from .fit import FIT_NO_OPTION, FIT_OPTION_FIELD, _fit_config, _parse_crop
 

@@ -1,4 +1,4 @@
 """``python -m vctrain.cli`` (and ``torchrun -m vctrain.cli``): the same as the ``vctrain`` command."""
-from . import main
+from ..cli import main
 
 main()

@@ -61,7 +61,7 @@ def adapt_cmd(
     from vcprep.cli import camera_for
 
     from ..adapt import adapt
-    from ..predict import collect_images
+    from vcprep.dataset import collect_images
 
     cam = camera_for(camera, collect_images([images])[0].image, frames=[j.image for j in collect_images([images])],
                      quiet=quiet)

@@ -11,7 +11,7 @@ import typer
 from vcprep.cliutil import emit_json
 from vcprep.labels import LABEL_FORMATS
 
-from .. import __version__
+from vctrain import __version__
 from ..config import AdaptSettings, TrainConfig
 
 app = typer.Typer(rich_markup_mode=None, pretty_exceptions_enable=False, add_completion=False, no_args_is_help=True,

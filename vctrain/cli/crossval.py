@@ -55,7 +55,8 @@ def crossval_cmd(
       vctrain crossval study.yaml --out studies/seed1 --seed 1
     """
     from ..report import format_table, summary_of
-    from ..study import check_conditions, evaluated_datasets, load_study, run_study
+    from ..study.spec import check_conditions, evaluated_datasets, load_study
+    from ..study.execute import run_study
 
     st = load_study(study)
     conds = check_conditions([c.strip() for c in conditions.split(",") if c.strip()]) if conditions else st.conditions

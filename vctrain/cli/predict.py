@@ -1,6 +1,6 @@
 """``vctrain predict`` (a model, the geometric prior or an exported graph on images, videos or a
-store: :func:`vctrain.predict_inputs.predict_inputs`) and ``vctrain export`` (the ONNX graph with
-the camera inside: :func:`vctrain.export.export_onnx`)."""
+store: :func:`vctrain.predict.inputs.predict_inputs`) and ``vctrain export`` (the ONNX graph with
+the camera inside: :func:`vctrain.deploy.export.export_onnx`)."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -63,16 +63,40 @@ def predict_cmd(
 
     from vcprep.cli import camera_for
 
-    from ..predict_inputs import predict_inputs
+    from ..predict.inputs import predict_inputs
 
     frames_camera = partial(camera_for, camera, quiet=quiet) if camera is not None else None
     result = predict_inputs(checkpoint, images, out, frames_camera, prior=prior, store=store, device=device,
                             keep_store=keep_store, within=within, overlay=overlay, mask_video=mask_video, ego=ego,
                             progress=not quiet)
+    if result.failed and not result.written:  # nothing predicted: the (first) frame's own error
+        _failed(result, out)
     for p in result.written:
         print(p)
+    for line in result.said():
+        err(line)
     if not quiet:
         err(f"{out}: {result.line()}")
+    if result.failed:
+        _failed(result, out)
+
+
+def _failed(result, out: Path) -> None:
+    """The error a run with skipped frames ends with (exit 1): one frame's own error, or how many."""
+    from vcprep.cliutil import count
+    from vcprep.errors import InputError
+
+    done = result.images - len(result.failed)
+    others = f"the other {count(done, 'frame')} are written" if done else "nothing written"
+    if len(result.failed) == 1:
+        file, e = result.failed[0]
+        raise InputError(f"{e.problem}; {others}", e.file or file, e.fix)
+    if not done:
+        file, e = result.failed[0]
+        raise InputError(f"{e.problem}; and {count(len(result.failed) - 1, 'other frame')} could not be predicted",
+                         e.file or file, e.fix)
+    raise InputError(f"{count(len(result.failed), 'frame')} of {result.images} could not be predicted (each named "
+                     f"above); {others}", out, "mend or remove those files and run again")
 
 
 @app.command("export")
@@ -110,7 +134,7 @@ def export_cmd(
     """
     from vcprep.cli import camera_for
 
-    from ..export import export_onnx
+    from ..deploy.export import export_onnx
 
     cam = camera_for(camera, frame, per_frame=False, quiet=quiet)
     ensure_parent(out)

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 from .conditions import training_settings
 from .execute import evaluate_heldout, run_study, score_store
-from .keys import settings_sha
+from .hashing import settings_sha
 from .resolve import Resolution
 from .runs import plan_runs
 from .spec import (ADAPT_COMBINE, CANVASES, CONDITIONS, DEFAULT_ABOVE, DEFAULT_CANVAS, DEFAULT_CONDITIONS,

@@ -26,7 +26,8 @@ from vcprep.store import Store
 
 from ..config import AdaptSettings, TrainConfig
 from ..report import write_json
-from .keys import Keys, file_sha256
+from .hashing import file_sha256
+from .keys import Keys
 from .resolve import Resolution
 from .runs import Run, what
 from .spec import ADAPT_COMBINE, CONDITIONS, DEFAULT_TRAIN, GEOMETRIES, RUN_KEYS, Dataset, Study
@@ -87,7 +88,7 @@ class Context:
 
 
 def _model_predictor(checkpoint: Path):
-    from ..predict import Predictor
+    from ..predict.predictor import Predictor
 
     return Predictor(checkpoint, device="cpu")
 

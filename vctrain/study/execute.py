@@ -1,7 +1,7 @@
 """A study's execution (:func:`run_study`): every run of the plan through one executor
 (:func:`execute`) over the condition kinds of :mod:`vctrain.study.conditions`, and the scoring.
 
-Everything runs through the real tools: stores are built with :func:`vcprep.build.warp_dataset`
+Everything runs through the real tools: stores are built with :func:`vcprep.store.build.warp_dataset`
 (one per dataset, split and geometry, shared by all folds), models with :func:`vctrain.train.fit`,
 and the held-out test images are predicted in the model's own domain and scored in their ORIGINAL
 camera (back-projected probabilities, threshold 0.5) against their original labels: road IoU =
@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any, Callable, Sequence
 
 from vcprep.errors import InputError
-from vcprep.imageio import read_image
+from vcprep.io import read_image
 from vcprep.labels import decode_label, get_label_format
 from vcprep.store import Store
 
@@ -40,7 +40,7 @@ __all__ = ["run_study", "execute", "evaluate_heldout", "score_store"]
 def evaluate_heldout(checkpoint: Path, store_dir: Path, progress: bool = False) -> dict[str, Any]:
     """Road metrics of ``checkpoint`` on every labelled item of a held-out test store, scored in the
     item's ORIGINAL camera against its original label (P(road) >= 0.5)."""
-    from ..predict import Predictor
+    from ..predict.predictor import Predictor
 
     return score_store(Predictor(checkpoint, device="cpu"), store_dir, progress)
 

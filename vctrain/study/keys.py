@@ -6,32 +6,19 @@ settings (effective training config, virtual camera, datasets) is redone.
 """
 from __future__ import annotations
 
-import hashlib
-import json
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from vcprep.camera import PRESET_PREFIX, Camera
 
 from ..config import ADAPT_EPOCHS, ADAPT_LR_FACTOR, AdaptSettings
+from .hashing import settings_sha
 from .spec import ADAPT_COMBINE, Dataset
 
 if TYPE_CHECKING:
     from .resolve import Resolution
     from .runs import Run
 
-__all__ = ["settings_sha", "file_sha256", "adapt_settings", "Keys"]
-
-
-def settings_sha(obj: Any) -> str:
-    """The key of ``obj`` (JSON-able settings; other values by ``str``): 16 hex digits of the
-    SHA-256 of its JSON with sorted keys."""
-    return hashlib.sha256(json.dumps(obj, sort_keys=True, default=str).encode()).hexdigest()[:16]
-
-
-def file_sha256(path: str | Path) -> str:
-    """The SHA-256 (hex) of a file's bytes: which model an adapted model was adapted from."""
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+__all__ = ["adapt_settings", "Keys"]
 
 
 def adapt_settings(condition: str = "adapt") -> dict[str, Any]:

@@ -19,19 +19,19 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any, Callable
 
-from vcprep.build import Job, list_dataset
+from vcprep.dataset import Job, list_dataset
 from vcprep.camera import Camera, FrameCameras, load_camera, load_cameras
 from vcprep.errors import InputError
-from vcprep.imageio import image_size, write_bytes_atomic
+from vcprep.io import image_size, write_bytes_atomic
 from vcprep.labels import get_label_format
 
 from ..report import write_json
-from .keys import settings_sha
+from .hashing import settings_sha
 from .spec import DEFAULT_CANVAS, DEFAULT_STORE_PIXELS, Dataset, Split, Study
 
 __all__ = ["Resolution", "ESTIMATE_VERSION"]
 
-ESTIMATE_VERSION = 2  # bump when vcprep.camera_estimate changes what it estimates (cached estimates are redone)
+ESTIMATE_VERSION = 2  # bump when vcprep.camera.estimate changes what it estimates (cached estimates are redone)
 
 
 class Resolution:
@@ -96,12 +96,12 @@ class Resolution:
         road footprint), once: kept in
         ``OUT/cameras/<dataset>.yaml`` with the frames it came from, reused while they are the same."""
         from vcprep.camera import read_camera_yaml
-        from vcprep.camera_estimate import estimate_camera, estimate_to_yaml
+        from vcprep.camera import estimate_camera, estimate_to_yaml
 
         jobs = {j.image: j for split in ("train", "test") if self.split(ds, split) is not None
                 for j in self.items(ds, split)}
         images = sorted(jobs)
-        from vcprep.ego import MIN_FRAMES as EGO_MIN_FRAMES
+        from vcprep.camera.ego import MIN_FRAMES as EGO_MIN_FRAMES
 
         labels = sorted({jobs[i].label for i in images if jobs[i].label is not None})
         labels = labels if len(labels) >= EGO_MIN_FRAMES else []
@@ -144,11 +144,11 @@ class Resolution:
 
     def _ego_rows(self, ds: Dataset, cam: Camera) -> int:
         """``ego: N`` as given; ``ego: auto``: the own vehicle found from the dataset's labels
-        (every labelled split; :mod:`vcprep.ego`), at the camera's image size. Too few labelled
+        (every labelled split; :mod:`vcprep.camera.ego`), at the camera's image size. Too few labelled
         frames: none. What was found is in ``ego_found`` (said by :meth:`say_ego`)."""
         if isinstance(ds.ego, int):
             return ds.ego
-        from vcprep.ego import ego_rows_from_label_files, rows_at_height
+        from vcprep.camera import ego_rows_from_label_files, rows_at_height
         labels = sorted({j.label for split in self._labelled_splits(ds) for j in self.items(ds, split)})
         try:
             est = ego_rows_from_label_files(labels, get_label_format(ds.label_format), self.study.path)
@@ -181,7 +181,7 @@ class Resolution:
     def virtual(self) -> Camera:
         if self._virtual is None:
             if self.study.virtual == "design":
-                from vcprep.virtual_camera import design_virtual_camera
+                from vcprep.camera import design_virtual_camera
 
                 design = design_virtual_camera([self.nominal_camera(d) for d in self.study.datasets], self.study.pan_range,
                                                self.study.tilt_range, name="study-virtual", above=self.study.above,
@@ -201,13 +201,13 @@ class Resolution:
         extended to its own camera (the network runs on it at the training's pixels per degree).
         ``extent: median``: the training rectangle reaches only as far as the median camera, and
         the stores of every test split (and of a test-only dataset) are that rectangle extended to
-        hold the dataset's camera at every pose of the ranges (:func:`~vcprep.virtual_camera.extend_canvas`)."""
+        hold the dataset's camera at every pose of the ranges (:func:`~vcprep.camera.virtual.extend_canvas`)."""
         base = self._canvas_of(ds)
         if self.study.extent == "max" or self.study.virtual != "design" or (split != "test" and ds.role != "test"):
             return base
         key = ds.name + "\0test"
         if key not in self._canvas:
-            from vcprep.virtual_camera import extend_canvas
+            from vcprep.camera import extend_canvas
 
             cam, st = self.nominal_camera(ds), self.study
             views = [(cam, cam.pan + a * st.pan_range, cam.tilt + b * st.tilt_range) for a in (-1, 0, 1) for b in (-1, 0, 1)]
@@ -221,7 +221,7 @@ class Resolution:
         median = self.study.extent != "max"
         key = "\0train" if ds.role != "test" or median else ds.name
         if key not in self._canvas:
-            from vcprep.virtual_camera import design_virtual_camera
+            from vcprep.camera import design_virtual_camera
 
             cams = [self.nominal_camera(d) for d in self.study.datasets if d.role != "test"]
             if key != "\0train":

@@ -48,7 +48,7 @@ from typing import Any, Sequence
 
 from vcprep.camera import PRESET_PREFIX, PRESETS, preset_name
 from vcprep.errors import InputError
-from vcprep.imageio import read_text
+from vcprep.io import read_text
 from vcprep.labels import get_label_format
 
 from ..config import TrainConfig
@@ -132,7 +132,7 @@ class Dataset:
     test: Split | None       # None for role 'train'
     role: str = "both"
     unlabelled: Split | None = None  # images without labels to adapt to (condition adapt; default: test images)
-    ego: str | int = "auto"  # own-vehicle rows: 'auto' (found from the labels, vcprep.ego), 'none' or a row count
+    ego: str | int = "auto"  # own-vehicle rows: 'auto' (found from the labels, vcprep.camera.ego), 'none' or a row count
 
     @property
     def trained(self) -> bool:
@@ -385,7 +385,7 @@ def _read_settings(d: dict, study: Study) -> None:
             raise InputError("'canvas' sizes a designed virtual camera", path, "use it with virtual: design")
         study.canvas = v
     if "extent" in d:
-        from vcprep.virtual_camera import EXTENTS
+        from vcprep.camera import EXTENTS
 
         v = d["extent"]
         if v not in EXTENTS:

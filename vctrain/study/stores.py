@@ -1,10 +1,10 @@
-"""The stores a study needs, each built once (or found up to date) with :func:`vcprep.build.warp_dataset`:
+"""The stores a study needs, each built once (or found up to date) with :func:`vcprep.store.build.warp_dataset`:
 ``OUT/stores/<dataset>/<split>/<geometry>/``, one per dataset, split and geometry, shared by all
 runs, and the road VPs they are warped with (``OUT/vps/<dataset>-<split>.csv``).
 
 Estimated VPs (``within``, ``zero``) are searched for and accepted only inside the pose range the
 virtual camera is designed to hold (``pan_range``, ``tilt_range`` of the study; rejected images fall
-back to the mean accepted VP, see :mod:`vcprep.vanishing_point`).
+back to the mean accepted VP, see :mod:`vcprep.vp`).
 """
 from __future__ import annotations
 
@@ -13,10 +13,10 @@ import shutil
 from pathlib import Path
 from typing import Sequence
 
-from vcprep.build import ItemPose, WarpSettings, warp_dataset
+from vcprep.store import ItemPose, WarpSettings, warp_dataset
 from vcprep.camera import Camera, FrameCameras
 from vcprep.errors import InputError
-from vcprep.imageio import image_size
+from vcprep.io import image_size
 from vcprep.labels import get_label_format
 from vcprep.store import Store
 
@@ -48,7 +48,7 @@ class Stores:
     def poses(self, ds: Dataset, split: str, source: str) -> dict[str, ItemPose] | None:
         if source == "none" or (source == "estimate" and isinstance(self.res.camera(ds), FrameCameras)):
             return None  # (per-frame calibration: every frame's exact pose, nothing to estimate)
-        from vcprep.vanishing_point import vps_for_items, write_vp_csv
+        from vcprep.vp import vps_for_items, write_vp_csv
 
         key = (ds.name, split, source)
         if key not in self._vps:
@@ -61,7 +61,7 @@ class Stores:
                                      "add 'vps:' to the split, or drop the within-gt condition")
                 found = vps_for_items(images, ids, self.res.camera(ds), str(vps))
             else:
-                from vcprep.vanishing_point import VPConfig
+                from vcprep.vp import VPConfig
 
                 # search and accept VPs only within the pose range the virtual camera is designed
                 # to hold: a pose outside it would push the image out of the virtual frame
@@ -78,7 +78,7 @@ class Stores:
         scale (the study's datasets or settings changed since) is removed, to be built afresh."""
         if not (root / "store.json").exists():
             return
-        from vcprep.build import store_params
+        from vcprep.store import store_params
 
         want = store_params(virtual, self.res.scale())
         have = Store.open(root).params

@@ -1,0 +1,16 @@
+"""Road vanishing points (paper section 4.2): one image's VP, and the rules over a dataset.
+
+Modules: :mod:`.segments` (LSD segments, sub-pixel re-fit), :mod:`.estimate` (:class:`VPConfig`,
+:class:`VPResult`, the vote: :func:`estimate_vp`), :mod:`.reliability` (the reliability rule,
+per-sequence smoothing, VP files).
+"""
+from __future__ import annotations
+
+from .estimate import VPConfig, VPResult, estimate_vp, is_reliable, score_vps
+from .reliability import (apply_reliability, estimate_files, format_vp_csv, read_vp_csv, sequence_key, smooth_sequences,
+                          vps_for_items, write_vp_csv)
+from .segments import detect_segments, prior_window, refine_segments, to_gray
+
+__all__ = ["VPConfig", "VPResult", "estimate_vp", "is_reliable", "score_vps", "apply_reliability", "estimate_files",
+           "format_vp_csv", "read_vp_csv", "sequence_key", "smooth_sequences", "vps_for_items", "write_vp_csv",
+           "detect_segments", "prior_window", "refine_segments", "to_gray"]

@@ -1,0 +1,242 @@
+"""Per-frame prediction in memory: one BGR frame in, P(road) of the original camera out.
+
+:class:`FramePredictor` does for one decoded frame (a video frame) what ``vctrain predict`` does
+for an image file through a store (:func:`vctrain.predict.predictor.warp_like_training`), with the
+same code and the same numbers: the frame's pose (the camera's average pose, or its own road VP),
+``virt_H_src`` and its fold check (:func:`vcprep.store.build.item_geometry`), the warp + the checkpoint's
+completion in one remap (:func:`vcprep.store.build.warp_arrays`, the body of the store build; maps are
+cached, so a fixed pose builds them once), the network on the warped uint8 image (what the store's
+PNG holds, bit for bit) and the back-projection (:func:`vcprep.warp.backproject.backproject_array`).
+The virtual camera's rectangle is the training's, extended to hold the frame's lower half at its
+pose (:func:`vcprep.camera.virtual.extend_canvas`; a folder's frames share the rectangle
+of :func:`vctrain.predict.road.rectangle_views`): poses known in advance are given at construction; a later frame whose pose does
+not fit grows the rectangle, so after a whole video it is the one the folder path would use.
+
+:class:`StreamingVPs` gives a video's frames their road VPs with the sequence rules of
+:mod:`vcprep.vp` (:func:`~vcprep.vp.estimate_vp`,
+:func:`~vcprep.vp.apply_reliability`, :func:`~vcprep.vp.smooth_sequences`)
+run over a sliding window instead of the whole sequence: a frame's VP is final once ``window``
+later frames are seen.
+
+:class:`StageTimes` adds up the seconds spent per stage (VP, warp, network, back-projection).
+"""
+from __future__ import annotations
+
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any, Iterable
+
+import numpy as np
+
+from vcprep.warp import backproject_array
+from vcprep.store import item_geometry, store_params, warp_arrays
+from vcprep.camera import Camera, camera_from_dict
+from vcprep.errors import InputError
+from vcprep.warp import apply_homography, pose_from_vp, vp_from_pose
+from vcprep.vp import VPConfig, VPResult, apply_reliability, estimate_vp, smooth_sequences
+from vcprep.camera import extend_canvas
+
+from ..data import vp_in_store
+
+__all__ = ["StageTimes", "FramePredictor", "StreamingVPs", "warps_frames"]
+
+
+@dataclass
+class StageTimes:
+    """Seconds spent per stage, summed over ``frames`` frames (a benchmark reads them)."""
+
+    vp: float = 0.0           # road VP estimation (per-frame VPs only)
+    warp: float = 0.0         # pose, homography, warp + completion into the virtual camera
+    network: float = 0.0      # resize to the working size, the network, softmax
+    backproject: float = 0.0  # virtual -> original camera
+    frames: int = 0
+
+    def per_frame_ms(self) -> dict[str, float]:
+        """Milliseconds per frame of each stage."""
+        n = max(1, self.frames)
+        return {k: 1000.0 * getattr(self, k) / n for k in ("vp", "warp", "network", "backproject")}
+
+
+class FramePredictor:
+    """P(road) of single frames of one camera, in memory (module docstring).
+
+    ``predictor``: a :class:`vctrain.predict.Predictor` (virtual or resize model), a
+    :class:`vctrain.adapt.PriorPredictor` or a graph that takes whole frames
+    (:class:`vctrain.deploy.OnnxPredictor`: ``takes_frames``); ``camera``: the frames' camera (any
+    size; rescaled to ``frame_size`` (w, h)); ``poses``: (pan, tilt) of frames to come, which the
+    virtual rectangle is extended for in advance (the camera's average pose always is); ``views``
+    instead: exactly the (camera, pan, tilt) views the rectangle is extended for (a folder's, of
+    every camera in it, so that all its frames share one rectangle)."""
+
+    def __init__(self, predictor: Any, camera: Camera | None, frame_size: tuple[int, int],
+                 poses: Iterable[tuple[float, float]] = (),
+                 views: list[tuple[Camera, float, float]] | None = None):
+        self.predictor = predictor
+        self.size = (int(frame_size[0]), int(frame_size[1]))
+        self.camera = camera.for_image_size(self.size) if camera is not None else None
+        self.times = StageTimes()
+        self.virtual: Camera | None = None
+        if not warps_frames(predictor):
+            return  # a resize model needs no camera (only its VP channel does); a graph warps inside
+        if self.camera is None:
+            raise InputError("a virtual-camera model needs the camera of the frames", predictor.path,
+                             "add --camera (preset or calibration file)")
+        sp = predictor.data.get("store_params")
+        if not sp:
+            raise InputError("model has no training store parameters", predictor.path,
+                             "use a model trained on a store built by 'vcprep warp'")
+        self._trained = camera_from_dict(sp["virtual"], predictor.path)
+        self._scale = float(sp["scale"])
+        self._completion = predictor.data.get("completion", "none")
+        # a prior is an image of the training rectangle: frames are warped into it as it is
+        self._extend = not getattr(predictor, "fixed_rectangle", False)
+        if views is not None:
+            self._views = list(views)
+        else:
+            self._views = [(self.camera, self.camera.pan, self.camera.tilt)]
+            self._views += [(self.camera, float(p), float(t)) for p, t in poses]
+        self._set_virtual(extend_canvas(self._trained, self._views) if self._extend else self._trained)
+
+    def _set_virtual(self, virtual: Camera) -> None:
+        self.virtual = virtual
+        params = store_params(virtual, self._scale)
+        # the scaled camera exactly as a store holds it (Store.virtual reads this dict)
+        self._virtual_scaled = camera_from_dict(params["virtual_scaled"])
+        self.store_size = (int(params["store_size"][0]), int(params["store_size"][1]))
+
+    def _fit_canvas(self, pan: float, tilt: float) -> None:
+        """Grow the rectangle when the frame at (pan, tilt) does not fit: the training's rectangle
+        extended for every view that ever grew it (a view that fits changes no extension)."""
+        view = (self.camera, pan, tilt)
+        if extend_canvas(self.virtual, [view]) is not self.virtual:
+            self._views.append(view)
+            self._set_virtual(extend_canvas(self._trained, self._views))
+
+    def _check(self, frame: np.ndarray) -> None:
+        """A frame as an image file decodes (:func:`vcprep.io.read_image`): grey or BGR, 8 or 16 bit."""
+        if frame.ndim not in (2, 3) or (frame.ndim == 3 and frame.shape[2] != 3) or frame.dtype not in (np.uint8,
+                                                                                                       np.uint16):
+            raise InputError(f"frame is {frame.dtype} {frame.shape}, expected BGR or grey uint8/uint16", None,
+                             "give decoded frames")
+        if (frame.shape[1], frame.shape[0]) != self.size:
+            raise InputError(f"frame is {frame.shape[1]}x{frame.shape[0]} but the predictor is for "
+                             f"{self.size[0]}x{self.size[1]}", None, "make one FramePredictor per frame size")
+
+    def warp(self, frame: np.ndarray, vp: tuple[float, float] | None = None) -> tuple[np.ndarray, dict[str, Any]]:
+        """The frame in the virtual camera (uint8, what a store would hold) and the store record
+        fields that describe it (``H``, ``size``, ``store_size``, ``vp``, ``pan_deg``, ``tilt_deg``),
+        as :func:`vcprep.store.build.build_item` computes them. ``vp``: the frame's own road VP (source
+        pixels); None: the camera's average pose."""
+        self._check(frame)
+        cam = self.camera
+        if vp is not None:
+            vp = (float(vp[0]), float(vp[1]))
+            pan, tilt = pose_from_vp(cam, vp)
+        else:
+            pan, tilt = cam.pan, cam.tilt
+            vp = vp_from_pose(cam, pan, tilt)
+        if self._extend:
+            self._fit_canvas(pan, tilt)
+        cam, H = item_geometry(cam, self.size, self._virtual_scaled, None, pan, tilt)
+        vp_store = tuple(apply_homography(H, [vp])[0])
+        item = warp_arrays(frame, None, self.store_size, H, self._completion, vp_store, cam.ego_rows)
+        rec = {"H": H.ravel().tolist(), "size": list(cam.size), "store_size": list(self.store_size),
+               "vp": [vp[0], vp[1]], "pan_deg": pan, "tilt_deg": tilt}
+        return item.image, rec
+
+    def predict(self, frame: np.ndarray, vp: tuple[float, float] | None = None) -> np.ndarray:
+        """P(road) float32 (h, w) at the frame's size; ``vp`` as in :meth:`warp` (a resize model
+        with the VP channel takes it, else the camera's average-pose VP)."""
+        p = self.predictor
+        t0 = time.perf_counter()
+        if not warps_frames(p):
+            self._check(frame)
+            if vp is None and getattr(p, "vp_channel", False) and self.camera is not None:
+                vp = vp_from_pose(self.camera)
+            prob = p.road_probability(frame, vp)
+            self.times.network += time.perf_counter() - t0
+            self.times.frames += 1
+            return prob
+        img, rec = self.warp(frame, vp)
+        t1 = time.perf_counter()
+        if hasattr(p, "road_probability"):
+            prob = p.road_probability(img, vp_in_store(rec), p.working_size(self.store_size))
+        else:  # the geometric prior: P(road) is p_g itself
+            prob = p.prior
+        t2 = time.perf_counter()
+        out = np.clip(backproject_array(prob, rec, kind="prob"), 0.0, 1.0)
+        t3 = time.perf_counter()
+        self.times.warp += t1 - t0
+        self.times.network += t2 - t1
+        self.times.backproject += t3 - t2
+        self.times.frames += 1
+        return out
+
+
+def warps_frames(predictor: Any) -> bool:
+    """Whether frames are warped into a virtual camera before ``predictor`` sees them: a virtual-camera
+    model or the prior, not a resize model nor a graph that holds its warp inside."""
+    return predictor.mode == "virtual" and not getattr(predictor, "takes_frames", False)
+
+
+@dataclass
+class StreamingVPs:
+    """Road VPs of a video's frames, in order, with the sequence rules over a sliding window.
+
+    :meth:`push` estimates a frame's VP (:func:`~vcprep.vp.estimate_vp`) and returns
+    the frames whose VP is now final: those with ``window`` later frames seen. A final VP is what
+    :func:`~vcprep.vp.apply_reliability` and
+    :func:`~vcprep.vp.smooth_sequences` (``window`` frames either side) give over the
+    frames held: the last ``memory`` frames before it and the ``window`` after it. So a frame's
+    smoothed VP equals the whole-video rule's whenever a neighbour's VP is accepted (smoothing
+    takes the median of the accepted ones); a rejected frame without one falls back to the mean
+    of the accepted VPs of the last ``memory`` frames (the whole-video rule: of the whole video).
+    Frames that could not be decoded are simply not pushed. :meth:`flush` ends the video."""
+
+    camera: Camera              # the camera at the frames' size
+    window: int = 2             # frames either side that a VP is smoothed over (smooth_sequences' default)
+    memory: int = 150           # earlier frames whose accepted VPs a rejected one may fall back to
+    cfg: VPConfig = field(default_factory=VPConfig)
+    times: StageTimes | None = None  # adds the estimation time to .vp when given
+
+    def __post_init__(self):
+        self._held: deque[tuple[int, VPResult]] = deque()  # (frame index, raw estimate), in order
+        self._waiting = 0  # how many of the last held frames have no final VP yet
+
+    def estimate(self, frame: np.ndarray) -> VPResult:
+        """The frame's raw estimate (:func:`~vcprep.vp.estimate_vp`; pure, so it may
+        run in another thread, ahead of :meth:`push`)."""
+        t0 = time.perf_counter()
+        res = estimate_vp(frame, self.camera, self.cfg)
+        if self.times is not None:
+            self.times.vp += time.perf_counter() - t0
+        return res
+
+    def push(self, index: int, frame: np.ndarray | None = None,
+             estimate: VPResult | None = None) -> list[tuple[int, VPResult]]:
+        """Add the next frame (or its ``estimate``, computed by :meth:`estimate`); returns the frames
+        whose VP is now final, in order."""
+        self._held.append((int(index), self.estimate(frame) if estimate is None else estimate))
+        self._waiting += 1
+        out = []
+        while self._waiting > self.window:
+            out.append(self._final(len(self._held) - self._waiting))
+            self._waiting -= 1
+        return out
+
+    def flush(self) -> list[tuple[int, VPResult]]:
+        out = [self._final(len(self._held) - k) for k in range(self._waiting, 0, -1)]
+        self._waiting = 0
+        return out
+
+    def _final(self, pos: int) -> tuple[int, VPResult]:
+        held = list(self._held)
+        ids = [f"video_{i:09d}" for i, _ in held]  # one sequence; the ids sort in frame order
+        cams = [self.camera] * len(held)
+        rel = apply_reliability([r for _, r in held], cams, ids)
+        lo, hi = max(0, pos - self.window), min(len(held), pos + self.window + 1)
+        res = smooth_sequences(ids[lo:hi], rel[lo:hi], cams[lo:hi], self.window)[pos - lo]
+        while len(self._held) > self.memory + self._waiting:  # drop what no later frame needs
+            self._held.popleft()
+        return held[pos][0], res

@@ -1,0 +1,157 @@
+"""What ``vctrain predict`` was given, checked and routed: image files and folders, videos or a
+store, through a model (:class:`~vctrain.predict.Predictor`), the geometric prior
+(:class:`~vctrain.adapt.PriorPredictor`) or a graph written by ``vctrain export``
+(:class:`~vctrain.deploy.runtime.OnnxPredictor`). :func:`predict_inputs` returns the files written
+and what was predicted (:class:`Predicted`)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Optional, Sequence
+
+from vcprep.cliutil import count
+from vcprep.errors import InputError
+
+__all__ = ["CameraFor", "Predicted", "predict_inputs"]
+
+# the camera of the frames from --camera: camera_for(sample_image, per_frame=..., frames=...) -> Camera
+# (or FrameCameras); the caller's, so that an estimated camera is said where the caller says things
+CameraFor = Callable[..., Any]
+
+
+@dataclass
+class Predicted:
+    """What :func:`predict_inputs` did: the mask files ``written`` (in order), how many images
+    (None: no images or store given) and videos, through what (``source``), and the frames that
+    ``failed`` (:meth:`said` names them)."""
+
+    written: list[Path]
+    images: Optional[int]
+    videos: int
+    source: str
+    failed: list = field(default_factory=list)  # (file, VCError) of the frames that were skipped
+
+    def said(self) -> list[str]:
+        """One line per skipped frame: 'skipped: <file>: <problem> (<fix>)'."""
+        from .road import skipped_lines
+
+        return skipped_lines(self.failed)
+
+    def line(self) -> str:
+        """'3 images predicted (virtual model)', '1 image and 2 videos predicted (geometric prior)'."""
+        what = " and ".join(([count(self.images, "image")] if self.images is not None else [])
+                            + ([count(self.videos, "video")] if self.videos else []))
+        return f"{what} predicted ({self.source})"
+
+
+def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]], out: Path,
+                   camera_for: Optional[CameraFor] = None, prior: Optional[Path] = None, store: Optional[Path] = None,
+                   device: str = "auto", keep_store: Optional[Path] = None, within: str = "auto",
+                   overlay: bool = False, mask_video: bool = False, ego: str = "auto",
+                   progress: bool = True) -> Predicted:
+    """``vctrain predict``: ``checkpoint`` (a ``.pt`` model or an ``.onnx`` graph; with ``prior``
+    it is the first image) on ``images`` (files, folders, videos) or every item of ``store``.
+    ``camera_for`` (None: no --camera) gives the frames' camera. Bad combinations raise
+    :class:`InputError` before anything is predicted."""
+    if prior is not None:
+        if checkpoint is not None and checkpoint.suffix.lower() == ".pt":
+            raise InputError("give either a model or --prior, not both", checkpoint, "drop one of them")
+        images = [checkpoint, *(images or [])] if checkpoint is not None else images  # all positionals are images
+    elif checkpoint is None:
+        raise InputError("no model given", None, "give MODEL.pt, or --prior prior.npy to segment with the prior")
+    from .video import check_video_stems, is_video, predict_video
+
+    if mask_video and not any(is_video(p) for p in images or []):
+        raise InputError("--mask-video is for videos", None, "give a video file, or drop --mask-video")
+    if store is None and not images:
+        raise InputError("nothing to predict", None, "give image files/folders, or --store STORE")
+    if store is not None and images:
+        raise InputError("give either IMAGES or --store, not both", store, "run predict twice")
+    if prior is None and checkpoint.suffix.lower() == ".onnx":  # an exported graph: its camera is inside
+        return _predict_onnx(checkpoint, images, out, camera_for, store, within, overlay, progress)
+    videos = check_video_stems([p for p in images or [] if is_video(p)])
+    images = [p for p in images or [] if not is_video(p)]
+    predictor = _predictor(checkpoint, prior, device)
+    written = []
+    if videos:
+        vcam = camera_for(None, per_frame=False) if camera_for is not None else None  # ('estimate': said not possible)
+        for v in videos:
+            written += predict_video(predictor, v, out, vcam, within=within, mask_video=mask_video, overlay=overlay,
+                                     progress=progress, ego=ego)
+    n_images = 0
+    if store is not None:
+        from vcprep.store import Store
+
+        from .predictor import predict_store
+
+        written = predict_store(predictor, Store.open(store), out, progress=progress, overlay=overlay)
+        n_images = len(written)
+    failed = []
+    if images:
+        run = _predict_image_files(predictor, images, out, camera_for, keep_store, within, overlay, progress)
+        written += run.written
+        failed = run.failed
+        n_images = len(run.written) + len(failed)
+    return Predicted(written, n_images if images or store else None, len(videos),
+                     "geometric prior" if prior else predictor.mode + " model", failed)
+
+
+def _predictor(checkpoint: Optional[Path], prior: Optional[Path], device: str):
+    """The prior's predictor (``prior`` given) or the checkpoint's model on ``device``."""
+    if prior is not None:
+        from ..adapt import PriorPredictor
+
+        return PriorPredictor(prior)
+    from .predictor import Predictor
+
+    return Predictor(checkpoint, device)
+
+
+def _needs_no_camera(predictor) -> bool:
+    """A resize model without the VP channel reads frames as they are: --camera changes nothing (and
+    is not estimated: a folder of three frames is enough for it)."""
+    return getattr(predictor, "mode", None) == "resize" and not getattr(predictor, "vp_channel", False)
+
+
+def _predict_image_files(predictor, images: Sequence[Path], out: Path, camera_for: Optional[CameraFor],
+                         keep_store: Optional[Path], within: str, overlay: bool, progress: bool):
+    """Image files and folders: their camera from ``camera_for`` (a virtual-camera model needs
+    one), then :func:`vctrain.predict.predictor.predict_frames` (the one road for a frame)."""
+    from vcprep.dataset import collect_images
+
+    from .frames import warps_frames
+    from .predictor import predict_frames
+
+    cam = None
+    if camera_for is not None and not _needs_no_camera(predictor):
+        jobs = collect_images(images)
+        cam = camera_for(jobs[0].image, frames=[j.image for j in jobs])
+    elif warps_frames(predictor):
+        raise InputError("a virtual-camera model needs the camera of the images", predictor.path,
+                         "add --camera (preset or calibration file)")
+    return predict_frames(predictor, images, out, cam, progress=progress, keep_store=keep_store, overlay=overlay,
+                          within=within)
+
+
+def _predict_onnx(graph: Path, images, out: Path, camera_for: Optional[CameraFor], store: Optional[Path],
+                  within: str, overlay: bool, progress: bool) -> Predicted:
+    """``vctrain predict GRAPH.onnx``: frames through a graph written by 'vctrain export'."""
+    from ..deploy.runtime import OnnxPredictor
+    from .road import run_road
+    from vcprep.dataset import collect_images
+
+    if store is not None:
+        raise InputError("an exported graph takes the camera's own frames, not a store", store,
+                         "give the original frames (IMAGES)")
+    predictor = OnnxPredictor(graph)
+    cam = None
+    if camera_for is not None:  # only for estimating the VPs of a --vp-input graph (the graph holds its own camera)
+        frames = [j.image for j in collect_images(images)]
+        cam = camera_for(frames[0], per_frame=False, frames=frames)
+    run = run_road(predictor, images, out, cam, progress=progress, overlay=overlay, within=within)
+    source = f"ONNX graph, {predictor.mode} model"
+    if predictor.beyond:
+        pan, tilt = predictor.info["pose_range"]
+        source += (f"; {count(predictor.beyond, 'frame')} with a VP beyond the graph's pose range ({pan:g}, {tilt:g} deg):"
+                   " P(road) cut to its rectangle, export with a larger --pose-range")
+    return Predicted(run.written, len(run.written) + len(run.failed), 0, source, run.failed)

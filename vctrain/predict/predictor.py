@@ -1,0 +1,192 @@
+"""A checkpoint's network on one image (:class:`Predictor`), and the store path.
+
+The preprocessing is the checkpoint's own (no repeated flags):
+
+- ``virtual`` models run on images of their virtual camera, resized to the working size if it
+  differs; the road probability is back-projected to every source pixel
+  (:func:`vcprep.warp.backproject_array`, bilinear; pixels outside the virtual image get 0).
+- ``resize`` baseline models: the image is resized to the working size, inferred, and the
+  probability resized back (bilinear).
+
+New frames take one road (:mod:`vctrain.predict.road`, in memory). The store path is for stores:
+:func:`predict_store` predicts the items of a store that exists (``vctrain predict --store``), and
+:func:`warp_like_training` warps frames into a store exactly as the checkpoint's training store was
+built (``--keep-store``; :mod:`vctrain.adapt`'s target stores), with the same rules as the road.
+Outputs per image ``<stem>_prob.png`` (uint8, round(255 * P(road))) and ``<stem>_mask.png``
+(255 where P(road) >= 0.5, else 0), both at the source image size.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Iterable
+
+import cv2
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from vcprep.warp import backproject_array
+from vcprep.dataset import Job, collect_images
+from vcprep.store import WarpSettings, warp_dataset
+from vcprep.camera import Camera, FrameCameras, camera_from_dict, extend_canvas, scale_matrix
+from vcprep.errors import InputError
+from vcprep.io import read_image
+from vcprep.store import Store
+
+from ..checkpoint import load_checkpoint, model_from_checkpoint
+from ..data import resize_pair, to_input, vp_in_store, vp_proximity
+from ..train import resolve_device
+from .frames import warps_frames
+from .road import RoadRun, out_dir, rectangle_views, run_road, virtual_within, write_prediction
+
+
+
+class Predictor:
+    """A checkpoint's model plus its input conventions."""
+
+    fixed_rectangle = False  # a model runs on any rectangle of its virtual camera (a prior: True, one image)
+
+    def __init__(self, checkpoint: str | Path, device: str = "auto"):
+        self.path = Path(checkpoint)
+        self.ckpt = load_checkpoint(self.path)
+        self.data: dict[str, Any] = self.ckpt["data"]
+        self.device = resolve_device(device)
+        self.model = model_from_checkpoint(self.ckpt, self.path).to(self.device).eval()
+        self.size = tuple(self.data["input_size"])
+        self.greyscale = float(self.data.get("greyscale", 0.0)) >= 1.0
+        self.vp_channel = bool(self.data.get("vp_channel", False))
+
+    @property
+    def mode(self) -> str:
+        return self.data["mode"]
+
+    @torch.no_grad()
+    def road_probability(self, image: np.ndarray, vp: tuple[float, float] | None = None,
+                         size: tuple[int, int] | None = None) -> np.ndarray:
+        """P(road) float32 at the size of ``image`` (any size; resized to the working size, or to
+        ``size`` (w, h), and back). ``vp`` (image pixels) is needed for models with the VP channel."""
+        h0, w0 = image.shape[:2]
+        size = tuple(size) if size is not None else self.size
+        img, _ = resize_pair(image, None, size)
+        x = to_input(img, greyscale=self.greyscale)
+        if self.vp_channel:
+            if vp is None:
+                raise InputError("this model needs the road vanishing point of each image (VP channel)", self.path,
+                                 "give --camera so the VP follows from its pose, or predict a store")
+            S = scale_matrix(size[0] / w0, size[1] / h0)
+            v = S @ np.array([vp[0], vp[1], 1.0])
+            x = np.concatenate([x, vp_proximity(size, (v[0], v[1]))[None]], axis=0)
+        logits = self.model(torch.from_numpy(x)[None].to(self.device))
+        prob = torch.softmax(logits.float(), dim=1)[0, 1].cpu().numpy().astype(np.float32)
+        if (w0, h0) != size:
+            prob = cv2.resize(prob, (w0, h0), interpolation=cv2.INTER_LINEAR)
+        return prob
+
+    def working_size(self, store_size: tuple[int, int]) -> tuple[int, int]:
+        """The working size for a store image of ``store_size``: the training store's own size
+        gives the model's input size; a larger canvas of the same virtual camera (a test camera's
+        footprint, :func:`vcprep.camera.virtual.same_camera_other_canvas`) keeps the training's
+        pixels per degree, so the network runs on the whole canvas unresized (fully convolutional)."""
+        trained = (self.data.get("store_params") or {}).get("store_size")
+        if not trained or tuple(trained) == tuple(store_size):
+            return self.size
+        return (max(1, int(round(store_size[0] * self.size[0] / trained[0]))),
+                max(1, int(round(store_size[1] * self.size[1] / trained[1]))))
+
+    def store_item(self, store: Store, rec: dict[str, Any]) -> np.ndarray:
+        """P(road) in the item's ORIGINAL camera (source size), for either model mode."""
+        if self.mode == "resize":
+            img = read_image(rec["source"]).array
+            return self.road_probability(img, tuple(rec["vp"]) if rec.get("vp") else None)
+        img = read_image(store.path(rec["image"])).array
+        prob = self.road_probability(img, vp_in_store(rec, store), self.working_size((img.shape[1], img.shape[0])))
+        return np.clip(backproject_array(prob, rec, kind="prob"), 0.0, 1.0)
+
+
+def predict_store(predictor: Predictor, store: Store, out: str | Path, progress: bool = True,
+                  ids: Iterable[str] | None = None, overlay: bool = False) -> list[Path]:
+    """Predict every item of ``store`` (or those in ``ids``); writes ``<id>_mask.png`` and
+    ``<id>_prob.png`` at the source image size. Returns the mask paths."""
+    out = out_dir(out)
+    if predictor.mode == "virtual":
+        from vcprep.camera import same_camera_other_canvas
+
+        sp = predictor.data.get("store_params") or {}
+        if store.params.get("scale") != sp.get("scale"):
+            raise InputError("store has another scale than the model's training store", store.root,
+                             "predict from the images with --camera (they are warped as the model expects)")
+        other_rectangle = (not predictor.fixed_rectangle
+                           and same_camera_other_canvas(store.params.get("virtual"), sp.get("virtual")))
+        if store.params.get("virtual") != sp.get("virtual") and not other_rectangle:
+            raise InputError("store has another virtual camera than the model's training store", store.root,
+                             "predict from the images with --camera (they are warped as the model expects)")
+    written = []
+    recs = list(store) if ids is None else [store.get(i) for i in ids]
+    for rec in tqdm(recs, desc="predict", unit="img", disable=None if progress else True, leave=False):
+        written.append(write_prediction(out, rec["id"], predictor.store_item(store, rec),
+                                        rec["source"] if overlay else None)[0])
+    return written
+
+
+def predict_frames(predictor: Any, images: Iterable[str | Path], out: str | Path,
+                   camera: Camera | FrameCameras | None, progress: bool = True, keep_store: str | Path | None = None,
+                   overlay: bool = False, within: str = "auto") -> RoadRun:
+    """Image files/folders through the one road for a frame (:func:`vctrain.predict.road.run_road`:
+    a frame that fails is named and skipped); with ``keep_store`` (a model that warps frames) the
+    warped frames are also kept as a store there, and predicted from it (the same masks)."""
+    if keep_store is None or not warps_frames(predictor):
+        return run_road(predictor, images, out, camera, progress=progress, overlay=overlay, within=within)
+    if camera is None:
+        raise InputError("a virtual-camera model needs the camera of the images", None,
+                         "add --camera (preset or calibration file)")
+    jobs = collect_images(images)
+    store = warp_like_training(predictor.data, predictor.path, jobs, camera, keep_store, within, progress,
+                               extend=not getattr(predictor, "fixed_rectangle", False))
+    return RoadRun(predict_store(predictor, store, out, progress, ids=[j.id for j in jobs], overlay=overlay))
+
+
+def predict_images(predictor: Any, images: Iterable[str | Path], out: str | Path,
+                   camera: Camera | FrameCameras | None, progress: bool = True, keep_store: str | Path | None = None,
+                   overlay: bool = False, within: str = "auto") -> list[Path]:
+    """:func:`predict_frames`, returning the mask paths; a frame that failed raises its error (after
+    the other frames are predicted)."""
+    run = predict_frames(predictor, images, out, camera, progress, keep_store, overlay, within)
+    if run.failed:
+        raise run.failed[0][1]
+    return run.written
+
+
+def warp_like_training(data: dict[str, Any], path: str | Path, jobs: list[Job], camera: Camera | FrameCameras,
+                       root: str | Path,
+                       within: str = "auto", progress: bool = True, extend: bool = True) -> Store:
+    """Warp image ``jobs`` of ``camera`` into the store ``root`` exactly as the training store of
+    a checkpoint (its ``data``; ``path`` names it in errors) was built: same code, virtual
+    camera, scale and completion. ``within``: per-image pan/tilt from the road VP ('estimate',
+    a CSV ``id,u,v``, 'none'); 'auto' estimates VPs when the training store used per-image VPs
+    and takes the camera's average pose otherwise. ``extend``: the virtual camera's rectangle
+    extended to hold every frame (:func:`vctrain.predict.road.rectangle_views`); False keeps the training's rectangle (what
+    a prior, an image of that rectangle, needs)."""
+    sp = data.get("store_params")
+    if data.get("mode") != "virtual" or not sp:
+        raise InputError("model was not trained in a virtual camera (a resize baseline)", path,
+                         "use a model trained on a store built by 'vcprep warp'")
+    virtual = camera_from_dict(sp["virtual"], path)
+    completion = data.get("completion", "none")
+    within = virtual_within(data, within, camera)
+    poses = None
+    if isinstance(camera, FrameCameras):
+        for j in jobs:  # every frame's calibration file exists: an error before anything is written
+            camera.file_for(j.image)
+    if within != "none":
+        from vcprep.store import ItemPose
+        from vcprep.vp import vps_for_items
+
+        res = vps_for_items([j.image for j in jobs], [j.id for j in jobs], camera, within)
+        poses = {j.id: ItemPose((r.vp[0], r.vp[1]), r.status) for j, r in zip(jobs, res)}
+    if extend:
+        vps = {i: p.vp for i, p in poses.items()} if poses else {}
+        virtual = extend_canvas(virtual, rectangle_views(jobs, camera, vps))
+    settings = WarpSettings(camera=camera, virtual=virtual, scale=float(sp["scale"]), completion=completion,
+                            poses=poses, progress=progress)
+    store, _ = warp_dataset(jobs, root, settings)
+    return store
