@@ -547,6 +547,14 @@ def test_every_command_has_an_example(cmd):
     assert r.exit_code == 0 and "Example:" in r.stdout
 
 
+def test_predict_help_shows_the_shipped_model_and_when_the_overlay_has_a_horizon():
+    text = " ".join(runner.invoke(app, ["predict", "--help"]).stdout.split())
+    example = text.split("Example:", 1)[1]
+    assert "vctrain predict models/road-multicamera/road.pt " in example
+    overlay = text.split("Options:", 1)[1].split("--overlay", 1)[1].split(" --mask-video", 1)[0]
+    assert "horizon" in overlay and "only with --camera" in overlay, overlay
+
+
 def test_fit_help_names_the_recipes():
     text = " ".join(runner.invoke(app, ["fit", "--help"]).stdout.split())
     assert "resfpn" in text and "'cpu'" in text and "'paper'" in text
