@@ -128,6 +128,22 @@ def test_every_command_has_help_with_an_example():
             assert "Example" in proc.stdout, cmd
 
 
+def test_group_help_names_every_command_of_the_group():
+    """`vcprep camera --help` (and the store group's) says what the group holds: each of its
+    commands is named in the group's one-line description."""
+    import typer.main
+
+    from vcprep.cli import app
+
+    root = typer.main.get_command(app)
+    for group in ("camera", "store"):
+        grp = root.commands[group]
+        proc = run_cli(group, "--help")
+        assert proc.returncode == 0 and grp.help in " ".join(proc.stdout.split())
+        for cmd in grp.commands:
+            assert cmd in grp.help, (group, cmd, grp.help)
+
+
 def test_cameras_and_camera_show(tmp_path):
     proc = run_cli("cameras", "--json")
     rows = [json.loads(x) for x in proc.stdout.splitlines()]

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import glob
 import importlib.util
+import json
 import os
 import re
 import shlex
@@ -62,6 +63,28 @@ def test_readme_headline_matches_the_json():
     readme = (ROOT / "README.md").read_text()
     assert rp.with_headline(readme, rp.render_headline()) == readme, \
         "README.md's headline differs from benchmarks/results/real_cameras.json: run `make docs`"
+
+
+def test_headline_leads_with_both_regimes_and_check_fails_without_the_multi_camera_figure(tmp_path, capsys):
+    """The headline's first sentences give one training camera and several merged, as measured
+    (from the JSON), and the shipped model; --check fails on a headline that leaves out the
+    multi-camera figure."""
+    rp = _results_page()
+    results = ROOT / "benchmarks" / "results"
+    h = json.loads((results / "multi_camera_median.json").read_text())["headline"]
+    several = f"{h['loo_within_minus_resize']:+.1f} ± {h['loo_within_minus_resize_std']:.1f}"
+    lead = " ".join(rp.sentences(rp.render_headline())[:3])
+    assert several in lead and "models/road-multicamera" in lead and "resize twin" in lead, lead
+    assert "IDD-Lite" in lead and "BDD100K" in lead  # the worst held-out cameras
+    one = json.loads((results / "as_shipped.json").read_text())["headline"]
+    assert f"{one['real_within_minus_resize']:+.1f} ± {one['real_within_minus_resize_std']:.1f}" in lead
+    assert rp.main(["--check"]) == 0, capsys.readouterr().err
+    readme = (ROOT / "README.md").read_text()
+    cut = " ".join(s for s in rp.sentences(rp.render_headline()) if several not in s)
+    (tmp_path / "README.md").write_text(rp.with_headline(readme, cut))
+    assert rp.main(["--check", "--readme", str(tmp_path / "README.md")]) == 1
+    err = capsys.readouterr().err
+    assert f"leave out the several cameras merged figure ({several}" in err, err
 
 
 def test_results_page_lists_every_json_with_its_facts():

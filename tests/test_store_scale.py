@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 import pytest
 
-from conftest import BIN, assert_one_error_line, run_cli, write_synthetic_dataset
+from conftest import BIN, _in_process, assert_one_error_line, run_cli, write_synthetic_dataset
 from vcprep.store import Shard, Store
 
 N_ITEMS = 40
@@ -354,3 +354,69 @@ def test_sigint_stops_cleanly_and_says_how_to_resume(ds, reference, tmp_path, jo
     assert len(Store.open(out)) < N_ITEMS
     assert _warp(*ds, out, "-q").returncode == 0
     assert _files(out) == reference[1]
+
+
+def _recorded_ids(store: Path) -> set[str]:
+    """Ids recorded in the manifest or a part file (a torn last line ignored), read while a build runs."""
+    ids = set()
+    for part in store.glob("manifest*.jsonl"):
+        for line in part.read_text().splitlines():
+            try:
+                ids.add(json.loads(line)["id"])
+            except ValueError:
+                pass
+    return ids
+
+
+def _kill_in_the_orphan_window(proc, out: Path, delay: float) -> None:
+    """SIGKILL the build's process group ``delay`` s after it records its first item of this run,
+    as soon as an image is in place that no record owns yet (a worker finished it, the parent has
+    not recorded it), or 0.3 s later."""
+    before = _recorded_ids(out) if out.is_dir() else set()
+    t = time.monotonic() + 30.0
+    while proc.poll() is None and time.monotonic() < t and not (_recorded_ids(out) - before if out.is_dir() else 0):
+        time.sleep(0.002)
+    time.sleep(delay)
+    t = time.monotonic() + 0.3
+    while proc.poll() is None and time.monotonic() < t:
+        images = {p.stem for p in (out / "images").glob("*.png")}
+        if images - _recorded_ids(out):
+            break
+        time.sleep(0.001)
+    if proc.poll() is None:
+        os.killpg(proc.pid, signal.SIGKILL)
+    proc.communicate(timeout=60)
+
+
+def test_verify_after_sigkill_of_a_parallel_build_fails_only_on_damage(ds, tmp_path):
+    """A `--jobs 2` build killed (SIGKILL, process group) at several moments: verify exits 0 and
+    reports the interrupted build's orphan and temp files (--strict fails on them); a record is
+    never damaged. The next build removes every orphan, also one whose source is gone."""
+    images, labels = tmp_path / "images", tmp_path / "labels"
+    shutil.copytree(ds[0], images)
+    shutil.copytree(ds[1], labels)
+    out, left, strict_seen = tmp_path / "store", [], False
+    for delay in (0.0, 0.01, 0.03, 0.06, 0.1):
+        _kill_in_the_orphan_window(_start((images, labels), out, jobs=2), out, delay)
+        proc = _in_process("vcprep", ["store", "verify", str(out), "--no-sources", "--json", "-q", "-j", "1"], None)
+        problems = [json.loads(x) for x in proc.stdout.splitlines()]
+        assert proc.returncode == 0, proc.stderr  # nothing recorded is damaged
+        assert all(p["id"] is None and p["kind"] in ("orphan", "temp") for p in problems), problems
+        if problems and not strict_seen:
+            strict = _in_process("vcprep", ["store", "verify", str(out), "--no-sources", "--strict", "-j", "1"], None)
+            assert strict.returncode == 1 and "orphan or temp file" in strict.stderr, strict.stderr
+            strict_seen = True
+        left.append([p["path"] for p in problems])
+    # the next build removes the orphans, also an image whose source was deleted meanwhile
+    strays = [Path(p).stem for p in left[-1] if p.startswith("images/") and p.endswith(".png")]
+    if strays:
+        stray, items = strays[0], N_ITEMS - 1
+        (images / f"{stray}.png").unlink()
+        (labels / f"{stray}.png").unlink()
+    else:  # the last kill left only a temp file or a mask: an image of an item with no source at all
+        stray, items = "gone", N_ITEMS
+        shutil.copy(out / "images" / "seq_0000.png", out / "images" / f"{stray}.png")
+    assert _warp(images, labels, out, "-q").returncode == 0
+    proc = _in_process("vcprep", ["store", "verify", str(out), "--strict", "-j", "1"], None)
+    assert proc.returncode == 0 and proc.stdout == "", proc.stdout + proc.stderr
+    assert len(Store.open(out)) == items and not (out / "images" / f"{stray}.png").exists()

@@ -548,6 +548,14 @@ def test_every_command_has_an_example(cmd):
     assert r.exit_code == 0 and "Example:" in r.stdout
 
 
+def test_predict_help_shows_the_shipped_model_and_when_the_overlay_has_a_horizon():
+    text = " ".join(runner.invoke(app, ["predict", "--help"]).stdout.split())
+    example = text.split("Example:", 1)[1]
+    assert "vctrain predict models/road-multicamera/road.pt " in example
+    overlay = text.split("Options:", 1)[1].split("--overlay", 1)[1].split(" --mask-video", 1)[0]
+    assert "horizon" in overlay and "only with --camera" in overlay, overlay
+
+
 def test_fit_help_names_the_recipes():
     text = " ".join(runner.invoke(app, ["fit", "--help"]).stdout.split())
     assert "resfpn" in text and "'cpu'" in text and "'paper'" in text
@@ -644,3 +652,31 @@ def test_predict_with_given_vps_and_overlay(trained, tmp_path):
     assert overlay.shape == img.shape
     assert np.array_equal(overlay[mask == 0], img[mask == 0])  # untouched where no road is predicted
     assert (overlay[mask > 0] != img[mask > 0]).any(axis=-1).mean() > 0.9  # tinted where road is
+
+
+def test_eval_table_says_what_it_scores_and_what_iou_and_maxf_are(tmp_path):
+    """The human-readable table names the prediction folder and the number of frames it scores and
+    has a one-line note on IoU (the mask) against MaxF (the best threshold of P); --json is the
+    metrics object alone, as before."""
+    from conftest import run_cli
+
+    kitti = Path(__file__).resolve().parent.parent / "examples" / "kitti"
+    label = read_image(kitti / "gt_image_2" / "um_road_000000.png").array
+    road = (label[..., 0] > 0) & (label[..., 2] > 0) if label.ndim == 3 else label > 0
+    prob = np.where(road, 200, 140).astype(np.uint8)  # road ranked first, but P >= 0.5 everywhere
+    pred = tmp_path / "preds"
+    pred.mkdir()
+    write_png(pred / "um_000000_prob.png", prob, kind="mask")
+    write_png(pred / "um_000000_mask.png", np.where(prob >= 128, 255, 0).astype(np.uint8), kind="mask")
+    args = ("eval", pred, "--labels", kitti / "gt_image_2", "--label-format", "kitti", "-q")
+    text = run_cli(*args, prog="vctrain")
+    assert text.returncode == 0, text.stderr
+    lines = text.stdout.splitlines()
+    assert lines[0] == f"# {pred}: 1 frame scored against {kitti / 'gt_image_2'} (kitti)", lines[0]
+    table = {ln.split()[0]: float(ln.split()[1]) for ln in lines if not ln.startswith("#")}
+    assert table["iou"] < 0.6 and table["maxf"] > 0.99  # the mask is poor, the ranking perfect
+    notes = [ln for ln in lines[1:] if ln.startswith("#")]
+    assert len(notes) == 1 and "maxf" in notes[0] and "P >= 0.5" in notes[0] and "thresholds" in notes[0], notes
+    js = run_cli(*args, "--json", prog="vctrain")
+    assert js.returncode == 0 and len(js.stdout.splitlines()) == 1
+    assert json.loads(js.stdout) == pytest.approx(table, abs=1e-4)

@@ -22,8 +22,12 @@ from ..labels import LABEL_FORMATS
 app = typer.Typer(rich_markup_mode=None, pretty_exceptions_enable=False, add_completion=False, no_args_is_help=True,
                   help="Reproject road images from any camera into one standard virtual camera (VCSeg).\n\n"
                        "Add --debug to any command to see a traceback on error.")
-camera_app = typer.Typer(rich_markup_mode=None, no_args_is_help=True, help="Camera models: show and design.")
-store_app = typer.Typer(rich_markup_mode=None, no_args_is_help=True, help="Inspect, verify, describe and merge virtual-camera image stores.")
+camera_app = typer.Typer(rich_markup_mode=None, no_args_is_help=True,
+                         help="Camera models: show one, design a virtual camera, estimate one from its frames, "
+                              "find the own vehicle's rows (ego).")
+store_app = typer.Typer(rich_markup_mode=None, no_args_is_help=True,
+                        help="Virtual-camera image stores: show the items, verify, info (counts, parameters, disk "
+                             "use), merge shard part files.")
 figure_app = typer.Typer(rich_markup_mode=None, no_args_is_help=True, help="Figures (PNG) a person can look at.")
 app.add_typer(camera_app, name="camera")
 app.add_typer(store_app, name="store")

@@ -191,20 +191,27 @@ def store_verify(store: Path = typer.Argument(..., help="store directory"),
                  repair: bool = typer.Option(False, "--repair", help="drop the records and files of items with bad "
                                              "stored files and delete orphans, so that re-running the build redoes "
                                              "them (waits for a running build: it holds the store lock)"),
+                 strict: bool = typer.Option(False, "--strict", help="also exit 1 on orphan or temp files (what an "
+                                             "interrupted build leaves; the next build removes them)"),
                  jobs: Optional[int] = typer.Option(None, "--jobs", "-j", min=1, help=JOBS_HELP),
                  quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar or summary on stderr")):
     """Check a store: every recorded PNG exists, decodes, has the store size, allowed values
     and its recorded SHA-256; sources still hash as recorded; no orphan (unrecorded) PNGs or
     temp files. Prints one line per problem (id, kind, file, detail; --json: objects) and
-    exits 1 if there is any. A build skips items whose files exist, so to redo items with bad
-    files run --repair first, then the build.
+    exits 1 on damage: a record whose file is missing or does not match (or whose source
+    changed). Orphan and temp files, left by an interrupted build (kill -9), are listed with
+    exit 0 (--strict: exit 1); the next build or 'vcprep store merge' removes them. A build
+    skips items whose files exist, so to redo items with bad files run --repair first, then
+    the build.
 
     \b
     Example:
       vcprep store verify stores/camvid
+      vcprep store verify stores/camvid --strict --quiet   # exit 1 on any problem, leftovers included
       vcprep store verify stores/camvid --no-sources --json | jq -r .id | sort -u
       vcprep store verify stores/camvid --repair; vcprep warp ... --out stores/camvid
     """
+    dropped, removed = [], 0
     if repair:  # under the store lock: waits for a running build, whose files in flight are no orphans
         report, dropped, removed = verify_and_repair(store, sources, jobs or default_jobs(), not quiet,
                                                      on_wait=None if quiet else say_on_stderr)
@@ -217,16 +224,21 @@ def store_verify(store: Path = typer.Argument(..., help="store directory"),
             print(p.line())
     if not quiet:
         err(f"{store}: {report.summary()}")
-    if report.problems:
-        bad = report.bad_items
-        named = ", ".join(bad[:10]) + (f" and {len(bad) - 10} more" if len(bad) > 10 else "")
-        if repair:
-            fix = (f"repaired: dropped {count(len(dropped), 'item')}, deleted {count(removed, 'file')}; re-run the build command to "
-                   "redo them")
-        else:
-            fix = "run 'vcprep store verify --repair STORE', then the build command again, to redo them"
-        raise StoreError(f"{count(len(bad), 'bad item')}{': ' + named if bad else ''}; "
-                         f"{count(len(report.orphans), 'orphan or temp file')}", store, fix)
+    repaired = f"repaired: dropped {count(len(dropped), 'item')}, deleted {count(removed, 'file')}" if repair else ""
+    if not report.failed(strict):
+        if repaired and report.problems and not quiet:
+            err(f"{store}: {repaired}")
+        return
+    bad = report.bad_items
+    named = ", ".join(bad[:10]) + (f" and {len(bad) - 10} more" if len(bad) > 10 else "")
+    if repaired:
+        fix = f"{repaired}; re-run the build command to redo them" if bad else repaired
+    elif bad:
+        fix = "run 'vcprep store verify --repair STORE', then the build command again, to redo them"
+    else:
+        fix = "run the build command again or 'vcprep store merge STORE': either removes them"
+    raise StoreError(f"{count(len(bad), 'bad item')}{': ' + named if bad else ''}; "
+                     f"{count(len(report.orphans), 'orphan or temp file')}", store, fix)
 
 
 @store_app.command("info")
@@ -260,9 +272,9 @@ def store_info_cmd(store: Path = typer.Argument(..., help="store directory"),
 def store_merge(store: Path = typer.Argument(..., help="store directory"),
                 quiet: bool = typer.Option(False, "--quiet", "-q", help="no summary on stderr")):
     """Fold the shard part files of a store (built with 'warp --shard K/N') into its
-    manifest.jsonl and remove temp files of interrupted writes. Run it once every shard has
-    finished (it waits for running builds: it holds the store lock). The store is readable
-    before (parts are read too); merging makes it one file.
+    manifest.jsonl and remove temp files and orphans of interrupted builds. Run it once every
+    shard has finished (it waits for running builds: it holds the store lock). The store is
+    readable before (parts are read too); merging makes it one file.
 
     \b
     Example:

@@ -380,7 +380,7 @@ def build_loop(store: Store, step: LoopStep, tasks: list, ids: list[str], settin
         if summary.built or (store.shard is None and store.parts):  # (folds a killed build's journal)
             store.save()
         if store.shard is None:
-            store.prune_valid()
+            store.prune_orphans()
     if first_error:
         raise first_error[0]
     return summary

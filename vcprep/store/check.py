@@ -6,6 +6,11 @@ the values its kind allows (label 0/1/255, valid 0/1) and has the SHA-256 its re
 hash to the recorded ``source_sha256`` / ``label_sha256``. Then, for the store as a whole, that
 no PNG in ``images/ labels/ valid/`` is unrecorded (an orphan: e.g. the items in flight when a
 build was killed) and no temp file of an interrupted write is left.
+
+Damage is a problem of a record (its file missing or not matching, its source changed or gone):
+:attr:`VerifyReport.damaged`. Orphan and temp files are what any interrupted build leaves (the
+next unsharded build or ``store merge`` removes them): reported, and a failure only when asked
+for (``strict``).
 """
 from __future__ import annotations
 
@@ -57,9 +62,22 @@ class VerifyReport:
     def orphans(self) -> list[Problem]:
         return [p for p in self.problems if p.id is None]
 
+    @property
+    def damaged(self) -> bool:
+        """A record is damaged (a file missing or not matching, its source changed or gone)."""
+        return bool(self.bad_items)
+
+    def failed(self, strict: bool = False) -> bool:
+        """Damage; with ``strict`` also orphan or temp files (an interrupted build's leftovers)."""
+        return self.damaged or (strict and bool(self.orphans))
+
     def summary(self) -> str:
-        return (f"{self.items} items, {self.files} files checked: {len(self.bad_items)} bad items, "
+        text = (f"{self.items} items, {self.files} files checked: {len(self.bad_items)} bad items, "
                 f"{len(self.orphans)} orphan or temp files")
+        if self.orphans and not self.damaged:
+            text += (" (left by an interrupted build, no damage: the next build or 'vcprep store merge' removes "
+                     "them)")
+        return text
 
 
 @dataclass(frozen=True)
@@ -233,7 +251,8 @@ def verify_and_repair(root: str | Path, check_sources: bool = True, workers: int
 
 def merge_store(root: str | Path, on_wait: Callable[[str], None] | None = None) -> tuple[Store, int]:
     """Fold every part file (shard manifests, the journal of a killed build) into
-    ``manifest.jsonl``, remove leftover temp files and unused shared valid masks. Holds the
+    ``manifest.jsonl``, remove leftover temp files, unused shared valid masks and the orphans of
+    a killed build (:meth:`vcprep.store.Store.prune_orphans`). Holds the
     store's exclusive writer lock, so it waits for running builds (shards included) to finish.
     Returns the store and the number of part files folded."""
     Store.open(root)
@@ -243,5 +262,5 @@ def merge_store(root: str | Path, on_wait: Callable[[str], None] | None = None) 
         store.save()
         for tmp in temp_files(store.root):
             tmp.unlink(missing_ok=True)
-        store.prune_valid()
+        store.prune_orphans()
     return store, n

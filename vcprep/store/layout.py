@@ -30,12 +30,12 @@ Every file is written atomically (temp + rename). Records reach disk in two step
 * while a build runs, each finished item's record is *appended* to the writer's part file
   (``manifest.journal.jsonl``, or ``manifest.shard-K-of-N.jsonl`` for ``--shard K/N``) right
   after its PNGs were renamed into place, so a killed build loses at most the items in flight
-  (their files are orphans until the build is re-run);
+  (their files are orphans until the next unsharded build or ``store merge`` removes them);
 * at the end (or on Ctrl-C) an unsharded build folds everything into ``manifest.jsonl``
-  (rewritten atomically), deletes the part files and the shared valid masks no record uses any
-  more (:meth:`Store.prune_valid`); a shard build rewrites only its own part file (compacted), so
-  N machines never write the same file (shards may write the same shared valid mask: same bytes,
-  atomic rename), and ``vcprep store merge`` prunes.
+  (rewritten atomically), deletes the part files, the shared valid masks no record uses any
+  more and the orphans of a killed build (:meth:`Store.prune_orphans`); a shard build rewrites
+  only its own part file (compacted), so N machines never write the same file (shards may write
+  the same shared valid mask: same bytes, atomic rename), and ``vcprep store merge`` prunes.
 
 :meth:`Store.open` reads ``manifest.jsonl`` and then every ``manifest.*.jsonl`` part (later
 records of an id win; a torn last line of a part, from a crash, is ignored): a sharded store is
@@ -427,6 +427,21 @@ class Store:
             if not p.name.startswith(".") and p.suffix == ".png" and f"valid/{p.name}" not in used:
                 p.unlink(missing_ok=True)
                 n += 1
+        return n
+
+    def prune_orphans(self) -> int:
+        """Delete the PNGs in ``images/``, ``labels/`` and ``valid/`` that no record names: the files
+        of items in flight when a build was killed (an item the build redoes is written again;
+        one whose source is gone meanwhile would stay), and the valid masks :meth:`prune_valid`
+        deletes. Only when no build writes the store. Returns how many were deleted."""
+        used = {r.get(k) for r in self.items.values() for k in ("image", "label")}
+        n = self.prune_valid()
+        for sub in ("images", "labels"):
+            d = self.root / sub
+            for p in sorted(d.iterdir()) if d.is_dir() else []:
+                if not p.name.startswith(".") and p.suffix == ".png" and f"{sub}/{p.name}" not in used:
+                    p.unlink(missing_ok=True)
+                    n += 1
         return n
 
     def is_complete(self, rec: dict[str, Any]) -> bool:

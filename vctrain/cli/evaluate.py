@@ -11,6 +11,10 @@ from vcprep.cliutil import count, emit_json, err
 from .common import LABEL_FORMAT_HELP, app
 
 
+MAXF_NOTE = ("# iou, precision, recall, f1: the masks (P >= 0.5); maxf: KITTI's max F1 over all thresholds of P "
+             "(at kitti_threshold), above f1 when 0.5 is not the best threshold (F1 = 2 IoU / (1 + IoU))")
+
+
 @app.command("eval")
 def eval_cmd(
     pred_dir: Path = typer.Argument(..., help="folder of <stem>_mask.png / <stem>_prob.png from 'vctrain predict'"),
@@ -21,7 +25,10 @@ def eval_cmd(
 ):
     """Road IoU (ΣTP/Σ(TP+FP+FN), ignore pixels excluded), mean per-image IoU, precision, recall,
     F1; with probability maps also the KITTI road metrics: MaxF, AP (11-point) and
-    precision/recall/FPR/FNR at the MaxF threshold (KITTI devkit definitions).
+    precision/recall/FPR/FNR at the MaxF threshold (KITTI devkit definitions). The table starts
+    with a '#' line naming the folder and the number of frames scored and, with MaxF, ends with a
+    '#' note: IoU and F1 score the masks (P >= 0.5), MaxF the best threshold of P. --json prints
+    the metrics alone.
 
     \b
     Example:
@@ -36,7 +43,10 @@ def eval_cmd(
     if as_json:
         emit_json(result)
     else:
+        print(f"# {pred_dir}: {count(n, 'frame')} scored against {labels} ({label_format})")
         for k, v in result.items():
             print(f"{k:<16} {v:.4f}")
+        if "maxf" in result:
+            print(MAXF_NOTE)
     if not quiet:
         err(f"{pred_dir}: {count(n, 'image')} evaluated")

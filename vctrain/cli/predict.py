@@ -32,7 +32,8 @@ def predict_cmd(
     within: str = typer.Option("auto", "--within", help="per-image VP correction: auto (as the model was trained), "
                                                          "estimate, a CSV id,u,v, or none"),
     overlay: bool = typer.Option(False, "--overlay", help="also write OUT/<stem>_overlay.png (road in green); for a "
-                                                           "video OUT/<stem>_overlay.mp4 (also the horizon and the VP)"),
+                                                           "video OUT/<stem>_overlay.mp4 (road in green; the horizon "
+                                                           "and the road VP of each frame too, only with --camera)"),
     mask_video: bool = typer.Option(False, "--mask-video", help="a video's masks as one lossless video "
                                                                 "OUT/<stem>_mask.mkv instead of a PNG per frame"),
     ego: str = typer.Option("auto", "--ego", help="a video's own vehicle: auto (the camera's ego_rows, else found "
@@ -54,6 +55,7 @@ def predict_cmd(
 
     \b
     Example:
+      vctrain predict models/road-multicamera/road.pt my/frames --out preds --overlay   # the shipped model
       vctrain predict runs/vc.pt --camera kitti data/kitti/image_2 --out preds/kitti
       vctrain predict runs/vc.pt --store stores/camvid_val --out preds/camvid_val
       vctrain predict --prior prior.npy --camera kitti data/kitti/image_2 --out preds/geoprior
