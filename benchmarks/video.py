@@ -53,7 +53,8 @@ from vctrain.checkpoint import save_checkpoint
 from vctrain.predict import StageTimes
 from vctrain.model import build_model, model_args_for
 from vctrain.predict import Predictor
-from vctrain.predict import ego_camera, open_video, predict_video
+from vcprep.io import open_video
+from vctrain.predict import ego_camera, predict_video
 
 BDD = SHARED_DATA / "bdd100k_drivable"
 FPS, HOLD = 30.0, 45                      # video frame rate; frames each BDD100K frame is shown

@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 import torch
 
-from conftest import run_cli
+from conftest import assert_one_error_line, run_cli
 from test_video import model  # noqa: F401  (the module's small virtual-camera model)
-from vcprep.camera import load_cameras
+from vcprep.camera import camera_to_yaml, load_cameras
 from vcprep.errors import InputError
 from vcprep.io import read_image, write_png
 from vctrain.predict import Predictor, predict_images, run_road
@@ -87,3 +87,63 @@ def test_predict_cli_names_a_bad_frame_and_exits_1(tmp_path):
     error = [ln for ln in proc.stderr.splitlines() if ln.startswith("Error: ")]
     assert len(error) == 1 and "broken.png" in error[0] and "the other 2 frames are written" in error[0]
     assert not list((tmp_path / "out").glob("broken*"))
+
+
+# --- the paths around the road: cameras checked, estimated from a video, graphs on videos and other sizes
+
+from test_video import drive  # noqa: E402,F401  (a synthetic 240x180 drive as frames and an mp4)
+
+
+@pytest.mark.parametrize("spec", ["camvdi", "mycam.yaml"])
+def test_camera_is_checked_even_where_the_model_needs_none(spec, tmp_path):
+    """The shipped model reads frames as they are, but a mistyped or missing camera is still an error."""
+    proc = run_cli("predict", SHIPPED, "--camera", spec, CAMVID, "--out", tmp_path / "o", prog="vctrain")
+    assert_one_error_line(proc, spec, "not a camera preset and no such file")
+    assert not (tmp_path / "o").exists() or not list((tmp_path / "o").iterdir())
+
+
+def test_camera_estimate_works_on_a_video(model, drive, tmp_path):  # noqa: F811
+    root, cam, frames, video = drive
+    proc = run_cli("predict", model, "--camera", "estimate", video, "--out", tmp_path / "o", prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    assert f"{len(frames)} frames sampled from drive.mp4" in proc.stderr
+    assert len(list((tmp_path / "o/drive").glob("*_mask.png"))) == len(frames)
+    proc = run_cli("camera", "estimate", video, "-o", tmp_path / "est.yaml")
+    assert proc.returncode == 0, proc.stderr
+    assert f"of {len(frames)} frames with a road VP" in proc.stderr
+    est = load_cameras(tmp_path / "est.yaml")
+    assert abs(est.tilt - cam.tilt) < 2.0 and est.size == cam.size  # the rendered camera's own tilt
+
+
+def test_a_graph_predicts_a_video_and_the_model_without_a_camera(drive, tmp_path):  # noqa: F811
+    """The shipped (resize) model exported without --camera, for the drive's frame size: the graph
+    takes the video as the .pt does, and their masks agree."""
+    root, cam, frames, video = drive
+    proc = run_cli("export", SHIPPED, "--size", f"{cam.size[0]}x{cam.size[1]}", "-o", tmp_path / "road.onnx",
+                   prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    for model_file, out in ((tmp_path / "road.onnx", "g"), (SHIPPED, "pt")):
+        proc = run_cli("predict", model_file, video, "--out", tmp_path / out, prog="vctrain")
+        assert proc.returncode == 0, proc.stderr
+    for i in range(len(frames)):
+        a = read_image(tmp_path / f"g/drive/drive_{i:06d}_mask.png").array
+        b = read_image(tmp_path / f"pt/drive/drive_{i:06d}_mask.png").array
+        assert (a == b).mean() > 0.999  # onnxruntime vs torch: 1e-6 apart, a pixel at P = 0.5 may flip
+    assert_one_error_line(run_cli("export", SHIPPED, "-o", tmp_path / "x.onnx", prog="vctrain"), "--frame", "--size")
+
+
+def test_a_graph_for_the_same_camera_at_another_size_says_what_to_pass(drive, tmp_path):  # noqa: F811
+    root, cam, frames, video = drive
+    (tmp_path / "big.yaml").write_text(camera_to_yaml(cam.resized(2.0)))  # the same camera at 480x360
+    (tmp_path / "frames").mkdir()
+    write_png(tmp_path / "frames/f0.png", frames[0])
+    assert run_cli("export", SHIPPED, "--camera", tmp_path / "big.yaml", "-o", tmp_path / "big.onnx",
+                   prog="vctrain").returncode == 0
+    proc = run_cli("predict", tmp_path / "big.onnx", tmp_path / "frames", "--out", tmp_path / "o", prog="vctrain")
+    assert_one_error_line(proc, "240x180", "480x360", "the same camera at 0.5x",
+                          f"--camera {tmp_path / 'big.yaml'} --frame {tmp_path / 'frames/f0.png'}")
+    # what it says to pass works: the camera scaled to the frame
+    assert run_cli("export", SHIPPED, "--camera", tmp_path / "big.yaml", "--frame", tmp_path / "frames/f0.png", "-o",
+                   tmp_path / "small.onnx", prog="vctrain").returncode == 0
+    proc = run_cli("predict", tmp_path / "small.onnx", tmp_path / "frames", "--out", tmp_path / "o", prog="vctrain")
+    assert proc.returncode == 0, proc.stderr

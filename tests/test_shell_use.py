@@ -16,7 +16,6 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
-from vcprep.camera import PRESETS
 
 from conftest import BIN, EXAMPLES, assert_one_error_line, run_cli, write_synthetic_dataset
 

@@ -383,7 +383,6 @@ def test_predict_a_wider_steeper_camera_predicts_its_whole_frame(trained, tmp_pa
     """A camera wider and steeper than the virtual camera the model was trained in: the kept store's virtual camera is the training's extended (same focal
     length and height), so every pixel of the frame's lower half is inside it: none is scored
     'not road' for falling outside. (How well a model does there is the benchmarks' question.)"""
-    from dataclasses import replace as dc_replace
 
     from vcprep.warp import backproject_array
     from vcprep.camera import Camera, camera_to_yaml

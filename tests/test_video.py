@@ -274,7 +274,8 @@ def test_video_finds_its_own_vehicle_and_predicts_with_it(model, ego_drive, tmp_
 
 
 def test_video_without_own_vehicle_finds_none(ego_drive, drive):
-    from vctrain.predict import ego_camera, open_video
+    from vcprep.io import open_video
+    from vctrain.predict import ego_camera
 
     root, cam = ego_drive
     said: list[str] = []

@@ -60,7 +60,7 @@ from vcprep.errors import InputError
 
 from .checkpoint import load_checkpoint, model_from_checkpoint, save_checkpoint
 from .config import ADAPT_LR_FACTOR, BALANCES, OPTIMIZERS, RECIPES, SCHEDULES, TrainConfig
-from .data import (MIN_SIDE, RoadDataset, class_frequencies, crop_size, epoch_order, median_frequency_weights,
+from .data import (RoadDataset, class_frequencies, crop_size, epoch_order, median_frequency_weights,
                    prepare_data)
 from .metrics import RoadMetrics
 from .model import ARCHITECTURES, build_model, model_args_for

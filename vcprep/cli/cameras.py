@@ -1,6 +1,7 @@
 """Commands on cameras: ``cameras``, ``camera show|design|ego|estimate``."""
 from __future__ import annotations
 
+import tempfile
 from dataclasses import replace
 from pathlib import Path
 from typing import List, Optional
@@ -17,6 +18,7 @@ from ..dataset import find_images
 from ..camera.ego import ego_rows_from_frame_files, ego_rows_from_label_files, rows_at_height
 from ..errors import InputError
 from ..io.images import write_bytes_atomic
+from ..io.video import frames_of, is_video
 from ..labels import get_label_format
 from ..vp.reliability import write_vp_csv
 from ..camera.virtual import design_virtual_camera
@@ -179,21 +181,27 @@ def camera_estimate_cmd(
     \b
     Example:
       vcprep camera estimate data/dashcam -o dashcam.yaml
+      vcprep camera estimate drive.mp4 -o dashcam.yaml     # a video: 48 frames spread over it
       vcprep camera estimate cs/images --source-size 2048x1024 --labels cs/labels -f 'values:road=1;ignore=255' -o cs.yaml
     """
     if fx is not None and hfov is not None:
         raise InputError("--fx and --hfov both given", None, "give one of them")
     check_label_format(labels, label_format)
-    files = image_files(images)
+    videos = [p for p in images if is_video(p)]
+    if videos and labels is not None:
+        raise InputError("--labels is for image frames, not videos", videos[0], "drop --labels, or give the frames")
     label_files = find_images(labels, "label") if labels is not None else None
-    bar = tqdm(total=len(files), desc="estimate", unit="img", disable=True if quiet else None, leave=False)
-    try:
-        est = estimate_camera(files, name=name, fx=fx, hfov=hfov, height=height,
-                              source_size=parse_size(source_size, "--source-size") if source_size else None,
-                              labels=label_files, label_format=get_label_format(label_format) if labels else None,
-                              on_image=lambda i: bar.update())
-    finally:
-        bar.close()
+    with tempfile.TemporaryDirectory(prefix="vcprep-frames-") as tmp:  # a video: a sample of its frames
+        files = image_files([p for p in images if not is_video(p)]) if len(videos) < len(images) else []
+        files += frames_of(videos, tmp)
+        bar = tqdm(total=len(files), desc="estimate", unit="img", disable=True if quiet else None, leave=False)
+        try:
+            est = estimate_camera(files, name=name, fx=fx, hfov=hfov, height=height,
+                                  source_size=parse_size(source_size, "--source-size") if source_size else None,
+                                  labels=label_files, label_format=get_label_format(label_format) if labels else None,
+                                  on_image=lambda i: bar.update())
+        finally:
+            bar.close()
     write_bytes_atomic(ensure_parent(out), estimate_to_yaml(est).encode())
     if vps is not None:
         write_vp_csv(ensure_parent(vps), est.ids, est.vps)

@@ -3,6 +3,7 @@ take alike (a camera from ``--camera``, image arguments, the labels check, the e
 build). Commands live in one module per group (:mod:`vcprep.cli`)."""
 from __future__ import annotations
 
+import tempfile
 from collections import Counter
 from pathlib import Path
 from typing import List
@@ -17,6 +18,7 @@ from ..cliutil import count, ensure_parent, err
 from ..dataset import collect_images
 from ..errors import InputError, StoreError
 from ..io.images import write_png
+from ..io.video import frames_of, is_video
 from ..labels import LABEL_FORMATS
 
 app = typer.Typer(rich_markup_mode=None, pretty_exceptions_enable=False, add_completion=False, no_args_is_help=True,
@@ -77,20 +79,29 @@ def estimated_line(est, source: str) -> str:
 
 
 def camera_for(spec: str, sample_image: Path | None = None, per_frame: bool = True,
-               frames: "list[Path] | None" = None, quiet: bool = False):
+               frames: "list[Path] | None" = None, quiet: bool = False, needed: bool = True):
     """Load ``spec`` (:func:`vcprep.camera.load_cameras`): calibration files (.txt/.json) carry
     no image size, so it is taken from a frame; a folder is per-frame calibration
     (:class:`~vcprep.camera.FrameCameras`) where ``per_frame``, else an error. ``estimate``:
-    the camera estimated from ``frames`` (:mod:`vcprep.camera.estimate`; said on stderr)."""
+    the camera estimated from ``frames`` (image files, or videos: a sample of their frames;
+    :mod:`vcprep.camera.estimate`; said on stderr). ``needed`` False: the spec is only checked
+    (a file or preset must load; nothing is estimated) and None is returned."""
     if spec == "estimate":
+        if not needed:
+            return None
         if frames is None:
             raise InputError("this command cannot estimate a camera", None,
                              "run 'vcprep camera estimate FRAMES -o cam.yaml' and give --camera cam.yaml")
-        est = estimate_camera(frames, name="estimated")
+        with tempfile.TemporaryDirectory(prefix="vcprep-frames-") as tmp:
+            files = frames_of(frames, tmp)
+            est = estimate_camera(files, name="estimated")
+        videos = [Path(f).name for f in frames if is_video(f)]
+        what = count(len(files), "frame") + (f" sampled from {', '.join(videos)}" if videos else "")
         if not quiet:
-            err(estimated_line(est, count(len(frames), 'frame')) + " (write it out with 'vcprep camera estimate')")
+            err(estimated_line(est, what) + " (write it out with 'vcprep camera estimate')")
         return est.camera
-    return load_cameras(spec, sample_image, per_frame=per_frame)
+    cam = load_cameras(spec, sample_image, per_frame=per_frame)
+    return cam if needed else None
 
 
 def image_files(paths: List[Path], unique: "tuple[str, str] | None" = None) -> list[Path]:

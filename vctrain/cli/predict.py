@@ -104,9 +104,14 @@ def _failed(result, out: Path) -> None:
 @app.command("export")
 def export_cmd(
     checkpoint: Path = typer.Argument(..., help="model written by 'vctrain fit' (virtual-camera or resize baseline)"),
-    camera: str = typer.Option(..., "--camera", "-c", help="the camera the graph is for: preset or file (.yaml, KITTI "
-                                                          ".txt, Cityscapes .json); its image size is the graph's "
-                                                          "input size, its ego_rows are never warped"),
+    camera: Optional[str] = typer.Option(None, "--camera", "-c",
+                                         help="the camera the graph is for: preset or file (.yaml, KITTI .txt, "
+                                              "Cityscapes .json); its image size is the graph's input size (with "
+                                              "--frame: that frame's, the camera scaled), its ego_rows are never "
+                                              "warped; not needed for a model that reads frames as they are (a "
+                                              "resize model: give --frame or --size)"),
+    size: Optional[str] = typer.Option(None, "--size", help="WxH: the frame size of a graph exported without "
+                                                           "--camera (or give --frame)"),
     out: Path = typer.Option(..., "--out", "-o", help="the ONNX file to write"),
     vp_input: bool = typer.Option(False, "--vp-input", help="the graph takes each frame's road VP (u, v) as a second "
                                                             "input and corrects pan/tilt per frame (else the "
@@ -114,8 +119,9 @@ def export_cmd(
     pose_range: float = typer.Option(5.0, "--pose-range", min=0.0,
                                      help="with --vp-input: the virtual rectangle holds the camera at pan and tilt "
                                           "within this many degrees of its mount"),
-    frame: Optional[Path] = typer.Option(None, "--frame", help="a frame of the camera (gives the image size to "
-                                                               "calibration files that carry none)"),
+    frame: Optional[Path] = typer.Option(None, "--frame", help="a frame of the camera: the graph is for its image "
+                                                               "size (the camera scaled to it; a calibration file "
+                                                               "without a size takes it from here)"),
     as_json: bool = typer.Option(False, "--json", help="print the graph's description as one JSON object"),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no summary on stderr"),
 ):
@@ -132,15 +138,24 @@ def export_cmd(
     Example:
       vctrain export runs/vc.pt --camera kitti --frame data/kitti/image_2/000000.png -o road.onnx
       vctrain export runs/vc.pt --camera mycam.yaml --vp-input -o road_vp.onnx
+      vctrain export models/road-multicamera/road.pt --frame data/frames/0001.png -o road.onnx
       vctrain predict road.onnx data/kitti/image_2 --out preds/kitti
     """
     from vcprep.cli import camera_for
+    from vcprep.cliutil import parse_size
+    from vcprep.io import image_size
 
     from ..deploy.export import export_onnx
 
-    cam = camera_for(camera, frame, per_frame=False, quiet=quiet)
+    frame_size = image_size(frame) if frame is not None else (parse_size(size, "--size") if size else None)
+    cam = None
+    if camera is not None:
+        cam = camera_for(camera, frame, per_frame=False, quiet=quiet)
+        if frame_size is not None and tuple(cam.size) != tuple(frame_size):
+            cam = cam.for_image_size(frame_size, frame)  # the same camera at the frames' size (same aspect)
     ensure_parent(out)
-    info = export_onnx(checkpoint, cam, out, vp_input=vp_input, pose_range=(pose_range, pose_range))
+    info = export_onnx(checkpoint, cam, out, vp_input=vp_input, pose_range=(pose_range, pose_range),
+                       size=frame_size, camera_spec=camera)
     if not quiet:
         w, h = info["inputs"]["frame"][1][1], info["inputs"]["frame"][1][0]
         inner = (f"virtual store {info['store_size'][0]}x{info['store_size'][1]}, completion {info['completion']}"

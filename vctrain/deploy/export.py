@@ -296,18 +296,35 @@ def _vp_geometry(g: dict[str, Any], cam: Camera, vs: Camera, H: np.ndarray, vp_s
     return g
 
 
-def export_onnx(checkpoint: str | Path, camera: Camera, out: str | Path, vp_input: bool = False,
-                pose_range: tuple[float, float] = (5.0, 5.0), check: bool = True) -> dict[str, Any]:
+def frames_camera(size: tuple[int, int]) -> Camera:
+    """The camera of a graph for a model that reads frames as they are (a resize model without the
+    VP channel): only its image size matters (nothing is warped and no VP is taken)."""
+    w, h = int(size[0]), int(size[1])
+    return Camera("frames as they are", (w, h), float(w), float(w), (w - 1) / 2.0, (h - 1) / 2.0, 1.5)
+
+
+def export_onnx(checkpoint: str | Path, camera: Camera | None, out: str | Path, vp_input: bool = False,
+                pose_range: tuple[float, float] = (5.0, 5.0), check: bool = True, size: tuple[int, int] | None = None,
+                camera_spec: str | None = None) -> dict[str, Any]:
     """Write the ONNX graph of ``checkpoint`` for ``camera`` to ``out`` (module docstring); with
     ``check`` runs it once in onnxruntime against the torch module. Returns its description (also
-    stored in the graph's metadata ``vcseg``): inputs, output, sizes, opset, max_abs_diff."""
+    stored in the graph's metadata ``vcseg``): inputs, output, sizes, opset, max_abs_diff.
+    ``camera`` None: a model that reads frames as they are, for frames of ``size`` (w, h);
+    ``camera_spec``: how the camera was named (``--camera``), for the graph's own advice."""
     onnx = require("onnx")
     from ..predict.predictor import Predictor
 
+    predictor = Predictor(checkpoint, "cpu")
+    if camera is None:
+        if predictor.mode != "resize" or predictor.vp_channel:
+            raise InputError(f"a {'VP-channel ' if predictor.mode == 'resize' else 'virtual-camera '}model needs the "
+                             "camera of its frames", checkpoint, "add --camera (preset or calibration file)")
+        if size is None:
+            raise InputError("the graph's frame size is not known", None, "give --frame A_FRAME or --size WxH")
+        camera = frames_camera(size)
     if not isinstance(camera, Camera):
         raise InputError("export needs one camera (the graph holds one mount)", None,
                          "give a preset or one calibration file, not a folder")
-    predictor = Predictor(checkpoint, "cpu")
     geom = _geometry(predictor, camera, vp_input, pose_range)
     graph = RoadGraph(predictor.model.eval(), geom).eval()
     w, h = geom["size"]
@@ -320,6 +337,8 @@ def export_onnx(checkpoint: str | Path, camera: Camera, out: str | Path, vp_inpu
     model = onnx.load_from_string(graph_bytes)
     info = {"format": GRAPH_FORMAT, "checkpoint": str(checkpoint), "mode": geom["mode"],
             "camera": camera.to_dict(), "camera_name": camera.name, "opset": OPSET,
+            "camera_given": camera_spec is not None or camera.name != "frames as they are",
+            **({"camera_file": camera_spec} if camera_spec else {}),
             "inputs": {"frame": ["uint8", [h, w, 3], "BGR"], **({"vp": ["float32", [2], "u, v source px"]}
                                                                  if vp_input else {})},
             "output": {"road_prob": ["float32", [h, w]]},

@@ -81,6 +81,27 @@ class OnnxPredictor:
         pan, tilt = pose_from_vp(cam, (float(vp[0]), float(vp[1])))
         return abs(pan - cam.pan) > pose_range[0] + 1e-6 or abs(tilt - cam.tilt) > pose_range[1] + 1e-6
 
+    def check_frame_size(self, size: tuple[int, int], name: str | Path | None = None) -> None:
+        """Raise :meth:`size_error` unless frames of ``size`` (w, h) are the graph's."""
+        if tuple(size) != tuple(self.size):
+            raise self.size_error(size, name)
+
+    def size_error(self, size: tuple[int, int], name: str | Path | None) -> InputError:
+        """A frame of another size than the graph's: the same camera scaled (same aspect) needs a graph
+        exported for that size, and the error says exactly how; another aspect is another camera."""
+        w, h = size
+        what = f"frame is {w}x{h} but the graph's camera is {self.size[0]}x{self.size[1]}"
+        given = self.info.get("camera_given", True)
+        if not given or abs(w * self.size[1] - h * self.size[0]) <= max(self.size):  # the same camera, scaled
+            ckpt = self.info.get("checkpoint", "MODEL.pt")
+            cam = self.info.get("camera_file") or self.info.get("camera_name", "CAMERA")
+            flag = f"--camera {cam} " if given else ""
+            return InputError(f"{what}" + (f" (the same camera at {w / self.size[0]:.3g}x)" if given else ""), name,
+                              f"export a graph for {w}x{h}: vctrain export {ckpt} {flag}--frame {name or 'FRAME'} "
+                              f"-o road_{w}x{h}.onnx")
+        return InputError(what, name, "export the model for this camera's image size (vctrain export --camera ... "
+                          "--frame A_FRAME)")
+
     def road_probability(self, frame: np.ndarray, vp: tuple[float, float] | None = None,
                          name: str | Path | None = None) -> np.ndarray:
         """P(road) float32 (h, w) of one BGR uint8 frame of the graph's camera size."""
@@ -88,8 +109,7 @@ class OnnxPredictor:
             raise InputError(f"frame is {frame.dtype} with shape {frame.shape}, the graph takes uint8 BGR (h, w, 3)",
                              name, "give 8-bit colour frames")
         if (frame.shape[1], frame.shape[0]) != self.size:
-            raise InputError(f"frame is {frame.shape[1]}x{frame.shape[0]} but the graph's camera is "
-                             f"{self.size[0]}x{self.size[1]}", name, "export the model for this camera's image size")
+            raise self.size_error((frame.shape[1], frame.shape[0]), name)
         feeds = {"frame": np.ascontiguousarray(frame)}
         self.beyond += self.beyond_range(vp)
         if self.vp_input:

@@ -13,7 +13,7 @@ from .frames import FramePredictor, StageTimes, StreamingVPs
 from .inputs import predict_inputs
 from .predictor import Predictor, predict_frames, predict_images, warp_like_training
 from .road import run_road, write_prediction
-from .video import ego_camera, open_video, predict_video
+from .video import ego_camera, predict_video
 
 __all__ = ["FramePredictor", "StageTimes", "StreamingVPs", "predict_inputs", "Predictor", "predict_images",
-           "predict_frames", "run_road", "warp_like_training", "write_prediction", "ego_camera", "open_video", "predict_video"]
+           "predict_frames", "run_road", "warp_like_training", "write_prediction", "ego_camera", "predict_video"]

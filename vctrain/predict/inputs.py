@@ -59,7 +59,9 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
         images = [checkpoint, *(images or [])] if checkpoint is not None else images  # all positionals are images
     elif checkpoint is None:
         raise InputError("no model given", None, "give MODEL.pt, or --prior prior.npy to segment with the prior")
-    from .video import check_video_stems, is_video, predict_video
+    from vcprep.io import is_video
+
+    from .video import check_video_stems, predict_video
 
     if mask_video and not any(is_video(p) for p in images or []):
         raise InputError("--mask-video is for videos", None, "give a video file, or drop --mask-video")
@@ -67,15 +69,17 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
         raise InputError("nothing to predict", None, "give image files/folders, or --store STORE")
     if store is not None and images:
         raise InputError("give either IMAGES or --store, not both", store, "run predict twice")
-    if prior is None and checkpoint.suffix.lower() == ".onnx":  # an exported graph: its camera is inside
-        return _predict_onnx(checkpoint, images, out, camera_for, store, within, overlay, progress)
+    graph = prior is None and checkpoint.suffix.lower() == ".onnx"  # an exported graph: its camera is inside
+    if graph and store is not None:
+        raise InputError("an exported graph takes the camera's own frames, not a store", store,
+                         "give the original frames (IMAGES)")
     videos = check_video_stems([p for p in images or [] if is_video(p)])
     images = [p for p in images or [] if not is_video(p)]
     predictor = _predictor(checkpoint, prior, device)
     written = []
     if videos:
-        vcam = camera_for(None, per_frame=False) if camera_for is not None else None  # ('estimate': said not possible)
-        for v in videos:
+        for v in videos:  # 'estimate': from a sample of the video's own frames (its overlay draws the horizon)
+            vcam = camera_for(None, per_frame=False, frames=[v]) if camera_for is not None else None
             written += predict_video(predictor, v, out, vcam, within=within, mask_video=mask_video, overlay=overlay,
                                      progress=progress, ego=ego)
     n_images = 0
@@ -92,12 +96,31 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
         written += run.written
         failed = run.failed
         n_images = len(run.written) + len(failed)
-    return Predicted(written, n_images if images or store else None, len(videos),
-                     "geometric prior" if prior else predictor.mode + " model", failed)
+    return Predicted(written, n_images if images or store else None, len(videos), _source(predictor, prior), failed)
+
+
+def _source(predictor, prior: Optional[Path]) -> str:
+    """What predicted, for the summary line; a graph also says how many frames' VPs lay beyond its
+    pose range (P(road) cut to its rectangle there)."""
+    if prior is not None:
+        return "geometric prior"
+    if not getattr(predictor, "takes_frames", False):
+        return predictor.mode + " model"
+    source = f"ONNX graph, {predictor.mode} model"
+    if predictor.beyond:
+        pan, tilt = predictor.info["pose_range"]
+        source += (f"; {count(predictor.beyond, 'frame')} with a VP beyond the graph's pose range ({pan:g}, {tilt:g} deg):"
+                   " P(road) cut to its rectangle, export with a larger --pose-range")
+    return source
 
 
 def _predictor(checkpoint: Optional[Path], prior: Optional[Path], device: str):
-    """The prior's predictor (``prior`` given) or the checkpoint's model on ``device``."""
+    """The prior's predictor (``prior`` given), an exported graph's (``.onnx``) or the checkpoint's
+    model on ``device``."""
+    if prior is None and checkpoint.suffix.lower() == ".onnx":
+        from ..deploy.runtime import OnnxPredictor
+
+        return OnnxPredictor(checkpoint)
     if prior is not None:
         from ..adapt import PriorPredictor
 
@@ -108,8 +131,11 @@ def _predictor(checkpoint: Optional[Path], prior: Optional[Path], device: str):
 
 
 def _needs_no_camera(predictor) -> bool:
-    """A resize model without the VP channel reads frames as they are: --camera changes nothing (and
-    is not estimated: a folder of three frames is enough for it)."""
+    """A resize model without the VP channel reads frames as they are, and a graph holds its camera
+    (a --vp-input graph's VPs are estimated with the given one): --camera changes nothing there (it is
+    checked, not estimated: a folder of three frames is enough)."""
+    if getattr(predictor, "takes_frames", False):
+        return not predictor.vp_input
     return getattr(predictor, "mode", None) == "resize" and not getattr(predictor, "vp_channel", False)
 
 
@@ -123,35 +149,11 @@ def _predict_image_files(predictor, images: Sequence[Path], out: Path, camera_fo
     from .predictor import predict_frames
 
     cam = None
-    if camera_for is not None and not _needs_no_camera(predictor):
+    if camera_for is not None:  # checked even where the model needs none: a typo is never silent
         jobs = collect_images(images)
-        cam = camera_for(jobs[0].image, frames=[j.image for j in jobs])
+        cam = camera_for(jobs[0].image, frames=[j.image for j in jobs], needed=not _needs_no_camera(predictor))
     elif warps_frames(predictor):
         raise InputError("a virtual-camera model needs the camera of the images", predictor.path,
                          "add --camera (preset or calibration file)")
     return predict_frames(predictor, images, out, cam, progress=progress, keep_store=keep_store, overlay=overlay,
                           within=within)
-
-
-def _predict_onnx(graph: Path, images, out: Path, camera_for: Optional[CameraFor], store: Optional[Path],
-                  within: str, overlay: bool, progress: bool) -> Predicted:
-    """``vctrain predict GRAPH.onnx``: frames through a graph written by 'vctrain export'."""
-    from ..deploy.runtime import OnnxPredictor
-    from .road import run_road
-    from vcprep.dataset import collect_images
-
-    if store is not None:
-        raise InputError("an exported graph takes the camera's own frames, not a store", store,
-                         "give the original frames (IMAGES)")
-    predictor = OnnxPredictor(graph)
-    cam = None
-    if camera_for is not None:  # only for estimating the VPs of a --vp-input graph (the graph holds its own camera)
-        frames = [j.image for j in collect_images(images)]
-        cam = camera_for(frames[0], per_frame=False, frames=frames)
-    run = run_road(predictor, images, out, cam, progress=progress, overlay=overlay, within=within)
-    source = f"ONNX graph, {predictor.mode} model"
-    if predictor.beyond:
-        pan, tilt = predictor.info["pose_range"]
-        source += (f"; {count(predictor.beyond, 'frame')} with a VP beyond the graph's pose range ({pan:g}, {tilt:g} deg):"
-                   " P(road) cut to its rectangle, export with a larger --pose-range")
-    return Predicted(run.written, len(run.written) + len(run.failed), 0, source, run.failed)

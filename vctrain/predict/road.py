@@ -160,6 +160,8 @@ def _remove_outputs(out: Path, stem: str) -> None:
 def _predict_one(fps: dict, predictor: Any, job: Job, camera, views, vp, out: Path, overlay: bool) -> Path:
     img = read_image(job.image).array
     size = (img.shape[1], img.shape[0])
+    if hasattr(predictor, "check_frame_size"):  # a graph holds one frame size: say which graph this frame needs
+        predictor.check_frame_size(size, job.image)
     cam = camera_of_image(camera, job.image, size) if camera is not None else None
     fp = fps.get((cam, size))
     if fp is None:

@@ -1,7 +1,7 @@
 """Video in, per-frame road masks and overlay videos out.
 
 :func:`predict_video` reads a video file frame by frame (``cv2.VideoCapture``: whatever OpenCV's
-FFmpeg reads, :data:`VIDEO_EXTENSIONS`), predicts each frame in memory
+FFmpeg reads, :data:`vcprep.io.VIDEO_EXTENSIONS`; opened and read by :mod:`vcprep.io.video`), predicts each frame in memory
 (:class:`vctrain.predict.frames.FramePredictor`: the numbers of ``vctrain predict`` on the frames as
 images) and writes, for ``drive.mp4`` into ``OUT``:
 
@@ -13,7 +13,7 @@ images) and writes, for ``drive.mp4`` into ``OUT``:
   horizon of the frame's pose (cyan line) and its road vanishing point (red cross).
 
 The own vehicle (a virtual-camera model): a camera that states no ``ego_rows`` gets them from
-:data:`EGO_SAMPLES` frames spread over the video (:func:`ego_camera`, :func:`vcprep.camera.ego.ego_rows_from_frames`,
+:data:`vcprep.io.EGO_SAMPLES` frames spread over the video (:func:`ego_camera`, :func:`vcprep.camera.ego.ego_rows_from_frames`,
 said on stderr; ``ego`` 'none' skips the search, a number sets the rows), before the first frame is
 predicted: the bottom rows that show the rig's own car are never warped and never vote for a VP.
 
@@ -32,7 +32,6 @@ import os
 import sys
 from collections import deque
 from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, Iterator
 
@@ -42,28 +41,16 @@ from tqdm import tqdm
 
 from vcprep.camera import Camera
 from vcprep.errors import InputError
+from vcprep.io import VideoInfo, open_video, read_frames, sample_frames
 from vcprep.warp import ground_to_image, pose_from_vp, vp_from_pose
 
-from .frames import FramePredictor, StageTimes, StreamingVPs
+from .frames import FramePredictor, StageTimes, StreamingVPs, warps_frames
 from .road import within_rule
 
-__all__ = ["VIDEO_EXTENSIONS", "EGO_SAMPLES", "VideoInfo", "is_video", "check_video_stems", "open_video",
-           "read_frames", "sample_frames", "ego_camera", "predict_video", "draw_overlay", "horizon_segment"]
+__all__ = ["check_video_stems", "ego_camera", "predict_video", "draw_overlay", "horizon_segment"]
 
-# FFmpeg's own log lines ("[mjpeg @ 0x...] No JPEG data found") would break the one-line errors and
-# repeat what read_frames says per frame; read once, when OpenCV first opens a video. A user's
-# OPENCV_FFMPEG_LOGLEVEL wins.
-os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")  # AV_LOG_QUIET
-
-VIDEO_EXTENSIONS = (".mp4", ".avi", ".mkv", ".mov", ".m4v", ".webm", ".mpg", ".mpeg", ".wmv")
-MAX_BAD_RUN = 16  # this many undecodable frames in a row (and no header count left) end the video
 HORIZON_CYAN, VP_RED = (255, 255, 0), (0, 0, 255)  # BGR
 VP_AHEAD = 1  # per-frame VPs: frames whose estimate runs in a worker thread while earlier frames are predicted
-
-
-def is_video(path: str | Path) -> bool:
-    """Whether ``path`` names a video file (by its extension)."""
-    return Path(path).suffix.lower() in VIDEO_EXTENSIONS
 
 
 def check_video_stems(videos: list[Path]) -> list[Path]:
@@ -75,67 +62,6 @@ def check_video_stems(videos: list[Path]) -> list[Path]:
                              "outputs are named by stem; predict them into separate --out folders")
         seen[v.stem] = v
     return list(videos)
-
-
-@dataclass(frozen=True)
-class VideoInfo:
-    path: Path
-    size: tuple[int, int]  # (w, h)
-    fps: float             # frames per second (25 when the header gives none)
-    frames: int            # frame count from the header; 0 when unknown
-
-
-def open_video(path: str | Path) -> tuple[cv2.VideoCapture, VideoInfo]:
-    """Open a video for reading; a missing file, a folder or a file OpenCV cannot read as a video
-    raises :class:`InputError`."""
-    path = Path(path)
-    if not path.exists():
-        raise InputError("video not found", path, "check the path")
-    if not path.is_file():
-        raise InputError("is not a file, expected a video", path, "give a video file")
-    cap = cv2.VideoCapture(str(path))
-    w, h = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
-    if not cap.isOpened() or w <= 0 or h <= 0:
-        cap.release()
-        raise InputError("cannot read as a video (not a video, or a codec OpenCV's FFmpeg lacks)", path,
-                         f"give a video file ({', '.join(VIDEO_EXTENSIONS)}) or convert it, e.g. "
-                         "ffmpeg -i IN -c:v libx264 OUT.mp4")
-    fps = float(cap.get(cv2.CAP_PROP_FPS) or 0.0)
-    n = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
-    return cap, VideoInfo(path, (w, h), fps if 0 < fps < 1000 else 25.0, max(0, n))
-
-
-def read_frames(cap: cv2.VideoCapture, info: VideoInfo,
-                on_problem: Callable[[str], None]) -> Iterator[tuple[int, np.ndarray | None]]:
-    """(index, BGR frame) for every frame in order; an undecodable frame (or one of another
-    size) is (index, None) after ``on_problem`` says which. A failed read is a broken frame when
-    a later frame still decodes; :data:`MAX_BAD_RUN` failures in a row (or reaching the header's
-    count) end the video, and ending before the header's count is said too."""
-    i, pending = 0, []
-    while True:
-        ok = cap.grab()
-        frame = None
-        if ok:
-            ok, frame = cap.retrieve()
-        if ok and frame is not None and frame.ndim == 3 and (frame.shape[1], frame.shape[0]) == info.size:
-            for j in pending:
-                on_problem(f"{info.path}: frame {j} cannot be decoded; skipped")
-                yield j, None
-            pending = []
-            yield i, frame
-        elif ok and frame is not None:
-            on_problem(f"{info.path}: frame {i} is {frame.shape[1]}x{frame.shape[0]}, not "
-                       f"{info.size[0]}x{info.size[1]}; skipped")
-            yield i, None
-        else:
-            pending.append(i)
-            if len(pending) >= MAX_BAD_RUN or (info.frames and i + 1 >= info.frames):
-                break
-        i += 1
-    end = pending[0] if pending else i
-    if info.frames and end < info.frames:
-        on_problem(f"{info.path}: video ends after {end} of the {info.frames} frames its header announces "
-                   f"(truncated or damaged); the frames read are predicted")
 
 
 def horizon_segment(cam: Camera, pan: float, tilt: float) -> tuple[tuple[int, int], tuple[int, int]] | None:
@@ -197,31 +123,6 @@ class _VideoOut:
         self.tmp.unlink(missing_ok=True)
 
 
-EGO_SAMPLES = 48  # frames spread over a video that its own vehicle is looked for in (>= MIN_DISTINCT distinct)
-
-
-def sample_frames(info: VideoInfo, n: int = EGO_SAMPLES) -> list[np.ndarray]:
-    """Up to ``n`` decodable frames spread evenly over the video (header count known; else every
-    5th of its first ``5 n``): one pass of ``grab`` up to the last one, so it costs a decode of
-    the video, never a seek (which decodes from the previous key frame each time)."""
-    total = info.frames or 5 * n
-    want = set(np.linspace(0, total - 1, min(n, total)).round().astype(int).tolist())
-    cap, out, bad = cv2.VideoCapture(str(info.path)), [], 0
-    try:
-        for i in range(max(want) + 1):
-            if not cap.grab():
-                bad += 1
-                if bad >= MAX_BAD_RUN:
-                    break
-                continue
-            bad = 0
-            if i in want:
-                ok, f = cap.retrieve()
-                if ok and f is not None and f.ndim == 3 and (f.shape[1], f.shape[0]) == info.size:
-                    out.append(f)
-    finally:
-        cap.release()
-    return out
 
 
 def ego_camera(camera: Camera, info: VideoInfo, ego: str = "auto", say: Callable[[str], None] | None = None) -> Camera:
@@ -318,12 +219,14 @@ def _video_camera(predictor, camera: Camera | None, video: Path, info: VideoInfo
     """The camera at the video's frame size (a virtual-camera model needs one), with its own
     vehicle's rows (:func:`ego_camera`) for a virtual-camera model."""
     if camera is None:
-        if predictor.mode == "virtual":
+        if warps_frames(predictor):
             raise InputError("a virtual-camera model needs the camera of the video", video,
                              "add --camera (preset or calibration file)")
-        return None
+        camera = getattr(predictor, "camera", None)  # a graph's own (its VPs, the overlay's horizon)
+        if camera is None:
+            return None
     cam = camera.for_image_size(info.size, video)
-    if predictor.mode == "virtual":
+    if warps_frames(predictor):
         say = (lambda msg: tqdm.write(f"{video}: {msg}", file=sys.stderr)) if progress else None
         cam = ego_camera(cam, info, ego, say)
     return cam
