@@ -271,3 +271,19 @@ def test_warp_figure_has_a_legend_line_with_the_red_plus(store, tmp_path):
     assert (legend < 60).all(axis=2).sum() > 100  # the text
     makefile = (ROOT / "Makefile").read_text()
     assert "red + = the road vanishing point" in makefile.split("demo: $(STAMP)")[1].split("\n\n")[0]
+
+
+def test_every_run_ends_with_one_summary_line_without_a_terminal(trained, tmp_path):
+    """fit, predict and warp (stderr not a terminal here) each end with one line: how many, how long,
+    how fast."""
+    import re
+
+    cwd, fit = trained
+    assert re.search(r"runs/mine\.pt: \w+, 1 epoch, [\d.]+ s/epoch, [\d.]+ img/s, [\d.]+ s in all", fit.stderr)
+    proc = run_cli("predict", "runs/mine.pt", "--camera", KITTI / "calib/um_000000.txt", KITTI / "image_2",
+                   "--out", "preds2", prog="vctrain", cwd=cwd)
+    last = proc.stderr.strip().splitlines()[-1]
+    assert re.fullmatch(r"preds2: 1 image predicted \(virtual model\); [\d.]+ s, [\d.]+ frames/s", last), last
+    proc = run_cli("warp", "--camera", "camvid", "--images", EXAMPLES / "camvid/images", "--out", tmp_path / "s")
+    assert re.search(r"3 items: 3 built, 0 up to date, 0 failed \(store 688x350\).*; [\d.]+ s, [\d.]+ items/s$",
+                     proc.stderr), proc.stderr

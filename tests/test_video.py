@@ -294,3 +294,49 @@ def test_video_without_own_vehicle_finds_none(ego_drive, drive):
     assert ego_camera(replace(vcam, ego_rows=0), info, "auto", said.append).ego_rows == 0
     assert len(said) == 1 and "not looked for" in said[0] and "too few" in said[0]
     assert ego_camera(vcam, info, "auto", said.append).ego_rows == 12 and len(said) == 1  # stated: kept, no search
+
+
+def test_a_cut_off_mp4_is_said_to_be_cut_off_not_blamed_on_the_codec(model, drive, tmp_path):
+    """An mp4 copied or recorded only in part has no index ('moov' box, written last): the error says
+    so, where it used to blame a missing codec; a file that is no video at all still gets the codec
+    advice."""
+    root, cam, frames, video = drive
+    data = video.read_bytes()
+    (tmp_path / "cut.mp4").write_bytes(data[: len(data) // 2])
+    proc = run_cli("predict", model, "--camera", root / "cam.yaml", tmp_path / "cut.mp4", "--out", tmp_path / "o",
+                   prog="vctrain")
+    assert_one_error_line(proc, "cut.mp4", "without its index", "cut off")
+    (tmp_path / "text.mp4").write_text("not a video\n")
+    proc = run_cli("predict", model, "--camera", root / "cam.yaml", tmp_path / "text.mp4", "--out", tmp_path / "o",
+                   prog="vctrain")
+    assert_one_error_line(proc, "text.mp4", "codec")
+
+
+def test_a_folder_of_one_camera_finds_its_own_vehicle_as_a_video_does(model, ego_drive, tmp_path):
+    """A folder's frames with a camera that states no ego_rows: the rows are found from the frames (said
+    on stderr) and the masks are those of a camera that states them; a camera that states them is
+    not searched; --ego none warps the bonnet."""
+    import re
+    from test_ego import _drive, _paint_bonnet
+
+    root, cam = ego_drive
+    (tmp_path / "frames").mkdir()
+    for i, f in enumerate(_drive()):
+        write_png(tmp_path / "frames" / f"b_{i:03d}.png", _paint_bonnet(f, BONNET))
+    r = runner.invoke(app, ["predict", str(model), "--camera", str(root / "cam.yaml"), str(tmp_path / "frames"),
+                            "--out", str(tmp_path / "auto")])
+    assert r.exit_code == 0, r.output
+    m = re.search(r"own vehicle: (\d+) rows found from the frames", r.stderr)
+    assert m and abs(int(m.group(1)) - BONNET) <= 2, r.stderr
+    (tmp_path / "ego.yaml").write_text(camera_to_yaml(replace(cam, ego_rows=int(m.group(1)))))
+    r2 = runner.invoke(app, ["predict", str(model), "--camera", str(tmp_path / "ego.yaml"), str(tmp_path / "frames"),
+                             "--out", str(tmp_path / "stated")])
+    assert r2.exit_code == 0 and "own vehicle" not in r2.stderr, r2.output
+    probs = sorted((tmp_path / "auto").glob("*_prob.png"))
+    assert len(probs) == 36
+    for p in probs:
+        assert np.array_equal(read_image(p).array, read_image(tmp_path / "stated" / p.name).array)
+    r3 = runner.invoke(app, ["predict", str(model), "--camera", str(root / "cam.yaml"), str(tmp_path / "frames"),
+                             "--out", str(tmp_path / "none"), "--ego", "none"])
+    assert r3.exit_code == 0 and "own vehicle" not in r3.stderr
+    assert any(not np.array_equal(read_image(p).array, read_image(tmp_path / "none" / p.name).array) for p in probs)

@@ -30,6 +30,12 @@ def count(n: int, noun: str) -> str:
     return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
 
 
+def rate_text(n: int, seconds: float, noun: str) -> str:
+    """How long a run took and how fast, for its summary line: '12.3 s, 4.1 images/s'."""
+    rate = n / seconds if seconds > 0 else 0.0
+    return f"{seconds:.1f} s, {rate:.1f} {noun}s/s"
+
+
 def emit_json(obj: Any) -> None:
     """One JSON object on one line of stdout."""
     sys.stdout.write(json.dumps(obj, separators=(", ", ": ")) + "\n")

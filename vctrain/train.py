@@ -488,6 +488,6 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
     return {"replicas_identical": replicas_identical, "world_size": world,
             "out": str(out), "last": str(last_path(out)), "log": str(log_path), "epochs": cfg.epochs,
             "best_val_iou": best_iou if best_iou >= 0 else None, "best_epoch": best_epoch,
-            "seconds_per_epoch": seconds / max(cfg.epochs - start_epoch, 1),
+            "seconds": seconds, "seconds_per_epoch": seconds / max(cfg.epochs - start_epoch, 1),
             "train_images_per_s": images / max(seconds, 1e-9), "model_args": model_args,
             "data": {k: v for k, v in info.items() if k != "store_params"}}

@@ -51,12 +51,40 @@ def open_video(path: str | Path) -> tuple[cv2.VideoCapture, VideoInfo]:
     w, h = int(cap.get(cv2.CAP_PROP_FRAME_WIDTH)), int(cap.get(cv2.CAP_PROP_FRAME_HEIGHT))
     if not cap.isOpened() or w <= 0 or h <= 0:
         cap.release()
+        if _cut_off_mp4(path):
+            raise InputError("an MP4/MOV file without its index ('moov' box): the recording was cut off before it "
+                             "was finished", path, "copy the whole file again, or recover it with a tool such as "
+                             "untrunc; re-encoding cannot help")
         raise InputError("cannot read as a video (not a video, or a codec OpenCV's FFmpeg lacks)", path,
                          f"give a video file ({', '.join(VIDEO_EXTENSIONS)}) or convert it, e.g. "
                          "ffmpeg -i IN -c:v libx264 OUT.mp4")
     fps = float(cap.get(cv2.CAP_PROP_FPS) or 0.0)
     n = int(cap.get(cv2.CAP_PROP_FRAME_COUNT) or 0)
     return cap, VideoInfo(path, (w, h), fps if 0 < fps < 1000 else 25.0, max(0, n))
+
+
+def _cut_off_mp4(path: Path) -> bool:
+    """An ISO media file (MP4, MOV: an 'ftyp' box first) whose top-level boxes end before a 'moov'
+    box: a recording cut off before its index was written (the index comes last by default). Reads
+    the box headers only."""
+    end = path.stat().st_size
+    with open(path, "rb") as f:
+        pos, first = 0, True
+        while pos + 8 <= end:
+            f.seek(pos)
+            head = f.read(16)
+            size, kind = int.from_bytes(head[:4], "big"), head[4:8]
+            if first and kind != b"ftyp":
+                return False
+            first = False
+            if kind == b"moov":
+                return False
+            if size == 1 and len(head) == 16:
+                size = int.from_bytes(head[8:16], "big")
+            if size < 8:
+                return size == 0 and kind == b"mdat"  # 'to the end of the file': no moov after it
+            pos += size
+    return not first
 
 
 def read_frames(cap: cv2.VideoCapture, info: VideoInfo,

@@ -14,6 +14,7 @@ from __future__ import annotations
 import functools
 import hashlib
 import sys
+import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Callable, Mapping
@@ -23,6 +24,7 @@ import numpy as np
 from ..camera.pinhole import Camera
 from ..camera.sources import FrameCameras, camera_of_image
 from ..dataset import Job
+from ..cliutil import rate_text
 from ..errors import InputError, StoreError, VCError
 from ..warp.homography import apply_homography, check_not_folded, pose_from_vp, virt_H_src, virtual_at_scale, vp_from_pose
 from ..io.images import image_size_from_header, read_image, write_png
@@ -73,6 +75,7 @@ class BuildSummary:
     errors: list[str] = field(default_factory=list)  # their error messages, in the same order
     notes: list[str] = field(default_factory=list)  # per-item remarks for the user, each with its verdict
     off_vp: dict[str, int] = field(default_factory=lambda: {"fine": 0, "check": 0})  # see off_vp_note
+    seconds: float = 0.0  # wall-clock time of the loop
 
     def line(self, detail: str = "") -> str:
         """The summary: counts, ``detail`` (e.g. " (store 688x350)"), items completed off their VP."""
@@ -82,7 +85,7 @@ class BuildSummary:
             text += (f"; VP outside the covered region: {self.off_vp['fine']} fine as is (completion rays start "
                      f"within {OFF_VP_FINE:.0%} of the width from it), {self.off_vp['check']} to check "
                      f"(warnings below)")
-        return text
+        return text + f"; {rate_text(self.total, self.seconds, 'item')}"
 
     def count(self, res: "ItemResult") -> None:
         """Count one item's result: built (with its remark) or up to date."""
@@ -352,6 +355,7 @@ def build_loop(store: Store, step: LoopStep, tasks: list, ids: list[str], settin
     A bad item stops the build (after the items in flight) and its error is raised, unless
     ``settings.keep_going``: then it is counted in ``failed`` / ``errors`` and skipped."""
     summary = BuildSummary(total=len(tasks))
+    t0 = time.perf_counter()
     if store.shard is None:
         for tmp in temp_files(store.root):  # left by a killed build (no other writer runs now)
             tmp.unlink(missing_ok=True)
@@ -376,6 +380,7 @@ def build_loop(store: Store, step: LoopStep, tasks: list, ids: list[str], settin
         run_items(step.fn, step.ctx, tasks, on_result, jobs=settings.workers, progress=settings.progress,
                   desc=step.desc)
     finally:
+        summary.seconds = time.perf_counter() - t0
         summary.notes.sort()
         if summary.built or (store.shard is None and store.parts):  # (folds a killed build's journal)
             store.save()

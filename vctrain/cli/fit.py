@@ -146,5 +146,6 @@ def _fit_line(out: Path, summary: dict[str, Any]) -> str:
     """The one line on stderr that sums up a training run."""
     best = summary["best_val_iou"]
     return (f"{out}: {summary['model_args']['arch']}, {count(summary['epochs'], 'epoch')}, "
-            f"{summary['seconds_per_epoch']:.1f} s/epoch, {summary['train_images_per_s']:.1f} img/s"
+            f"{summary['seconds_per_epoch']:.1f} s/epoch, {summary['train_images_per_s']:.1f} img/s, "
+            f"{summary['seconds']:.1f} s in all"
             + (f", best val IoU {best:.4f} (epoch {summary['best_epoch']})" if best is not None else ""))

@@ -36,8 +36,9 @@ def predict_cmd(
                                                            "and the road VP of each frame too, only with --camera)"),
     mask_video: bool = typer.Option(False, "--mask-video", help="a video's masks as one lossless video "
                                                                 "OUT/<stem>_mask.mkv instead of a PNG per frame"),
-    ego: str = typer.Option("auto", "--ego", help="a video's own vehicle: auto (the camera's ego_rows, else found "
-                                                  "from 48 frames spread over the video, said on stderr), none (no "
+    ego: str = typer.Option("auto", "--ego", help="the own vehicle in a video or a folder of one camera's frames "
+                                                  "(a virtual-camera model): auto (the camera's ego_rows, else found "
+                                                  "from up to 48 frames spread over them, said on stderr), none (no "
                                                   "search: the camera as given) or N bottom rows"),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar"),
 ):

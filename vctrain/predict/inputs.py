@@ -5,11 +5,12 @@ store, through a model (:class:`~vctrain.predict.Predictor`), the geometric prio
 and what was predicted (:class:`Predicted`)."""
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Optional, Sequence
 
-from vcprep.cliutil import count
+from vcprep.cliutil import count, rate_text
 from vcprep.errors import InputError
 
 __all__ = ["CameraFor", "Predicted", "predict_inputs"]
@@ -30,6 +31,9 @@ class Predicted:
     videos: int
     source: str
     failed: list = field(default_factory=list)  # (file, VCError) of the frames that were skipped
+    frames: int = 0       # frames predicted: images, and every video's frames
+    seconds: float = 0.0  # wall-clock time of the whole run
+    seconds: float = 0.0  # wall-clock time of the whole run
 
     def said(self) -> list[str]:
         """One line per skipped frame: 'skipped: <file>: <problem> (<fix>)'."""
@@ -38,10 +42,11 @@ class Predicted:
         return skipped_lines(self.failed)
 
     def line(self) -> str:
-        """'3 images predicted (virtual model)', '1 image and 2 videos predicted (geometric prior)'."""
+        """'3 images predicted (virtual model); 1.2 s, 2.5 frames/s', '1 image and 2 videos predicted
+        (geometric prior); ...' (the rate counts every frame predicted, a video's included)."""
         what = " and ".join(([count(self.images, "image")] if self.images is not None else [])
                             + ([count(self.videos, "video")] if self.videos else []))
-        return f"{what} predicted ({self.source})"
+        return f"{what} predicted ({self.source}); {rate_text(self.frames, self.seconds, 'frame')}"
 
 
 def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]], out: Path,
@@ -61,6 +66,7 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
         raise InputError("no model given", None, "give MODEL.pt, or --prior prior.npy to segment with the prior")
     from vcprep.io import is_video
 
+    from .frames import StageTimes
     from .video import check_video_stems, predict_video
 
     if mask_video and not any(is_video(p) for p in images or []):
@@ -76,12 +82,12 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
     videos = check_video_stems([p for p in images or [] if is_video(p)])
     images = [p for p in images or [] if not is_video(p)]
     predictor = _predictor(checkpoint, prior, device)
-    written = []
+    written, t0, times = [], time.perf_counter(), StageTimes()
     if videos:
         for v in videos:  # 'estimate': from a sample of the video's own frames (its overlay draws the horizon)
             vcam = camera_for(None, per_frame=False, frames=[v]) if camera_for is not None else None
             written += predict_video(predictor, v, out, vcam, within=within, mask_video=mask_video, overlay=overlay,
-                                     progress=progress, ego=ego)
+                                     progress=progress, ego=ego, times=times)
     n_images = 0
     if store is not None:
         from vcprep.store import Store
@@ -92,11 +98,12 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
         n_images = len(written)
     failed = []
     if images:
-        run = _predict_image_files(predictor, images, out, camera_for, keep_store, within, overlay, progress)
+        run = _predict_image_files(predictor, images, out, camera_for, keep_store, within, overlay, progress, ego)
         written += run.written
         failed = run.failed
         n_images = len(run.written) + len(failed)
-    return Predicted(written, n_images if images or store else None, len(videos), _source(predictor, prior), failed)
+    return Predicted(written, n_images if images or store else None, len(videos), _source(predictor, prior), failed,
+                     times.frames + n_images - len(failed), time.perf_counter() - t0)
 
 
 def _source(predictor, prior: Optional[Path]) -> str:
@@ -140,18 +147,25 @@ def _needs_no_camera(predictor) -> bool:
 
 
 def _predict_image_files(predictor, images: Sequence[Path], out: Path, camera_for: Optional[CameraFor],
-                         keep_store: Optional[Path], within: str, overlay: bool, progress: bool):
+                         keep_store: Optional[Path], within: str, overlay: bool, progress: bool, ego: str = "auto"):
     """Image files and folders: their camera from ``camera_for`` (a virtual-camera model needs
-    one), then :func:`vctrain.predict.predictor.predict_frames` (the one road for a frame)."""
+    one; with one camera, its own vehicle found from the frames unless the camera states it: ``ego``
+    as for a video), then :func:`vctrain.predict.predictor.predict_frames` (the one road for a frame)."""
+    from vcprep.camera import Camera
+    from vcprep.cliutil import err
     from vcprep.dataset import collect_images
 
     from .frames import warps_frames
     from .predictor import predict_frames
+    from .road import folder_ego_camera
 
     cam = None
     if camera_for is not None:  # checked even where the model needs none: a typo is never silent
         jobs = collect_images(images)
         cam = camera_for(jobs[0].image, frames=[j.image for j in jobs], needed=not _needs_no_camera(predictor))
+        if warps_frames(predictor) and isinstance(cam, Camera):  # one camera's frames: its own vehicle, as a video's
+            say = (lambda msg: err(f"{jobs[0].image.parent}: {msg}")) if progress else None
+            cam = folder_ego_camera(cam, [j.image for j in jobs], ego, say)
     elif warps_frames(predictor):
         raise InputError("a virtual-camera model needs the camera of the images", predictor.path,
                          "add --camera (preset or calibration file)")

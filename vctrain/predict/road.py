@@ -22,7 +22,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable
 
 import numpy as np
 from tqdm import tqdm
@@ -35,7 +35,7 @@ from vcprep.warp import pose_from_vp
 
 from .frames import FramePredictor, warps_frames
 
-__all__ = ["RoadRun", "skipped_lines", "within_rule", "virtual_within", "rectangle_views", "run_road", "write_prediction", "out_dir"]
+__all__ = ["own_vehicle", "folder_ego_camera", "RoadRun", "skipped_lines", "within_rule", "virtual_within", "rectangle_views", "run_road", "write_prediction", "out_dir"]
 
 
 @dataclass
@@ -114,6 +114,58 @@ def virtual_within(data: dict[str, Any], within: str, camera: Camera | FrameCame
         raise InputError("--within needs one camera; a per-frame calibration folder already gives every frame its "
                          "exact pose", camera.folder, "drop --within, or give one camera file or preset")
     return within
+
+
+def own_vehicle(cam: Camera, source: str | Path, ego: str, say: Callable[[str], None] | None,
+                estimate: Callable[[], Any]) -> Camera:
+    """``cam`` with its own vehicle's rows (``ego_rows``), one rule for a video and a folder of one
+    camera's frames. ``ego``: 'auto' (the camera's ``ego_rows`` when it states them, else found by
+    ``estimate()`` -> :class:`vcprep.camera.EgoEstimate` from frames, said through ``say``; too few
+    distinct frames: none, also said), 'none' (the camera as given, no search) or a whole number of
+    rows at the camera's size (0: no own vehicle)."""
+    from dataclasses import replace
+
+    from vcprep.camera import rows_at_height
+
+    if ego == "none" or (ego == "auto" and cam.ego_rows):
+        return cam
+    if ego != "auto":
+        try:
+            rows = int(ego)
+        except ValueError:
+            rows = -1
+        if not 0 <= rows < cam.size[1]:
+            raise InputError(f"--ego '{ego}' is not auto, none or a number of rows below the frames' "
+                             f"{cam.size[1]}", source, "give e.g. --ego 40, --ego 0 or --ego none")
+        return replace(cam, ego_rows=rows)
+    say = say or (lambda _msg: None)
+    try:
+        est = estimate()
+    except InputError as e:
+        say(f"own vehicle: not looked for ({e.problem}); set ego_rows in the camera file, or --ego N")
+        return cam
+    if est.rows:
+        say(f"own vehicle: {est.rows} rows found from the frames ({est.describe()}); set ego_rows in the "
+            f"camera file to override")
+    else:
+        say(f"own vehicle: none found from the frames ({est.describe()}); set ego_rows in the camera file if "
+            f"it shows one")
+    return replace(cam, ego_rows=rows_at_height(est, cam.size[1]))
+
+
+def folder_ego_camera(camera: Camera, files: list[Path], ego: str = "auto",
+                      say: Callable[[str], None] | None = None) -> Camera:
+    """``camera`` at the size of the first of ``files`` (one camera's frames) with its own vehicle's
+    rows (:func:`own_vehicle`: 'auto' looks in up to :data:`vcprep.io.EGO_SAMPLES` frames spread
+    over the folder, as a video's are)."""
+    from vcprep.camera import ego_rows_from_frame_files
+    from vcprep.io import EGO_SAMPLES
+
+    files = [Path(f) for f in files]
+    cam = camera.for_image_size(image_size(files[0]), files[0])
+    picks = sorted({int(round(k)) for k in np.linspace(0, len(files) - 1, min(EGO_SAMPLES, len(files)))})
+    return own_vehicle(cam, files[0].parent, ego, say,
+                       lambda: ego_rows_from_frame_files([files[k] for k in picks], files[0].parent))
 
 
 def frame_vps(jobs: list[Job], camera: Camera | FrameCameras | None, rule: str,

@@ -45,7 +45,7 @@ from vcprep.io import VideoInfo, open_video, read_frames, sample_frames
 from vcprep.warp import ground_to_image, pose_from_vp, vp_from_pose
 
 from .frames import FramePredictor, StageTimes, StreamingVPs, warps_frames
-from .road import within_rule
+from .road import own_vehicle, within_rule
 
 __all__ = ["check_video_stems", "ego_camera", "predict_video", "draw_overlay", "horizon_segment"]
 
@@ -126,41 +126,12 @@ class _VideoOut:
 
 
 def ego_camera(camera: Camera, info: VideoInfo, ego: str = "auto", say: Callable[[str], None] | None = None) -> Camera:
-    """``camera`` at the video's size with its own vehicle's rows (``ego_rows``). ``ego``: 'auto'
-    (the camera's ``ego_rows`` when it states them, else found from :data:`EGO_SAMPLES` frames
-    spread over the video by :func:`vcprep.camera.ego.ego_rows_from_frames`, said through ``say``; a
-    video with too few distinct frames gets none, also said), 'none' (the camera as given, no
-    search) or a whole number of rows at the video's size (0: no own vehicle)."""
-    from dataclasses import replace
+    """``camera`` at the video's size with its own vehicle's rows (:func:`vctrain.predict.road.own_vehicle`:
+    'auto' looks in :data:`vcprep.io.EGO_SAMPLES` frames spread over the video)."""
+    from vcprep.camera import ego_rows_from_frames
 
-    from vcprep.camera import ego_rows_from_frames, rows_at_height
-
-    cam = camera.for_image_size(info.size, info.path)
-    if ego == "none" or (ego == "auto" and cam.ego_rows):
-        return cam
-    if ego != "auto":
-        try:
-            rows = int(ego)
-        except ValueError:
-            rows = -1
-        if not 0 <= rows < info.size[1]:
-            raise InputError(f"--ego '{ego}' is not auto, none or a number of rows below the video's "
-                             f"{info.size[1]}", info.path, "give e.g. --ego 40, --ego 0 or --ego none")
-        return replace(cam, ego_rows=rows)
-    say = say or (lambda _msg: None)
-    frames = sample_frames(info)
-    try:
-        est = ego_rows_from_frames(frames, info.path)
-    except InputError as e:
-        say(f"own vehicle: not looked for ({e.problem}); set ego_rows in the camera file, or --ego N")
-        return cam
-    if est.rows:
-        say(f"own vehicle: {est.rows} rows found from the frames ({est.describe()}); set ego_rows in the "
-            f"camera file to override")
-    else:
-        say(f"own vehicle: none found from the frames ({est.describe()}); set ego_rows in the camera file if "
-            f"it shows one")
-    return replace(cam, ego_rows=rows_at_height(est, info.size[1]))
+    return own_vehicle(camera.for_image_size(info.size, info.path), info.path, ego, say,
+                       lambda: ego_rows_from_frames(sample_frames(info), info.path))
 
 
 def _now(fn, *args) -> Future:
