@@ -10,7 +10,7 @@ import typer
 
 from vcprep.cliutil import ensure_parent, err
 
-from .common import app, path_or_json
+from .common import app, path_or_json, pin_threads, threads_option
 
 
 @app.command("predict")
@@ -39,6 +39,7 @@ def predict_cmd(
     ego: str = typer.Option("auto", "--ego", help="a video's own vehicle: auto (the camera's ego_rows, else found "
                                                   "from 48 frames spread over the video, said on stderr), none (no "
                                                   "search: the camera as given) or N bottom rows"),
+    threads: Optional[int] = threads_option(),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar"),
 ):
     """Predict road in original camera images with the checkpoint's own preprocessing.
@@ -67,6 +68,7 @@ def predict_cmd(
 
     from ..predict_inputs import predict_inputs
 
+    pin_threads(threads)
     frames_camera = partial(camera_for, camera, quiet=quiet) if camera is not None else None
     result = predict_inputs(checkpoint, images, out, frames_camera, prior=prior, store=store, device=device,
                             keep_store=keep_store, within=within, overlay=overlay, mask_video=mask_video, ego=ego,
@@ -93,6 +95,7 @@ def export_cmd(
     frame: Optional[Path] = typer.Option(None, "--frame", help="a frame of the camera (gives the image size to "
                                                                "calibration files that carry none)"),
     as_json: bool = typer.Option(False, "--json", help="print the graph's description as one JSON object"),
+    threads: Optional[int] = threads_option(),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no summary on stderr"),
 ):
     """Export a model with its camera inside as one ONNX graph (needs pip install 'vcseg[deploy]').
@@ -114,6 +117,7 @@ def export_cmd(
 
     from ..export import export_onnx
 
+    pin_threads(threads)  # (also the check against torch: the graph run in onnxruntime)
     cam = camera_for(camera, frame, per_frame=False, quiet=quiet)
     ensure_parent(out)
     info = export_onnx(checkpoint, cam, out, vp_input=vp_input, pose_range=(pose_range, pose_range))
