@@ -1,6 +1,6 @@
 """Deployment speed: the exported ONNX graph (``vctrain export``) against the torch path, per frame.
 
-    .venv/bin/python benchmarks/deploy.py [--repeats 7] [--threads 1,2]
+    .venv/bin/python benchmarks/deploy.py [--repeats 7] [--threads 1,2,default]
 
 Model: the cpu recipe's default architecture (resfpn, base width 16) with RANDOM weights (seed 0:
 timing does not depend on them; agreement is checked on them) at its default working size, the
@@ -10,7 +10,10 @@ projective-completion model, and its resize twin (the same network on 480x360, 1
 Frames: the KITTI road frame (1242x375, its own calibration) and a BDD100K frame (1280x720, the
 folder's assumed camera) from ../shared/data; the virtual rectangle extended to each camera as
 ``vctrain predict`` does. Threads: cv2, torch and onnxruntime (intra-op) pinned to each of
-``--threads`` in turn. Median and spread (min..max) over ``--repeats`` calls after one warm-up.
+``--threads`` in turn; 'default' is what ``vctrain predict`` takes without ``--threads``
+(:func:`vctrain.threads.default_threads` when the script starts: the cores no other process is
+running on; its count is recorded). Median and spread (min..max) over ``--repeats`` calls after
+one warm-up.
 
 Measured per frame (ms):
   net_torch / net_ort      the network alone (input at the working size, logits out) in torch / onnxruntime
@@ -62,6 +65,7 @@ from vctrain.deploy import OnnxPredictor, export_onnx
 from vctrain.predict import FramePredictor, StageTimes
 from vctrain.model import build_model, model_args_for
 from vctrain.predict import Predictor
+from vctrain.threads import default_threads
 from vctrain.study.spec import DEFAULT_ABOVE, DEFAULT_STORE_PIXELS
 
 DATA = SHARED_DATA
@@ -140,7 +144,9 @@ def agreement(got: np.ndarray, ref: np.ndarray) -> dict:
     return {"max_abs_diff": float(np.abs(got - ref).max()), "mask_agreement": float(((got >= 0.5) == (ref >= 0.5)).mean())}
 
 
-def measure(name: str, frame: np.ndarray, cam, vc: Path, rs: Path, tmp: Path, threads: list[int], repeats: int) -> dict:
+def measure(name: str, frame: np.ndarray, cam, vc: Path, rs: Path, tmp: Path, threads: list[tuple[str, int]],
+            repeats: int) -> dict:
+    """Every figure of one frame at each (label, count) of ``threads``."""
     h, w = frame.shape[:2]
     p, prs = Predictor(vc, "cpu"), Predictor(rs, "cpu")
     fp = FramePredictor(p, cam, (w, h))
@@ -178,10 +184,10 @@ def measure(name: str, frame: np.ndarray, cam, vc: Path, rs: Path, tmp: Path, th
     xr = torch.from_numpy(to_input(cv2.resize(frame, RESIZE_SIZE)))[None]
     net_vc, net_rs = network_graph(p.model, work), network_graph(p.model, RESIZE_SIZE)
     d["threads"] = {}
-    for t in threads:
+    for label, t in threads:
         cv2.setNumThreads(t)
         torch.set_num_threads(t)
-        r: dict = {}
+        r: dict = {"threads": t}
         with torch.no_grad():
             r["net_torch"] = stat(timed(lambda: p.model(x), repeats))
             r["resize_net_torch"] = stat(timed(lambda: p.model(xr), repeats))
@@ -210,16 +216,17 @@ def measure(name: str, frame: np.ndarray, cam, vc: Path, rs: Path, tmp: Path, th
         r["onnx_vp_over_torch"] = r["onnx_vp"]["median"] / r["torch_path"]["median"]
         r["onnx_vp_over_torch_vp"] = r["onnx_vp"]["median"] / r["torch_path_vp"]["median"]
         r["resize_onnx_over_torch"] = r["resize_onnx"]["median"] / r["resize_torch"]["median"]
-        d["threads"][str(t)] = r
+        d["threads"][label] = r
     return d
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=7)
-    ap.add_argument("--threads", default="1,2", help="comma-separated thread counts (cv2, torch, onnxruntime)")
+    ap.add_argument("--threads", default="1,2,default", help="comma-separated thread counts (cv2, torch, "
+                    "onnxruntime); 'default': vctrain predict's default on this machine now")
     args = ap.parse_args()
-    threads = [int(t) for t in args.threads.split(",")]
+    threads = [(t, default_threads() if t == "default" else int(t)) for t in args.threads.split(",")]
     sets = frames()
     machine = f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores"
     print(f"model: resfpn width 16, random weights; threads {threads}; {machine}; "
@@ -237,7 +244,8 @@ def main() -> None:
     for name, d in detail.items():
         for t, r in d["threads"].items():
             st = r["torch_stages"]
-            print(" | ".join([f"{name} {d['frame_size'][0]}x{d['frame_size'][1]}", t,
+            print(" | ".join([f"{name} {d['frame_size'][0]}x{d['frame_size'][1]}",
+                              t if t != "default" else f"default ({r['threads']})",
                               *(f"{r[k]['median']:.1f}" for k in ("net_torch", "net_ort")),
                               f"{r['torch_path']['median']:.1f} ({st['warp']:.1f}/{st['network']:.1f}/{st['backproject']:.1f})",
                               *(f"{r[k]['median']:.1f}" for k in ("onnx_fixed", "torch_path_vp", "onnx_vp",
@@ -252,7 +260,7 @@ def main() -> None:
               f"graphs {d['graph_mb']['']:.1f} MB (vp {d['graph_mb']['_vp']:.1f})")
     headline = {}
     for name, d in detail.items():
-        r = d["threads"][str(threads[0])]
+        r = d["threads"][threads[0][0]]
         headline.update({f"geometry_share_of_network_{name}": round(r["geometry_share_torch"], 3),
                          f"graph_geometry_share_of_network_{name}": round(r["geometry_share_graph"], 3),
                          f"onnx_over_torch_{name}": round(r["onnx_over_torch"], 3),
@@ -264,9 +272,10 @@ def main() -> None:
                          f"max_abs_diff_{name}": float(f"{d['agreement_fixed']['max_abs_diff']:.3g}"),
                          f"mask_agreement_{name}": round(d["agreement_fixed"]["mask_agreement"], 5),
                          f"graph_mb_{name}": round(d["graph_mb"][""], 1)})
-    headline["threads"] = threads[0]
+    headline["threads"] = threads[0][1]
     out = {"command": "python " + " ".join(["benchmarks/deploy.py"] + sys.argv[1:]), "date": date.today().isoformat(),
-           "machine": machine, "threads": threads, "load_average_start": os.getloadavg()[0],
+           "machine": machine, "threads": [label for label, _ in threads],
+           "default_threads": dict(threads).get("default"), "load_average_start": os.getloadavg()[0],
            "data": "; ".join(s[2] for s in sets.values()) + "; resfpn width 16 with random weights",
            "store_params": {"store_size": sp["store_size"], "scale": sp["scale"]},
            "headline": headline, "detail": detail}

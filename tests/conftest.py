@@ -57,6 +57,7 @@ def _in_process(prog: str, args: list[str], cwd: Path | None) -> subprocess.Comp
     main = importlib.import_module(f"{prog}.cli").main
     out, err = io.StringIO(), io.StringIO()
     argv, stdin, here = sys.argv, sys.stdin, os.getcwd()
+    threads = _threads()  # a command's --threads (vctrain.threads) pins this process: set back after it
     code: int | str | None = 0
     try:
         sys.argv, sys.stdin = [str(BIN / prog), *args], io.StringIO("")
@@ -73,12 +74,23 @@ def _in_process(prog: str, args: list[str], cwd: Path | None) -> subprocess.Comp
     finally:
         sys.argv, sys.stdin = argv, stdin
         os.chdir(here)
+        _threads(threads)
     if code is None:
         code = 0
     elif not isinstance(code, int):  # sys.exit("message"): the message on stderr, status 1
         err.write(f"{code}\n")
         code = 1
     return subprocess.CompletedProcess([str(BIN / prog), *args], code, out.getvalue(), err.getvalue())
+
+
+def _threads(set_to: tuple[int, int] | None = None) -> tuple[int, int]:
+    """(torch's, OpenCV's) thread counts; with ``set_to``, set them back to those first."""
+    torch = sys.modules.get("torch")
+    if set_to is not None:
+        if torch is not None and set_to[0]:
+            torch.set_num_threads(set_to[0])
+        cv2.setNumThreads(set_to[1])
+    return (torch.get_num_threads() if torch is not None else 0, cv2.getNumThreads())
 
 
 def assert_one_error_line(proc: subprocess.CompletedProcess, *needles: str) -> None:

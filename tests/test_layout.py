@@ -157,3 +157,15 @@ def test_vcprep_modules_import_by_module_path():
             continue
         bad += [f"{name}: from {mod}" for mod, _ in _imports(path) if mod in faces and not name.startswith(mod + ".")]
     assert bad == []
+
+
+def test_every_import_names_a_module_that_exists():
+    """Also the imports inside functions (run only when called): a module moved without its importers
+    moving along fails here, not in a user's hands."""
+    missing = []
+    for name, path in _modules().items():
+        for mod, names in _imports(path):
+            if mod in _modules() or any(f"{mod}.{n}" in _modules() for n in names):
+                continue
+            missing.append(f"{path.relative_to(ROOT)}: {mod}")
+    assert missing == []

@@ -567,10 +567,10 @@ def test_fit_has_one_option_per_train_config_field():
     import typer.main
     from dataclasses import fields
 
-    from vctrain.cli import FIT_NO_OPTION, FIT_OPTION_FIELD, _fit_config
+    from vctrain.cli import FIT_NO_OPTION, FIT_NOT_CONFIG, FIT_OPTION_FIELD, _fit_config
 
     cmd = typer.main.get_command(app).commands["fit"]
-    options = [p.name for p in cmd.params if p.name != "as_json"]
+    options = [p.name for p in cmd.params if p.name not in FIT_NOT_CONFIG]
     set_fields = [FIT_OPTION_FIELD.get(n, n) for n in options]
     assert sorted(set_fields) == sorted(f.name for f in fields(TrainConfig) if f.name not in FIT_NO_OPTION)
     args = ["s1", "s2", "-o", "runs/m.pt", "-m", "segnet-narrow", "--width", "4", "--val-store", "v", "--size",

@@ -307,7 +307,8 @@ def r_deploy(d: dict) -> list[str]:
         for t, r in v["threads"].items():
             st = r["torch_stages"]
             m = lambda k: f"{r[k]['median']:.1f} ({r[k]['min']:.1f}–{r[k]['max']:.1f})"  # noqa: E731
-            rows.append([f"{name} {num(v['frame_size'])}", t, m("net_torch"), m("net_ort"),
+            label = t if t != "default" else f"default ({r.get('threads')})"  # vctrain predict's default then
+            rows.append([f"{name} {num(v['frame_size'])}", label, m("net_torch"), m("net_ort"),
                          f"{m('torch_path')}: {st['warp']:.1f} / {st['network']:.1f} / {st['backproject']:.1f}",
                          m("onnx_fixed"), m("torch_path_vp") if "torch_path_vp" in r else "–", m("onnx_vp"),
                          m("resize_torch"), m("resize_onnx"),
@@ -346,9 +347,23 @@ def r_video(d: dict) -> list[str]:
            f"jobs on the 2 cores slow both conditions)." if d.get("loadavg_1min") else ""), ""]
 
 
+def r_predict_threads(d: dict) -> list[str]:
+    """vctrain predict per frame at 1, 2 threads and the default beside busy processes (benchmarks/predict_threads.py)."""
+    cell = lambda c: f"{c['median']:.0f} ({c['min']:.0f}–{c['max']:.0f})"  # noqa: E731
+    rows = [[k, num(r["busy_besides"]), cell(r["1"]), cell(r["2"]), f"{cell(r['default'])} ({r['default']['threads']})",
+             num(r["default_over_1"]), num(r["2_over_1"])] for k, r in d["loads"].items()]
+    out = [f"ms per frame, median (range) over {d.get('repeats')} passes, the settings alternated pass by pass; "
+           f"load average {num(d.get('load_average_start'), 1)} at the start (other jobs on the machine).", ""]
+    out += table(["busy processes started", "processes running besides (busy_cpus)", "1 thread", "2 threads",
+                  "default (its threads)", "default / 1", "2 / 1"], rows)
+    return out + table(["target (issue 45)", "met"], [[k, "not measured" if v is None else num(v)]
+                                                      for k, v in d.get("targets", {}).items()])
+
+
 RENDER: dict[str, Callable[[dict], list[str]]] = {
     "warp": r_warp, "video": r_video, "completion": r_completion, "deploy": r_deploy, "store": r_store, "stages": r_stages, "train": r_train,
     "camera_estimate": r_camera_estimate, "focal_from_verticals": r_focal_from_verticals, "as_shipped": r_as_shipped, "vp": r_vp, "vp.dev": r_vp, "cross_camera": r_cross_camera, "real_cameras": r_real_cameras,
     "real_cameras_within_seq_fallback": r_real_cameras, "multi_camera": r_multi_camera, "multi_camera_median": r_multi_camera,
     "shipped_model": r_shipped_model, "shipped_model_e60": r_shipped_model, "finetune": r_finetune, "finetune_cityscapes": r_finetune, "adapt_loo": r_adapt_loo,
+    "predict_threads": r_predict_threads,
 }

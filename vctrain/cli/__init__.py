@@ -11,9 +11,9 @@ from vcprep.cliutil import run_app
 
 from ..cli import fit, predict, adapt, evaluate, crossval  # noqa: F401  (registers the commands, in this order)
 from .common import app
-from .fit import FIT_NO_OPTION, FIT_OPTION_FIELD, _fit_config, _parse_crop
+from .fit import FIT_NO_OPTION, FIT_NOT_CONFIG, FIT_OPTION_FIELD, _fit_config, _parse_crop
 
-__all__ = ["app", "main", "FIT_NO_OPTION", "FIT_OPTION_FIELD", "_fit_config", "_parse_crop"]
+__all__ = ["app", "main", "FIT_NO_OPTION", "FIT_NOT_CONFIG", "FIT_OPTION_FIELD", "_fit_config", "_parse_crop"]
 
 
 def main() -> None:

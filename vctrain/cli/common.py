@@ -47,6 +47,24 @@ def parse_size(text: Optional[str]) -> Optional[tuple[int, int]]:
     return None if text is None else parse(text)
 
 
+THREADS_HELP = ("threads of torch, OpenCV and onnxruntime (default: OMP_NUM_THREADS if set, else the cores no "
+                "other process is running on when the command starts, at least 1: more threads than free cores "
+                "make torch several times slower)")
+
+
+def threads_option():
+    """``--threads N`` of predict, export and fit (:func:`pin_threads`)."""
+    return typer.Option(None, "--threads", min=1, help=THREADS_HELP)
+
+
+def pin_threads(threads: Optional[int]) -> int:
+    """``--threads``: torch, OpenCV and onnxruntime at ``threads`` (None: the default), as
+    :func:`vctrain.threads.use_threads` (imported here: it imports torch)."""
+    from ..threads import use_threads
+
+    return use_threads(threads)
+
+
 TRAIN = TrainConfig()     # the defaults of fit's options, as TrainConfig declares them
 ADAPT = AdaptSettings()  # ... and of adapt's
 LABEL_FORMAT_HELP = f"{', '.join(LABEL_FORMATS)} or values:road=3;ignore=11"

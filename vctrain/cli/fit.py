@@ -11,7 +11,7 @@ from vcprep.cliutil import check_data_folders, count, ensure_parent, err
 from vcprep.errors import InputError
 
 from ..config import TrainConfig
-from .common import LABEL_FORMAT_HELP, TRAIN, app, parse_size, path_or_json
+from .common import LABEL_FORMAT_HELP, TRAIN, app, parse_size, path_or_json, pin_threads, threads_option
 
 RECIPE_HELP = ("defaults of every setting below: 'cpu' (resfpn, AdamW, cosine, augmentation; CamVid train in 3.3 min "
                "on 2 cores at --size 344x176, 14.2 at 688x350) or 'paper' (segnet, SGD 0.005, poly); default: paper "
@@ -21,9 +21,11 @@ MODEL_HELP = ("resfpn (residual encoder + FPN decoder, 1.3 M parameters), segnet
 CROP_HELP = ("train on random windows of the working image: WxH pixels, a share of each side (0.67) or of width and "
              "height (0.44x1: full height); validation and prediction see the whole image (default: no crop)")
 # fit's options named otherwise than the TrainConfig field they set; every other option is named as
-# its field, except --json, and fit takes none for FIT_NO_OPTION (tests/test_vctrain.py checks both ways)
+# its field, except FIT_NOT_CONFIG (how the command runs, not what it trains), and fit takes none
+# for FIT_NO_OPTION (tests/test_vctrain.py checks both ways)
 FIT_OPTION_FIELD = {"model": "arch", "width": "base_width", "val_store": "val_stores", "quiet": "progress"}
 FIT_NO_OPTION = ("momentum", "max_steps")
+FIT_NOT_CONFIG = ("as_json", "threads")
 
 
 def _fit_config(options: dict[str, Any]) -> TrainConfig:
@@ -31,7 +33,7 @@ def _fit_config(options: dict[str, Any]) -> TrainConfig:
     (:data:`FIT_OPTION_FIELD`), paths as text, WxH and --crop parsed, --quiet as ``progress``."""
     values: dict[str, Any] = {}
     for name, v in options.items():
-        if name == "as_json":
+        if name in FIT_NOT_CONFIG:
             continue
         if isinstance(v, Path):
             v = str(v)
@@ -105,21 +107,21 @@ def fit_cmd(
     workers: int = typer.Option(TRAIN.workers, "--workers", help="data loader processes"),
     log: Optional[Path] = typer.Option(None, "--log", help="JSON-lines log, one row per epoch (default OUT-stem.log.jsonl)"),
     as_json: bool = typer.Option(False, "--json", help="print the run summary as one JSON object instead of the path"),
+    threads: Optional[int] = threads_option(),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar or epoch lines on stderr"),
 ):
     """Train a road segmentation network on virtual-camera stores (or the resize baseline).
 
     Cross-entropy over not road / road, label 255 ignored. Two recipes set the defaults: 'cpu'
     (without a GPU: resfpn, AdamW 0.002, cosine, flip/scale/shift/colour augmentation, 20
-    epochs) and 'paper' (on a GPU: segnet, SGD 0.005 momentum 0.9,
-    weight decay 0.0005, batch 8, poly decay); any option given wins. The checkpoint describes
-    itself (model, training config, virtual camera, scale, completion, metrics), so predict and
-    eval need no repeated flags. Prints the checkpoint path; OUT's folder is created. Launch
-    with 'torchrun --nproc-per-node N' for data-parallel training.
+    epochs) and 'paper' (on a GPU: segnet, SGD 0.005 momentum 0.9, weight decay 0.0005, batch
+    8, poly decay); any option given wins. The checkpoint describes itself (model, training
+    config, virtual camera, scale, completion, metrics), so predict and eval need no repeated
+    flags. Prints the checkpoint path; OUT's folder is created. Launch with 'torchrun
+    --nproc-per-node N' for data-parallel training.
 
-    Time, measured with the cpu recipe on 2 cores for CamVid train (367 images): 3.3 minutes
-    at --size 344x176 (half the default store's size), 14.2 minutes at the default store's
-    688x350.
+    Time, measured with the cpu recipe on 2 cores for CamVid train (367 images): 3.3 minutes at
+    --size 344x176 (half the default store's size), 14.2 minutes at the default store's 688x350.
 
     \b
     Example:
@@ -131,11 +133,10 @@ def fit_cmd(
     """
     cfg = _fit_config(locals())  # (first: locals() are the options, each named as its TrainConfig field)
     from ..train import fit
-
+    pin_threads(threads)
     check_data_folders(images, labels)  # --baseline resize
-    ensure_parent(out)  # runs/vc.pt: runs/ is created, as warp and predict create their folders
-    if log is not None:
-        ensure_parent(log)
+    for path in filter(None, (out, log)):  # runs/vc.pt: runs/ is created, as warp and predict create theirs
+        ensure_parent(path)
     summary = fit(cfg)
     if not quiet:
         err(_fit_line(out, summary))

@@ -10,7 +10,7 @@ import typer
 
 from vcprep.cliutil import ensure_parent, err
 
-from .common import app, path_or_json
+from .common import app, path_or_json, pin_threads, threads_option
 
 
 @app.command("predict")
@@ -40,6 +40,7 @@ def predict_cmd(
                                                   "(a virtual-camera model): auto (the camera's ego_rows, else found "
                                                   "from up to 48 frames spread over them, said on stderr), none (no "
                                                   "search: the camera as given) or N bottom rows"),
+    threads: Optional[int] = threads_option(),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar"),
 ):
     """Predict road in original camera images with the checkpoint's own preprocessing.
@@ -68,6 +69,7 @@ def predict_cmd(
 
     from ..predict.inputs import predict_inputs
 
+    pin_threads(threads)
     frames_camera = partial(camera_for, camera, quiet=quiet) if camera is not None else None
     result = predict_inputs(checkpoint, images, out, frames_camera, prior=prior, store=store, device=device,
                             keep_store=keep_store, within=within, overlay=overlay, mask_video=mask_video, ego=ego,
@@ -124,6 +126,7 @@ def export_cmd(
                                                                "size (the camera scaled to it; a calibration file "
                                                                "without a size takes it from here)"),
     as_json: bool = typer.Option(False, "--json", help="print the graph's description as one JSON object"),
+    threads: Optional[int] = threads_option(),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no summary on stderr"),
 ):
     """Export a model with its camera inside as one ONNX graph (needs pip install 'vcseg[deploy]').
@@ -148,6 +151,7 @@ def export_cmd(
 
     from ..deploy.export import export_onnx
 
+    pin_threads(threads)  # (also the check against torch: the graph run in onnxruntime)
     frame_size = image_size(frame) if frame is not None else (parse_size(size, "--size") if size else None)
     cam = None
     if camera is not None:

@@ -34,9 +34,10 @@ def vp_from_cam(camera: Camera) -> tuple[float, float]:
 
 
 def _session(ort, model, threads: int = 0):
+    from ..threads import threads_in_use
+
     so = ort.SessionOptions()
-    if threads:
-        so.intra_op_num_threads = threads
+    so.intra_op_num_threads = threads or threads_in_use()  # what --threads set (vctrain.threads)
     so.log_severity_level = 3
     return ort.InferenceSession(model, so, providers=["CPUExecutionProvider"])
 
