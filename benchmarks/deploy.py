@@ -26,6 +26,10 @@ Measured per frame (ms):
                            on the --vp-input graph's rectangle; like onnx_vp, every call a new VP (a pose
                            within 90 % of the pose range), so no map is reused
   resize_torch / resize_onnx   the resize twin: FramePredictor (resize, network, resize back) / its graph
+  folder road / store path     ``vctrain predict`` on a folder of 6 copies of the frame (per frame, at the
+                           first thread count): the one road for a frame (vctrain.predict.road, in memory)
+                           against the store path it replaced (warped into a store, read back); the
+                           probabilities must be identical (issue 46)
 Ratios (issue 35): geometry share = (warp + back-projection) / network, of the torch path
 (target <= 0.15) and of the graph ((onnx_fixed - net_ort) / net_ort); onnx_over_torch =
 onnx_fixed / torch_path (target <= 1) and onnx_vp / torch_path_vp; agreement of the graph with the
@@ -217,7 +221,42 @@ def measure(name: str, frame: np.ndarray, cam, vc: Path, rs: Path, tmp: Path, th
         r["onnx_vp_over_torch_vp"] = r["onnx_vp"]["median"] / r["torch_path_vp"]["median"]
         r["resize_onnx_over_torch"] = r["resize_onnx"]["median"] / r["resize_torch"]["median"]
         d["threads"][label] = r
+        if "folder" not in d:  # at the first thread count
+            d["folder"] = folder_paths(name, frame, cam, vc, tmp, repeats)
     return d
+
+
+FOLDER_FRAMES = 6  # frames of the folder-path timing (copies of the frame)
+
+
+def folder_paths(name: str, frame: np.ndarray, cam, vc: Path, tmp: Path, repeats: int) -> dict:
+    """``vctrain predict MODEL --camera CAM FOLDER`` per frame: the one road for a frame (in memory,
+    vctrain.predict.road: "after") against the store path it replaced (the folder warped into a store,
+    read back and predicted: "before", what ``--keep-store`` still does); the same masks (checked)."""
+    from vctrain.predict import predict_frames
+
+    folder = tmp / f"{name}_folder"
+    folder.mkdir()
+    for k in range(FOLDER_FRAMES):
+        cv2.imwrite(str(folder / f"f{k}.png"), frame)
+    p, runs = Predictor(vc, "cpu"), iter(range(10 ** 6))
+
+    def road():
+        return predict_frames(p, [folder], tmp / f"{name}_road{next(runs)}", cam, progress=False, within="none")
+
+    def store():
+        k = next(runs)
+        return predict_frames(p, [folder], tmp / f"{name}_store{k}", cam, progress=False, within="none",
+                              keep_store=tmp / f"{name}_kept{k}")
+
+    a, b = road().written, store().written  # (also the warm-up)
+    same = all(np.array_equal(cv2.imread(str(x.with_name(x.name.replace("_mask", "_prob"))), cv2.IMREAD_UNCHANGED),
+                              cv2.imread(str(y.with_name(y.name.replace("_mask", "_prob"))), cv2.IMREAD_UNCHANGED))
+               for x, y in zip(a, b))
+    after, before = stat(timed(road, repeats)), stat(timed(store, repeats))
+    per = {k: v / FOLDER_FRAMES for k, v in after.items()}, {k: v / FOLDER_FRAMES for k, v in before.items()}
+    return {"frames": FOLDER_FRAMES, "road_ms": per[0], "store_path_ms": per[1], "same_probabilities": same,
+            "road_over_store": per[0]["median"] / per[1]["median"]}
 
 
 def main() -> None:
@@ -258,6 +297,11 @@ def main() -> None:
               f"{100 * a['mask_agreement']:.3f} %; --vp-input graph ({d['agreement_vp']['vps']} VPs): max |dP| "
               f"{d['agreement_vp']['max_abs_diff']:.2e}, masks agree {100 * d['agreement_vp']['mask_agreement']:.3f} %; "
               f"graphs {d['graph_mb']['']:.1f} MB (vp {d['graph_mb']['_vp']:.1f})")
+    for name, d in detail.items():
+        f = d["folder"]
+        print(f"  {name}: a folder of {f['frames']} frames, ms per frame: the one road {f['road_ms']['median']:.1f}, "
+              f"the store path it replaced {f['store_path_ms']['median']:.1f} ({f['road_over_store']:.2f}x); "
+              f"probabilities {'identical' if f['same_probabilities'] else 'DIFFERENT'}")
     headline = {}
     for name, d in detail.items():
         r = d["threads"][threads[0][0]]
@@ -271,7 +315,11 @@ def main() -> None:
                          f"resize_onnx_over_torch_{name}": round(r["resize_onnx_over_torch"], 3),
                          f"max_abs_diff_{name}": float(f"{d['agreement_fixed']['max_abs_diff']:.3g}"),
                          f"mask_agreement_{name}": round(d["agreement_fixed"]["mask_agreement"], 5),
-                         f"graph_mb_{name}": round(d["graph_mb"][""], 1)})
+                         f"graph_mb_{name}": round(d["graph_mb"][""], 1),
+                         f"folder_road_ms_{name}": round(d["folder"]["road_ms"]["median"], 1),
+                         f"folder_store_path_ms_{name}": round(d["folder"]["store_path_ms"]["median"], 1),
+                         f"folder_road_over_store_{name}": round(d["folder"]["road_over_store"], 3),
+                         f"folder_same_probabilities_{name}": d["folder"]["same_probabilities"]})
     headline["threads"] = threads[0][1]
     out = {"command": "python " + " ".join(["benchmarks/deploy.py"] + sys.argv[1:]), "date": date.today().isoformat(),
            "machine": machine, "threads": [label for label, _ in threads],
