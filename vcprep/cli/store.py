@@ -9,7 +9,7 @@ import typer
 from tqdm import tqdm
 
 from ..backproject import backproject_folder
-from ..build import ItemPose, WarpSettings, say_on_stderr, warp_dataset
+from ..build import WarpSettings, frame_poses, say_on_stderr, warp_dataset
 from ..camera import Camera, load_camera
 from ..camera_estimate import estimate_camera, estimate_to_yaml
 from ..cliutil import check_data_folders, count, emit_json, ensure_parent, err
@@ -22,7 +22,7 @@ from ..prior import compute_prior, open_stores, prior_meta, write_prior
 from ..store import Shard, Store
 from ..store_check import merge_store, store_info, verify_and_repair, verify_store
 from ..store_complete import CompleteSettings, complete_store
-from ..vanishing_point import vps_for_items
+from ..vanishing_point import VPRule
 from .common import (COMPLETE_HELP, FRAMES_HELP, JOBS_HELP, KEEP_GOING_HELP, LABEL_FORMAT_HELP, SHARD_HELP,
                      SMOOTH_HELP, WITHIN_HELP, app, camera_for, check_label_format, estimated_line, finish, store_app,
                      vp_counts)
@@ -130,13 +130,12 @@ def _within_poses(jobs, cam: Camera, within: str, smooth: int, id_prefix: str, q
         raise InputError("--vp-smooth applies to estimated VPs only", within, "use --within estimate")
     bar = tqdm(total=len(jobs), desc="vp", unit="img", disable=True if quiet or within != "estimate" else None, leave=False)
     try:
-        results = vps_for_items([j.image for j in jobs], [j.id for j in jobs], cam, within, smooth,
-                                id_prefix=id_prefix, on_image=lambda i: bar.update())
+        poses, results = frame_poses(jobs, cam, within, VPRule(smooth=smooth), id_prefix, lambda i: bar.update())
     finally:
         bar.close()
     if not quiet:
         err(f"vanishing points: {vp_counts(results)}")
-    return {j.id: ItemPose((r.vp[0], r.vp[1]), r.status) for j, r in zip(jobs, results)}
+    return poses
 
 
 @app.command("complete")
