@@ -4,7 +4,7 @@ The graph takes a camera's raw frame and returns road probability in that camera
 holds everything ``vctrain predict`` does for that camera (:mod:`vctrain.predict`):
 
 - ``virtual`` models: the warp into the checkpoint's virtual camera at its scale, the rectangle
-  extended for this camera as ``predict`` does (:func:`vctrain.predict._canvas_for`), with the
+  extended for this camera as ``predict`` does (:func:`vctrain.predict.frames_canvas`), with the
   training store's completion; the resize to the working size; :func:`vctrain.data.to_input`
   (and the VP channel); the network; softmax; the resize back and the back-projection
   (:func:`vcprep.backproject.backproject_array` with ``kind="prob"``: bilinear, 0 outside).

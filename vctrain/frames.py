@@ -8,7 +8,7 @@ completion in one remap (:func:`vcprep.build.warp_arrays`, the body of the store
 cached, so a fixed pose builds them once), the network on the warped uint8 image (what the store's
 PNG holds, bit for bit) and the back-projection (:func:`vcprep.backproject.backproject_array`).
 The virtual camera's rectangle is the training's, extended to hold the frame's lower half at its
-pose (:func:`vcprep.virtual_camera.extend_canvas`, as :func:`vctrain.predict._canvas_for` does
+pose (:func:`vcprep.virtual_camera.extend_canvas`, as :func:`vctrain.predict.frames_canvas` does
 for a folder): poses known in advance are given at construction; a later frame whose pose does
 not fit grows the rectangle, so after a whole video it is the one the folder path would use.
 

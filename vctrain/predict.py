@@ -15,9 +15,10 @@ Outputs per image ``<stem>_prob.png`` (uint8, round(255 * P(road))) and ``<stem>
 """
 from __future__ import annotations
 
+import json
 import tempfile
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable
 
 import cv2
 import numpy as np
@@ -37,7 +38,8 @@ from .checkpoint import load_checkpoint, model_from_checkpoint
 from .data import resize_pair, to_input, vp_in_store, vp_proximity
 from .train import resolve_device
 
-__all__ = ["Predictor", "collect_images", "predict_images", "predict_store", "write_prediction", "warp_like_training"]
+__all__ = ["Predictor", "collect_images", "predict_images", "predict_store", "write_prediction", "warp_like_training",
+           "frames_canvas", "within_mode", "model_vp_rule", "warp_geometry", "geometry_line"]
 
 
 class Predictor:
@@ -154,13 +156,16 @@ def predict_store(predictor: Predictor, store: Store, out: str | Path, progress:
 def predict_images(predictor: Predictor, images: Iterable[str | Path], out: str | Path,
                    camera: Camera | FrameCameras | None,
                    progress: bool = True, keep_store: str | Path | None = None, overlay: bool = False,
-                   within: str = "auto") -> list[Path]:
+                   within: str = "auto", vp_rule: Any = None, say: Callable[[str], None] | None = None,
+                   ego_source: str = "") -> list[Path]:
     """Predict image files/folders taken with ``camera`` (needed for virtual-camera models; a
     :class:`~vcprep.camera.FrameCameras` gives every image its own calibrated camera and pose).
 
     ``within``: per-image pan/tilt from the road VP, as for ``vcprep warp --within``
     ('estimate', a CSV ``id,u,v``, 'none'); 'auto' estimates VPs when the model's training store
-    used per-image VPs and uses the camera's average pose otherwise."""
+    used per-image VPs and uses the camera's average pose otherwise; estimated VPs follow
+    ``vp_rule`` or the model's (:func:`model_vp_rule`). ``say`` (given) gets one line saying the
+    VPs, own vehicle (``ego_source``: where its rows come from) and rectangle used (:func:`geometry_line`)."""
     jobs = collect_images(images)
     out = _out_dir(out)
     if predictor.mode == "resize":
@@ -180,15 +185,19 @@ def predict_images(predictor: Predictor, images: Iterable[str | Path], out: str 
         root = Path(keep_store) if keep_store else Path(tmp) / "store"
         # a prior is an image of the training rectangle: its frames are warped into that rectangle as it is
         store = warp_like_training(predictor.data, predictor.path, jobs, camera, root, within, progress,
-                                   extend=not predictor.fixed_rectangle)
+                                   extend=not predictor.fixed_rectangle, vp_rule=vp_rule)
+        if say is not None:
+            say(geometry_line(warp_geometry(store), model_vp_rule(predictor.data, vp_rule)[1], ego_source))
         return predict_store(predictor, store, out, progress, ids=[j.id for j in jobs], overlay=overlay)
 
 
-def _canvas_for(virtual: Camera, jobs: list[Job], camera: Camera | FrameCameras,
-                poses: dict | None) -> Camera:
-    """The training's virtual camera, its rectangle extended to hold every frame of ``jobs`` at the
-    pose it is warped with (:func:`vcprep.virtual_camera.extend_canvas`): a camera wider or
-    steeper than the training cameras is predicted whole, at the training's pixels per degree."""
+def frames_canvas(virtual: Camera, jobs: list[Job], camera: Camera | FrameCameras,
+                  poses: dict | None) -> Camera:
+    """The training's virtual camera, its rectangle extended to hold every frame of ``jobs`` at its
+    camera's average pose and at the pose it is warped with (``poses``: :func:`vcprep.build.frame_poses`;
+    :func:`vcprep.virtual_camera.extend_canvas`): a camera wider or steeper than the training
+    cameras is predicted whole, at the training's pixels per degree. The one rectangle rule of
+    ``vctrain predict``, a video (:class:`vctrain.frames.FramePredictor`) and a study's test stores."""
     from vcprep.homography import pose_from_vp
     from vcprep.imageio import image_size
     from vcprep.virtual_camera import extend_canvas
@@ -196,49 +205,92 @@ def _canvas_for(virtual: Camera, jobs: list[Job], camera: Camera | FrameCameras,
     views, seen = [], set()
     for j in jobs:
         cam = camera_of_image(camera, j.image, image_size(j.image))
-        pan, tilt = pose_from_vp(cam, poses[j.id].vp) if poses else (cam.pan, cam.tilt)
-        key = (cam, round(pan, 3), round(tilt, 3))
-        if key not in seen:
-            seen.add(key)
-            views.append((cam, pan, tilt))
+        for pan, tilt in ((cam.pan, cam.tilt), pose_from_vp(cam, poses[j.id].vp) if poses else (cam.pan, cam.tilt)):
+            key = (cam, round(pan, 3), round(tilt, 3))
+            if key not in seen:
+                seen.add(key)
+                views.append((cam, pan, tilt))
     return extend_canvas(virtual, views)
 
 
+def within_mode(data: dict[str, Any], camera: Any, within: str = "auto") -> str:
+    """'estimate', 'none' or a CSV path: ``within`` as given, 'auto' as the model (its ``data``) was
+    trained -- per-frame VPs estimated when its training stores had estimated or given ones, for one
+    camera (a per-frame calibration folder's poses are its own), else the camera's average pose."""
+    if within != "auto":
+        return within
+    trained = set(data.get("vp_status", [])) - {"camera", "calibrated"}
+    return "estimate" if data.get("mode") == "virtual" and trained and isinstance(camera, Camera) else "none"
+
+
+def model_vp_rule(data: dict[str, Any], override: Any = None) -> tuple[Any, str]:
+    """(the :class:`~vcprep.vanishing_point.VPRule` frames are estimated with, where it comes from):
+    ``override`` (given), else the rule the model's training VPs were found with, else the
+    detector's defaults (a model whose stores record none)."""
+    from vcprep.vanishing_point import VPRule
+
+    if override is not None:
+        return override, "the given"
+    recorded = VPRule.from_dict(data.get("vp_rule"))
+    return (recorded, "the model's") if recorded is not None else (VPRule(), "the detector's defaults")
+
+
 def warp_like_training(data: dict[str, Any], path: str | Path, jobs: list[Job], camera: Camera | FrameCameras,
-                       root: str | Path,
-                       within: str = "auto", progress: bool = True, extend: bool = True) -> Store:
+                       root: str | Path, within: str = "auto", progress: bool = True, extend: bool = True,
+                       vp_rule: Any = None) -> Store:
     """Warp image ``jobs`` of ``camera`` into the store ``root`` exactly as the training store of
     a checkpoint (its ``data``; ``path`` names it in errors) was built: same code, virtual
     camera, scale and completion. ``within``: per-image pan/tilt from the road VP ('estimate',
-    a CSV ``id,u,v``, 'none'); 'auto' estimates VPs when the training store used per-image VPs
-    and takes the camera's average pose otherwise. ``extend``: the virtual camera's rectangle
-    extended to hold every frame (:func:`_canvas_for`); False keeps the training's rectangle (what
-    a prior, an image of that rectangle, needs)."""
+    a CSV ``id,u,v``, 'none'; 'auto': :func:`within_mode`), estimated together
+    (:func:`vcprep.build.frame_poses`) with ``vp_rule`` or the model's (:func:`model_vp_rule`).
+    ``extend``: the virtual camera's rectangle extended to hold every frame (:func:`frames_canvas`);
+    False keeps the training's rectangle (what a prior, an image of that rectangle, needs)."""
+    from vcprep.build import frame_poses
+
     sp = data.get("store_params")
     if data.get("mode") != "virtual" or not sp:
         raise InputError("model was not trained in a virtual camera (a resize baseline)", path,
                          "use a model trained on a store built by 'vcprep warp'")
     virtual = camera_from_dict(sp["virtual"], path)
-    completion = data.get("completion", "none")
-    if within == "auto":  # poses from VPs if training had them; calibrated poses (one file, a folder) are no VPs
-        within = ("estimate" if set(data.get("vp_status", [])) - {"camera", "calibrated"} and isinstance(camera, Camera)
-                  else "none")
-    poses = None
+    within = within_mode(data, camera, within)
     if within != "none" and not isinstance(camera, Camera):
         raise InputError("--within needs one camera; a per-frame calibration folder already gives every frame its "
                          "exact pose", camera.folder, "drop --within, or give one camera file or preset")
     if isinstance(camera, FrameCameras):
         for j in jobs:  # every frame's calibration file exists: an error before anything is written
             camera.file_for(j.image)
-    if within != "none":
-        from vcprep.build import ItemPose
-        from vcprep.vanishing_point import vps_for_items
-
-        res = vps_for_items([j.image for j in jobs], [j.id for j in jobs], camera, within)
-        poses = {j.id: ItemPose((r.vp[0], r.vp[1]), r.status) for j, r in zip(jobs, res)}
+    poses, _ = frame_poses(jobs, camera, within, model_vp_rule(data, vp_rule)[0])
     if extend:
-        virtual = _canvas_for(virtual, jobs, camera, poses)
-    settings = WarpSettings(camera=camera, virtual=virtual, scale=float(sp["scale"]), completion=completion,
-                            poses=poses, progress=progress)
+        virtual = frames_canvas(virtual, jobs, camera, poses)
+    settings = WarpSettings(camera=camera, virtual=virtual, scale=float(sp["scale"]),
+                            completion=data.get("completion", "none"), poses=poses, progress=progress)
     store, _ = warp_dataset(jobs, root, settings)
     return store
+
+
+def warp_geometry(store: Store) -> dict[str, Any]:
+    """What the frames of ``store`` were warped with, read from its records: the VPs (statuses and
+    the rule of the estimated ones), the own vehicle's rows and the virtual rectangle. What a
+    study's result records and ``vctrain predict`` says."""
+    from collections import Counter
+
+    recs = list(store)
+    rules = {json.dumps(r["vp_rule"], sort_keys=True) for r in recs if r.get("vp_rule")}
+    return {"vp_status": dict(sorted(Counter(r.get("vp_status", "camera") for r in recs).items())),
+            "vp_rule": json.loads(rules.pop()) if len(rules) == 1 else sorted(map(json.loads, rules)) or None,
+            "ego_rows": sorted({int(r.get("ego_rows", 0)) for r in recs}),
+            "rectangle": list(store.params["virtual"]["image_size"])}
+
+
+def geometry_line(geo: dict[str, Any], rule_source: str = "", ego_source: str = "") -> str:
+    """One line for stderr from :func:`warp_geometry`: 'VPs: 2 accepted, 1 fallback (the model's rule:
+    ...); own vehicle: 3 bottom rows (the camera's ego_rows); virtual rectangle 554x240'."""
+    from vcprep.vanishing_point import VPRule
+
+    counts = ", ".join(f"{n} {k}" for k, n in geo["vp_status"].items())
+    rule = VPRule.from_dict(geo["vp_rule"]) if isinstance(geo["vp_rule"], dict) else None
+    vps = f"VPs: {counts}" + (f" ({rule_source + ' rule: ' if rule_source else ''}{rule.describe()})" if rule else "")
+    rows = "/".join(map(str, geo["ego_rows"]))
+    ego = (f"own vehicle: {rows} bottom rows never warped" if geo["ego_rows"] != [0] else "own vehicle: none")
+    ego += f" ({ego_source})" if ego_source else ""
+    return f"{vps}; {ego}; virtual rectangle {geo['rectangle'][0]}x{geo['rectangle'][1]}"
