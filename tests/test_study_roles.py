@@ -262,10 +262,9 @@ def _footprint_study(root: Path) -> Path:
 
 def test_footprint_canvas_keeps_the_budget_for_training_and_covers_every_test_pixel(tmp_path):
     """canvas: footprint -- the pixel budget sizes the rectangle that holds the TRAINING camera
-    (not the union with a wider test camera); a wider test-only camera gets the same virtual
-    camera extended to hold its frames at their poses (as vctrain predict extends it), so its
-    frames are predicted where the training rectangle would cut them off (and score them 'not
-    road'), and the model runs there unresized."""
+    (not the union with a wider test camera); a wider test-only camera gets it extended to hold its
+    frames at their poses (as vctrain predict extends it), so they are predicted where the training
+    rectangle would cut them off (and score them 'not road'), and the model runs there unresized."""
     import math
 
     import cv2
@@ -316,8 +315,7 @@ def test_footprint_canvas_keeps_the_budget_for_training_and_covers_every_test_pi
         p = H @ np.stack([xs, ys, np.ones_like(xs)]).astype(float)
         u = p[0] / p[2]
         assert ((u < -0.5) | (u > tvs.size[0] - 0.5)).mean() > 0.05
-        # ... in kitti's own rectangle (the training one extended for every frame at its pose, as vctrain
-        # predict extends it) it is inside the virtual image
+        # ... in kitti's own rectangle (extended for its frames at their poses) all of it is inside
         cover = backproject_array(np.full(tuple(reversed(kvs.size)), 255, np.uint8), rec, "mask") > 0
         assert cover[held].mean() > 0.999
     # the model runs on the wider canvas at the training's pixels per degree (no resize)
@@ -332,9 +330,8 @@ def test_footprint_canvas_keeps_the_budget_for_training_and_covers_every_test_pi
     assert all(0.0 <= r["iou"] <= 1.0 for r in rows)
     info = json.loads((out / "study.json").read_text())
     assert info["canvas"] == "footprint" and math.isclose(info["scale"], train.params["scale"])
-    # each result records the rectangle its frames were warped into (what vctrain predict says it uses)
-    assert [r["test_warp"]["rectangle"] for r in rows if r["heldout"] == "kitti" and r["condition"] == "within"] == \
-        [list(kv.size)]
+    within = {r["heldout"]: r for r in rows if r["condition"] == "within"}  # its rectangle, as predict says it
+    assert within["kitti"]["test_warp"]["rectangle"] == list(kv.size)
     # a test-only camera changed: its results are redone, nothing is retrained, the others are kept
     (study.parent / "kitti.yaml").write_text(camera_to_yaml(replace(CAMS["kitti"], height=CAMS["kitti"].height * 1.3)))
     again = run_cli("crossval", study, "--out", out, prog="vctrain")
