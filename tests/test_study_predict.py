@@ -141,7 +141,8 @@ def test_the_result_records_the_rule_predict_says_it_used(study_run, tmp_path):
     study, out = study_run
     row = _result(out, "camvid2", "within")
     warp = row["test_warp"]
-    assert warp["vp_rule"] == {"pan_range": 5.0, "tilt_range": 3.0, "smooth": 0}  # the study's ranges, no smoothing
+    # the study's ranges, no smoothing, sequences by file name
+    assert warp["vp_rule"] == {"pan_range": 5.0, "tilt_range": 3.0, "smooth": 0, "sequences": "name"}
     assert warp["vp_status"] == {"accepted": 2, "fallback": 1} and warp["ego_rows"] == [0]
     ck = torch.load(out / "runs" / "_all" / "within" / "model.pt", map_location="cpu", weights_only=True)
     assert ck["data"]["vp_rule"] == warp["vp_rule"]
@@ -158,3 +159,6 @@ def test_the_result_records_the_rule_predict_says_it_used(study_run, tmp_path):
                     "--vp-range", "20", "15", prog="vctrain")
     assert other.returncode == 0, other.stderr
     assert "VPs: 3 accepted (the given rule: pan within 20 deg and tilt within 15 deg" in other.stderr
+    bad = run_cli("predict", out / "runs" / "_all" / "within" / "model.pt", *_frames(study, "camvid2"), "--camera",
+                  study.parent / "camvid.yaml", "--out", tmp_path / "r", "--vp-sequences", "drive", prog="vctrain")
+    assert bad.returncode == 1 and "unknown VP sequence rule 'drive'" in bad.stderr

@@ -34,8 +34,8 @@ from .warp import warp_image, warp_label
 
 __all__ = ["Job", "ItemPose", "WarpSettings", "BuildSummary", "item_maps", "warp_item", "find_images", "list_dataset",
            "frame_poses", "store_params", "item_geometry", "warp_dataset", "WarpedItem", "warp_item_full",
-           "complete_store", "record_key", "ItemResult", "build_item", "complete_item", "warp_arrays", "CompleteSettings",
-           "build_loop", "WARP_ALGORITHM", "valid_path", "completion_key_part", "completion_fields"]
+           "complete_store", "record_key", "ItemResult", "build_item", "complete_item", "warp_arrays",
+           "CompleteSettings", "build_loop", "WARP_ALGORITHM", "valid_path", "completion_key_part", "completion_fields"]
 # re-exported for callers of the names that lived here: WARP_ALGORITHM, valid_path, completion_key_part,
 # completion_fields, record_key (vcprep.record); complete_store, complete_item, CompleteSettings
 # (vcprep.store_complete, imported on first use: it builds on this module)
@@ -319,15 +319,18 @@ def frame_poses(jobs: list[Job], camera: Camera | FrameCameras, within: str, rul
     """(``poses`` of :class:`WarpSettings`, the VP results) of ``jobs`` taken together: ``within``
     'none' (None: the camera's average pose, or each frame's calibrated one), 'estimate' (each
     frame's road VP found by ``rule``, a :class:`~vcprep.vanishing_point.VPRule`: None, the
-    detector's defaults; recorded with each pose) or a CSV ``id,u,v`` of given VPs. The one rule
+    detector's defaults; frames grouped into sequences by its ``frame_ids``, not by item ids;
+    recorded with each pose) or a CSV ``id,u,v`` of given VPs (looked up by item id). The one rule
     of ``vcprep warp``, ``vctrain predict`` and a study's stores."""
     if within == "none":
         return None, []
     from .vanishing_point import VPRule, vps_for_items
 
     rule = rule or VPRule()
-    results = vps_for_items([j.image for j in jobs], [j.id for j in jobs], camera, within, rule.smooth,
-                            rule.config(), id_prefix, on_image)
+    images = [j.image for j in jobs]
+    # estimated VPs: grouped into sequences by the rule (the same frames, the same groups, whatever their ids)
+    ids = rule.frame_ids(images) if within == "estimate" else [j.id for j in jobs]
+    results = vps_for_items(images, ids, camera, within, rule.smooth, rule.config(), id_prefix, on_image)
     tag = rule.to_dict() if within == "estimate" else None
     return {j.id: ItemPose((r.vp[0], r.vp[1]), r.status, tag) for j, r in zip(jobs, results)}, results
 

@@ -41,14 +41,15 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
                    device: str = "auto", keep_store: Optional[Path] = None, within: str = "auto",
                    overlay: bool = False, mask_video: bool = False, ego: str = "auto",
                    progress: bool = True, vp_range: Optional[tuple[float, float]] = None,
-                   vp_smooth: Optional[int] = None, say: Optional[Callable[[str], None]] = None) -> Predicted:
+                   vp_smooth: Optional[int] = None, vp_sequences: Optional[str] = None,
+                   say: Optional[Callable[[str], None]] = None) -> Predicted:
     """``vctrain predict``: ``checkpoint`` (a ``.pt`` model or an ``.onnx`` graph; with ``prior``
     it is the first image) on ``images`` (files, folders, videos) or every item of ``store``.
-    ``camera_for`` (None: no --camera) gives the frames' camera. ``vp_range`` (pan, tilt degrees)
-    and ``vp_smooth`` (frames either side) change the rule estimated VPs follow (default: the
-    model's, :func:`vctrain.predict.model_vp_rule`); ``say`` (given) hears which VPs, own vehicle
-    and rectangle image files were warped with. Bad combinations raise :class:`InputError` before
-    anything is predicted."""
+    ``camera_for`` (None: no --camera) gives the frames' camera. ``vp_range`` (pan, tilt degrees),
+    ``vp_smooth`` (frames either side) and ``vp_sequences`` ('name', 'folder') change the rule
+    estimated VPs follow (default: the model's, :func:`vctrain.predict.model_vp_rule`); ``say``
+    (given) hears which VPs, own vehicle and rectangle image files were warped with. Bad
+    combinations raise :class:`InputError` before anything is predicted."""
     if prior is not None:
         if checkpoint is not None and checkpoint.suffix.lower() == ".pt":
             raise InputError("give either a model or --prior, not both", checkpoint, "drop one of them")
@@ -68,7 +69,7 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
     videos = check_video_stems([p for p in images or [] if is_video(p)])
     images = [p for p in images or [] if not is_video(p)]
     predictor = _predictor(checkpoint, prior, device)
-    rule = _vp_rule(predictor, vp_range, vp_smooth)
+    rule = _vp_rule(predictor, vp_range, vp_smooth, vp_sequences)
     written = []
     if videos:
         vcam = camera_for(None, per_frame=False) if camera_for is not None else None  # ('estimate': said not possible)
@@ -104,9 +105,11 @@ def _predictor(checkpoint: Optional[Path], prior: Optional[Path], device: str):
     return Predictor(checkpoint, device)
 
 
-def _vp_rule(predictor, vp_range: Optional[tuple[float, float]], vp_smooth: Optional[int]):
-    """The model's VP rule with ``vp_range`` and ``vp_smooth`` where given (None: neither given)."""
-    if vp_range is None and vp_smooth is None:
+def _vp_rule(predictor, vp_range: Optional[tuple[float, float]], vp_smooth: Optional[int],
+             vp_sequences: Optional[str] = None):
+    """The model's VP rule with ``vp_range``, ``vp_smooth`` and ``vp_sequences`` where given (None:
+    none given)."""
+    if vp_range is None and vp_smooth is None and vp_sequences is None:
         return None
     from dataclasses import replace
 
@@ -115,6 +118,8 @@ def _vp_rule(predictor, vp_range: Optional[tuple[float, float]], vp_smooth: Opti
     rule = model_vp_rule(getattr(predictor, "data", {}))[0]
     if vp_range is not None:
         rule = replace(rule, pan_range=float(vp_range[0]), tilt_range=float(vp_range[1]))
+    if vp_sequences is not None:
+        rule = replace(rule, sequences=vp_sequences)
     return replace(rule, smooth=int(vp_smooth)) if vp_smooth is not None else rule
 
 

@@ -94,7 +94,7 @@ def warp_cmd(
                          "exact pose", camera, "drop --within, or give one camera file or preset")
     virt = load_camera(virtual)
     # VPs over all frames even for one shard: the fallback VP and smoothing depend on the whole run
-    poses = _within_poses(items, cam, within, vp_smooth, id_prefix, quiet)
+    poses = _within_poses(items, cam, within, vp_smooth, id_prefix, quiet, fmt)
     settings = WarpSettings(camera=cam, virtual=virt, scale=scale, label_format=fmt, completion=complete, poses=poses,
                             workers=jobs or default_jobs(), shard=part, keep_going=keep_going, progress=not quiet)
     store, summary = warp_dataset(items, out, settings)
@@ -119,7 +119,7 @@ def _warp_camera(camera: str, items: list, fmt, quiet: bool):
     return estimate.camera, estimate
 
 
-def _within_poses(jobs, cam: Camera, within: str, smooth: int, id_prefix: str, quiet: bool):
+def _within_poses(jobs, cam: Camera, within: str, smooth: int, id_prefix: str, quiet: bool, fmt=None):
     """The ``poses`` mapping of :class:`vcprep.build.WarpSettings` from ``--within`` (None for 'none')."""
     if within == "none":
         if smooth:
@@ -130,7 +130,9 @@ def _within_poses(jobs, cam: Camera, within: str, smooth: int, id_prefix: str, q
         raise InputError("--vp-smooth applies to estimated VPs only", within, "use --within estimate")
     bar = tqdm(total=len(jobs), desc="vp", unit="img", disable=True if quiet or within != "estimate" else None, leave=False)
     try:
-        poses, results = frame_poses(jobs, cam, within, VPRule(smooth=smooth), id_prefix, lambda i: bar.update())
+        # IDD's file names repeat from drive to drive: its frames' sequences are their folders, as its item ids say
+        rule = VPRule(smooth=smooth, sequences="folder" if fmt is not None and fmt.drive_in_id else "name")
+        poses, results = frame_poses(jobs, cam, within, rule, id_prefix, lambda i: bar.update())
     finally:
         bar.close()
     if not quiet:

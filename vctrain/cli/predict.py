@@ -42,6 +42,9 @@ def predict_cmd(
     vp_smooth: Optional[int] = typer.Option(None, "--vp-smooth", min=0, help="estimated VPs: median over N frames "
                                                                              "either side of a sequence (default: the "
                                                                              "model's rule for images, 2 for a video)"),
+    vp_sequences: Optional[str] = typer.Option(None, "--vp-sequences", help="estimated VPs: a frame's sequence (its "
+                                               "fallback and smoothing) is its file name up to the first '_' (name) "
+                                               "or its folder (folder: IDD's drives); default: the model's rule"),
     ego: str = typer.Option("auto", "--ego", help="the own vehicle: N bottom rows (at the frames' size; 0: none), "
                                                   "none (the camera as given) or auto: the camera's ego_rows, else "
                                                   "for a video found from 48 frames spread over it (said on stderr)"),
@@ -78,7 +81,7 @@ def predict_cmd(
     frames_camera = partial(camera_for, camera, quiet=quiet) if camera is not None else None
     result = predict_inputs(checkpoint, images, out, frames_camera, prior=prior, store=store, device=device,
                             keep_store=keep_store, within=within, overlay=overlay, mask_video=mask_video, ego=ego,
-                            progress=not quiet, vp_range=vp_range, vp_smooth=vp_smooth,
+                            progress=not quiet, vp_range=vp_range, vp_smooth=vp_smooth, vp_sequences=vp_sequences,
                             say=None if quiet else (lambda msg: err(f"{out}: {msg}")))
     for p in result.written:
         print(p)

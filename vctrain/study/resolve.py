@@ -206,19 +206,22 @@ class Resolution:
         if self._train_canvas is None:
             from vcprep.virtual_camera import design_virtual_camera
 
-            self._train_canvas = design_virtual_camera([self.nominal_camera(d) for d in trainable], self.study.pan_range,
-                                                       self.study.tilt_range, name="study-virtual",
-                                                       above=self.study.above, extent=self.study.extent).camera
+            st = self.study
+            self._train_canvas = design_virtual_camera([self.nominal_camera(d) for d in trainable], st.pan_range,
+                                                       st.tilt_range, name="study-virtual", above=st.above,
+                                                       extent=st.extent).camera
         return self._train_canvas
 
-    def vp_rule(self):
-        """The rule of the study's estimated VPs (:class:`~vcprep.vanishing_point.VPRule`): searched
-        and accepted only within the pose range the virtual camera is designed to hold (a pose
-        outside it would push the image out of the virtual frame), no smoothing. The stores record
-        it, so ``vctrain predict`` estimates a study model's VPs with it."""
+    def vp_rule(self, ds: Dataset):
+        """The rule of ``ds``'s estimated VPs (:class:`~vcprep.vanishing_point.VPRule`): searched and
+        accepted only within the pose range the virtual camera is designed to hold (a pose outside it
+        would push the image out of the virtual frame), no smoothing, sequences by file name (by
+        folder for a label format whose ids name the drive: IDD). The stores record it, so ``vctrain
+        predict`` estimates a study model's VPs with it (``--vp-sequences`` where a test set's differs)."""
         from vcprep.vanishing_point import VPRule
 
-        return VPRule(self.study.pan_range, self.study.tilt_range)
+        drives = get_label_format(ds.label_format).drive_in_id
+        return VPRule(self.study.pan_range, self.study.tilt_range, sequences="folder" if drives else "name")
 
     def scale(self) -> float:
         w, h = self.training_virtual().size

@@ -67,7 +67,7 @@ class Stores:
                 self._vps[key] = frame_poses(jobs, self.res.camera(ds), str(vps))[0]
             else:
                 self.say(f"estimating road VPs of {ds.name}/{split} ({len(jobs)} images)")
-                self._vps[key], found = frame_poses(jobs, self.res.camera(ds), "estimate", self.res.vp_rule())
+                self._vps[key], found = frame_poses(jobs, self.res.camera(ds), "estimate", self.res.vp_rule(ds))
                 (self.out / "vps").mkdir(parents=True, exist_ok=True)
                 write_vp_csv(self.out / "vps" / f"{ds.name}-{split}.csv", [j.id for j in jobs], found)
         return self._vps[key]
