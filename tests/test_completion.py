@@ -213,6 +213,28 @@ def test_vp_outside_is_recorded_in_the_store(tmp_path, camvid_half):
     assert summary.notes and "VP outside" in summary.notes[0]
 
 
+def test_unlabelled_completion_gives_the_images_of_unlabelled_frames(tmp_path, camvid_half):
+    """A study's test store (WarpSettings.unlabelled_completion): its labels (here a bonnet's ignore
+    border) never shape the completion, so its images are the frames' images warped without labels
+    (what vctrain predict builds); the record says so, and its key differs (a store built otherwise
+    is rebuilt); the labels still ride along."""
+    images, labels = write_synthetic_dataset(tmp_path / "ds", camvid_half, n=2, bonnet_rows=25)
+    fmt = LABEL_FORMATS["camvid"]
+
+    def build(out: str, labelled: bool, unlabelled: bool):
+        jobs = list_dataset(images, labels if labelled else None, fmt if labelled else None)
+        return warp_dataset(jobs, tmp_path / out, WarpSettings(
+            PRESETS["camvid"], PRESETS["virtual"], 0.125, fmt if labelled else None, completion="projective",
+            unlabelled_completion=unlabelled, progress=False))[0]
+
+    plain, shaped, test = build("plain", False, False), build("shaped", True, False), build("test", True, True)
+    for i in ("seq_0000", "seq_0001"):
+        img = {s: cv2.imread(str(s.path(s.get(i)["image"]))) for s in (plain, shaped, test)}
+        assert np.array_equal(img[test], img[plain]) and not np.array_equal(img[shaped], img[plain])
+        assert test.get(i)["completion_unlabelled"] is True and "completion_unlabelled" not in shaped.get(i)
+        assert test.get(i)["key"] != shaped.get(i)["key"] and test.get(i)["label"]
+
+
 def test_thin_band_kitti():
     """KITTI frames (375 px high) cover a thin band of the virtual view; a 48-row crop around the
     horizon is thinner still. Both complete everything, from both sides of the band."""

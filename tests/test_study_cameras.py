@@ -144,31 +144,32 @@ def test_a_study_that_sets_nothing_gets_the_measured_design(tmp_path):
 def test_extent_median_trains_in_the_median_rectangle_and_extends_each_test_split(tmp_path):
     """extent: median over CamVid (58 deg), KITTI (81 deg) and Cityscapes: every training store
     shares the rectangle sized by the median camera (narrower than 'max', which KITTI sizes), and
-    each dataset's test split gets that rectangle extended to hold its own camera at every pose of
-    the ranges (checked: extending it once more for those views changes nothing); a crossval run
-    builds and scores the test stores in their own rectangles."""
-    from vcprep.camera import extend_canvas, same_camera_other_canvas
+    each dataset's test split gets that rectangle extended to hold its own frames at their poses, as
+    vctrain predict extends it (checked: extending it once more for those views changes nothing);
+    a crossval run builds and scores the test stores in their own rectangles."""
+    from vcprep.camera import camera_from_dict, extend_canvas, same_camera_other_canvas
+    from vcprep.store import Store
     from vctrain.study import Resolution, load_study
 
     study = _study(tmp_path / "data")
     d = yaml.safe_load(study.read_text())
-    full = Resolution(load_study(study), tmp_path / "full").virtual_for(load_study(study).datasets[0])
+    full = Resolution(load_study(study), tmp_path / "full").training_virtual()
     d["extent"] = "median"
     study.write_text(yaml.safe_dump(d))
     s = load_study(study)
-    res = Resolution(s, tmp_path / "out")
-    train = res.virtual_for(s.datasets[0])
-    assert all(res.virtual_for(ds, "train") == train for ds in s.datasets)
+    train = Resolution(s, tmp_path / "out").training_virtual()
     assert same_camera_other_canvas(train.to_dict(), full.to_dict()) and train.size[0] < full.size[0]
-    for ds in s.datasets:
-        test = res.virtual_for(ds, "test")
-        cam = res.nominal_camera(ds)
-        views = [(cam, cam.pan + a * 5, cam.tilt + b * 3) for a in (-1, 0, 1) for b in (-1, 0, 1)]
-        assert same_camera_other_canvas(test.to_dict(), train.to_dict()) and extend_canvas(test, views) is test
-    assert res.virtual_for(s.dataset("kitti"), "test").size[0] > train.size[0]  # the widest camera: extended
     proc = run_cli("crossval", study, "--out", tmp_path / "out", "--conditions", "within", "--heldout", "kitti",
                    "--quiet", prog="vctrain")
     assert proc.returncode == 0, proc.stderr
+    stores = {split: Store.open(tmp_path / "out" / "stores" / name / split / "within")
+              for name, split in (("camvid", "train"), ("kitti", "test"))}
+    assert stores["train"].params["virtual"] == train.to_dict()
+    test = camera_from_dict(stores["test"].params["virtual"])
+    assert same_camera_other_canvas(test.to_dict(), train.to_dict()) and test.size[0] > train.size[0]  # the widest
+    views = [(camera_from_dict(r["camera_params"]), r["pan_deg"], r["tilt_deg"]) for r in stores["test"]]
+    assert extend_canvas(test, views) is test
     info = json.loads((tmp_path / "out" / "study.json").read_text())
-    assert info["extent"] == "median" and info["test_canvases"]["kitti"] == list(res.virtual_for(s.dataset("kitti"), "test").size)
+    result = json.loads((tmp_path / "out" / "runs" / "kitti" / "within" / "result.json").read_text())
+    assert info["extent"] == "median" and result["test_warp"]["rectangle"] == list(test.size)
     assert "| kitti |" in proc.stdout

@@ -50,7 +50,11 @@ def test_prior_condition_equals_an_independent_computation(geo_run):
         assert row["train_datasets"] == train and row["epochs"] == 0
         prior = _own_prior([out / "stores" / t / "train" / "within" for t in train])
         tp = fp = fn = 0
-        test = Store.open(out / "stores" / held / "test" / "within")  # per-image estimated VPs, as the paper
+        # per-image estimated VPs, as the paper; in the training rectangle as it is (as predict --prior warps):
+        # the within test store's own where no frame reaches past it, else its -fixed twin
+        fixed = out / "stores" / held / "test" / "within-fixed"
+        test = Store.open(fixed if fixed.exists() else out / "stores" / held / "test" / "within")
+        assert test.params["virtual"] == Store.open(out / "stores" / train[0] / "train" / "within").params["virtual"]
         assert {r["vp_status"] for r in test} <= {"accepted", "fallback"}
         for rec in test:
             w, h = rec["size"]
@@ -72,10 +76,19 @@ def test_prior_condition_equals_an_independent_computation(geo_run):
 
 def test_prior_and_adapt_put_every_store_in_one_rectangle(geo_run):
     """The prior is an image of the training rectangle: a study with prior/adapt that does not set
-    'canvas' gets the shared rectangle (said in study.json), every store the same size."""
+    'canvas' gets the shared rectangle (said in study.json), every training store and every store the
+    prior is scored on the same size; a model's test store (within, for adapt) is that rectangle,
+    extended only where a frame at its pose reaches past it (as vctrain predict extends it)."""
+    from vcprep.camera import same_camera_other_canvas
+
     _, out = geo_run[:2]
     assert json.loads((out / "study.json").read_text())["canvas"] == "shared"
-    assert len({tuple(Store.open(p).store_size) for p in (out / "stores").glob("*/*/*")}) == 1
+    stores = {p: Store.open(p) for p in (out / "stores").glob("*/*/*")}
+    prior = [p for p in stores if p.parent.name == "train" or p.name == "within-fixed" or
+             (p.parent.name == "test" and not (p.parent / "within-fixed").exists())]
+    assert len({tuple(stores[p].store_size) for p in prior}) == 1
+    one = stores[prior[0]].params["virtual"]
+    assert all(same_camera_other_canvas(s.params["virtual"], one) for s in stores.values())
 
 
 def test_adapt_reuses_the_within_model_and_never_reads_test_labels(geo_run):

@@ -368,6 +368,22 @@ def test_sequence_key_and_smoothing(camvid_half):
     assert smooth_sequences(ids, res, [camvid_half] * len(ids), window=0)[2].vp == vps[2]
 
 
+def test_a_rule_groups_the_same_frames_the_same_way_whatever_their_ids():
+    """VPRule.frame_ids: sequences by file name (a study's CamVid ids, predict's stems, a suffixed
+    Cityscapes stem: one key), or by folder (IDD's drives, whose file names repeat)."""
+    from vcprep.vp import VPRule
+
+    name = VPRule().frame_ids(["a/0016E5_07959.png", "b/aachen_000000_000019_leftImg8bit.png", "c/frame.png"])
+    assert [sequence_key(i) for i in name] == ["0016E5", "aachen", "frame"]
+    folder = VPRule(sequences="folder").frame_ids(["idd/0/024541_image.jpg", "idd/0/024703_image.jpg",
+                                                   "idd/1/024541_image.jpg", "x/a_b/f.png"])
+    assert [sequence_key(i) for i in folder] == ["0", "0", "1", "a-b"] and len(set(folder)) == 4
+    assert VPRule.from_dict(VPRule(10, 5, 2, "folder").to_dict()) == VPRule(10, 5, 2, "folder")
+    assert VPRule.from_dict({"pan_range": 10, "tilt_range": 5}) == VPRule(10, 5)  # (sequences: by name)
+    with pytest.raises(InputError, match="unknown VP sequence rule"):
+        VPRule(sequences="drive")
+
+
 # ---------------------------------------------------------------------------------- CSV
 
 def test_csv_round_trip(tmp_path, camvid_half):

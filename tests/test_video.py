@@ -331,12 +331,13 @@ def test_a_folder_of_one_camera_finds_its_own_vehicle_as_a_video_does(model, ego
     (tmp_path / "ego.yaml").write_text(camera_to_yaml(replace(cam, ego_rows=int(m.group(1)))))
     r2 = runner.invoke(app, ["predict", str(model), "--camera", str(tmp_path / "ego.yaml"), str(tmp_path / "frames"),
                              "--out", str(tmp_path / "stated")])
-    assert r2.exit_code == 0 and "own vehicle" not in r2.stderr, r2.output
+    assert r2.exit_code == 0 and "found from the frames" not in r2.stderr, r2.output  # not searched
+    assert "(the camera's ego_rows)" in r2.stderr  # (stderr says where the rows come from)
     probs = sorted((tmp_path / "auto").glob("*_prob.png"))
     assert len(probs) == 36
     for p in probs:
         assert np.array_equal(read_image(p).array, read_image(tmp_path / "stated" / p.name).array)
     r3 = runner.invoke(app, ["predict", str(model), "--camera", str(root / "cam.yaml"), str(tmp_path / "frames"),
                              "--out", str(tmp_path / "none"), "--ego", "none"])
-    assert r3.exit_code == 0 and "own vehicle" not in r3.stderr
+    assert r3.exit_code == 0 and "found from the frames" not in r3.stderr and "own vehicle: none" in r3.stderr
     assert any(not np.array_equal(read_image(p).array, read_image(tmp_path / "none" / p.name).array) for p in probs)

@@ -112,10 +112,12 @@ def prior_meta(stores: Iterable[Store | str | Path], n_unlabelled: int) -> dict[
     stores = open_stores(stores)
     p = stores[0].params
     recs = [rec for _, rec in _labelled(stores)]
+    rules = sorted({json.dumps(r["vp_rule"], sort_keys=True) for r in recs if r.get("vp_rule")})
     return {"format": PRIOR_FORMAT, "version": 1, "tool_version": __version__,
             "store_params": {k: p.get(k) for k in (*_SAME, "virtual_scaled")},
             "completion": sorted({r.get("completion", "none") for r in recs}),
             "vp_status": sorted({r.get("vp_status", "camera") for r in recs}),
+            **({"vp_rule": json.loads(rules[0])} if rules else {}),  # (estimated VPs: the rule, as a model keeps it)
             "stores": [str(s.root) for s in stores], "items": len(recs), "unlabelled_pixels": int(n_unlabelled)}
 
 

@@ -78,7 +78,8 @@ class PriorPredictor:
                              self.path, "write the prior and its description again with 'vcprep prior'")
         # the warp only places the prior: completion does not change the geometry
         self.data: dict[str, Any] = {"mode": "virtual", "store_params": sp, "completion": "none",
-                                     "vp_status": meta.get("vp_status", ["camera"]), "input_size": [w, h]}
+                                     "vp_status": meta.get("vp_status", ["camera"]), "input_size": [w, h],
+                                     **({"vp_rule": meta["vp_rule"]} if meta.get("vp_rule") else {})}
 
     def store_item(self, store: Store, rec: dict[str, Any]) -> np.ndarray:
         """P(road) = p_g in the item's ORIGINAL camera (source size; 0 outside the virtual image)."""

@@ -9,7 +9,8 @@ A checkpoint is a ``torch.save`` dict (loadable with ``weights_only=True``)::
     data         mode ('virtual' | 'resize'), input_size [w, h], store_params (store.json of the
                  training store: virtual camera, scale, store_size, virtual_scaled; None for a
                  baseline trained from folders), completion, vp_channel, greyscale, vp_status
-                 (per-image VP statuses seen in training), train_items, val_items
+                 (per-image VP statuses seen in training), vp_rule (the VPRule of its estimated VPs, when
+                 the stores record one: predict estimates with it), train_items, val_items
     epoch, step, metrics (of this epoch), best_iou, best_epoch, history (per-epoch log rows)
     optimizer    optimizer state (for --resume)
 """

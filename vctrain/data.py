@@ -35,6 +35,7 @@ size, so a crop sees exactly its window of the whole image's map.
 """
 from __future__ import annotations
 
+import json
 import math
 from collections import Counter
 from dataclasses import dataclass
@@ -416,6 +417,9 @@ def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str
     info["input_size"] = list(size)
     info["crop_size"] = list(crop_size(cfg.crop, size))
     info["vp_status"] = sorted({rec.get("vp_status", "camera") for s in stores for rec in s})
+    rules = Counter(json.dumps(rec["vp_rule"], sort_keys=True) for s in stores for rec in s if rec.get("vp_rule"))
+    if rules:  # the rule the estimated VPs were found with (of most items): predict follows it
+        info["vp_rule"] = json.loads(max(sorted(rules), key=rules.get))
     info["train_items"] = len(train)
     info["train_items_per_source"] = dict(Counter(t.source for t in train))  # (in the stores' order)
     info["val_items"] = len(val)

@@ -9,7 +9,7 @@ import typer
 from tqdm import tqdm
 
 from ..warp.backproject import backproject_folder
-from ..store.build import ItemPose, WarpSettings, say_on_stderr, warp_dataset
+from ..store.build import WarpSettings, frame_poses, say_on_stderr, warp_dataset
 from ..camera.pinhole import Camera
 from ..camera.sources import load_camera
 from ..camera.estimate import estimate_camera, estimate_to_yaml
@@ -23,7 +23,7 @@ from ..prior import compute_prior, open_stores, prior_meta, write_prior
 from ..store.layout import Shard, Store
 from ..store.check import merge_store, store_info, verify_and_repair, verify_store
 from ..store.complete import CompleteSettings, complete_store
-from ..vp.reliability import vps_for_items
+from ..vp.reliability import VPRule
 from .common import (COMPLETE_HELP, FRAMES_HELP, JOBS_HELP, KEEP_GOING_HELP, LABEL_FORMAT_HELP, SHARD_HELP,
                      SMOOTH_HELP, WITHIN_HELP, app, camera_for, check_label_format, estimated_line, finish, store_app,
                      vp_counts)
@@ -95,7 +95,7 @@ def warp_cmd(
                          "exact pose", camera, "drop --within, or give one camera file or preset")
     virt = load_camera(virtual)
     # VPs over all frames even for one shard: the fallback VP and smoothing depend on the whole run
-    poses = _within_poses(items, cam, within, vp_smooth, id_prefix, quiet)
+    poses = _within_poses(items, cam, within, vp_smooth, id_prefix, quiet, fmt)
     settings = WarpSettings(camera=cam, virtual=virt, scale=scale, label_format=fmt, completion=complete, poses=poses,
                             workers=jobs or default_jobs(), shard=part, keep_going=keep_going, progress=not quiet)
     store, summary = warp_dataset(items, out, settings)
@@ -120,7 +120,7 @@ def _warp_camera(camera: str, items: list, fmt, quiet: bool):
     return estimate.camera, estimate
 
 
-def _within_poses(jobs, cam: Camera, within: str, smooth: int, id_prefix: str, quiet: bool):
+def _within_poses(jobs, cam: Camera, within: str, smooth: int, id_prefix: str, quiet: bool, fmt=None):
     """The ``poses`` mapping of :class:`vcprep.store.build.WarpSettings` from ``--within`` (None for 'none')."""
     if within == "none":
         if smooth:
@@ -131,13 +131,14 @@ def _within_poses(jobs, cam: Camera, within: str, smooth: int, id_prefix: str, q
         raise InputError("--vp-smooth applies to estimated VPs only", within, "use --within estimate")
     bar = tqdm(total=len(jobs), desc="vp", unit="img", disable=True if quiet or within != "estimate" else None, leave=False)
     try:
-        results = vps_for_items([j.image for j in jobs], [j.id for j in jobs], cam, within, smooth,
-                                id_prefix=id_prefix, on_image=lambda i: bar.update())
+        # IDD's file names repeat from drive to drive: its frames' sequences are their folders, as its item ids say
+        rule = VPRule(smooth=smooth, sequences="folder" if fmt is not None and fmt.drive_in_id else "name")
+        poses, results = frame_poses(jobs, cam, within, rule, id_prefix, lambda i: bar.update())
     finally:
         bar.close()
     if not quiet:
         err(f"vanishing points: {vp_counts(results)}")
-    return {j.id: ItemPose((r.vp[0], r.vp[1]), r.status) for j, r in zip(jobs, results)}
+    return poses
 
 
 @app.command("complete")

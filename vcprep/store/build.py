@@ -40,10 +40,13 @@ class ItemPose:
     """A per-image pose from its road vanishing point (within-camera correction).
 
     ``vp`` is [u, v] in source pixels of the image as stored on disk; ``status`` is
-    'accepted', 'fallback' or 'given' (see the vanishing-point module)."""
+    'accepted', 'fallback' or 'given' (see the vanishing-point module); ``rule``: the
+    :class:`~vcprep.vp.VPRule` an estimated VP was found with (its ``to_dict``,
+    recorded as the item's ``vp_rule``), None for a given one."""
 
     vp: tuple[float, float]
     status: str
+    rule: Mapping[str, Any] | None = None
 
 
 @dataclass(frozen=True)
@@ -60,6 +63,9 @@ class WarpSettings:
     completion: str = "none"             # fills uncovered store pixels: 'projective', 'zero' or 'none'
     poses: Mapping[str, ItemPose] | None = None  # within-camera correction: item id -> its own VP pose;
                                          # items without one (or None) take the camera's average pose
+    unlabelled_completion: bool = False  # True: labels never shape the completion (it keeps clear of their border
+                                         # ignore otherwise), so each image is what its frame gives without a
+                                         # label, as vctrain predict warps it (a study's test stores)
     workers: int = 1                     # worker processes building items (results identical to 1)
     shard: Shard | None = None           # build only this shard's items, into its own part file
     keep_going: bool = False             # skip (and list) bad items instead of stopping at the first
@@ -188,9 +194,11 @@ class WarpedItem:
 
 def warp_item_full(job: Job, store_size: tuple[int, int], H: np.ndarray, fmt: LabelFormat | None,
                    completion: str = "none", vp_store: tuple[float, float] | None = None,
-                   data: tuple[bytes | None, bytes | None] = (None, None), ego_rows: int = 0) -> WarpedItem:
+                   data: tuple[bytes | None, bytes | None] = (None, None), ego_rows: int = 0,
+                   unlabelled: bool = False) -> WarpedItem:
     """Warp + complete one item in memory (one pass per image/label, :mod:`vcprep.warp.completion`).
     ``data``: the image's and label's file bytes if already read (hashing reads them).
+    ``unlabelled``: the label does not shape the completion (:attr:`WarpSettings.unlabelled_completion`).
     ``ego_rows``: the bottom rows showing the rig's own vehicle are cut off before anything else
     (an exact bottom crop: ``H`` holds as is for the remaining (w, h - ego_rows) image), so they
     never reach the store; the store pixels they would have covered are uncovered (completed or
@@ -203,14 +211,15 @@ def warp_item_full(job: Job, store_size: tuple[int, int], H: np.ndarray, fmt: La
             raise InputError(f"label is {raw.size[0]}x{raw.size[1]} but its image is {img.size[0]}x{img.size[1]}",
                              job.label, "labels must have the size of their images")
         lab = decode_label(raw.array, fmt, job.label)
-    return warp_arrays(img.array, lab, store_size, H, completion, vp_store, ego_rows, job.image)
+    return warp_arrays(img.array, lab, store_size, H, completion, vp_store, ego_rows, job.image, unlabelled)
 
 
 def warp_arrays(image: np.ndarray, label: np.ndarray | None, store_size: tuple[int, int], H: np.ndarray,
                 completion: str = "none", vp_store: tuple[float, float] | None = None, ego_rows: int = 0,
-                file: Path | None = None) -> WarpedItem:
+                file: Path | None = None, unlabelled: bool = False) -> WarpedItem:
     """:func:`warp_item_full` on arrays already in memory (a decoded video frame; ``label``: the
-    decoded label or None); ``file`` names the source in errors."""
+    decoded label or None); ``file`` names the source in errors; ``unlabelled``: the completion
+    is the one of the image alone (the label's border ignore does not shape it)."""
     src, lab, w, h = image, label, image.shape[1], image.shape[0] - int(ego_rows)
     if ego_rows:
         if h < 1:
@@ -218,7 +227,7 @@ def warp_arrays(image: np.ndarray, label: np.ndarray | None, store_size: tuple[i
                              "ego_rows must be less than the image height")
         src = src[:h]
         lab = lab[:h] if lab is not None else None
-    maps = item_maps(H, (w, h), store_size, completion, vp_store, border_ignore(lab))
+    maps = item_maps(H, (w, h), store_size, completion, vp_store, None if unlabelled else border_ignore(lab))
     warped = warp_image(src, maps)
     label = warp_label(lab, maps, border_value=maps.label_border) if lab is not None else None
     return WarpedItem(warped, label, maps.valid, maps)
@@ -255,6 +264,7 @@ class _WarpContext:
     params: dict[str, Any]
     fmt: LabelFormat | None
     completion: str
+    unlabelled: bool = False  # WarpSettings.unlabelled_completion
     written: dict[str, str] = field(default_factory=dict, compare=False, repr=False)  # see write_item
 
 
@@ -287,6 +297,30 @@ def write_item(root: Path, rec: ItemRecord, item: WarpedItem, written: dict[str,
                          "are kept") from None
     sums["valid"] = sha
     return sums
+
+
+def frame_poses(jobs: list[Job], camera: Camera | FrameCameras, within: str, rule: Any = None,
+                id_prefix: str = "", on_image: Callable[[int], None] | None = None,
+                on_error: Callable[[int, VCError], None] | None = None
+                ) -> tuple[dict[str, ItemPose] | None, list[Any]]:
+    """(``poses`` of :class:`WarpSettings`, the VP results) of ``jobs`` taken together: ``within``
+    'none' (None: the camera's average pose, or each frame's calibrated one), 'estimate' (each
+    frame's road VP found by ``rule``, a :class:`~vcprep.vp.VPRule`: None, the
+    detector's defaults; frames grouped into sequences by its ``frame_ids``, not by item ids;
+    recorded with each pose) or a CSV ``id,u,v`` of given VPs (looked up by item id). The one rule
+    of ``vcprep warp``, ``vctrain predict`` and a study's stores. ``on_error(i, error)`` (given): a
+    frame that cannot be read is told to it and has no pose (estimation only)."""
+    if within == "none":
+        return None, []
+    from ..vp.reliability import VPRule, vps_for_items
+
+    rule = rule or VPRule()
+    images = [j.image for j in jobs]
+    # estimated VPs: grouped into sequences by the rule (the same frames, the same groups, whatever their ids)
+    ids = rule.frame_ids(images) if within == "estimate" else [j.id for j in jobs]
+    results = vps_for_items(images, ids, camera, within, rule.smooth, rule.config(), id_prefix, on_image, on_error)
+    tag = rule.to_dict() if within == "estimate" else None
+    return {j.id: ItemPose((r.vp[0], r.vp[1]), r.status, tag) for j, r in zip(jobs, results) if r is not None}, results
 
 
 def _item_pose(cam: Camera, pose: ItemPose | None, per_frame: bool) -> tuple[float, float, tuple[float, float], str]:
@@ -322,15 +356,17 @@ def build_item(ctx: _WarpContext, task: _WarpTask) -> ItemResult:
         label_source=str(job.label) if job.label else None, label_sha256=lab_hash,
         label_format=fmt.name if fmt and job.label else None, camera=camera.name, camera_params=cam.to_dict(),
         camera_file=str(camera.file_for(job.image)) if per_frame else None, size=list(cam.size),
-        ego_rows=int(cam.ego_rows or 0), vp=[float(vp[0]), float(vp[1])], vp_status=vp_status, pan_deg=pan,
+        ego_rows=int(cam.ego_rows or 0), vp=[float(vp[0]), float(vp[1])], vp_status=vp_status,
+        vp_rule=dict(task.pose.rule) if task.pose is not None and task.pose.rule else None, pan_deg=pan,
         tilt_deg=tilt, H=H.ravel().tolist(), image=f"images/{job.id}.png",
         label=f"labels/{job.id}.png" if job.label is not None else None,
         valid=valid_path(H, cam.visible_size, store_size), store_size=list(store_size), completion=ctx.completion,
+        completion_unlabelled=ctx.unlabelled and job.label is not None,
     ).keyed(ctx.params)
     if old is not None and old.get("key") == rec.key and files_present(ctx.root, old):
         return ItemResult(job.id, "up_to_date", old)
     item = warp_item_full(job, store_size=store_size, H=H, fmt=fmt, completion=ctx.completion, vp_store=vp_store,
-                          data=(data, lab_data), ego_rows=cam.ego_rows)
+                          data=(data, lab_data), ego_rows=cam.ego_rows, unlabelled=rec.completion_unlabelled)
     rec = replace(rec, **completion_fields(item.maps))
     rec = replace(rec, files_sha256=write_item(ctx.root, rec, item, ctx.written))
     return ItemResult(job.id, "built", rec.to_dict(), *off_vp_note(job.id, item.maps, vp_store, ctx.root))
@@ -419,7 +455,7 @@ def warp_dataset(jobs: list[Job], out: str | Path, settings: WarpSettings) -> tu
     with store_lock(out, shared=shard is not None, on_wait=say_on_stderr if settings.progress else None):
         store = Store.open_or_create(out, params, shard=shard)
         ctx = _WarpContext(store.root, settings.camera, store.virtual, store.params, settings.label_format,
-                           settings.completion)
+                           settings.completion, settings.unlabelled_completion)
         tasks = [_WarpTask(j, poses.get(j.id), store.items.get(j.id)) for j in jobs]
         summary = build_loop(store, LoopStep(build_item, ctx, "warp"), tasks, [j.id for j in jobs], settings)
     return store, summary

@@ -69,7 +69,8 @@ def complete_item(ctx: _CompleteContext, rec: dict[str, Any]) -> ItemResult:
     store_size = (int(ctx.params["store_size"][0]), int(ctx.params["store_size"][1]))
     vp_store = tuple(apply_homography(H, [rec["vp"]])[0])
     ego = int(rec.get("ego_rows", 0))
-    item = warp_item_full(Job(rec["id"], src, lab), store_size, H, fmt, ctx.method, vp_store, ego_rows=ego)
+    item = warp_item_full(Job(rec["id"], src, lab), store_size, H, fmt, ctx.method, vp_store, ego_rows=ego,
+                          unlabelled=bool(rec.get("completion_unlabelled")))
     changed = {"completion": ctx.method, **completion_fields(item.maps), "key": key,
                "valid": valid_path(H, (int(rec["size"][0]), int(rec["size"][1]) - ego), store_size)}
     # the record as stored, these fields changed (fields this version does not know kept in place);

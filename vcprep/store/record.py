@@ -58,7 +58,8 @@ def valid_path(H: Any, src_size: tuple[int, int], store_size: tuple[int, int]) -
     return f"valid/{VALID_PREFIX}{_hash(parts)[:16]}.png"
 
 
-_OMITTED_WHEN_EMPTY = ("camera_file", "ego_rows", "files_sha256")  # written only when set
+# written only when set
+_OMITTED_WHEN_EMPTY = ("camera_file", "ego_rows", "vp_rule", "completion_unlabelled", "files_sha256")
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -80,6 +81,7 @@ class ItemRecord:
     ego_rows: int = 0                         # bottom rows showing the own vehicle (cut off before warping)
     vp: list[float] | None = None             # road VP [u, v] in source pixels
     vp_status: str | None = None              # 'camera', 'calibrated', 'accepted', 'fallback' or 'given'
+    vp_rule: dict[str, Any] | None = None     # estimated VPs: the rule they were found with (VPRule.to_dict)
     pan_deg: float | None = None
     tilt_deg: float | None = None
     H: list[float] | None = None
@@ -90,6 +92,7 @@ class ItemRecord:
     completion: str = "none"
     completion_centre: list[float] | None = None  # see completion_fields
     completion_vp_inside: bool | None = None
+    completion_unlabelled: bool = False       # the label did not shape the completion (unlabelled_completion)
     key: str | None = None                    # self.key(params) once built
     tool_version: str = __version__
     files_sha256: dict[str, str] | None = field(default=None)  # SHA-256 of image, label, valid as written
@@ -101,6 +104,8 @@ class ItemRecord:
                       "label_sha256": self.label_sha256, "label_format": self.label_format,
                       "camera": self.camera_params, "store": {k: params[k] for k in STORE_KEY_PARAMS},
                       "H": _rounded(self.H), "vp_status": self.vp_status,
+                      **({"vp_rule": self.vp_rule} if self.vp_rule else {}),  # (keys of records without one: as before)
+                      **({"completion_unlabelled": True} if self.completion_unlabelled else {}),
                       "completion": completion_key_part(self.completion if completion is None else completion)})
 
     def keyed(self, params: dict[str, Any]) -> "ItemRecord":
@@ -108,8 +113,8 @@ class ItemRecord:
         return replace(self, key=self.key_for(params))
 
     def to_dict(self) -> dict[str, Any]:
-        """The record as written (JSON-ready); ``camera_file``, ``ego_rows`` and ``files_sha256``
-        only when set."""
+        """The record as written (JSON-ready); ``camera_file``, ``ego_rows``, ``vp_rule``,
+        ``completion_unlabelled`` and ``files_sha256`` only when set."""
         return {k: v for k, v in asdict(self).items() if v or k not in _OMITTED_WHEN_EMPTY}
 
     @classmethod

@@ -7,10 +7,10 @@ per-sequence smoothing, VP files).
 from __future__ import annotations
 
 from .estimate import VPConfig, VPResult, estimate_vp, is_reliable, score_vps
-from .reliability import (apply_reliability, estimate_files, format_vp_csv, read_vp_csv, sequence_key, smooth_sequences,
+from .reliability import (VPRule, apply_reliability, estimate_files, format_vp_csv, read_vp_csv, sequence_key, smooth_sequences,
                           vps_for_items, write_vp_csv)
 from .segments import detect_segments, prior_window, refine_segments, to_gray
 
-__all__ = ["VPConfig", "VPResult", "estimate_vp", "is_reliable", "score_vps", "apply_reliability", "estimate_files",
+__all__ = ["VPRule", "VPConfig", "VPResult", "estimate_vp", "is_reliable", "score_vps", "apply_reliability", "estimate_files",
            "format_vp_csv", "read_vp_csv", "sequence_key", "smooth_sequences", "vps_for_items", "write_vp_csv",
            "detect_segments", "prior_window", "refine_segments", "to_gray"]

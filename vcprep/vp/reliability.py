@@ -57,7 +57,7 @@ import csv
 import io
 import math
 import re
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable, Iterable, Mapping, Sequence
 
@@ -85,6 +85,57 @@ def _from_ray(cam: Camera, r) -> tuple[float, float]:
 
 #: a rejected VP falls back to its sequence's mean when the sequence has at least this many accepted VPs
 MIN_SEQUENCE_ACCEPTED = 3
+#: how frames are grouped into sequences (:attr:`VPRule.sequences`)
+SEQUENCES = ("name", "folder")
+
+
+@dataclass(frozen=True)
+class VPRule:
+    """How the VPs of a set of frames are estimated together: the pose ranges the detector searches
+    and :func:`apply_reliability` accepts (degrees from the camera's average pose; the rest of
+    :class:`VPConfig` is the detector's own), and the temporal smoothing window
+    (:func:`smooth_sequences`; 0: none). A store records the rule of its estimated VPs
+    (``vp_rule``), so a model's frames are predicted with the rule it was trained with."""
+
+    pan_range: float = VPConfig.pan_range
+    tilt_range: float = VPConfig.tilt_range
+    smooth: int = 0
+    sequences: str = "name"  # a frame's sequence (:func:`sequence_key`): 'name', its file name up to the first '_'
+    #                          (CamVid 0016E5_07959); 'folder', its folder (a drive: IDD's tree, whose names repeat)
+
+    def __post_init__(self):
+        if self.sequences not in SEQUENCES:
+            raise InputError(f"unknown VP sequence rule '{self.sequences}'", None, f"use one of {', '.join(SEQUENCES)}")
+
+    def config(self, base: VPConfig = VPConfig()) -> VPConfig:
+        """``base`` with this rule's pose ranges."""
+        return replace(base, pan_range=float(self.pan_range), tilt_range=float(self.tilt_range))
+
+    def frame_ids(self, images: Sequence[str | Path]) -> list[str]:
+        """The ids that :func:`apply_reliability` and :func:`smooth_sequences` group (:func:`sequence_key`)
+        and order ``images`` by: file stems, or ``<folder>_<stem>`` by ``sequences``."""
+        if self.sequences == "folder":
+            return [f"{Path(p).parent.name.replace('_', '-')}_{Path(p).stem}" for p in images]
+        return [Path(p).stem for p in images]
+
+    def to_dict(self) -> dict:
+        return {"pan_range": float(self.pan_range), "tilt_range": float(self.tilt_range), "smooth": int(self.smooth),
+                "sequences": self.sequences}
+
+    @classmethod
+    def from_dict(cls, d: Mapping | None) -> "VPRule | None":
+        """The rule a record or checkpoint holds (None: none recorded)."""
+        if not d:
+            return None
+        return cls(float(d["pan_range"]), float(d["tilt_range"]), int(d.get("smooth", 0)), d.get("sequences", "name"))
+
+    def describe(self) -> str:
+        """'pan within 10 deg and tilt within 5 deg of the camera's pose, a rejected VP replaced by the
+        mean accepted one of its sequence (by file name) or of all frames, no smoothing'."""
+        smooth = f"smoothed over {self.smooth} frames either side" if self.smooth else "no smoothing"
+        by = "file name" if self.sequences == "name" else "folder"
+        return (f"pan within {self.pan_range:g} deg and tilt within {self.tilt_range:g} deg of the camera's pose, "
+                f"a rejected VP replaced by the mean accepted one of its sequence (by {by}) or of all frames, {smooth}")
 
 
 def apply_reliability(results: Sequence[VPResult], cams: Sequence[Camera],

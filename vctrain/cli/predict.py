@@ -4,7 +4,7 @@ the camera inside: :func:`vctrain.deploy.export.export_onnx`)."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import List, Optional
+from typing import List, Optional, Tuple
 
 import typer
 
@@ -36,6 +36,16 @@ def predict_cmd(
                                                            "and the road VP of each frame too, only with --camera)"),
     mask_video: bool = typer.Option(False, "--mask-video", help="a video's masks as one lossless video "
                                                                 "OUT/<stem>_mask.mkv instead of a PNG per frame"),
+    vp_range: Optional[Tuple[float, float]] = typer.Option(None, "--vp-range", help="estimated VPs: searched and "
+                                                          "accepted within PAN TILT degrees of the camera's pose "
+                                                          "(default: the rule the model was trained with, e.g. a "
+                                                          "study's pan_range tilt_range; said on stderr)"),
+    vp_smooth: Optional[int] = typer.Option(None, "--vp-smooth", min=0, help="estimated VPs: median over N frames "
+                                                                             "either side of a sequence (default: the "
+                                                                             "model's rule for images, 2 for a video)"),
+    vp_sequences: Optional[str] = typer.Option(None, "--vp-sequences", help="estimated VPs: a frame's sequence (its "
+                                               "fallback and smoothing) is its file name up to the first '_' (name) "
+                                               "or its folder (folder: IDD's drives); default: the model's rule"),
     ego: str = typer.Option("auto", "--ego", help="the own vehicle in a video or a folder of one camera's frames "
                                                   "(a virtual-camera model): auto (the camera's ego_rows, else found "
                                                   "from up to 48 frames spread over them, said on stderr), none (no "
@@ -53,7 +63,10 @@ def predict_cmd(
     Writes OUT/<stem>_mask.png (0/255) and OUT/<stem>_prob.png (0-255 road probability) at the
     image size; prints the mask paths. A video is predicted frame by frame in memory (the same
     numbers), into OUT/<stem>/<stem>_<frame>_mask.png (frame: 6 digits from 0) or, with
-    --mask-video, OUT/<stem>_mask.mkv; per-frame VPs are smoothed over time.
+    --mask-video, OUT/<stem>_mask.mkv; per-frame VPs are smoothed over time. Images are warped
+    as a 'vctrain crossval' study tests them (the same masks): per-frame VPs estimated together
+    with the model's rule, the own vehicle's rows cut off, the rectangle extended to hold every
+    frame; stderr says which VPs, own vehicle and rectangle were used.
 
     \b
     Example:
@@ -73,7 +86,8 @@ def predict_cmd(
     frames_camera = partial(camera_for, camera, quiet=quiet) if camera is not None else None
     result = predict_inputs(checkpoint, images, out, frames_camera, prior=prior, store=store, device=device,
                             keep_store=keep_store, within=within, overlay=overlay, mask_video=mask_video, ego=ego,
-                            progress=not quiet)
+                            progress=not quiet, vp_range=vp_range, vp_smooth=vp_smooth, vp_sequences=vp_sequences,
+                            say=None if quiet else (lambda msg: err(f"{out}: {msg}")))
     if result.failed and not result.written:  # nothing predicted: the (first) frame's own error
         _failed(result, out)
     for p in result.written:

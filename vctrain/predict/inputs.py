@@ -53,11 +53,16 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
                    camera_for: Optional[CameraFor] = None, prior: Optional[Path] = None, store: Optional[Path] = None,
                    device: str = "auto", keep_store: Optional[Path] = None, within: str = "auto",
                    overlay: bool = False, mask_video: bool = False, ego: str = "auto",
-                   progress: bool = True) -> Predicted:
+                   progress: bool = True, vp_range: Optional[tuple[float, float]] = None,
+                   vp_smooth: Optional[int] = None, vp_sequences: Optional[str] = None,
+                   say: Optional[Callable[[str], None]] = None) -> Predicted:
     """``vctrain predict``: ``checkpoint`` (a ``.pt`` model or an ``.onnx`` graph; with ``prior``
     it is the first image) on ``images`` (files, folders, videos) or every item of ``store``.
-    ``camera_for`` (None: no --camera) gives the frames' camera. Bad combinations raise
-    :class:`InputError` before anything is predicted."""
+    ``camera_for`` (None: no --camera) gives the frames' camera. ``vp_range`` (pan, tilt degrees),
+    ``vp_smooth`` (frames either side) and ``vp_sequences`` ('name', 'folder') change the rule
+    estimated VPs follow (default: the model's, :func:`vctrain.predict.road.model_vp_rule`); ``say``
+    (given) hears which VPs, own vehicle and rectangle image files were warped with. Bad
+    combinations raise :class:`InputError` before anything is predicted."""
     if prior is not None:
         if checkpoint is not None and checkpoint.suffix.lower() == ".pt":
             raise InputError("give either a model or --prior, not both", checkpoint, "drop one of them")
@@ -82,12 +87,14 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
     videos = check_video_stems([p for p in images or [] if is_video(p)])
     images = [p for p in images or [] if not is_video(p)]
     predictor = _predictor(checkpoint, prior, device)
+    rule = _vp_rule(predictor, vp_range, vp_smooth, vp_sequences)
     written, t0, times = [], time.perf_counter(), StageTimes()
     if videos:
         for v in videos:  # 'estimate': from a sample of the video's own frames (its overlay draws the horizon)
             vcam = camera_for(None, per_frame=False, frames=[v]) if camera_for is not None else None
             written += predict_video(predictor, v, out, vcam, within=within, mask_video=mask_video, overlay=overlay,
-                                     progress=progress, ego=ego, times=times)
+                                     progress=progress, ego=ego, times=times, vp_rule=rule,
+                                     **({"vp_window": vp_smooth} if vp_smooth is not None else {}))
     n_images = 0
     if store is not None:
         from vcprep.store import Store
@@ -98,7 +105,8 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
         n_images = len(written)
     failed = []
     if images:
-        run = _predict_image_files(predictor, images, out, camera_for, keep_store, within, overlay, progress, ego)
+        run = _predict_image_files(predictor, images, out, camera_for, keep_store, within, overlay, progress,
+                                   ego, rule, say)
         written += run.written
         failed = run.failed
         n_images = len(run.written) + len(failed)
@@ -137,6 +145,24 @@ def _predictor(checkpoint: Optional[Path], prior: Optional[Path], device: str):
     return Predictor(checkpoint, device)
 
 
+def _vp_rule(predictor, vp_range: Optional[tuple[float, float]], vp_smooth: Optional[int],
+             vp_sequences: Optional[str] = None):
+    """The model's VP rule with ``vp_range``, ``vp_smooth`` and ``vp_sequences`` where given (None:
+    none given)."""
+    if vp_range is None and vp_smooth is None and vp_sequences is None:
+        return None
+    from dataclasses import replace
+
+    from .road import model_vp_rule
+
+    rule = model_vp_rule(getattr(predictor, "data", {}))[0]
+    if vp_range is not None:
+        rule = replace(rule, pan_range=float(vp_range[0]), tilt_range=float(vp_range[1]))
+    if vp_sequences is not None:
+        rule = replace(rule, sequences=vp_sequences)
+    return replace(rule, smooth=int(vp_smooth)) if vp_smooth is not None else rule
+
+
 def _needs_no_camera(predictor) -> bool:
     """A resize model without the VP channel reads frames as they are, and a graph holds its camera
     (a --vp-input graph's VPs are estimated with the given one): --camera changes nothing there (it is
@@ -147,10 +173,12 @@ def _needs_no_camera(predictor) -> bool:
 
 
 def _predict_image_files(predictor, images: Sequence[Path], out: Path, camera_for: Optional[CameraFor],
-                         keep_store: Optional[Path], within: str, overlay: bool, progress: bool, ego: str = "auto"):
+                         keep_store: Optional[Path], within: str, overlay: bool, progress: bool, ego: str = "auto",
+                         vp_rule: Any = None, say: Optional[Callable[[str], None]] = None):
     """Image files and folders: their camera from ``camera_for`` (a virtual-camera model needs
     one; with one camera, its own vehicle found from the frames unless the camera states it: ``ego``
-    as for a video), then :func:`vctrain.predict.predictor.predict_frames` (the one road for a frame)."""
+    as for a video), then :func:`vctrain.predict.predictor.predict_frames` (the one road for a
+    frame) with ``vp_rule`` (None: the model's); ``say`` hears what the frames were warped with."""
     from vcprep.camera import Camera
     from vcprep.cliutil import err
     from vcprep.dataset import collect_images
@@ -159,15 +187,21 @@ def _predict_image_files(predictor, images: Sequence[Path], out: Path, camera_fo
     from .predictor import predict_frames
     from .road import folder_ego_camera
 
-    cam = None
+    cam, ego_source = None, ""
     if camera_for is not None:  # checked even where the model needs none: a typo is never silent
         jobs = collect_images(images)
         cam = camera_for(jobs[0].image, frames=[j.image for j in jobs], needed=not _needs_no_camera(predictor))
         if warps_frames(predictor) and isinstance(cam, Camera):  # one camera's frames: its own vehicle, as a video's
-            say = (lambda msg: err(f"{jobs[0].image.parent}: {msg}")) if progress else None
-            cam = folder_ego_camera(cam, [j.image for j in jobs], ego, say)
+            stated = cam.ego_rows
+            tell = (lambda msg: err(f"{jobs[0].image.parent}: {msg}")) if progress else None
+            cam = folder_ego_camera(cam, [j.image for j in jobs], ego, tell)
+            ego_source = (f"--ego {ego}" if ego not in ("auto", "none") else "the camera's ego_rows" if stated
+                          else "found from the frames" if cam.ego_rows else "")
+        elif warps_frames(predictor) and ego not in ("auto", "none"):
+            raise InputError("--ego N needs one camera; per-frame calibration files give the frames' cameras",
+                             jobs[0].image, "write ego_rows in a camera file, or drop --ego")
     elif warps_frames(predictor):
         raise InputError("a virtual-camera model needs the camera of the images", predictor.path,
                          "add --camera (preset or calibration file)")
     return predict_frames(predictor, images, out, cam, progress=progress, keep_store=keep_store, overlay=overlay,
-                          within=within)
+                          within=within, vp_rule=vp_rule, say=say, ego_source=ego_source)

@@ -17,8 +17,9 @@ Outputs per image ``<stem>_prob.png`` (uint8, round(255 * P(road))) and ``<stem>
 """
 from __future__ import annotations
 
+import json
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Callable, Iterable
 
 import cv2
 import numpy as np
@@ -28,7 +29,7 @@ from tqdm import tqdm
 from vcprep.warp import backproject_array
 from vcprep.dataset import Job, collect_images
 from vcprep.store import WarpSettings, warp_dataset
-from vcprep.camera import Camera, FrameCameras, camera_from_dict, extend_canvas, scale_matrix
+from vcprep.camera import Camera, FrameCameras, camera_from_dict, scale_matrix
 from vcprep.errors import InputError
 from vcprep.io import read_image
 from vcprep.store import Store
@@ -37,7 +38,8 @@ from ..checkpoint import load_checkpoint, model_from_checkpoint
 from ..data import resize_pair, to_input, vp_in_store, vp_proximity
 from ..train import resolve_device
 from .frames import warps_frames
-from .road import RoadRun, out_dir, rectangle_views, run_road, virtual_within, write_prediction
+from .road import (RoadRun, frames_canvas, geometry_line, model_vp_rule, out_dir, run_road, virtual_within,
+                   write_prediction)
 
 
 
@@ -130,63 +132,77 @@ def predict_store(predictor: Predictor, store: Store, out: str | Path, progress:
 
 def predict_frames(predictor: Any, images: Iterable[str | Path], out: str | Path,
                    camera: Camera | FrameCameras | None, progress: bool = True, keep_store: str | Path | None = None,
-                   overlay: bool = False, within: str = "auto") -> RoadRun:
+                   overlay: bool = False, within: str = "auto", vp_rule: Any = None,
+                   say: Callable[[str], None] | None = None, ego_source: str = "") -> RoadRun:
     """Image files/folders through the one road for a frame (:func:`vctrain.predict.road.run_road`:
     a frame that fails is named and skipped); with ``keep_store`` (a model that warps frames) the
-    warped frames are also kept as a store there, and predicted from it (the same masks)."""
+    warped frames are also kept as a store there, and predicted from it (the same masks). ``vp_rule``,
+    ``say`` and ``ego_source`` as :func:`~vctrain.predict.road.run_road` takes them."""
     if keep_store is None or not warps_frames(predictor):
-        return run_road(predictor, images, out, camera, progress=progress, overlay=overlay, within=within)
+        return run_road(predictor, images, out, camera, progress=progress, overlay=overlay, within=within,
+                        vp_rule=vp_rule, say=say, ego_source=ego_source)
     if camera is None:
         raise InputError("a virtual-camera model needs the camera of the images", None,
                          "add --camera (preset or calibration file)")
     jobs = collect_images(images)
     store = warp_like_training(predictor.data, predictor.path, jobs, camera, keep_store, within, progress,
-                               extend=not getattr(predictor, "fixed_rectangle", False))
+                               extend=not getattr(predictor, "fixed_rectangle", False), vp_rule=vp_rule)
+    if say is not None:
+        say(geometry_line(warp_geometry(store), model_vp_rule(predictor.data, vp_rule)[1], ego_source))
     return RoadRun(predict_store(predictor, store, out, progress, ids=[j.id for j in jobs], overlay=overlay))
 
 
 def predict_images(predictor: Any, images: Iterable[str | Path], out: str | Path,
                    camera: Camera | FrameCameras | None, progress: bool = True, keep_store: str | Path | None = None,
-                   overlay: bool = False, within: str = "auto") -> list[Path]:
+                   overlay: bool = False, within: str = "auto", vp_rule: Any = None) -> list[Path]:
     """:func:`predict_frames`, returning the mask paths; a frame that failed raises its error (after
     the other frames are predicted)."""
-    run = predict_frames(predictor, images, out, camera, progress, keep_store, overlay, within)
+    run = predict_frames(predictor, images, out, camera, progress, keep_store, overlay, within, vp_rule)
     if run.failed:
         raise run.failed[0][1]
     return run.written
 
 
 def warp_like_training(data: dict[str, Any], path: str | Path, jobs: list[Job], camera: Camera | FrameCameras,
-                       root: str | Path,
-                       within: str = "auto", progress: bool = True, extend: bool = True) -> Store:
+                       root: str | Path, within: str = "auto", progress: bool = True, extend: bool = True,
+                       vp_rule: Any = None) -> Store:
     """Warp image ``jobs`` of ``camera`` into the store ``root`` exactly as the training store of
     a checkpoint (its ``data``; ``path`` names it in errors) was built: same code, virtual
     camera, scale and completion. ``within``: per-image pan/tilt from the road VP ('estimate',
-    a CSV ``id,u,v``, 'none'); 'auto' estimates VPs when the training store used per-image VPs
-    and takes the camera's average pose otherwise. ``extend``: the virtual camera's rectangle
-    extended to hold every frame (:func:`vctrain.predict.road.rectangle_views`); False keeps the training's rectangle (what
-    a prior, an image of that rectangle, needs)."""
+    a CSV ``id,u,v``, 'none'; 'auto': :func:`vctrain.predict.road.virtual_within`), estimated
+    together (:func:`vcprep.store.build.frame_poses`) with ``vp_rule`` or the model's
+    (:func:`vctrain.predict.road.model_vp_rule`). ``extend``: the virtual camera's rectangle extended
+    to hold every frame (:func:`vctrain.predict.road.frames_canvas`); False keeps the training's
+    rectangle (what a prior, an image of that rectangle, needs)."""
+    from vcprep.store.build import frame_poses
+
     sp = data.get("store_params")
     if data.get("mode") != "virtual" or not sp:
         raise InputError("model was not trained in a virtual camera (a resize baseline)", path,
                          "use a model trained on a store built by 'vcprep warp'")
     virtual = camera_from_dict(sp["virtual"], path)
-    completion = data.get("completion", "none")
     within = virtual_within(data, within, camera)
-    poses = None
     if isinstance(camera, FrameCameras):
         for j in jobs:  # every frame's calibration file exists: an error before anything is written
             camera.file_for(j.image)
-    if within != "none":
-        from vcprep.store import ItemPose
-        from vcprep.vp import vps_for_items
-
-        res = vps_for_items([j.image for j in jobs], [j.id for j in jobs], camera, within)
-        poses = {j.id: ItemPose((r.vp[0], r.vp[1]), r.status) for j, r in zip(jobs, res)}
+    poses, _ = frame_poses(jobs, camera, within, model_vp_rule(data, vp_rule)[0])
     if extend:
-        vps = {i: p.vp for i, p in poses.items()} if poses else {}
-        virtual = extend_canvas(virtual, rectangle_views(jobs, camera, vps))
-    settings = WarpSettings(camera=camera, virtual=virtual, scale=float(sp["scale"]), completion=completion,
-                            poses=poses, progress=progress)
+        virtual = frames_canvas(virtual, jobs, camera, poses)
+    settings = WarpSettings(camera=camera, virtual=virtual, scale=float(sp["scale"]),
+                            completion=data.get("completion", "none"), poses=poses, progress=progress)
     store, _ = warp_dataset(jobs, root, settings)
     return store
+
+
+def warp_geometry(store: Store) -> dict[str, Any]:
+    """What the frames of ``store`` were warped with, read from its records: the VPs (statuses and
+    the rule of the estimated ones), the own vehicle's rows and the virtual rectangle. What a
+    study's result records and ``vctrain predict`` says."""
+    from collections import Counter
+
+    recs = list(store)
+    rules = {json.dumps(r["vp_rule"], sort_keys=True) for r in recs if r.get("vp_rule")}
+    return {"vp_status": dict(sorted(Counter(r.get("vp_status", "camera") for r in recs).items())),
+            "vp_rule": json.loads(rules.pop()) if len(rules) == 1 else sorted(map(json.loads, rules)) or None,
+            "ego_rows": sorted({int(r.get("ego_rows", 0)) for r in recs}),
+            "rectangle": list(store.params["virtual"]["image_size"])}

@@ -35,7 +35,9 @@ from vcprep.warp import pose_from_vp
 
 from .frames import FramePredictor, warps_frames
 
-__all__ = ["own_vehicle", "folder_ego_camera", "RoadRun", "skipped_lines", "within_rule", "virtual_within", "rectangle_views", "run_road", "write_prediction", "out_dir"]
+__all__ = ["own_vehicle", "folder_ego_camera", "RoadRun", "skipped_lines", "within_rule", "virtual_within",
+           "model_vp_rule", "frame_poses", "rectangle_views", "frames_canvas", "geometry_line", "run_road",
+           "write_prediction", "out_dir"]
 
 
 @dataclass
@@ -46,6 +48,7 @@ class RoadRun:
     written: list[Path] = field(default_factory=list)
     failed: list[tuple[Path, VCError]] = field(default_factory=list)
     seconds: float = 0.0
+    ids: list[str] = field(default_factory=list)  # the frames predicted (their item ids), in order
 
     def fail(self, job: Job, error: VCError) -> None:
         """Count ``job`` as failed (the caller names the failed frames: :meth:`said`)."""
@@ -168,25 +171,42 @@ def folder_ego_camera(camera: Camera, files: list[Path], ego: str = "auto",
                        lambda: ego_rows_from_frame_files([files[k] for k in picks], files[0].parent))
 
 
-def frame_vps(jobs: list[Job], camera: Camera | FrameCameras | None, rule: str,
-              on_error=None) -> dict[str, tuple[float, float]]:
-    """Each frame's road VP (source pixels) by ``rule`` (:func:`within_rule`); {} for 'none'. The
-    sequence rules run over the folder (:func:`vcprep.vp.vps_for_items`); ``on_error(job, error)``
+def model_vp_rule(data: dict[str, Any], override: Any = None) -> tuple[Any, str]:
+    """(the :class:`~vcprep.vp.VPRule` frames are estimated with, where it comes from): ``override``
+    (given), else the rule the model's training VPs were found with, else the detector's defaults
+    (a model whose stores record none)."""
+    from vcprep.vp import VPRule
+
+    if override is not None:
+        return override, "the given"
+    recorded = VPRule.from_dict(data.get("vp_rule"))
+    return (recorded, "the model's") if recorded is not None else (VPRule(), "the detector's defaults")
+
+
+def frame_poses(predictor: Any, jobs: list[Job], camera: Camera | FrameCameras | None, rule: str, vp_rule: Any = None,
+                on_error=None) -> dict:
+    """Each frame's pose (:class:`vcprep.store.ItemPose`: its road VP in source pixels, status, rule)
+    by ``rule`` (:func:`within_rule`); {} for 'none'. Estimated VPs follow ``vp_rule`` or the model's
+    (:func:`model_vp_rule`) over the folder's sequences (:func:`vcprep.store.build.frame_poses`, the
+    one rule of ``vcprep warp``, the store path and a study's stores); ``on_error(job, error)``
     takes a frame that cannot be read."""
     if rule == "none":
         return {}
-    from vcprep.vp import vps_for_items
+    from vcprep.store.build import frame_poses as poses_of
 
-    res = vps_for_items([j.image for j in jobs], [j.id for j in jobs], camera, rule,
+    poses, _ = poses_of(jobs, camera, rule, model_vp_rule(getattr(predictor, "data", {}), vp_rule)[0],
                         on_error=(lambda i, e: on_error(jobs[i], e)) if on_error else None)
-    return {j.id: (float(r.vp[0]), float(r.vp[1])) for j, r in zip(jobs, res) if r is not None}
+    return poses or {}
 
 
-def rectangle_views(jobs: list[Job], camera: Camera | FrameCameras, vps: dict[str, tuple[float, float]],
+def rectangle_views(jobs: list[Job], camera: Camera | FrameCameras, poses: dict,
                     on_error=None) -> list[tuple[Camera, float, float]]:
-    """The (camera, pan, tilt) of every frame as it is warped, once each: the training's rectangle
-    is extended for all of them (:func:`vcprep.camera.extend_canvas`), so a camera wider or
-    steeper than the training cameras is predicted whole, at the training's pixels per degree."""
+    """The (camera, pan, tilt) views the training's rectangle is extended for, once each: every frame
+    at its camera's average pose and at the pose it is warped with (``poses``: :func:`frame_poses`;
+    :func:`vcprep.camera.extend_canvas`), so a camera wider or steeper than the training cameras is
+    predicted whole, at the training's pixels per degree. The one rectangle rule of ``vctrain
+    predict`` (a folder, a video: :class:`~vctrain.predict.frames.FramePredictor`) and a study's
+    test stores."""
     views, seen = [], set()
     for j in jobs:
         try:
@@ -196,12 +216,48 @@ def rectangle_views(jobs: list[Job], camera: Camera | FrameCameras, vps: dict[st
                 raise
             on_error(j, e)
             continue
-        pan, tilt = pose_from_vp(cam, vps[j.id]) if vps else (cam.pan, cam.tilt)
-        key = (cam, round(pan, 3), round(tilt, 3))
-        if key not in seen:
-            seen.add(key)
-            views.append((cam, pan, tilt))
+        at = pose_from_vp(cam, poses[j.id].vp) if j.id in poses else (cam.pan, cam.tilt)
+        for pan, tilt in ((cam.pan, cam.tilt), at):
+            key = (cam, round(pan, 3), round(tilt, 3))
+            if key not in seen:
+                seen.add(key)
+                views.append((cam, pan, tilt))
     return views
+
+
+def frames_canvas(virtual: Camera, jobs: list[Job], camera: Camera | FrameCameras, poses: dict | None) -> Camera:
+    """``virtual`` (the training's) with its rectangle extended for :func:`rectangle_views`."""
+    from vcprep.camera import extend_canvas
+
+    return extend_canvas(virtual, rectangle_views(jobs, camera, poses or {}))
+
+
+def geometry_line(geo: dict[str, Any], rule_source: str = "", ego_source: str = "") -> str:
+    """One line for stderr from what frames were warped with (``vp_status`` counts, ``vp_rule``,
+    ``ego_rows``, ``rectangle``): 'VPs: 2 accepted, 1 fallback (the model's rule: ...); own vehicle: 3
+    bottom rows never warped (the camera's ego_rows); virtual rectangle 554x240'."""
+    from vcprep.vp import VPRule
+
+    counts = ", ".join(f"{n} {k}" for k, n in geo["vp_status"].items())
+    rule = VPRule.from_dict(geo["vp_rule"]) if isinstance(geo["vp_rule"], dict) else None
+    vps = f"VPs: {counts}" + (f" ({rule_source + ' rule: ' if rule_source else ''}{rule.describe()})" if rule else "")
+    rows = "/".join(map(str, geo["ego_rows"]))
+    ego = (f"own vehicle: {rows} bottom rows never warped" if geo["ego_rows"] != [0] else "own vehicle: none")
+    ego += f" ({ego_source})" if ego_source else ""
+    return f"{vps}; {ego}; virtual rectangle {geo['rectangle'][0]}x{geo['rectangle'][1]}"
+
+
+def _road_geometry(run: "RoadRun", poses: dict, fps: dict, camera, vp_rule: Any) -> dict[str, Any]:
+    """What a road's frames were warped with, as :func:`vctrain.predict.predictor.warp_geometry`
+    reads it from a store's records."""
+    from collections import Counter
+
+    per_frame = isinstance(camera, FrameCameras)
+    statuses = Counter(poses[i].status if i in poses else ("calibrated" if per_frame else "camera") for i in run.ids)
+    rects = {tuple(fp.virtual.size) for fp in fps.values() if fp.virtual is not None}
+    return {"vp_status": dict(sorted(statuses.items())), "vp_rule": vp_rule.to_dict() if poses else None,
+            "ego_rows": sorted({int(k[0].ego_rows) for k in fps if k[0] is not None}) or [0],
+            "rectangle": list(rects.pop()) if len(rects) == 1 else [0, 0]}
 
 
 def _remove_outputs(out: Path, stem: str) -> None:
@@ -223,14 +279,17 @@ def _predict_one(fps: dict, predictor: Any, job: Job, camera, views, vp, out: Pa
 
 def run_road(predictor: Any, images: Iterable[str | Path], out: str | Path,
              camera: Camera | FrameCameras | None, progress: bool = True, overlay: bool = False,
-             within: str = "auto") -> RoadRun:
+             within: str = "auto", vp_rule: Any = None, say: Callable[[str], None] | None = None,
+             ego_source: str = "") -> RoadRun:
     """Predict image files/folders taken with ``camera`` (needed for virtual-camera models; a
     :class:`~vcprep.camera.FrameCameras` gives every image its own calibrated camera and pose);
     writes ``<stem>_mask.png``, ``<stem>_prob.png`` (and ``_overlay.png``) in ``out``. A frame that
     fails is skipped and named in the result (module docstring).
 
     ``within``: per-image pan/tilt from the road VP ('estimate', a CSV ``id,u,v``, 'none', or
-    'auto': :func:`within_rule`)."""
+    'auto': :func:`within_rule`); estimated VPs follow ``vp_rule`` or the model's
+    (:func:`model_vp_rule`). ``say`` (given) hears one line: which VPs, own vehicle (``ego_source``:
+    where its rows come from) and rectangle a virtual-camera model's frames were warped with."""
     t0 = time.perf_counter()
     jobs = collect_images(images)
     out = out_dir(out)
@@ -239,18 +298,24 @@ def run_road(predictor: Any, images: Iterable[str | Path], out: str | Path,
                          "add --camera (preset or calibration file)")
     rule = within_rule(predictor, within, camera)
     run = RoadRun()
-    vps = frame_vps(jobs, camera if camera is not None else getattr(predictor, "camera", None), rule, run.fail)
+    poses = frame_poses(predictor, jobs, camera if camera is not None else getattr(predictor, "camera", None), rule,
+                        vp_rule, run.fail)
     views = None
     if warps_frames(predictor) and not getattr(predictor, "fixed_rectangle", False):
-        views = rectangle_views([j for j in jobs if rule == "none" or j.id in vps], camera, vps, run.fail)
+        views = rectangle_views([j for j in jobs if rule == "none" or j.id in poses], camera, poses, run.fail)
     bad = {str(f) for f, _ in run.failed}
     fps: dict = {}
     for job in tqdm([j for j in jobs if str(j.image) not in bad], desc="predict", unit="img",
                     disable=None if progress else True, leave=False):
+        vp = poses[job.id].vp if job.id in poses else None
         try:
-            run.written.append(_predict_one(fps, predictor, job, camera, views, vps.get(job.id), out, overlay))
+            run.written.append(_predict_one(fps, predictor, job, camera, views, vp, out, overlay))
+            run.ids.append(job.id)
         except VCError as e:
             _remove_outputs(out, job.id)
             run.fail(job, e)
+    if say is not None and warps_frames(predictor) and run.ids:
+        rule_source = model_vp_rule(getattr(predictor, "data", {}), vp_rule)
+        say(geometry_line(_road_geometry(run, poses, fps, camera, rule_source[0]), rule_source[1], ego_source))
     run.seconds = time.perf_counter() - t0
     return run

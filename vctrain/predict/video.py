@@ -45,7 +45,7 @@ from vcprep.io import VideoInfo, open_video, read_frames, sample_frames
 from vcprep.warp import ground_to_image, pose_from_vp, vp_from_pose
 
 from .frames import FramePredictor, StageTimes, StreamingVPs, warps_frames
-from .road import own_vehicle, within_rule
+from .road import model_vp_rule, own_vehicle, within_rule
 
 __all__ = ["check_video_stems", "ego_camera", "predict_video", "draw_overlay", "horizon_segment"]
 
@@ -143,10 +143,14 @@ def _now(fn, *args) -> Future:
 
 def predict_video(predictor, video: str | Path, out: str | Path, camera: Camera | None, within: str = "auto",
                   mask_video: bool = False, overlay: bool = False, progress: bool = True, vp_window: int = 2,
-                  times: StageTimes | None = None, ego: str = "auto", vp_ahead: int = VP_AHEAD) -> list[Path]:
+                  times: StageTimes | None = None, ego: str = "auto", vp_ahead: int = VP_AHEAD,
+                  vp_rule=None) -> list[Path]:
     """Predict every frame of ``video`` (module docstring); returns the paths written (the mask
-    PNGs, or the mask video; the overlay video). ``within``: 'auto', 'estimate', 'none' or a CSV
-    ``id,u,v`` whose ids are ``<stem>_<frame:06d>``. ``ego``: the own vehicle, as
+    PNGs, or the mask video; the overlay video). ``within``: 'auto' (as the model was trained,
+    :func:`vctrain.predict.road.within_rule`), 'estimate', 'none' or a CSV ``id,u,v`` whose ids are
+    ``<stem>_<frame:06d>``; estimated VPs are searched and accepted within the pose ranges of
+    ``vp_rule`` or the model's (:func:`vctrain.predict.road.model_vp_rule`) and smoothed over
+    ``vp_window`` frames either side. ``ego``: the own vehicle, as
     :func:`ego_camera` takes it (a virtual-camera model). ``times`` (given) gets the stage timings;
     ``progress`` False also silences the own-vehicle remark. ``vp_ahead``: frames whose VP is
     estimated in a worker thread ahead of the one predicted (0: in this thread, in turn)."""
@@ -165,7 +169,8 @@ def predict_video(predictor, video: str | Path, out: str | Path, camera: Camera 
             fp.times = times
         if mode == "estimate" and fp.camera is None:
             raise InputError("per-frame VPs need the camera of the video", video, "add --camera, or --within none")
-        vps = StreamingVPs(fp.camera, vp_window, times=fp.times) if mode == "estimate" else None
+        cfg = model_vp_rule(getattr(predictor, "data", {}), vp_rule)[0].config()
+        vps = StreamingVPs(fp.camera, vp_window, cfg=cfg, times=fp.times) if mode == "estimate" else None
         out = _out_folder(out, video.stem, mask_video)
         pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="vp") if vps is not None and vp_ahead else None
         sink = None

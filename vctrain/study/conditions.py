@@ -26,8 +26,8 @@ from vcprep.store import Store
 
 from ..config import AdaptSettings, TrainConfig
 from ..report import write_json
-from .hashing import file_sha256
-from .keys import Keys
+from .hashing import file_sha256, settings_sha
+from .keys import TEST_WARP, Keys
 from .resolve import Resolution
 from .runs import Run, what
 from .spec import ADAPT_COMBINE, CONDITIONS, DEFAULT_TRAIN, GEOMETRIES, RUN_KEYS, Dataset, Study
@@ -219,7 +219,7 @@ class Prior:
                 "train_images_per_s": None}
 
     def scored(self, ds: Dataset) -> tuple[Any, Path, float, dict[str, Any]]:
-        store = self.ctx.stores.store(ds, "test", CONDITIONS["prior"][0])
+        store = self.ctx.stores.store(ds, "test", CONDITIONS["prior"][0], fixed=True)  # as predict --prior warps
         return self.predictor, store, self.seconds, {"prior_unlabelled_pixels": self.meta["unlabelled_pixels"]}
 
 
@@ -235,7 +235,8 @@ class Adapt:
         self.run, self.ctx, self.tag = run, ctx, tag
 
     def key(self, ds: Dataset) -> str:
-        return self.ctx.keys.adapted(self.run, ds)
+        """The result's key: the adapted model's (:meth:`Keys.adapted`) and how its test split is warped."""
+        return settings_sha({"adapted": self.ctx.keys.adapted(self.run, ds), "test_warp": TEST_WARP})
 
     def runnable(self, todo: list[Dataset]) -> list[Dataset]:
         return todo
@@ -254,8 +255,8 @@ class Adapt:
         adir.mkdir(parents=True, exist_ok=True)
         model, record = adir / "model.pt", adir / "adapt.json"
         done = json.loads(record.read_text()) if record.exists() else None
-        if (done is not None and done.get("settings_sha") == self.key(ds) and done.get("from_sha256") == self.source_sha
-                and model.exists()):
+        if (done is not None and done.get("settings_sha") == self.ctx.keys.adapted(self.run, ds)
+                and done.get("from_sha256") == self.source_sha and model.exists()):
             self.ctx.say(f"{what(self.run, ds, self.tag)}: adapted earlier")
         else:  # adapted with other settings or from another model, or interrupted: afresh
             done = self._adapt(ds, adir, model, record)
@@ -287,10 +288,10 @@ class Adapt:
                                  device=self.cfg.device, seed=self.cfg.seed, max_steps=self.cfg.max_steps,
                                  progress=self.ctx.progress)
         summary = adapt(self.source, jobs, res.camera(ds), self.prior_path, model, settings)
-        done = {"settings_sha": self.key(ds), "from": str(self.source), "from_sha256": self.source_sha,
-                "target": split, "target_items": len(jobs), "adapt_seconds": round(time.perf_counter() - t0, 1),
-                "label_shares": summary["adapted"]["label_shares"], "epochs": summary["adapted"]["epochs"],
-                "lr": summary["adapted"]["lr"]}
+        done = {"settings_sha": self.ctx.keys.adapted(self.run, ds), "from": str(self.source),
+                "from_sha256": self.source_sha, "target": split, "target_items": len(jobs),
+                "adapt_seconds": round(time.perf_counter() - t0, 1), "label_shares": summary["adapted"]["label_shares"],
+                "epochs": summary["adapted"]["epochs"], "lr": summary["adapted"]["lr"]}
         write_json(record, done)
         return done
 

@@ -3,17 +3,20 @@
 
 Everything runs through the real tools: stores are built with :func:`vcprep.store.build.warp_dataset`
 (one per dataset, split and geometry, shared by all folds), models with :func:`vctrain.train.fit`,
-and the held-out test images are predicted in the model's own domain and scored in their ORIGINAL
-camera (back-projected probabilities, threshold 0.5) against their original labels: road IoU =
-ΣTP / Σ(TP+FP+FN) over the held-out test images, ignore pixels excluded.
+and the held-out test images are predicted in the model's own domain (warped as ``vctrain predict``
+warps them for the model: the same masks) and scored in their ORIGINAL camera (back-projected
+probabilities, threshold 0.5) against their original labels: road IoU = ΣTP / Σ(TP+FP+FN) over the
+held-out test images, ignore pixels excluded.
 
 Layout under OUT: ``stores/<dataset>/<split>/<geometry>/`` (vcprep stores), ``vps/<dataset>-<split>.csv``
 (the estimated VPs), ``runs/<heldout>/<condition>/`` (checkpoint, training log, ``train.json``,
-``result.json``) and, with test-role datasets, ``runs/_all/<condition>/`` (one model,
-``result-<dataset>.json`` per test-role dataset), ``results.jsonl`` (one row per evaluated dataset and
-condition), ``table.md``, ``table.csv``, ``summary.json`` (:mod:`vctrain.report`). A finished result is
-not redone, and a finished training is not repeated for a missing evaluation, so an interrupted study
-resumes where it stopped; a run finished with other settings (:mod:`vctrain.study.keys`) is redone.
+``result.json``: the metrics, and ``test_warp``, what the test frames were warped with: VP statuses
+and rule, own-vehicle rows, rectangle, as ``vctrain predict`` says for the same frames) and, with
+test-role datasets, ``runs/_all/<condition>/`` (one model, ``result-<dataset>.json`` per test-role
+dataset), ``results.jsonl`` (one row per evaluated dataset and condition), ``table.md``, ``table.csv``,
+``summary.json`` (:mod:`vctrain.report`). A finished result is not redone, and a finished training is
+not repeated for a missing evaluation, so an interrupted study resumes where it stopped; a run
+finished with other settings (:mod:`vctrain.study.keys`) is redone.
 """
 from __future__ import annotations
 
@@ -80,6 +83,10 @@ def execute(run: Run, ctx: Context, tag: str) -> list[dict[str, Any]]:
         predictor, store, before, extra = kind.scored(ds)
         t0 = time.perf_counter()
         metrics = score_store(predictor, store, ctx.progress)
+        if predictor.mode == "virtual":  # what its frames were warped with: what vctrain predict says it uses
+            from ..predict.predictor import warp_geometry
+
+            extra = {**extra, "test_warp": warp_geometry(Store.open(store))}
         rows.append(write_result(run, ctx.out, ds, metrics, info, before + time.perf_counter() - t0, kind.key(ds),
                                  tag, ctx.say, **extra))
     return rows
@@ -93,18 +100,16 @@ def _check_adapt_targets(res: Resolution, evaluated: Sequence[str]) -> None:
 
 
 def _write_study_json(out: Path, res: Resolution, conditions: list[str], training: dict[str, Any]) -> None:
-    """``OUT/study.json``: what the study resolved to (virtual camera, scale, canvases, own vehicles, estimates)."""
+    """``OUT/study.json``: what the study resolved to (the training stores' virtual camera, scale, each
+    dataset's rule of estimated VPs, own vehicles, estimates); each test split's rectangle, VPs and own vehicle
+    are in its results (``test_warp``)."""
     study = res.study
     write_json(out / "study.json", {"study": str(study.path), "virtual": res.training_virtual().to_dict(),
                                     "scale": res.scale(), "conditions": conditions,
                                     "datasets": [d.name for d in study.datasets],
                                     "roles": {d.name: d.role for d in study.datasets}, "train": training,
-                                    "canvas": res.canvas,
-                                    **({"canvases": {d.name: list(res.virtual_for(d).size) for d in study.datasets}}
-                                       if res.canvas != "shared" else {}),
-                                    **({"extent": study.extent, "test_canvases": {
-                                        d.name: list(res.virtual_for(d, "test").size) for d in study.datasets}}
-                                       if study.extent != "max" else {}),
+                                    "canvas": res.canvas, **({"extent": study.extent} if study.extent != "max" else {}),
+                                    "vp_rules": {d.name: res.vp_rule(d).to_dict() for d in study.datasets},
                                     **({"ego_found": res.ego_found} if res.ego_found else {}),
                                     **({"cameras_estimated": {k: v["camera"] for k, v in res.estimated.items()}}
                                        if res.estimated else {})})

@@ -18,7 +18,26 @@ if TYPE_CHECKING:
     from .resolve import Resolution
     from .runs import Run
 
-__all__ = ["adapt_settings", "Keys"]
+__all__ = ["adapt_settings", "Keys", "TEST_WARP"]
+
+
+# how a test split is warped: as `vctrain predict` warps the same frames for the model (its VP rule, own
+# vehicle, rectangle extended for every frame at its pose); a result scored by an earlier rule is scored again
+TEST_WARP = "as-predict-1"
+
+
+def _median_test_canvas(res: "Resolution", d: Dataset) -> dict[str, Any]:
+    """``extent: median``'s test rectangle as the keys knew it before test splits were warped as
+    ``vctrain predict`` warps them (the training rectangle extended for the camera at every pose of
+    the ranges): kept in the keys so that the models of such a study are found, not trained again."""
+    from vcprep.camera import extend_canvas
+
+    base, st = res.training_virtual(), res.study
+    if st.virtual != "design":
+        return base.to_dict()
+    cam = res.nominal_camera(d)
+    views = [(cam, cam.pan + a * st.pan_range, cam.tilt + b * st.tilt_range) for a in (-1, 0, 1) for b in (-1, 0, 1)]
+    return extend_canvas(base, views).to_dict()
 
 
 def adapt_settings(condition: str = "adapt") -> dict[str, Any]:
@@ -38,7 +57,8 @@ class Keys:
       pose ranges and the run's training datasets (their cameras, labels, splits, own vehicle,
       estimates) -- so a test-only dataset added or changed retrains nothing (canvas: footprint;
       with ``canvas: shared`` its camera shapes the one virtual camera, which is in the key);
-    * ``result(run, ds)``: the model's key and the test store's (``ds``'s camera, canvas, splits);
+    * ``result(run, ds)``: the model's key, the test store's (``ds``'s camera, canvas, splits) and
+      the rule test splits are warped by (:data:`TEST_WARP`);
     * ``adapted(run, ds)``: the study's settings, the adaptation's and the images adapted to."""
 
     def __init__(self, res: "Resolution", virt: Camera, training: dict[str, Any]):
@@ -49,10 +69,10 @@ class Keys:
                        "resize_size": "source aspect, store pixels"}
         self.entry = {d.name: self._entry(d) for d in study.datasets}
         settings = {**self.common, "datasets": [self.entry[d.name]["dataset"] for d in study.datasets]}
-        canvases = {d.name: res.virtual_for(d).to_dict() for d in study.datasets}
-        if study.extent != "max":  # (only then do the test splits' stores have rectangles of their own)
+        canvases = {d.name: self.entry[d.name]["canvas"] for d in study.datasets}
+        if study.extent != "max":
             settings["extent"] = study.extent
-            canvases.update({d.name + ":test": res.virtual_for(d, "test").to_dict() for d in study.datasets})
+            canvases.update({d.name + ":test": self.entry[d.name]["test_canvas"] for d in study.datasets})
         if any(c != virt.to_dict() for c in canvases.values()):  # (every store in the shared rectangle: as before)
             settings["canvas"] = canvases
         ego = {n: e["ego_rows"] for n, e in self.entry.items() if e.get("ego_rows")}
@@ -66,8 +86,8 @@ class Keys:
         res = self.res
         # (a preset is written preset:NAME since the one naming rule; bare, as before, in the settings)
         e = {"dataset": [d.name, d.role, d.camera.removeprefix(PRESET_PREFIX), d.label_format, repr(d.train),
-                         repr(d.test)], "canvas": res.virtual_for(d).to_dict(),
-             **({"test_canvas": res.virtual_for(d, "test").to_dict()} if res.study.extent != "max" else {}),
+                         repr(d.test)], "canvas": res.training_virtual().to_dict(),
+             **({"test_canvas": _median_test_canvas(res, d)} if res.study.extent != "max" else {}),
              "camera_params": res.nominal_camera(d).to_dict()}  # (the file's contents, not only its name)
         cam = res.camera(d)
         if isinstance(cam, Camera) and cam.ego_rows:
@@ -80,7 +100,7 @@ class Keys:
         return settings_sha({**self.common, "train_datasets": [self.entry[d.name] for d in run.train]})
 
     def result(self, run: "Run", ds: Dataset) -> str:
-        return settings_sha({"model": self.model(run), "test": self.entry[ds.name]})
+        return settings_sha({"model": self.model(run), "test": self.entry[ds.name], "test_warp": TEST_WARP})
 
     def adapted(self, run: "Run", ds: Dataset) -> str:
         return settings_sha({"study": self.full, "adapt": adapt_settings(run.condition),

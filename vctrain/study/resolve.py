@@ -9,7 +9,8 @@ camera stands for it in the virtual camera's design. ``camera: estimate`` is est
 dataset's own frames once and kept in ``OUT/cameras/<dataset>.yaml`` (with ``.json``: what was
 estimated, given and assumed). The virtual camera is designed from all the study's cameras (as in
 the paper, whose virtual camera covers all five), which uses the evaluated cameras' calibration
-but none of their images; ``canvas: footprint`` sizes its rectangle per store (:meth:`Resolution.virtual_for`).
+but none of their images; ``canvas: footprint`` sizes the training stores' rectangle by the trainable
+cameras alone (:meth:`Resolution.training_virtual`).
 """
 from __future__ import annotations
 
@@ -44,7 +45,7 @@ class Resolution:
         self.estimated: dict[str, Any] = {}   # dataset -> its CameraEstimate (camera: estimate)
         self._items: dict[tuple[str, str], list[Job]] = {}
         self._virtual: Camera | None = None
-        self._canvas: dict[str, Camera] = {}  # virtual_for: the canvases of canvas: footprint
+        self._train_canvas: Camera | None = None  # training_virtual of canvas: footprint
         self.canvas = study.canvas or DEFAULT_CANVAS  # the rectangle rule (run_study may choose 'shared')
 
     def split(self, ds: Dataset, split: str) -> Split:
@@ -191,54 +192,36 @@ class Resolution:
                 self._virtual = load_camera(self.study.virtual)
         return self._virtual
 
-    def virtual_for(self, ds: Dataset, split: str | None = None) -> Camera:
-        """The virtual camera of ``ds``'s stores (of ``split``: only ``extent: median`` tells the
-        test split apart). ``canvas: shared`` (or a given virtual camera): :meth:`virtual` for every
-        dataset. ``canvas: footprint``: the virtual camera designed from the trainable datasets'
-        cameras alone (focal length, height, level pose, top edge, and the rectangle that holds
-        them: every trainable dataset's stores, so a model's training images share one size and no
-        test camera shapes the training), and for a test-only dataset that camera's rectangle
-        extended to its own camera (the network runs on it at the training's pixels per degree).
-        ``extent: median``: the training rectangle reaches only as far as the median camera, and
-        the stores of every test split (and of a test-only dataset) are that rectangle extended to
-        hold the dataset's camera at every pose of the ranges (:func:`~vcprep.camera.virtual.extend_canvas`)."""
-        base = self._canvas_of(ds)
-        if self.study.extent == "max" or self.study.virtual != "design" or (split != "test" and ds.role != "test"):
-            return base
-        key = ds.name + "\0test"
-        if key not in self._canvas:
-            from vcprep.camera import extend_canvas
-
-            cam, st = self.nominal_camera(ds), self.study
-            views = [(cam, cam.pan + a * st.pan_range, cam.tilt + b * st.tilt_range) for a in (-1, 0, 1) for b in (-1, 0, 1)]
-            self._canvas[key] = extend_canvas(base, views)
-        return self._canvas[key]
-
-    def _canvas_of(self, ds: Dataset) -> Camera:
-        """:meth:`virtual_for` before the test splits' extension (``extent: median``)."""
-        if self.study.virtual != "design" or self.canvas == "shared":
+    def training_virtual(self) -> Camera:
+        """The virtual camera of every training store (what the pixel budget sizes). ``canvas:
+        shared`` (or a given virtual camera): :meth:`virtual`. ``canvas: footprint``: the virtual
+        camera designed from the trainable datasets' cameras alone (focal length, height, level
+        pose, top edge, and the rectangle that holds them; ``extent: median``: as far as the median
+        camera reaches), so that no test camera shapes the training. A test split's stores hold this
+        rectangle extended for their own frames at their poses, as ``vctrain predict`` extends a
+        model's (:func:`vctrain.predict.frames_canvas`, :class:`vctrain.study.stores.Stores`)."""
+        trainable = [d for d in self.study.datasets if d.role != "test"]
+        if self.study.virtual != "design" or self.canvas == "shared" or not trainable:
             return self.virtual()
-        median = self.study.extent != "max"
-        key = "\0train" if ds.role != "test" or median else ds.name
-        if key not in self._canvas:
+        if self._train_canvas is None:
             from vcprep.camera import design_virtual_camera
 
-            cams = [self.nominal_camera(d) for d in self.study.datasets if d.role != "test"]
-            if key != "\0train":
-                ref = self._canvas_of(next(d for d in self.study.datasets if d.role != "test"))
-                cams.append(self.nominal_camera(ds))
-                f, height = ref.fx, ref.height
-            else:
-                f = height = None
-            self._canvas[key] = design_virtual_camera(cams, self.study.pan_range, self.study.tilt_range,
-                                                      name="study-virtual", above=self.study.above, f=f,
-                                                      height=height, extent=self.study.extent).camera
-        return self._canvas[key]
+            st = self.study
+            self._train_canvas = design_virtual_camera([self.nominal_camera(d) for d in trainable], st.pan_range,
+                                                       st.tilt_range, name="study-virtual", above=st.above,
+                                                       extent=st.extent).camera
+        return self._train_canvas
 
-    def training_virtual(self) -> Camera:
-        """The virtual camera of every trainable dataset's stores (what the pixel budget sizes)."""
-        trainable = [d for d in self.study.datasets if d.role != "test"]
-        return self.virtual_for(trainable[0]) if trainable else self.virtual()
+    def vp_rule(self, ds: Dataset):
+        """The rule of ``ds``'s estimated VPs (:class:`~vcprep.vp.VPRule`): searched and
+        accepted only within the pose range the virtual camera is designed to hold (a pose outside it
+        would push the image out of the virtual frame), no smoothing, sequences by file name (by
+        folder for a label format whose ids name the drive: IDD). The stores record it, so ``vctrain
+        predict`` estimates a study model's VPs with it (``--vp-sequences`` where a test set's differs)."""
+        from vcprep.vp import VPRule
+
+        drives = get_label_format(ds.label_format).drive_in_id
+        return VPRule(self.study.pan_range, self.study.tilt_range, sequences="folder" if drives else "name")
 
     def scale(self) -> float:
         w, h = self.training_virtual().size

@@ -4,7 +4,9 @@ runs, and the road VPs they are warped with (``OUT/vps/<dataset>-<split>.csv``).
 
 Estimated VPs (``within``, ``zero``) are searched for and accepted only inside the pose range the
 virtual camera is designed to hold (``pan_range``, ``tilt_range`` of the study; rejected images fall
-back to the mean accepted VP, see :mod:`vcprep.vp`).
+back to the mean accepted VP, see :mod:`vcprep.vp`); the stores record that rule, so
+``vctrain predict`` estimates a study model's VPs with it. A test split's stores are warped as
+``vctrain predict`` warps its frames (:meth:`Stores.warp_settings`).
 """
 from __future__ import annotations
 
@@ -46,31 +48,28 @@ class Stores:
         return self.res.split(ds, split).vps is not None
 
     def poses(self, ds: Dataset, split: str, source: str) -> dict[str, ItemPose] | None:
+        """The split's frames' poses (:func:`vcprep.store.build.frame_poses`, as ``vctrain predict``
+        finds them): ``source`` 'none', 'estimate' (:meth:`Resolution.vp_rule`, over the split's frames
+        together; written to ``vps/<dataset>-<split>.csv``) or 'given' (the split's ``vps`` file)."""
         if source == "none" or (source == "estimate" and isinstance(self.res.camera(ds), FrameCameras)):
             return None  # (per-frame calibration: every frame's exact pose, nothing to estimate)
-        from vcprep.vp import vps_for_items, write_vp_csv
+        from vcprep.store.build import frame_poses
+        from vcprep.vp import write_vp_csv
 
         key = (ds.name, split, source)
         if key not in self._vps:
             jobs = self.res.items(ds, split)
-            images, ids = [j.image for j in jobs], [j.id for j in jobs]
             if source == "given":
                 vps = self.res.split(ds, split).vps
                 if vps is None:
                     raise InputError(f"dataset '{ds.name}' {split} has no 'vps' file", self.res.study.path,
                                      "add 'vps:' to the split, or drop the within-gt condition")
-                found = vps_for_items(images, ids, self.res.camera(ds), str(vps))
+                self._vps[key] = frame_poses(jobs, self.res.camera(ds), str(vps))[0]
             else:
-                from vcprep.vp import VPConfig
-
-                # search and accept VPs only within the pose range the virtual camera is designed
-                # to hold: a pose outside it would push the image out of the virtual frame
-                cfg = VPConfig(pan_range=self.res.study.pan_range, tilt_range=self.res.study.tilt_range)
                 self.say(f"estimating road VPs of {ds.name}/{split} ({len(jobs)} images)")
-                found = vps_for_items(images, ids, self.res.camera(ds), "estimate", cfg=cfg)
+                self._vps[key], found = frame_poses(jobs, self.res.camera(ds), "estimate", self.res.vp_rule(ds))
                 (self.out / "vps").mkdir(parents=True, exist_ok=True)
-                write_vp_csv(self.out / "vps" / f"{ds.name}-{split}.csv", ids, found)
-            self._vps[key] = {i: ItemPose((r.vp[0], r.vp[1]), r.status) for i, r in zip(ids, found)}
+                write_vp_csv(self.out / "vps" / f"{ds.name}-{split}.csv", [j.id for j in jobs], found)
         return self._vps[key]
 
     def _drop_if_other_virtual(self, root: Path, virtual: Camera) -> None:
@@ -86,19 +85,35 @@ class Stores:
             self.say(f"{root.relative_to(self.out)}: built for another virtual camera or scale; building it afresh")
             shutil.rmtree(root)
 
-    def warp_settings(self, ds: Dataset, split: str, geometry: str) -> WarpSettings:
+    def warp_settings(self, ds: Dataset, split: str, geometry: str, fixed: bool = False) -> WarpSettings:
         """How the store of ``ds``'s ``split`` in ``geometry`` is built: the dataset's camera into
-        the study's virtual camera and scale, with the geometry's poses and completion."""
+        the study's virtual camera and scale, with the geometry's poses and completion. A test
+        split is warped as ``vctrain predict`` warps the same frames for a model of the study (the
+        same poses, own vehicle and rectangle, so the study's number is the number a user gets): its
+        labels never shape the completion (they are scored in the original camera), and the
+        training rectangle is extended to hold every frame at its pose
+        (:func:`vctrain.predict.frames_canvas`); ``fixed``: the training rectangle as it is (the
+        geometric prior is an image of it: ``vctrain predict --prior`` warps into it)."""
         source, completion = GEOMETRIES[geometry]
-        return WarpSettings(camera=self.res.camera(ds), virtual=self.res.virtual_for(ds, split), scale=self.res.scale(),
-                            label_format=get_label_format(ds.label_format), completion=completion,
-                            poses=self.poses(ds, split, source), workers=self.jobs, progress=self.progress)
+        poses = self.poses(ds, split, source)
+        virtual = self.res.training_virtual()
+        if split == "test" and not fixed:
+            from ..predict.road import frames_canvas
 
-    def store(self, ds: Dataset, split: str, geometry: str) -> Path:
-        """The store of ``ds``'s ``split`` in ``geometry`` (built or brought up to date)."""
+            virtual = frames_canvas(virtual, self.res.items(ds, split), self.res.camera(ds), poses)
+        return WarpSettings(camera=self.res.camera(ds), virtual=virtual, scale=self.res.scale(),
+                            label_format=get_label_format(ds.label_format), completion=completion, poses=poses,
+                            unlabelled_completion=split == "test", workers=self.jobs, progress=self.progress)
+
+    def store(self, ds: Dataset, split: str, geometry: str, fixed: bool = False) -> Path:
+        """The store of ``ds``'s ``split`` in ``geometry`` (built or brought up to date); ``fixed``
+        (a test split for the prior): in the training rectangle, ``<geometry>-fixed/`` where the
+        test split's own rectangle differs from it."""
         root = self.out / "stores" / ds.name / split / geometry
         jobs = self.res.items(ds, split)
-        settings = self.warp_settings(ds, split, geometry)
+        settings = self.warp_settings(ds, split, geometry, fixed)
+        if fixed and settings.virtual != self.warp_settings(ds, split, geometry).virtual:
+            root = root.with_name(f"{geometry}-fixed")
         self._drop_if_other_virtual(root, settings.virtual)
         warp_dataset(jobs, root, settings)
         return root

@@ -1,0 +1,164 @@
+"""A study's number is the number a user gets: a crossval study's test of a model and `vctrain predict`
+of that model on the same frames with the same camera file give the same masks, so `vctrain eval`
+gives the study's IoU.
+
+The study (tests/studies.py's mixed study: camvid role train; kitti role both; cityscapes and camvid2
+role test) exercises every way the two roads could part: kitti's labels show an own vehicle that the
+study finds (ego: auto; predict is told with --ego, as the study's result records), camvid2's label a
+bonnet the study does not cut off (its ignore border must not shape the test image's completion:
+predict has no label), one camvid2 frame's VP lies outside the study's pose range (the detector's
+default range would accept it; the model's recorded rule rejects it, as the study did), and the test
+frames at their poses reach past the training rectangle (extended for them on both roads). A second
+study does the same on the shipped examples (CamVid's 0001TP rig and the KITTI frame, tested).
+"""
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+import yaml
+
+from vcprep.store import Store
+
+from conftest import EXAMPLES, run_cli
+from studies import _mixed_study
+
+CONDS = ["resize", "between", "within"]
+GEOMETRY = {"resize": "between", "between": "between", "within": "within"}  # (resize reads the store's sources)
+CAMERAS = {"kitti": "kitti.yaml", "cityscapes": "cityscapes.yaml", "camvid2": "camvid.yaml"}
+
+
+@pytest.fixture(scope="module")
+def study_run(tmp_path_factory):
+    root = tmp_path_factory.mktemp("study_predict")
+    study = _mixed_study(root / "data")
+    d = yaml.safe_load(study.read_text())
+    d["conditions"] = CONDS
+    study.write_text(yaml.safe_dump(d, sort_keys=False))
+    out = root / "out"
+    proc = run_cli("crossval", study, "--out", out, "--quiet", prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    return study, out
+
+
+def _frames(study, name: str) -> list:
+    """The image files of dataset ``name``'s test split, as the study selects them."""
+    from vctrain.study import Resolution, load_study
+
+    s = load_study(study)
+    return [j.image for j in Resolution(s, study.parent / "unused").items(s.dataset(name), "test")]
+
+
+def _run_result(out, run: str, name: str, cond: str) -> dict:
+    folder = out / "runs" / run / cond
+    return json.loads((folder / ("result.json" if run == name else f"result-{name}.json")).read_text())
+
+
+def _result(out, name: str, cond: str) -> dict:
+    return _run_result(out, "kitti" if name == "kitti" else "_all", name, cond)
+
+
+def _assert_predict_gives_the_studys(out, run: str, name: str, cond: str, frames: list, camera, labels, fmt: str,
+                                     ego: int, preds) -> None:
+    """`vctrain predict` of the study's ``run``/``cond`` model on ``frames`` with ``camera`` (and ``--ego``)
+    writes the masks (and probabilities) the study scored its test store with, and `vctrain eval` of
+    them against ``labels`` gives the study's IoU."""
+    from vctrain.predict import Predictor
+
+    model = out / "runs" / run / cond / "model.pt"
+    proc = run_cli("predict", model, *frames, "--camera", camera, "--out", preds, "--ego", str(ego), "--device", "cpu",
+                   prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    predictor = Predictor(model, device="cpu")
+    store = Store.open(out / "stores" / name / "test" / GEOMETRY[cond])
+    for rec in store:  # the study's own masks: its predictor on its test store, as it scored them
+        prob = predictor.store_item(store, rec)
+        mask = cv2.imread(str(preds / f"{rec['id']}_mask.png"), cv2.IMREAD_UNCHANGED) > 0
+        assert np.array_equal(mask, prob >= 0.5), f"{name} {cond} {rec['id']}: {np.sum(mask != (prob >= 0.5))} px"
+        p8 = cv2.imread(str(preds / f"{rec['id']}_prob.png"), cv2.IMREAD_UNCHANGED)
+        assert np.array_equal(p8, np.clip(np.rint(prob * 255.0), 0, 255).astype(np.uint8))
+    ev = run_cli("eval", preds, "--labels", labels, "-f", fmt, "--json", "-q", prog="vctrain")
+    assert ev.returncode == 0, ev.stderr
+    assert json.loads(ev.stdout)["iou"] == pytest.approx(_run_result(out, run, name, cond)["iou"], abs=1e-9)
+
+
+@pytest.mark.parametrize("cond", CONDS)
+@pytest.mark.parametrize("name", list(CAMERAS))
+def test_predict_gives_the_studys_masks_and_iou(study_run, tmp_path, name, cond):
+    study, out = study_run
+    # the own vehicle the study found from the labels (study.json), given as the user would give it
+    ego = json.loads((out / "study.json").read_text())["ego_found"][name]["ego_rows"]
+    _assert_predict_gives_the_studys(out, "kitti" if name == "kitti" else "_all", name, cond, _frames(study, name),
+                                     study.parent / CAMERAS[name], study.parent / f"{name}_test" / "labels", "camvid",
+                                     ego, tmp_path / "preds")
+
+
+@pytest.fixture(scope="module")
+def examples_run(tmp_path_factory):
+    """The shipped examples: CamVid's 0016E5 and 0006R0 frames trained on, its 0001TP frame (another
+    rig, its own vehicle in the bottom 36 of 720 rows) and the KITTI frame (its calibration file) tested."""
+    root = tmp_path_factory.mktemp("examples_study")
+    cv = {"images": str(EXAMPLES / "camvid" / "images"), "labels": str(EXAMPLES / "camvid" / "labels")}
+    study = {"datasets": [
+        {"name": "camvid", "role": "train", "camera": "camvid", "label_format": "camvid",
+         "train": {**cv, "exclude": "0001TP_*"}},
+        {"name": "0001TP", "role": "test", "camera": "camvid", "label_format": "camvid", "ego": 36,
+         "test": {**cv, "include": "0001TP_*"}},
+        {"name": "kitti", "role": "test", "camera": str(EXAMPLES / "kitti" / "calib" / "um_000000.txt"),
+         "label_format": "kitti", "test": {"images": str(EXAMPLES / "kitti" / "image_2"),
+                                           "labels": str(EXAMPLES / "kitti" / "gt_image_2")}}],
+        "conditions": CONDS, "store_width": 160,
+        "train": {"epochs": 1, "max_steps": 2, "batch_size": 2, "arch": "segnet-narrow", "base_width": 4,
+                  "val_fraction": 0, "seed": 0}}
+    (root / "study.yaml").write_text(yaml.safe_dump(study, sort_keys=False))
+    proc = run_cli("crossval", root / "study.yaml", "--out", root / "out", "--quiet", prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    return root / "out"
+
+
+@pytest.mark.parametrize("cond", CONDS)
+@pytest.mark.parametrize("name", ["0001TP", "kitti"])
+def test_predict_gives_the_studys_masks_and_iou_on_the_examples(examples_run, tmp_path, name, cond):
+    frames = {"0001TP": [EXAMPLES / "camvid" / "images" / "0001TP_007170.png"],
+              "kitti": [EXAMPLES / "kitti" / "image_2" / "um_000000.png"]}[name]
+    camera = "camvid" if name == "0001TP" else EXAMPLES / "kitti" / "calib" / "um_000000.txt"
+    labels, fmt = ((EXAMPLES / "camvid" / "labels", "camvid") if name == "0001TP" else
+                   (EXAMPLES / "kitti" / "gt_image_2", "kitti"))
+    ego = 18 if name == "0001TP" else 0  # ego: 36 of the preset's 720 rows, at the 360-row frame's size
+    if cond != "resize":
+        assert _run_result(examples_run, "_all", name, cond)["test_warp"]["ego_rows"] == [ego]
+    _assert_predict_gives_the_studys(examples_run, "_all", name, cond, frames, camera, labels, fmt, ego,
+                                     tmp_path / "preds")
+
+
+def test_the_result_records_the_rule_predict_says_it_used(study_run, tmp_path):
+    """The study's result records what its test frames were warped with (VP statuses and rule, own
+    vehicle, rectangle); `vctrain predict` says the same on stderr, and the model remembers the rule."""
+    import torch
+
+    study, out = study_run
+    row = _result(out, "camvid2", "within")
+    warp = row["test_warp"]
+    # the study's ranges, no smoothing, sequences by file name
+    assert warp["vp_rule"] == {"pan_range": 5.0, "tilt_range": 3.0, "smooth": 0, "sequences": "name"}
+    assert warp["vp_status"] == {"accepted": 2, "fallback": 1} and warp["ego_rows"] == [0]
+    ck = torch.load(out / "runs" / "_all" / "within" / "model.pt", map_location="cpu", weights_only=True)
+    assert ck["data"]["vp_rule"] == warp["vp_rule"]
+    proc = run_cli("predict", out / "runs" / "_all" / "within" / "model.pt", *_frames(study, "camvid2"),
+                   "--camera", study.parent / "camvid.yaml", "--out", tmp_path / "p", "--device", "cpu", prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    said = proc.stderr
+    assert "VPs: 2 accepted, 1 fallback (the model's rule: pan within 5 deg and tilt within 3 deg" in said
+    assert f"virtual rectangle {warp['rectangle'][0]}x{warp['rectangle'][1]}" in said
+    assert _result(out, "kitti", "within")["test_warp"]["ego_rows"] == [3]
+    # the detector's default range would have accepted the third frame: another rule, other masks
+    other = run_cli("predict", out / "runs" / "_all" / "within" / "model.pt", *_frames(study, "camvid2"),
+                    "--camera", study.parent / "camvid.yaml", "--out", tmp_path / "q", "--device", "cpu",
+                    "--vp-range", "20", "15", prog="vctrain")
+    assert other.returncode == 0, other.stderr
+    assert "VPs: 3 accepted (the given rule: pan within 20 deg and tilt within 15 deg" in other.stderr
+    bad = run_cli("predict", out / "runs" / "_all" / "within" / "model.pt", *_frames(study, "camvid2"), "--camera",
+                  study.parent / "camvid.yaml", "--out", tmp_path / "r", "--vp-sequences", "drive", prog="vctrain")
+    assert bad.returncode == 1 and "unknown VP sequence rule 'drive'" in bad.stderr
