@@ -247,15 +247,16 @@ def geometry_line(geo: dict[str, Any], rule_source: str = "", ego_source: str = 
     return f"{vps}; {ego}; virtual rectangle {geo['rectangle'][0]}x{geo['rectangle'][1]}"
 
 
-def _road_geometry(run: "RoadRun", poses: dict, fps: dict, camera, vp_rule: Any) -> dict[str, Any]:
+def _road_geometry(run: "RoadRun", poses: dict, fps: dict, camera) -> dict[str, Any]:
     """What a road's frames were warped with, as :func:`vctrain.predict.predictor.warp_geometry`
-    reads it from a store's records."""
+    reads it from a store's records (an estimated VP's pose carries its rule; a given one none)."""
     from collections import Counter
 
     per_frame = isinstance(camera, FrameCameras)
     statuses = Counter(poses[i].status if i in poses else ("calibrated" if per_frame else "camera") for i in run.ids)
+    rules = [dict(poses[i].rule) for i in run.ids if i in poses and poses[i].rule]
     rects = {tuple(fp.virtual.size) for fp in fps.values() if fp.virtual is not None}
-    return {"vp_status": dict(sorted(statuses.items())), "vp_rule": vp_rule.to_dict() if poses else None,
+    return {"vp_status": dict(sorted(statuses.items())), "vp_rule": rules[0] if rules else None,
             "ego_rows": sorted({int(k[0].ego_rows) for k in fps if k[0] is not None}) or [0],
             "rectangle": list(rects.pop()) if len(rects) == 1 else [0, 0]}
 
@@ -315,7 +316,7 @@ def run_road(predictor: Any, images: Iterable[str | Path], out: str | Path,
             _remove_outputs(out, job.id)
             run.fail(job, e)
     if say is not None and warps_frames(predictor) and run.ids:
-        rule_source = model_vp_rule(getattr(predictor, "data", {}), vp_rule)
-        say(geometry_line(_road_geometry(run, poses, fps, camera, rule_source[0]), rule_source[1], ego_source))
+        source = model_vp_rule(getattr(predictor, "data", {}), vp_rule)[1]
+        say(geometry_line(_road_geometry(run, poses, fps, camera), source, ego_source))
     run.seconds = time.perf_counter() - t0
     return run
