@@ -88,9 +88,10 @@ def _link_all(dst: Path, parts: list[tuple[Path, Path]], n: int | None = None) -
 
 
 def study_file(wd: Path, quick: bool, epochs: int | None, shading_aug: float = SHADING_AUG,
-               extent: str = "max") -> Path:
+               extent: str = "max", train_on: list[str] | None = None) -> Path:
     """The study: the five real datasets held out in turn, KITTI a test set; ``extent`` the designed
-    rectangle's rule (study key ``extent``)."""
+    rectangle's rule (study key ``extent``). ``train_on``: only these datasets trained on (role
+    train), every other one a test set (one model, runs/_all/)."""
     n = QUICK_FRAMES if quick else None
     camvid = _link_all(wd / "frames" / "camvid", [(DATA / "train", DATA / "trainannot"),
                                                   (DATA / "val", DATA / "valannot")], n)
@@ -109,6 +110,9 @@ def study_file(wd: Path, quick: bool, epochs: int | None, shading_aug: float = S
              "test": {"images": str(KITTI / "image_2"), "labels": str(KITTI / "gt_image_2")}}
     train = ({"epochs": 1, "max_steps": 2} if quick else
              {"max_steps": camvid_steps_per_epoch(), **({"epochs": epochs} if epochs else {})})
+    for k, d in datasets.items() if train_on else ():
+        d["role"] = "train" if k in train_on else "test"
+        del d["test" if k in train_on else "train"]
     path = wd / "study.yaml"
     path.write_text(yaml.safe_dump({"datasets": [datasets[k] for k in LOO] + [kitti],
                                     **({"extent": extent} if extent != "max" else {}),
@@ -117,9 +121,11 @@ def study_file(wd: Path, quick: bool, epochs: int | None, shading_aug: float = S
     return path
 
 
-def result_files(sd: Path, cond: str, held: list[str] = LOO) -> dict[str, Path]:
+def result_files(sd: Path, cond: str, held: list[str] = LOO, pooled: bool = False) -> dict[str, Path]:
     """{test set: its result file} of one seed's study and condition (crossval's layout); ``held`` the
-    held-out cameras (a subset of LOO: no test-only set then)."""
+    held-out cameras (a subset of LOO: no test-only set then); ``pooled``: one model (--train-on)."""
+    if pooled:
+        return {t: sd / "runs" / "_all" / cond / f"result-{t}.json" for t in held}
     out = {t: sd / "runs" / t / cond / "result.json" for t in held}
     if held != LOO:
         return out
@@ -128,7 +134,7 @@ def result_files(sd: Path, cond: str, held: list[str] = LOO) -> dict[str, Path]:
 
 
 def collect(wd: Path, seeds: list[int], conds: list[str], base: Path | None = None,
-            held: list[str] = LOO) -> tuple[dict[str, list], list[str], list[float]]:
+            held: list[str] = LOO, pooled: bool = False) -> tuple[dict[str, list], list[str], list[float]]:
     """(cells {'<test>|<cond>': road IoU points per seed, None where not finished}, the missing
     '<test>|<cond>|seed<k>' folds, the training minutes of every finished model). ``base``: the
     workdir whose studies hold ``resize`` (another rectangle rule's: resize meets no rectangle)."""
@@ -137,7 +143,7 @@ def collect(wd: Path, seeds: list[int], conds: list[str], base: Path | None = No
     for i, seed in enumerate(seeds):
         for cond in conds:
             sd = (base if base is not None and cond == "resize" else wd) / f"seed{seed}"
-            for t, f in result_files(sd, cond, held).items():
+            for t, f in result_files(sd, cond, held, pooled and sd.parent == wd).items():
                 cell = cells.setdefault(f"{t}|{cond}", [None] * len(seeds))
                 if not f.is_file():
                     missing.append(f"{t}|{cond}|seed{seed}")
@@ -228,7 +234,30 @@ def render(cells: dict[str, list], head: dict, targets: dict, seeds: list[int], 
     return "\n".join(lines) + "\n"
 
 
-def main() -> None:
+def mixed_average(wd: Path, rd: Path, seeds: list[int], held: list[str]) -> None:
+    """Condition average across two studies (``--train-on``): the mean of WORKDIR's one within model
+    (trained on the --train-on sets) and each fold's resize model in ``rd`` (trained on the other four),
+    scored as crossval's condition average on this study's within test store of the held-out camera;
+    written where collect reads it (runs/_all/average/result-<t>.json; kept while it exists)."""
+    from vctrain.predict import Predictor
+    from vctrain.study.conditions import AveragePredictor
+    from vctrain.study.execute import score_store
+
+    for seed in seeds:
+        sd = wd / f"seed{seed}"
+        within = sd / "runs" / "_all" / "within" / "model.pt"
+        for t in held:
+            resize = rd / f"seed{seed}" / "runs" / t / "resize" / "model.pt"
+            out = sd / "runs" / "_all" / "average" / f"result-{t}.json"
+            if out.is_file() or not (within.is_file() and resize.is_file()):
+                continue
+            pred = AveragePredictor([Predictor(within, device="cpu"), Predictor(resize, device="cpu")])
+            m = score_store(pred, sd / "stores" / t / "test" / "within")
+            out.parent.mkdir(parents=True, exist_ok=True)
+            write_json(out, {**m, "heldout": t, "condition": "average", "averaged": [str(within), str(resize)]})
+
+
+def _args() -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", default="0,1")
     ap.add_argument("--conditions", default="within,resize")
@@ -246,28 +275,41 @@ def main() -> None:
                     "multi_camera_median.{md,json}")
     ap.add_argument("--held-out", default=",".join(LOO), help="the folds to run, a comma-separated subset of "
                     f"{','.join(LOO)} (a subset: no test-only model, results in WORKDIR/results)")
-    a = ap.parse_args()
+    ap.add_argument("--train-on", default="", help="the virtual-camera conditions trained on these datasets only "
+                    "(e.g. camvid,cityscapes: the calibrated cameras; one model, every held-out set a test set), in "
+                    "WORKDIR[/median]/train-<names>; resize (and condition average's resize model) from the "
+                    "study of all four (WORKDIR[/median], run there with --conditions within,resize,average)")
+    return ap.parse_args()
+
+
+def main() -> None:
+    a = _args()
     held = [t for t in LOO if t in a.held_out.split(",")]
+    train_on = [t for t in LOO if t in a.train_on.split(",")]
     require_data(CITYSCAPES, IDD, DATA, KITTI, BDD, LUMS)
     seeds = [0] if a.quick else [int(s) for s in a.seeds.split(",") if s]
     conds = a.conditions.split(",")
     base = a.workdir / "quick" if a.quick else a.workdir
-    wd = base / "median" if a.extent == "median" else base
+    rd = wd = base / "median" if a.extent == "median" else base  # rd: the study that trains resize
+    if train_on:
+        wd = wd / ("train-" + "-".join(train_on))
+    else:  # resize meets no rectangle: read from WORKDIR's studies, unless average needs its model here
+        rd = wd if a.extent == "max" or "average" in conds else base
     wd.mkdir(parents=True, exist_ok=True)
     steps = 2 if a.quick else camvid_steps_per_epoch()
-    # resize meets no rectangle: read from WORKDIR's studies, unless a condition here needs its model (average)
-    resize_here = a.extent == "max" or "average" in conds
-    run_conds = conds if resize_here else [k for k in conds if k != "resize"]
+    run_conds = [k for k in conds if rd == wd or k not in ("resize", "average")]
 
     if not a.collect:
-        study = study_file(wd, a.quick, a.epochs, a.shading_aug, a.extent)
+        study = study_file(wd, a.quick, a.epochs, a.shading_aug, a.extent, train_on or None)
         for seed in seeds:
             if seed != seeds[0]:
                 link_stores(wd / f"seed{seed}", wd / f"seed{seeds[0]}")
             run_study(study, wd / f"seed{seed}", run_conds, seed, a.threads,
-                      held if a.no_test_only or held != LOO else None)
+                      held if a.no_test_only or held != LOO or train_on else None)
+        if train_on and "average" in conds:
+            mixed_average(wd, rd, seeds, held)
 
-    cells, missing, minutes = collect(wd, seeds, conds, None if resize_here else base, held)
+    cells, missing, minutes = collect(wd, seeds, conds, None if rd == wd else rd, held, bool(train_on))
     head, targets = summarise(cells, seeds, conds, held)
     head["minutes_per_model"] = round(float(np.mean(minutes)), 2) if minutes else None
     head["minutes_per_model_max"] = round(float(np.max(minutes)), 2) if minutes else None
@@ -275,7 +317,15 @@ def main() -> None:
     head["folds_missing"] = missing
     table = render(cells, head, targets, seeds, conds, missing, steps, held)
     print(table)
-    res_dir = (wd / "results") if a.quick or held != LOO else (ROOT / "benchmarks" / "results")
+    _write(a, wd, table, {"headline": head, "targets": targets, "cells": cells, "seeds": seeds, "conditions": conds,
+                          "held_out": held, "train_on": train_on or None}, held, steps)
+    print(json.dumps(head))
+    sys.stdout.flush()
+
+
+def _write(a: argparse.Namespace, wd: Path, table: str, out: dict, held: list[str], steps: int) -> None:
+    """The table and the JSON (benchmarks/results, or WORKDIR's results for a smoke run or some folds)."""
+    res_dir = (wd / "results") if a.quick or held != LOO or a.train_on else (ROOT / "benchmarks" / "results")
     res_dir.mkdir(parents=True, exist_ok=True)
     name = "multi_camera" + ("_median" if a.extent != "max" else "")
     (res_dir / f"{name}.md").write_text(table)
@@ -283,14 +333,12 @@ def main() -> None:
                f"--conditions {a.conditions} --threads {a.threads}"
                + (f" --epochs {a.epochs}" if a.epochs else "") + f" --shading-aug {a.shading_aug:g}"
                + (f" --extent {a.extent}" if a.extent != "max" else "") + (" --collect" if a.collect else "")
-               + (f" --held-out {','.join(held)}" if held != LOO else ""))
+               + (f" --held-out {','.join(held)}" if held != LOO else "")
+               + (f" --train-on {a.train_on}" if a.train_on else ""))
     write_json(res_dir / f"{name}.json", {
-        "headline": head, "targets": targets, "cells": cells, "seeds": seeds, "conditions": conds, "held_out": held,
-        "test_only": TEST_ONLY, "steps_per_epoch": steps, "epochs": a.epochs, "balance": "datasets",
+        **out, "test_only": TEST_ONLY, "steps_per_epoch": steps, "epochs": a.epochs, "balance": "datasets",
         "shading_aug": a.shading_aug, "extent": a.extent,
         "threads": a.threads, "machine": machine(), "date": today(), "command": command})
-    print(json.dumps(head))
-    sys.stdout.flush()
 
 
 if __name__ == "__main__":
