@@ -3,6 +3,7 @@
     .venv/bin/python benchmarks/multi_camera.py [--seeds 0,1] [--conditions within,resize] [--epochs N]
                                                 [--workdir benchmarks/out/multi_camera] [--threads 2]
                                                 [--quick] [--collect] [--extent max|median]
+                                                [--held-out idd,bdd] [--train-on camvid,cityscapes]
 
 **Data** (../shared/data, each with the camera it ships with), every one ``role: both``:
 ``camvid`` (CamVid train + val, 468 frames of the SegNet release, the camvid preset scaled to 480x360;
@@ -43,12 +44,21 @@ longer shrink every other camera's images; each test split extended to hold its 
 virtual-camera conditions run in WORKDIR/median, ``resize`` (which no rectangle touches) is read from
 WORKDIR's studies of the same seeds, results in multi_camera_median.{md,json}.
 
+**Issue 44 options**: ``--held-out`` runs some folds only (crossval ``--heldout``; no all-five model, results
+in WORKDIR[/median]/results). Condition ``average`` (crossval's: the within and resize models' probabilities
+averaged in the held-out camera's pixels, no training of its own) makes the median study train its own
+``resize`` (same frames, steps and sampling; it reads the frames as they are). ``--train-on camvid,cityscapes``
+trains the virtual-camera conditions on those datasets only (the calibrated cameras: IDD-Lite's, BDD100K's
+and LUMS's files are assumed), one model per seed tested on every held-out set (WORKDIR[/median]/train-<names>),
+against the resize model of each fold (trained on the other four, in WORKDIR[/median]); ``average`` there is
+that within model averaged with the fold's resize model (:func:`mixed_average`).
+
 Outputs: benchmarks/results/multi_camera.{md,json} (``--quick``: a smoke run, a few frames, 2 steps, into
 WORKDIR/results). ``--collect`` runs nothing: it reports the folds finished so far (a cut-off run's) and
 names the missing ones. The last stdout line is one JSON object: ``loo_within_minus_resize`` (and
 ``_std``), ``loo_within_minus_resize_<dataset>``, ``loo_within_<dataset>``, ``loo_resize_<dataset>``,
-``test_within_kitti``/``test_resize_kitti`` (the all-five model), ``minutes_per_model``, ``seeds`` and
-``folds_missing``.
+``test_within_kitti``/``test_resize_kitti`` (the all-five model), ``loo_<condition>_minus_resize_<dataset>``
+(every other condition), ``minutes_per_model``, ``seeds`` and ``folds_missing``.
 """
 from __future__ import annotations
 
