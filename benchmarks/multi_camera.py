@@ -3,6 +3,7 @@
     .venv/bin/python benchmarks/multi_camera.py [--seeds 0,1] [--conditions within,resize] [--epochs N]
                                                 [--workdir benchmarks/out/multi_camera] [--threads 2]
                                                 [--quick] [--collect] [--extent max|median]
+                                                [--held-out idd,bdd] [--train-on camvid,cityscapes]
 
 **Data** (../shared/data, each with the camera it ships with), every one ``role: both``:
 ``camvid`` (CamVid train + val, 468 frames of the SegNet release, the camvid preset scaled to 480x360;
@@ -43,12 +44,21 @@ longer shrink every other camera's images; each test split extended to hold its 
 virtual-camera conditions run in WORKDIR/median, ``resize`` (which no rectangle touches) is read from
 WORKDIR's studies of the same seeds, results in multi_camera_median.{md,json}.
 
+**Issue 44 options**: ``--held-out`` runs some folds only (crossval ``--heldout``; no all-five model, results
+in WORKDIR[/median]/results). Condition ``average`` (crossval's: the within and resize models' probabilities
+averaged in the held-out camera's pixels, no training of its own) makes the median study train its own
+``resize`` (same frames, steps and sampling; it reads the frames as they are). ``--train-on camvid,cityscapes``
+trains the virtual-camera conditions on those datasets only (the calibrated cameras: IDD-Lite's, BDD100K's
+and LUMS's files are assumed), one model per seed tested on every held-out set (WORKDIR[/median]/train-<names>),
+against the resize model of each fold (trained on the other four, in WORKDIR[/median]); ``average`` there is
+that within model averaged with the fold's resize model (:func:`mixed_average`).
+
 Outputs: benchmarks/results/multi_camera.{md,json} (``--quick``: a smoke run, a few frames, 2 steps, into
 WORKDIR/results). ``--collect`` runs nothing: it reports the folds finished so far (a cut-off run's) and
 names the missing ones. The last stdout line is one JSON object: ``loo_within_minus_resize`` (and
 ``_std``), ``loo_within_minus_resize_<dataset>``, ``loo_within_<dataset>``, ``loo_resize_<dataset>``,
-``test_within_kitti``/``test_resize_kitti`` (the all-five model), ``minutes_per_model``, ``seeds`` and
-``folds_missing``.
+``test_within_kitti``/``test_resize_kitti`` (the all-five model), ``loo_<condition>_minus_resize_<dataset>``
+(every other condition), ``minutes_per_model``, ``seeds`` and ``folds_missing``.
 """
 from __future__ import annotations
 
@@ -88,9 +98,10 @@ def _link_all(dst: Path, parts: list[tuple[Path, Path]], n: int | None = None) -
 
 
 def study_file(wd: Path, quick: bool, epochs: int | None, shading_aug: float = SHADING_AUG,
-               extent: str = "max") -> Path:
+               extent: str = "max", train_on: list[str] | None = None) -> Path:
     """The study: the five real datasets held out in turn, KITTI a test set; ``extent`` the designed
-    rectangle's rule (study key ``extent``)."""
+    rectangle's rule (study key ``extent``). ``train_on``: only these datasets trained on (role
+    train), every other one a test set (one model, runs/_all/)."""
     n = QUICK_FRAMES if quick else None
     camvid = _link_all(wd / "frames" / "camvid", [(DATA / "train", DATA / "trainannot"),
                                                   (DATA / "val", DATA / "valannot")], n)
@@ -109,6 +120,9 @@ def study_file(wd: Path, quick: bool, epochs: int | None, shading_aug: float = S
              "test": {"images": str(KITTI / "image_2"), "labels": str(KITTI / "gt_image_2")}}
     train = ({"epochs": 1, "max_steps": 2} if quick else
              {"max_steps": camvid_steps_per_epoch(), **({"epochs": epochs} if epochs else {})})
+    for k, d in datasets.items() if train_on else ():
+        d["role"] = "train" if k in train_on else "test"
+        del d["test" if k in train_on else "train"]
     path = wd / "study.yaml"
     path.write_text(yaml.safe_dump({"datasets": [datasets[k] for k in LOO] + [kitti],
                                     **({"extent": extent} if extent != "max" else {}),
@@ -117,15 +131,20 @@ def study_file(wd: Path, quick: bool, epochs: int | None, shading_aug: float = S
     return path
 
 
-def result_files(sd: Path, cond: str) -> dict[str, Path]:
-    """{test set: its result file} of one seed's study and condition (crossval's layout)."""
-    out = {t: sd / "runs" / t / cond / "result.json" for t in LOO}
+def result_files(sd: Path, cond: str, held: list[str] = LOO, pooled: bool = False) -> dict[str, Path]:
+    """{test set: its result file} of one seed's study and condition (crossval's layout); ``held`` the
+    held-out cameras (a subset of LOO: no test-only set then); ``pooled``: one model (--train-on)."""
+    if pooled:
+        return {t: sd / "runs" / "_all" / cond / f"result-{t}.json" for t in held}
+    out = {t: sd / "runs" / t / cond / "result.json" for t in held}
+    if held != LOO:
+        return out
     out.update({t: sd / "runs" / "_all" / cond / f"result-{t}.json" for t in TEST_ONLY})
     return out
 
 
-def collect(wd: Path, seeds: list[int], conds: list[str],
-            base: Path | None = None) -> tuple[dict[str, list], list[str], list[float]]:
+def collect(wd: Path, seeds: list[int], conds: list[str], base: Path | None = None,
+            held: list[str] = LOO, pooled: bool = False) -> tuple[dict[str, list], list[str], list[float]]:
     """(cells {'<test>|<cond>': road IoU points per seed, None where not finished}, the missing
     '<test>|<cond>|seed<k>' folds, the training minutes of every finished model). ``base``: the
     workdir whose studies hold ``resize`` (another rectangle rule's: resize meets no rectangle)."""
@@ -134,18 +153,20 @@ def collect(wd: Path, seeds: list[int], conds: list[str],
     for i, seed in enumerate(seeds):
         for cond in conds:
             sd = (base if base is not None and cond == "resize" else wd) / f"seed{seed}"
-            for t, f in result_files(sd, cond).items():
+            for t, f in result_files(sd, cond, held, pooled and sd.parent == wd).items():
                 cell = cells.setdefault(f"{t}|{cond}", [None] * len(seeds))
                 if not f.is_file():
                     missing.append(f"{t}|{cond}|seed{seed}")
                     continue
                 row = json.loads(f.read_text())
                 cell[i] = 100 * row["iou"]
-                minutes[(seed, cond, row.get("run", t))] = row["train_seconds"] / 60  # one model per run
+                if "averaged" not in row:  # (condition average trains nothing: its models are within's, resize's)
+                    minutes[(seed, cond, row.get("run", t))] = row["train_seconds"] / 60  # one model per run
     return cells, missing, list(minutes.values())
 
 
-def summarise(cells: dict[str, list], seeds: list[int], conds: list[str]) -> tuple[dict, dict]:
+def summarise(cells: dict[str, list], seeds: list[int], conds: list[str],
+              held: list[str] = LOO) -> tuple[dict, dict]:
     """(headline, targets) of the cells; a figure over seeds uses the seeds that have both of its values."""
     r2 = lambda x: round(float(x), 2)
     head: dict = {}
@@ -154,13 +175,18 @@ def summarise(cells: dict[str, list], seeds: list[int], conds: list[str]) -> tup
         w, r = cells.get(f"{t}|within", []), cells.get(f"{t}|resize", [])
         return [a - b for a, b in zip(w, r) if a is not None and b is not None]
 
-    for t in LOO:
+    for t in held:
         for k in conds:
             v = [x for x in cells.get(f"{t}|{k}", []) if x is not None]
             head[f"loo_{k}_{t}"] = r2(np.mean(v)) if v else None
         d = paired(t)
         head[f"loo_within_minus_resize_{t}"] = r2(np.mean(d)) if d else None
-    for t in TEST_ONLY:
+        for k in conds:  # every other condition against resize, paired per seed
+            if k not in ("within", "resize"):
+                d = [a - b for a, b in zip(cells.get(f"{t}|{k}", []), cells.get(f"{t}|resize", []))
+                     if a is not None and b is not None]
+                head[f"loo_{k}_minus_resize_{t}"] = r2(np.mean(d)) if d else None
+    for t in TEST_ONLY if held == LOO else []:
         for k in conds:
             v = [x for x in cells.get(f"{t}|{k}", []) if x is not None]
             head[f"test_{k}_{t}"] = r2(np.mean(v)) if v else None
@@ -168,17 +194,17 @@ def summarise(cells: dict[str, list], seeds: list[int], conds: list[str]) -> tup
     per_seed = []
     for i in range(len(seeds)):
         d = [cells.get(f"{t}|within", [None] * len(seeds))[i] is not None
-             and cells.get(f"{t}|resize", [None] * len(seeds))[i] is not None for t in LOO]
+             and cells.get(f"{t}|resize", [None] * len(seeds))[i] is not None for t in held]
         if all(d):
-            per_seed.append(float(np.mean([cells[f"{t}|within"][i] - cells[f"{t}|resize"][i] for t in LOO])))
+            per_seed.append(float(np.mean([cells[f"{t}|within"][i] - cells[f"{t}|resize"][i] for t in held])))
     if per_seed:
         s = seed_stats(per_seed)
         head["loo_within_minus_resize"], head["loo_within_minus_resize_std"] = r2(s["mean"]), r2(s["std"] or 0.0)
     else:
         head["loo_within_minus_resize"] = head["loo_within_minus_resize_std"] = None
     head["loo_complete_seeds"] = [seeds[i] for i in range(len(seeds)) if len(per_seed) and all(
-        cells.get(f"{t}|{k}", [None] * len(seeds))[i] is not None for t in LOO for k in ("within", "resize"))]
-    worst = [head[f"loo_within_minus_resize_{t}"] for t in LOO]
+        cells.get(f"{t}|{k}", [None] * len(seeds))[i] is not None for t in held for k in ("within", "resize"))]
+    worst = [head[f"loo_within_minus_resize_{t}"] for t in held]
     targets = {
         f"LOO mean within >= resize + {TARGET_GAIN:g}": None if head["loo_within_minus_resize"] is None
         else head["loo_within_minus_resize"] >= TARGET_GAIN,
@@ -189,21 +215,25 @@ def summarise(cells: dict[str, list], seeds: list[int], conds: list[str]) -> tup
 
 
 def render(cells: dict[str, list], head: dict, targets: dict, seeds: list[int], conds: list[str],
-           missing: list[str], steps: int) -> str:
+           missing: list[str], steps: int, held: list[str] = LOO) -> str:
     f = lambda v: "-" if v is None else f"{v:.1f}"
+    others = [k for k in conds if k not in ("within", "resize")]
     lines = [f"Leave one real camera out: road IoU (%) per seed {seeds}; each fold trained on the other four real "
              f"datasets (balance: datasets, {steps} steps an epoch), tested on all frames of the held-out one in "
              "its own camera; KITTI by the model trained on all five.", "",
-             "| held out | seed | " + " | ".join(conds) + " | within − resize |",
-             "|---|---|" + "---|" * (len(conds) + 1)]
-    for t in LOO + TEST_ONLY:
+             "| held out | seed | " + " | ".join(conds) + " | within − resize |"
+             + "".join(f" {k} − resize |" for k in others),
+             "|---|---|" + "---|" * (len(conds) + 1 + len(others))]
+    for t in held + (TEST_ONLY if held == LOO else []):
         for i, s in enumerate(seeds):
             v = [cells.get(f"{t}|{k}", [None] * len(seeds))[i] for k in conds]
             w, r = (cells.get(f"{t}|within", [None] * len(seeds))[i], cells.get(f"{t}|resize", [None] * len(seeds))[i])
             lines.append(f"| {t} | {s} | " + " | ".join(f(x) for x in v) + " | "
-                         + ("-" if w is None or r is None else f"{w - r:+.1f}") + " |")
+                         + ("-" if w is None or r is None else f"{w - r:+.1f}") + " |"
+                         + "".join(" - |" if x is None or r is None else f" {x - r:+.1f} |"
+                                   for x in (cells.get(f"{t}|{k}", [None] * len(seeds))[i] for k in others)))
     m, sd = head.get("loo_within_minus_resize"), head.get("loo_within_minus_resize_std")
-    lines += ["", "LOO mean within − resize (per seed the mean over the five held-out cameras): "
+    lines += ["", f"LOO mean within − resize (per seed the mean over the {len(held)} held-out cameras): "
               + ("not complete for any seed" if m is None
                  else f"{m:+.1f} ± {sd:.1f} (seeds {head['loo_complete_seeds']})")
               + "."]
@@ -214,7 +244,30 @@ def render(cells: dict[str, list], head: dict, targets: dict, seeds: list[int], 
     return "\n".join(lines) + "\n"
 
 
-def main() -> None:
+def mixed_average(wd: Path, rd: Path, seeds: list[int], held: list[str]) -> None:
+    """Condition average across two studies (``--train-on``): the mean of WORKDIR's one within model
+    (trained on the --train-on sets) and each fold's resize model in ``rd`` (trained on the other four),
+    scored as crossval's condition average on this study's within test store of the held-out camera;
+    written where collect reads it (runs/_all/average/result-<t>.json; kept while it exists)."""
+    from vctrain.predict import Predictor
+    from vctrain.study.conditions import AveragePredictor
+    from vctrain.study.execute import score_store
+
+    for seed in seeds:
+        sd = wd / f"seed{seed}"
+        within = sd / "runs" / "_all" / "within" / "model.pt"
+        for t in held:
+            resize = rd / f"seed{seed}" / "runs" / t / "resize" / "model.pt"
+            out = sd / "runs" / "_all" / "average" / f"result-{t}.json"
+            if out.is_file() or not (within.is_file() and resize.is_file()):
+                continue
+            pred = AveragePredictor([Predictor(within, device="cpu"), Predictor(resize, device="cpu")])
+            m = score_store(pred, sd / "stores" / t / "test" / "within")
+            out.parent.mkdir(parents=True, exist_ok=True)
+            write_json(out, {**m, "heldout": t, "condition": "average", "averaged": [str(within), str(resize)]})
+
+
+def _args() -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", default="0,1")
     ap.add_argument("--conditions", default="within,resize")
@@ -230,46 +283,72 @@ def main() -> None:
                     help="the designed rectangle's rule (study 'extent'); median: the virtual-camera conditions "
                     "in WORKDIR/median, resize taken from WORKDIR's studies of the same seeds, results "
                     "multi_camera_median.{md,json}")
-    a = ap.parse_args()
+    ap.add_argument("--held-out", default=",".join(LOO), help="the folds to run, a comma-separated subset of "
+                    f"{','.join(LOO)} (a subset: no test-only model, results in WORKDIR/results)")
+    ap.add_argument("--train-on", default="", help="the virtual-camera conditions trained on these datasets only "
+                    "(e.g. camvid,cityscapes: the calibrated cameras; one model, every held-out set a test set), in "
+                    "WORKDIR[/median]/train-<names>; resize (and condition average's resize model) from the "
+                    "study of all four (WORKDIR[/median], run there with --conditions within,resize,average)")
+    return ap.parse_args()
+
+
+def main() -> None:
+    a = _args()
+    held = [t for t in LOO if t in a.held_out.split(",")]
+    train_on = [t for t in LOO if t in a.train_on.split(",")]
     require_data(CITYSCAPES, IDD, DATA, KITTI, BDD, LUMS)
     seeds = [0] if a.quick else [int(s) for s in a.seeds.split(",") if s]
     conds = a.conditions.split(",")
     base = a.workdir / "quick" if a.quick else a.workdir
-    wd = base / "median" if a.extent == "median" else base
+    rd = wd = base / "median" if a.extent == "median" else base  # rd: the study that trains resize
+    if train_on:
+        wd = wd / ("train-" + "-".join(train_on))
+    else:  # resize meets no rectangle: read from WORKDIR's studies, unless average needs its model here
+        rd = wd if a.extent == "max" or "average" in conds else base
     wd.mkdir(parents=True, exist_ok=True)
     steps = 2 if a.quick else camvid_steps_per_epoch()
-    run_conds = [k for k in conds if k != "resize"] if a.extent != "max" else conds
+    run_conds = [k for k in conds if rd == wd or k not in ("resize", "average")]
 
     if not a.collect:
-        study = study_file(wd, a.quick, a.epochs, a.shading_aug, a.extent)
+        study = study_file(wd, a.quick, a.epochs, a.shading_aug, a.extent, train_on or None)
         for seed in seeds:
             if seed != seeds[0]:
                 link_stores(wd / f"seed{seed}", wd / f"seed{seeds[0]}")
-            run_study(study, wd / f"seed{seed}", run_conds, seed, a.threads, LOO if a.no_test_only else None)
+            run_study(study, wd / f"seed{seed}", run_conds, seed, a.threads,
+                      held if a.no_test_only or held != LOO or train_on else None)
+        if train_on and "average" in conds:
+            mixed_average(wd, rd, seeds, held)
 
-    cells, missing, minutes = collect(wd, seeds, conds, base if a.extent != "max" else None)
-    head, targets = summarise(cells, seeds, conds)
+    cells, missing, minutes = collect(wd, seeds, conds, None if rd == wd else rd, held, bool(train_on))
+    head, targets = summarise(cells, seeds, conds, held)
     head["minutes_per_model"] = round(float(np.mean(minutes)), 2) if minutes else None
     head["minutes_per_model_max"] = round(float(np.max(minutes)), 2) if minutes else None
     head["seeds"] = seeds
     head["folds_missing"] = missing
-    table = render(cells, head, targets, seeds, conds, missing, steps)
+    table = render(cells, head, targets, seeds, conds, missing, steps, held)
     print(table)
-    res_dir = (wd / "results") if a.quick else (ROOT / "benchmarks" / "results")
+    _write(a, wd, table, {"headline": head, "targets": targets, "cells": cells, "seeds": seeds, "conditions": conds,
+                          "held_out": held, "train_on": train_on or None}, held, steps)
+    print(json.dumps(head))
+    sys.stdout.flush()
+
+
+def _write(a: argparse.Namespace, wd: Path, table: str, out: dict, held: list[str], steps: int) -> None:
+    """The table and the JSON (benchmarks/results, or WORKDIR's results for a smoke run or some folds)."""
+    res_dir = (wd / "results") if a.quick or held != LOO or a.train_on else (ROOT / "benchmarks" / "results")
     res_dir.mkdir(parents=True, exist_ok=True)
     name = "multi_camera" + ("_median" if a.extent != "max" else "")
     (res_dir / f"{name}.md").write_text(table)
     command = (f"benchmarks/multi_camera.py {'--quick' if a.quick else '--seeds ' + a.seeds} "
                f"--conditions {a.conditions} --threads {a.threads}"
                + (f" --epochs {a.epochs}" if a.epochs else "") + f" --shading-aug {a.shading_aug:g}"
-               + (f" --extent {a.extent}" if a.extent != "max" else "") + (" --collect" if a.collect else ""))
+               + (f" --extent {a.extent}" if a.extent != "max" else "") + (" --collect" if a.collect else "")
+               + (f" --held-out {','.join(held)}" if held != LOO else "")
+               + (f" --train-on {a.train_on}" if a.train_on else ""))
     write_json(res_dir / f"{name}.json", {
-        "headline": head, "targets": targets, "cells": cells, "seeds": seeds, "conditions": conds, "held_out": LOO,
-        "test_only": TEST_ONLY, "steps_per_epoch": steps, "epochs": a.epochs, "balance": "datasets",
+        **out, "test_only": TEST_ONLY, "steps_per_epoch": steps, "epochs": a.epochs, "balance": "datasets",
         "shading_aug": a.shading_aug, "extent": a.extent,
         "threads": a.threads, "machine": machine(), "date": today(), "command": command})
-    print(json.dumps(head))
-    sys.stdout.flush()
 
 
 if __name__ == "__main__":

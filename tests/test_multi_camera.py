@@ -198,3 +198,36 @@ def test_study_train_balance_is_a_training_setting(tmp_path, camvid_half):
     path.write_text(yaml.safe_dump(d))
     with pytest.raises(InputError):  # resolved like vctrain fit's: refused before any store is built
         training_settings(load_study(path))
+
+
+def test_condition_average_trains_nothing_and_averages_within_and_resize(tmp_path):
+    """Condition average (issue 44): the run's within and resize models, found trained, their
+    probabilities averaged in the evaluated camera's pixels; no model of its own."""
+    import json
+
+    from conftest import run_cli
+    from studies import _mixed_study, _rows
+    from vcprep.store import Store
+    from vctrain.predict import Predictor
+    from vctrain.study.conditions import AveragePredictor
+
+    study, out = _mixed_study(tmp_path / "data"), tmp_path / "out"
+    first = run_cli("crossval", study, "--out", out, "--conditions", "within,resize", "--heldout", "kitti", prog="vctrain")
+    assert first.returncode == 0, first.stderr
+    trained = {c: (out / "runs" / "kitti" / c / "train.json").read_text() for c in ("within", "resize")}
+    proc = run_cli("crossval", study, "--out", out, "--conditions", "within,resize,average", "--heldout", "kitti",
+                   prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    assert "training on" not in proc.stderr  # both models found trained: average trains none
+    assert {c: (out / "runs" / "kitti" / c / "train.json").read_text() for c in trained} == trained
+    run_dir = out / "runs" / "kitti" / "average"
+    assert not (run_dir / "model.pt").exists()
+    row = json.loads((run_dir / "result.json").read_text())
+    assert row["averaged"] == ["within", "resize"] and row["test_items"] == 2
+    assert [r["condition"] for r in _rows(out)] == ["within", "resize", "average"]
+    store = Store.open(out / "stores" / "kitti" / "test" / "within")
+    rec = next(iter(store))
+    w, r = (Predictor(out / "runs" / "kitti" / c / "model.pt", device="cpu") for c in ("within", "resize"))
+    got = AveragePredictor([w, r]).store_item(store, rec)
+    assert np.allclose(got, (w.store_item(store, rec) + r.store_item(store, rec)) / 2)
+    assert got.shape == (rec["size"][1], rec["size"][0])

@@ -4,7 +4,9 @@
   :func:`vctrain.train.fit` on the run's training stores of the condition's geometry;
 * :class:`Prior` (prior): no model, P(road) = the training datasets' geometric prior p_g;
 * :class:`Adapt` (adapt, adapt-fuse, adapt-self): the within run's model (trained once, shared with
-  condition within) adapted to each evaluated dataset's unlabelled images.
+  condition within) adapted to each evaluated dataset's unlabelled images;
+* :class:`Average` (average): no model of its own, the mean of the within and resize runs' models'
+  probabilities in the evaluated camera's pixels.
 
 Nothing is tuned on an evaluated camera: the checkpoint kept is the best on a validation share of
 the TRAINING datasets. Training settings not given in the study are
@@ -33,7 +35,8 @@ from .runs import Run, what
 from .spec import ADAPT_COMBINE, CONDITIONS, DEFAULT_TRAIN, GEOMETRIES, RUN_KEYS, Dataset, Study
 from .stores import Stores
 
-__all__ = ["Context", "KINDS", "Fit", "Prior", "Adapt", "train_config", "training_settings"]
+__all__ = ["Context", "KINDS", "Fit", "Prior", "Adapt", "Average", "AveragePredictor", "train_config",
+           "training_settings"]
 
 
 def train_config(study: Study, stores: list[Path], out: Path, baseline: str, size: tuple[int, int] | None,
@@ -296,5 +299,51 @@ class Adapt:
         return done
 
 
+class AveragePredictor:
+    """P(road) of a store item = the mean of several predictors' (each in the item's ORIGINAL camera)."""
+
+    def __init__(self, predictors: list[Any]):
+        self.predictors = predictors
+
+    def store_item(self, store: Store, rec: dict[str, Any]):
+        return sum(p.store_item(store, rec) for p in self.predictors) / len(self.predictors)
+
+
+AVERAGED = ("within", "resize")  # condition average: the mean of these runs' models
+
+
+class Average:
+    """Condition average: the ``within`` and ``resize`` runs' models (trained once, shared with those
+    conditions, trained here if not yet), their probabilities averaged in the evaluated camera's own
+    pixels (back-projected from the virtual camera / resized back), scored like every other condition.
+    Scored on the within test stores: the resize model reads each record's source image."""
+
+    legacy: str | None = None
+
+    def __init__(self, run: Run, ctx: Context, tag: str):
+        self.run, self.ctx, self.tag = run, ctx, tag
+
+    def key(self, ds: Dataset) -> str:
+        from .keys import settings_sha
+
+        return settings_sha({"average": list(AVERAGED), "result": self.ctx.keys.result(self.run, ds)})
+
+    def runnable(self, todo: list[Dataset]) -> list[Dataset]:
+        return todo
+
+    def prepare(self, todo: list[Dataset]) -> dict[str, Any]:
+        self.parts = [trained(replace(self.run, condition=c), self.ctx, self.tag) for c in AVERAGED]
+        self.run.folder(self.ctx.out).mkdir(parents=True, exist_ok=True)
+        self.test_stores = {ds.name: self.ctx.stores.store(ds, "test", CONDITIONS["average"][0]) for ds in todo}
+        info = dict(self.parts[0][1])
+        info["train_seconds"] = round(sum(i["train_seconds"] for _, i in self.parts), 1)
+        return info
+
+    def scored(self, ds: Dataset) -> tuple[Any, Path, float, dict[str, Any]]:
+        predictor = AveragePredictor([_model_predictor(Path(cfg.out)) for cfg, _ in self.parts])
+        return predictor, self.test_stores[ds.name], sum(i["train_seconds"] for _, i in self.parts), {
+            "averaged": list(AVERAGED)}
+
+
 # how a condition's predictor comes about (CONDITIONS[c][1]) -> its kind
-KINDS: dict[str, type] = {"none": Fit, "resize": Fit, "prior": Prior, "adapt": Adapt}
+KINDS: dict[str, type] = {"none": Fit, "resize": Fit, "prior": Prior, "adapt": Adapt, "average": Average}

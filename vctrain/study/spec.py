@@ -30,10 +30,13 @@ adapt-fuse  as adapt, the surrogate labels from the prior FUSED with the within 
             confident network decides where the prior is unsure, and vice versa)
 adapt-self  as adapt, the surrogate labels from the within model's own prediction alone
             (``--combine self``: self-training, the control for what the prior adds)
+average     no training of its own: P(road) = the mean of the ``within`` and ``resize`` models'
+            probabilities (those runs' own checkpoints, trained once and shared with those
+            conditions), each in the evaluated camera's own pixels
 ==========  ==========================================================================
 
 A study's default conditions are the first five (:data:`DEFAULT_CONDITIONS`); ``prior``,
-``adapt``, ``adapt-fuse`` and ``adapt-self`` run when asked for (study ``conditions:`` or ``--conditions``).
+``adapt``, ``adapt-fuse``, ``adapt-self`` and ``average`` run when asked for (study ``conditions:`` or ``--conditions``).
 Training settings the study's ``train:`` does not give are :class:`vctrain.train.TrainConfig`'s
 defaults. How a study runs: :mod:`vctrain.study.execute`; its tables: :mod:`vctrain.report`.
 """
@@ -77,6 +80,7 @@ CONDITIONS: dict[str, tuple[str, str]] = {
     "adapt": ("within", "adapt"),
     "adapt-fuse": ("within", "adapt"),
     "adapt-self": ("within", "adapt"),
+    "average": ("within", "average"),  # scored on the within test stores; resize reads their records' sources
 }
 # adaptation condition -> how its surrogate labels are made (vctrain.adapt.COMBINE): the prior's
 # tri-mask alone (paper §4.5), or the prior fused with the within model's own prediction (GeoSeg-like)
