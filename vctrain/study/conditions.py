@@ -304,6 +304,8 @@ class AveragePredictor:
 
     def __init__(self, predictors: list[Any]):
         self.predictors = predictors
+        # scored on a virtual-camera test store when one of them warps: what its frames were warped with
+        self.mode = "virtual" if any(p.mode == "virtual" for p in predictors) else "resize"
 
     def store_item(self, store: Store, rec: dict[str, Any]):
         return sum(p.store_item(store, rec) for p in self.predictors) / len(self.predictors)
@@ -324,8 +326,6 @@ class Average:
         self.run, self.ctx, self.tag = run, ctx, tag
 
     def key(self, ds: Dataset) -> str:
-        from .keys import settings_sha
-
         return settings_sha({"average": list(AVERAGED), "result": self.ctx.keys.result(self.run, ds)})
 
     def runnable(self, todo: list[Dataset]) -> list[Dataset]:
