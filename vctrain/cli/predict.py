@@ -88,6 +88,12 @@ def predict_cmd(
                             keep_store=keep_store, within=within, overlay=overlay, mask_video=mask_video, ego=ego,
                             progress=not quiet, vp_range=vp_range, vp_smooth=vp_smooth, vp_sequences=vp_sequences,
                             say=None if quiet else (lambda msg: err(f"{out}: {msg}")))
+    _report(result, out, quiet)
+
+
+def _report(result, out: Path, quiet: bool) -> None:
+    """The mask paths on stdout; the skipped frames, the summary line and the error of a run with
+    skipped frames (exit 1) on stderr."""
     if result.failed and not result.written:  # nothing predicted: the (first) frame's own error
         _failed(result, out)
     for p in result.written:
