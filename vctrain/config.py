@@ -66,6 +66,8 @@ class TrainConfig:
     hflip: Optional[bool] = None       # random horizontal flip, p = 0.5
     greyscale: float = 0.0             # probability of a greyscale image (1.0: greyscale model)
     vp_channel: bool = False           # 4th input channel: VP proximity map
+    seen_only: bool = False            # virtual camera: supervise only the pixels the camera saw (the store's
+                                       # valid masks); labels filled in by completion are ignored (input unchanged)
     resume: Optional[str] = None       # continue from this checkpoint ('.last.pt') up to `epochs`
     init: Optional[str] = None         # start from this checkpoint's network and weights (fine-tuning, vctrain adapt)
     workers: int = 0                   # DataLoader worker processes

@@ -70,6 +70,8 @@ class Sample:
     ``label_format`` None: the label is a store label (0/1/255 already). ``vp`` is the road VP in
     the coordinates of ``image`` (None: unknown, only needed for the VP channel). ``source`` is the
     store (or image folder) it comes from: the group ``balance: datasets`` draws equally often.
+    ``valid`` (``seen_only``): the store's mask of the pixels the camera saw; the label is ignore
+    (255) elsewhere, where completion filled it in.
     """
 
     id: str
@@ -78,6 +80,7 @@ class Sample:
     label_format: str | None = None
     vp: tuple[float, float] | None = None
     source: str = ""
+    valid: Path | None = None
 
 
 def vp_in_store(record: dict[str, Any], store: Store | None = None) -> tuple[float, float]:
@@ -97,14 +100,19 @@ def vp_in_store(record: dict[str, Any], store: Store | None = None) -> tuple[flo
     return vs.cx, vs.cy
 
 
-def store_samples(store: Store) -> list[Sample]:
-    """Samples for every labelled item of ``store`` (items without a label are skipped)."""
+def store_samples(store: Store, seen_only: bool = False) -> list[Sample]:
+    """Samples for every labelled item of ``store`` (items without a label are skipped); with
+    ``seen_only`` each carries its valid mask (supervised only where the camera saw)."""
     out = []
     for rec in store:
         if not rec.get("label"):
             continue
+        if seen_only and not rec.get("valid"):
+            raise InputError(f"item {rec['id']} has no valid mask, needed for seen_only", store.root,
+                             "rebuild the store with vcprep warp, or train without seen_only")
+        valid = store.path(rec["valid"]) if seen_only else None
         out.append(Sample(rec["id"], store.path(rec["image"]), store.path(rec["label"]), None, vp_in_store(rec, store),
-                          str(store.root)))
+                          str(store.root), valid))
     return out
 
 
@@ -156,6 +164,12 @@ def _load(sample: Sample) -> tuple[np.ndarray, np.ndarray]:
         lab = raw if raw.ndim == 2 else raw[..., 0]
     else:
         lab = decode_label(raw, get_label_format(sample.label_format), sample.label)
+    if sample.valid is not None:
+        seen = read_image(sample.valid, label=True).array
+        if seen.shape[:2] != lab.shape[:2]:
+            raise InputError(f"valid mask is {seen.shape[1]}x{seen.shape[0]} but its label is "
+                             f"{lab.shape[1]}x{lab.shape[0]}", sample.valid, "rebuild the store")
+        lab = np.where((seen if seen.ndim == 2 else seen[..., 0]) > 0, lab, IGNORE).astype(lab.dtype)
     if lab.shape[:2] != img.shape[:2]:
         raise InputError(f"label is {lab.shape[1]}x{lab.shape[0]} but its image is {img.shape[1]}x{img.shape[0]}",
                          sample.label, "labels must have the size of their images")
@@ -341,10 +355,10 @@ def _open_stores(paths: list[str]) -> list[Store]:
     return stores
 
 
-def _samples(stores: list[Store], baseline: str) -> list[Sample]:
+def _samples(stores: list[Store], baseline: str, seen_only: bool = False) -> list[Sample]:
     out: list[Sample] = []
     for s in stores:
-        got = resize_samples(s) if baseline == "resize" else store_samples(s)
+        got = resize_samples(s) if baseline == "resize" else store_samples(s, seen_only)
         if not got:
             raise InputError("store has no labelled items", s.root, "build it with --labels")
         out += got
@@ -367,7 +381,8 @@ def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str
     info: dict[str, Any] = {"mode": "resize" if cfg.baseline == "resize" else "virtual",
                             "store_params": stores[0].params if stores else None,
                             "completion": _completion(stores) if stores else "none",
-                            "vp_channel": cfg.vp_channel, "greyscale": cfg.greyscale}
+                            "vp_channel": cfg.vp_channel, "greyscale": cfg.greyscale,
+                            "seen_only": bool(cfg.seen_only and cfg.baseline != "resize")}
     if cfg.images is not None:
         if cfg.baseline != "resize":
             raise InputError("--images is for the resize baseline", cfg.images,
@@ -378,9 +393,9 @@ def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str
         train = [Sample(j.id, j.image, j.label, fmt.name, source=str(cfg.images))
                  for j in list_dataset(cfg.images, cfg.labels, fmt)]
         if stores:
-            train += _samples(stores, cfg.baseline)
+            train += _samples(stores, cfg.baseline, cfg.seen_only)
     elif stores:
-        train = _samples(stores, cfg.baseline)
+        train = _samples(stores, cfg.baseline, cfg.seen_only)
     else:
         raise InputError("no training data", None, "give STORE... (or --baseline resize --images/--labels)")
     if cfg.val_stores:
@@ -390,7 +405,7 @@ def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str
                 if vstores[0].params.get(k) != stores[0].params.get(k):
                     raise InputError(f"validation store has another {k} than the training store", vstores[0].root,
                                      "validate on a store of the same virtual camera and scale")
-        val = _samples(vstores, cfg.baseline)
+        val = _samples(vstores, cfg.baseline, cfg.seen_only)
     elif cfg.val_fraction > 0:
         if not 0 < cfg.val_fraction < 1:
             raise InputError(f"validation fraction {cfg.val_fraction} is not in [0, 1)", None, "use e.g. 0.1")

@@ -99,6 +99,8 @@ def fit_cmd(
                                                                         "(cpu: 0.3)"),
     greyscale: float = typer.Option(TRAIN.greyscale, "--greyscale", help="augment: probability of greyscale (1 = a greyscale model)"),
     vp_channel: bool = typer.Option(TRAIN.vp_channel, "--vp-channel", help="extra input channel: the VP proximity map"),
+    seen_only: bool = typer.Option(TRAIN.seen_only, "--seen-only", help="supervise only the pixels the camera saw "
+                                   "(the store's valid masks; labels filled in by completion are ignored)"),
     resume: Optional[Path] = typer.Option(None, "--resume", help="continue from a checkpoint (OUT-stem.last.pt) up to --epochs"),
     init: Optional[Path] = typer.Option(None, "--init", help="fine-tune: start from this checkpoint's weights (same "
                                                              "model, width, input channels and --baseline)"),
