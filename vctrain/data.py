@@ -17,6 +17,10 @@ green and magenta, which a network reads as "not road"): with probability 1/2 ea
 by a smooth gain field exp(g), g bicubically interpolated from a 3 x 3 grid of values uniform in [-a, a]
 (per channel, so both the brightness and the colour vary over the image). Applied after the
 photometric jitter below, to the image only.
+Resolution (``blur_aug`` a): with probability 1/2 the image is down-sampled (area) by a factor s,
+log-uniform in [1, 1 + a], and up-sampled (bilinear) back to its size: a wide or low-resolution camera
+warped into the virtual camera is magnified (IDD-Lite's 320-pixel, 90-degree frames by 2 to 2.6), so
+its detail is that of a camera with s times fewer pixels per degree. The label is unchanged.
 Photometric: brightness, contrast and per-channel gain drawn in 1 ± ``color_aug`` (gain ±1/3 of it)
 and a gamma in [1/(1+c), 1+c] (dusk and over-exposed frames differ by more than a linear map).
 
@@ -182,7 +186,8 @@ class RoadDataset(torch.utils.data.Dataset):
 
     def __init__(self, samples: Sequence[Sample], size: tuple[int, int], hflip: bool = False,
                  greyscale: float = 0.0, vp_channel: bool = False, scale_aug: float = 0.0, shift_aug: float = 0.0,
-                 color_aug: float = 0.0, crop: tuple[int, int] | None = None, shading_aug: float = 0.0):
+                 color_aug: float = 0.0, crop: tuple[int, int] | None = None, shading_aug: float = 0.0,
+                 blur_aug: float = 0.0):
         self.samples = list(samples)
         self.size = (int(size[0]), int(size[1]))
         self.crop = None
@@ -193,6 +198,7 @@ class RoadDataset(torch.utils.data.Dataset):
         self.hflip = bool(hflip)
         self.scale_aug, self.shift_aug, self.color_aug = float(scale_aug or 0), float(shift_aug or 0), float(color_aug or 0)
         self.shading_aug = float(shading_aug or 0)
+        self.blur_aug = float(blur_aug or 0)
         self.greyscale = float(greyscale)
         self.vp_channel = vp_channel
         self._cache: dict[int, tuple[np.ndarray, np.ndarray, tuple[float, float] | None]] = {}
@@ -242,6 +248,21 @@ class RoadDataset(torch.utils.data.Dataset):
         if vp is not None:
             vp = (s * vp[0] + M[0, 2], s * vp[1] + M[1, 2])
         return img, lab, vp
+
+    def _blur(self, img: np.ndarray) -> np.ndarray:
+        """One draw of ``blur_aug`` a on an 8-bit image (h, w[, 3]): unchanged in half the draws, else
+        down-sampled (area) by a factor s, log-uniform in [1, 1 + a], and up-sampled (bilinear) back:
+        the detail of a camera with s times fewer pixels per degree (module docstring)."""
+        r = torch.rand(2).tolist()  # torch RNG: seeded per run, epoch and worker
+        if r[0] >= 0.5:
+            return img
+        s = math.exp(r[1] * math.log1p(self.blur_aug))
+        h, w = img.shape[:2]
+        small = (max(1, round(w / s)), max(1, round(h / s)))
+        if small == (w, h):
+            return img
+        low = cv2.resize(img, small, interpolation=cv2.INTER_AREA)
+        return cv2.resize(low, (w, h), interpolation=cv2.INTER_LINEAR)
 
     def _photometric_draw(self) -> tuple[float, float, np.ndarray, float]:
         """One draw of (brightness, contrast, per-channel gain (3,), gamma); see the module docstring."""
@@ -297,6 +318,8 @@ class RoadDataset(torch.utils.data.Dataset):
             img = np.ascontiguousarray(img[y0:y0 + ch, x0:x0 + cw])
             lab = np.ascontiguousarray(lab[y0:y0 + ch, x0:x0 + cw])
             vp = (vp[0] - x0, vp[1] - y0) if vp is not None else None
+        if self.blur_aug > 0:
+            img = self._blur(img)
         out_w = img.shape[1]
         grey = self.greyscale >= 1.0 or (self.greyscale > 0 and float(torch.rand(())) < self.greyscale)
         if self.color_aug > 0 and not grey and img.dtype == np.uint8 and img.ndim == 3 and img.shape[2] == 3:

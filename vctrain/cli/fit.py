@@ -95,6 +95,8 @@ def fit_cmd(
                                                                         "the size (cpu: 0.05)"),
     shading_aug: Optional[float] = typer.Option(None, "--shading-aug", help="augment: lens shading, a smooth "
                                                 "per-channel gain field exp(+-A) on half the items"),
+    blur_aug: Optional[float] = typer.Option(None, "--blur-aug", help="augment: resolution, half the items down- "
+                                             "and up-sampled by a factor up to 1 + A (a low-resolution camera)"),
     color_aug: Optional[float] = typer.Option(None, "--color-aug", help="augment: brightness/contrast/gain jitter "
                                                                         "(cpu: 0.3)"),
     greyscale: float = typer.Option(TRAIN.greyscale, "--greyscale", help="augment: probability of greyscale (1 = a greyscale model)"),
