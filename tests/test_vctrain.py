@@ -143,6 +143,9 @@ def test_recipes_fill_only_unset_fields():
     mixed = resolve_recipe(TrainConfig(recipe="paper", lr=0.01, hflip=True, arch="segnet-narrow"))
     assert (mixed.lr, mixed.hflip, mixed.arch, mixed.optimizer) == (0.01, True, "segnet-narrow", "sgd")
     assert resolve_recipe(TrainConfig(device="cpu")).recipe == "cpu"  # no GPU -> the cpu recipe
+    # on a GPU too (issue 44: the measured recipe wherever it runs, not the paper's unmeasured segnet)
+    on_gpu = resolve_recipe(TrainConfig(device="cuda"), torch.device("cuda"))
+    assert (on_gpu.recipe, on_gpu.arch, on_gpu.optimizer) == ("cpu", "resfpn", "adamw")
     for bad in (dict(recipe="gpu"), dict(optimizer="adam"), dict(schedule="step"), dict(lr=0.0),
                 dict(scale_aug=-0.1), dict(epochs=0)):
         with pytest.raises(InputError):

@@ -11,7 +11,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Optional
 
-__all__ = ["TrainConfig", "RECIPES", "SCHEDULES", "OPTIMIZERS", "BALANCES", "AdaptSettings", "ADAPT_EPOCHS",
+__all__ = ["TrainConfig", "RECIPES", "DEFAULT_RECIPE", "SCHEDULES", "OPTIMIZERS", "BALANCES", "AdaptSettings", "ADAPT_EPOCHS",
            "ADAPT_LR_FACTOR"]
 
 # recipe -> the defaults it gives every TrainConfig field left at None (vctrain.train's docstring)
@@ -23,6 +23,9 @@ RECIPES: dict[str, dict[str, Any]] = {
             "weight_decay": 0.01, "schedule": "cosine", "hflip": True, "scale_aug": 0.25, "shift_aug": 0.05,
             "color_aug": 0.3, "shading_aug": 0.0, "blur_aug": 0.0},
 }
+# the default on every device, a GPU included: every benchmark of the project was measured with it (on an H100
+# too, issue 44); 'paper' (the paper's segnet, SGD, no augmentation) has no measurement behind it and is on request
+DEFAULT_RECIPE = "cpu"
 SCHEDULES = ("poly", "cosine", "constant")
 OPTIMIZERS = ("sgd", "adamw")
 # how an epoch draws from several training stores (vctrain.data.epoch_order): 'items' every item
@@ -40,7 +43,7 @@ class TrainConfig:
     images: Optional[str] = None       # baseline from folders instead of stores: image folder
     labels: Optional[str] = None       #   ... label folder
     label_format: Optional[str] = None  #  ... label format (camvid, kitti, values:road=..)
-    recipe: Optional[str] = None       # 'cpu' | 'paper' (vctrain.train); None: paper on a GPU, cpu without
+    recipe: Optional[str] = None       # 'cpu' | 'paper' (vctrain.train); None: DEFAULT_RECIPE on every device
     arch: Optional[str] = None         # 'resfpn' | 'segnet' | 'segnet-narrow'; None: the recipe's
     base_width: Optional[int] = None   # override the architecture's first-block width
     size: Optional[tuple[int, int]] = None  # working size (w, h); None: the store size (first image for folders)

@@ -59,7 +59,7 @@ from tqdm import tqdm
 from vcprep.errors import InputError
 
 from .checkpoint import load_checkpoint, model_from_checkpoint, save_checkpoint
-from .config import ADAPT_LR_FACTOR, BALANCES, OPTIMIZERS, RECIPES, SCHEDULES, TrainConfig
+from .config import ADAPT_LR_FACTOR, BALANCES, DEFAULT_RECIPE, OPTIMIZERS, RECIPES, SCHEDULES, TrainConfig
 from .data import (RoadDataset, class_frequencies, crop_size, epoch_order, median_frequency_weights,
                    prepare_data)
 from .metrics import RoadMetrics
@@ -77,10 +77,10 @@ def last_path(out: str | Path) -> Path:
 
 
 def resolve_recipe(cfg: TrainConfig, device: torch.device | None = None) -> TrainConfig:
-    """``cfg`` with every unset (None) recipe field filled from its recipe (in place; returned)."""
-    if cfg.recipe is None:
-        dev = device if device is not None else resolve_device(cfg.device)
-        cfg.recipe = "paper" if dev.type == "cuda" else "cpu"
+    """``cfg`` with every unset (None) recipe field filled from its recipe (in place; returned); no
+    recipe: :data:`DEFAULT_RECIPE` whatever the device (``device`` is no longer consulted)."""
+    if cfg.recipe is None:  # every device: the recipe behind every measured number (DEFAULT_RECIPE)
+        cfg.recipe = DEFAULT_RECIPE
     if cfg.recipe not in RECIPES:
         raise InputError(f"unknown recipe '{cfg.recipe}'", None, f"use one of {', '.join(RECIPES)}")
     for k, v in RECIPES[cfg.recipe].items():

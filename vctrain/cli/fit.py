@@ -14,8 +14,8 @@ from ..config import TrainConfig
 from .common import LABEL_FORMAT_HELP, TRAIN, app, parse_size, path_or_json, pin_threads, threads_option
 
 RECIPE_HELP = ("defaults of every setting below: 'cpu' (resfpn, AdamW, cosine, augmentation; CamVid train in 3.3 min "
-               "on 2 cores at --size 344x176, 14.2 at 688x350) or 'paper' (segnet, SGD 0.005, poly); default: paper "
-               "on a GPU, cpu without")
+               "on 2 cores at --size 344x176, 14.2 at 688x350) or 'paper' (segnet, SGD 0.005, poly); default: cpu on "
+               "every device, a GPU included (the recipe every measured number comes from)")
 MODEL_HELP = ("resfpn (residual encoder + FPN decoder, 1.3 M parameters), segnet (VGG16 SegNet, 29 M) or "
               "segnet-narrow (same topology, 1/4 width, 1.8 M); default: the recipe's")
 CROP_HELP = ("train on random windows of the working image: WxH pixels, a share of each side (0.67) or of width and "
@@ -117,9 +117,10 @@ def fit_cmd(
     """Train a road segmentation network on virtual-camera stores (or the resize baseline).
 
     Cross-entropy over not road / road, label 255 ignored. Two recipes set the defaults: 'cpu'
-    (without a GPU: resfpn, AdamW 0.002, cosine, flip/scale/shift/colour augmentation, 20
-    epochs) and 'paper' (on a GPU: segnet, SGD 0.005 momentum 0.9, weight decay 0.0005, batch
-    8, poly decay); any option given wins. The checkpoint describes itself (model, training
+    (the default on every device, a GPU included: resfpn, AdamW 0.002, cosine, flip/scale/shift/
+    colour augmentation, 20 epochs; every measured number of the project comes from it) and
+    'paper' (on request: segnet, SGD 0.005 momentum 0.9, weight decay 0.0005, batch 8, poly
+    decay); any option given wins. The checkpoint describes itself (model, training
     config, virtual camera, scale, completion, metrics), so predict and eval need no repeated
     flags. Prints the checkpoint path; OUT's folder is created. Launch with 'torchrun
     --nproc-per-node N' for data-parallel training.
