@@ -98,20 +98,25 @@ def _link_all(dst: Path, parts: list[tuple[Path, Path]], n: int | None = None) -
 
 
 def study_file(wd: Path, quick: bool, epochs: int | None, shading_aug: float = SHADING_AUG,
-               extent: str = "max", train_on: list[str] | None = None) -> Path:
+               extent: str = "max", train_on: list[str] | None = None, extra: dict | None = None,
+               home: Path | None = None) -> Path:
     """The study: the five real datasets held out in turn, KITTI a test set; ``extent`` the designed
     rectangle's rule (study key ``extent``). ``train_on``: only these datasets trained on (role
-    train), every other one a test set (one model, runs/_all/)."""
+    train), every other one a test set (one model, runs/_all/). ``extra``: training settings added.
+    ``home``: the study whose CamVid frames and camera file this one names (default ``wd``: its
+    own), so that a study sharing its stores names the very same source files."""
     n = QUICK_FRAMES if quick else None
-    camvid = _link_all(wd / "frames" / "camvid", [(DATA / "train", DATA / "trainannot"),
-                                                  (DATA / "val", DATA / "valannot")], n)
+    home = home or wd
+    camvid = ({"images": str(home / "frames" / "camvid" / "images"), "labels": str(home / "frames" / "camvid" / "labels")}
+              if home != wd else _link_all(wd / "frames" / "camvid", [(DATA / "train", DATA / "trainannot"),
+                                                                      (DATA / "val", DATA / "valannot")], n))
     split = lambda src: ({"images": str(src / "images"), "labels": str(src / "labels")} if not quick else
                          _link_all(wd / "frames" / src.name, [(src / "images", src / "labels")], n))
     idd = {"images": str(IDD / "leftImg8bit" / "train"), "labels": str(IDD / "gtFine" / "train"),
            **({"include": "1[0-9]_*"} if quick else {})}
     both = lambda name, camera, fmt, s: {"name": name, "role": "both", "camera": str(camera), "label_format": fmt,
                                          "train": s, "test": s}
-    datasets = {"camvid": both("camvid", native_camera(wd), "camvid", camvid),
+    datasets = {"camvid": both("camvid", native_camera(home), "camvid", camvid),
                 "cityscapes": both("cityscapes", CITYSCAPES / "camera.yaml", CS_FORMAT, split(CITYSCAPES)),
                 "idd": both("idd", IDD / "camera.yaml", "idd", idd),
                 "bdd": both("bdd", BDD / "camera.yaml", "bdd", split(BDD)),
@@ -126,7 +131,8 @@ def study_file(wd: Path, quick: bool, epochs: int | None, shading_aug: float = S
     path = wd / "study.yaml"
     path.write_text(yaml.safe_dump({"datasets": [datasets[k] for k in LOO] + [kitti],
                                     **({"extent": extent} if extent != "max" else {}),
-                                    "train": {**train, "balance": "datasets", "shading_aug": shading_aug}},
+                                    "train": {**train, "balance": "datasets", "shading_aug": shading_aug,
+                                              **(extra or {})}},
                                    sort_keys=False))
     return path
 
@@ -289,7 +295,19 @@ def _args() -> argparse.Namespace:
                     "(e.g. camvid,cityscapes: the calibrated cameras; one model, every held-out set a test set), in "
                     "WORKDIR[/median]/train-<names>; resize (and condition average's resize model) from the "
                     "study of all four (WORKDIR[/median], run there with --conditions within,resize,average)")
+    ap.add_argument("--train-extra", default="", help="training settings added to the virtual-camera conditions' "
+                    "study, KEY=VALUE[,KEY=VALUE] (e.g. blur_aug=1.5, seen_only=true; issue 44's candidates), in "
+                    "WORKDIR[/median]/extra-<settings> with the stores of WORKDIR[/median]; resize from there")
     return ap.parse_args()
+
+
+def train_extra(text: str) -> dict:
+    """--train-extra 'blur_aug=1.5,seen_only=true' -> {'blur_aug': 1.5, 'seen_only': True} (YAML values)."""
+    out = {}
+    for part in filter(None, text.split(",")):
+        k, _, v = part.partition("=")
+        out[k.strip()] = yaml.safe_load(v)
+    return out
 
 
 def main() -> None:
@@ -301,8 +319,13 @@ def main() -> None:
     conds = a.conditions.split(",")
     base = a.workdir / "quick" if a.quick else a.workdir
     rd = wd = base / "median" if a.extent == "median" else base  # rd: the study that trains resize
+    extra = train_extra(a.train_extra)
     if train_on:
         wd = wd / ("train-" + "-".join(train_on))
+    elif extra:  # the candidate's own study beside the plain one, sharing its stores; resize from the plain one
+        wd = wd / ("extra-" + "-".join(f"{k}-{v}" for k, v in extra.items()))
+        for seed in seeds:
+            link_stores(wd / f"seed{seed}", rd / f"seed{seed}")
     else:  # resize meets no rectangle: read from WORKDIR's studies, unless average needs its model here
         rd = wd if a.extent == "max" or "average" in conds else base
     wd.mkdir(parents=True, exist_ok=True)
@@ -310,7 +333,8 @@ def main() -> None:
     run_conds = [k for k in conds if rd == wd or k not in ("resize", "average")]
 
     if not a.collect:
-        study = study_file(wd, a.quick, a.epochs, a.shading_aug, a.extent, train_on or None)
+        study = study_file(wd, a.quick, a.epochs, a.shading_aug, a.extent, train_on or None, extra,
+                           rd if extra else None)
         for seed in seeds:
             if seed != seeds[0]:
                 link_stores(wd / f"seed{seed}", wd / f"seed{seeds[0]}")
@@ -335,7 +359,7 @@ def main() -> None:
 
 def _write(a: argparse.Namespace, wd: Path, table: str, out: dict, held: list[str], steps: int) -> None:
     """The table and the JSON (benchmarks/results, or WORKDIR's results for a smoke run or some folds)."""
-    res_dir = (wd / "results") if a.quick or held != LOO or a.train_on else (ROOT / "benchmarks" / "results")
+    res_dir = (wd / "results") if a.quick or held != LOO or a.train_on or a.train_extra else (ROOT / "benchmarks" / "results")
     res_dir.mkdir(parents=True, exist_ok=True)
     name = "multi_camera" + ("_median" if a.extent != "max" else "")
     (res_dir / f"{name}.md").write_text(table)
@@ -344,7 +368,8 @@ def _write(a: argparse.Namespace, wd: Path, table: str, out: dict, held: list[st
                + (f" --epochs {a.epochs}" if a.epochs else "") + f" --shading-aug {a.shading_aug:g}"
                + (f" --extent {a.extent}" if a.extent != "max" else "") + (" --collect" if a.collect else "")
                + (f" --held-out {','.join(held)}" if held != LOO else "")
-               + (f" --train-on {a.train_on}" if a.train_on else ""))
+               + (f" --train-on {a.train_on}" if a.train_on else "")
+               + (f" --train-extra {a.train_extra}" if a.train_extra else ""))
     write_json(res_dir / f"{name}.json", {
         **out, "test_only": TEST_ONLY, "steps_per_epoch": steps, "epochs": a.epochs, "balance": "datasets",
         "shading_aug": a.shading_aug, "extent": a.extent,
