@@ -231,3 +231,43 @@ def test_condition_average_trains_nothing_and_averages_within_and_resize(tmp_pat
     got = AveragePredictor([w, r]).store_item(store, rec)
     assert np.allclose(got, (w.store_item(store, rec) + r.store_item(store, rec)) / 2)
     assert got.shape == (rec["size"][1], rec["size"][0])
+
+
+def test_condition_resize_vp_is_resize_with_each_frames_own_vp_channel(tmp_path):
+    """Condition resize-vp (issue 44): the resize baseline's frames read as they are plus a 4th input,
+    the VP proximity map of each frame's own estimated VP (the within stores' records); its own
+    model key (never the resize model's), and scored with those VPs: moving a record's VP changes
+    its probabilities, and the result is the one recomputed from the model and the records."""
+    import json
+
+    from conftest import run_cli
+    from studies import _mixed_study
+    from vcprep.labels import decode_label, get_label_format
+    from vcprep.io import read_image
+    from vcprep.store import Store
+    from vctrain.metrics import RoadMetrics
+    from vctrain.predict import Predictor
+
+    study, out = _mixed_study(tmp_path / "data"), tmp_path / "out"
+    proc = run_cli("crossval", study, "--out", out, "--conditions", "resize,resize-vp", "--heldout", "kitti",
+                   prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.count("training on") == 2  # its own model, not the resize model's
+    run_dir = out / "runs" / "kitti" / "resize-vp"
+    ck = load_checkpoint(run_dir / "model.pt")
+    assert ck["data"]["mode"] == "resize" and ck["data"]["vp_channel"] is True
+    assert ck["model_args"]["in_channels"] == 4
+    assert load_checkpoint(out / "runs" / "kitti" / "resize" / "model.pt")["model_args"]["in_channels"] == 3
+    model = Predictor(run_dir / "model.pt", device="cpu")
+    store = Store.open(out / "stores" / "kitti" / "test" / "within")
+    m = RoadMetrics()
+    for rec in store:
+        assert rec.get("vp") is not None
+        prob = model.store_item(store, rec)
+        moved = model.store_item(store, {**rec, "vp": [rec["vp"][0], rec["vp"][1] + 40]})
+        assert not np.allclose(prob, moved)
+        label = decode_label(read_image(rec["label_source"], label=True).array, get_label_format(rec["label_format"]),
+                             rec["label_source"])
+        m.add(prob >= 0.5, label)
+    row = json.loads((run_dir / "result.json").read_text())
+    assert row["iou"] == pytest.approx(m.result()["iou"], abs=1e-9)

@@ -105,6 +105,8 @@ def test_vp_proximity_definition():
     assert m[1, 2] == pytest.approx(1.0)
     assert m[0, 0] == pytest.approx(1 - max(2 / 5, 1 / 3))
     assert m[2, 4] == pytest.approx(1 - max(2 / 5, 1 / 3))
+    # float32 whatever the VP's type: the scale augmentation moves the VP by a float64 affine map
+    assert m.dtype == np.float32 and vp_proximity((5, 3), (np.float64(2.0), np.float64(1.0))).dtype == np.float32
 
 
 def test_median_frequency_weights():

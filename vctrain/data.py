@@ -147,9 +147,9 @@ def vp_proximity(size: tuple[int, int], vp: tuple[float, float], norm: tuple[int
     ``norm`` (default: ``size``; a crop passes the whole image's size)."""
     w, h = size
     nw, nh = norm if norm is not None else size
-    x = np.abs(np.arange(w, dtype=np.float32) - vp[0]) / nw
-    y = np.abs(np.arange(h, dtype=np.float32) - vp[1]) / nh
-    return 1.0 - np.maximum(x[None, :], y[:, None])
+    x = np.abs(np.arange(w, dtype=np.float32) - np.float32(vp[0])) / np.float32(nw)
+    y = np.abs(np.arange(h, dtype=np.float32) - np.float32(vp[1])) / np.float32(nh)
+    return (1.0 - np.maximum(x[None, :], y[:, None])).astype(np.float32)  # (a NumPy-float VP kept it float64)
 
 
 def resize_pair(image: np.ndarray, label: np.ndarray | None, size: tuple[int, int]):

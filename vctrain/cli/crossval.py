@@ -41,7 +41,9 @@ def crossval_cmd(
     geometric prior, p_g >= 0.5), adapt (the within model adapted to the evaluated dataset's
     unlabelled images with that prior's tri-mask), adapt-fuse (as adapt, the prior fused with the
     model's own prediction), adapt-self (as adapt, the model's own prediction alone: the control for
-    what the prior adds; prior and the adapt conditions are not among the defaults). Prints the
+    what the prior adds), average (within's and resize's probabilities averaged), resize-vp (resize
+    plus the VP channel: each frame's own estimated road VP as a 4th input); prior, the adapt
+    conditions, average and resize-vp are not among the defaults. Prints the
     table (rows: evaluated dataset and mean; columns: conditions; road IoU in %) and writes
     OUT/table.md, table.csv, results.jsonl,
     summary.json and per-run logs under OUT/runs. Training settings the study does not give are

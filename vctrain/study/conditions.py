@@ -32,7 +32,7 @@ from .hashing import file_sha256, settings_sha
 from .keys import TEST_WARP, Keys
 from .resolve import Resolution
 from .runs import Run, what
-from .spec import ADAPT_COMBINE, CONDITIONS, DEFAULT_TRAIN, GEOMETRIES, RUN_KEYS, Dataset, Study
+from .spec import ADAPT_COMBINE, CONDITION_TRAIN, CONDITIONS, DEFAULT_TRAIN, GEOMETRIES, RUN_KEYS, Dataset, Study
 from .stores import Stores
 
 __all__ = ["Context", "KINDS", "Fit", "Prior", "Adapt", "Average", "AveragePredictor", "train_config",
@@ -110,7 +110,8 @@ def trained(run: Run, ctx: Context, tag: str) -> tuple[TrainConfig, dict[str, An
     if baseline == "resize":
         size = ctx.stores.resize_size(run.train, size)
     run_dir.mkdir(parents=True, exist_ok=True)
-    cfg = train_config(ctx.res.study, stores, run_dir, baseline, size, ctx.progress, ctx.overrides)
+    cfg = train_config(ctx.res.study, stores, run_dir, baseline, size, ctx.progress,
+                       {**CONDITION_TRAIN.get(c, {}), **ctx.overrides})
     record = run_dir / "train.json"
     info = json.loads(record.read_text()) if record.exists() else None
     model_sha = keys.model(run)

@@ -12,7 +12,7 @@ from vcprep.camera import PRESET_PREFIX, Camera
 
 from ..config import ADAPT_EPOCHS, ADAPT_LR_FACTOR, AdaptSettings
 from .hashing import settings_sha
-from .spec import ADAPT_COMBINE, Dataset
+from .spec import ADAPT_COMBINE, CONDITION_TRAIN, Dataset
 
 if TYPE_CHECKING:
     from .resolve import Resolution
@@ -97,7 +97,9 @@ class Keys:
         return e
 
     def model(self, run: "Run") -> str:
-        return settings_sha({**self.common, "train_datasets": [self.entry[d.name] for d in run.train]})
+        own = CONDITION_TRAIN.get(run.condition)  # (a condition's own settings: only where it has some)
+        return settings_sha({**self.common, "train_datasets": [self.entry[d.name] for d in run.train],
+                             **({"condition_train": own} if own else {})})
 
     def result(self, run: "Run", ds: Dataset) -> str:
         return settings_sha({"model": self.model(run), "test": self.entry[ds.name], "test_warp": TEST_WARP})

@@ -56,7 +56,7 @@ from vcprep.labels import get_label_format
 
 from ..config import TrainConfig
 
-__all__ = ["CONDITIONS", "DEFAULT_CONDITIONS", "DEFAULT_STORE_PIXELS", "DEFAULT_ABOVE", "DEFAULT_TRAIN", "CANVASES",
+__all__ = ["CONDITIONS", "CONDITION_TRAIN", "DEFAULT_CONDITIONS", "DEFAULT_STORE_PIXELS", "DEFAULT_ABOVE", "DEFAULT_TRAIN", "CANVASES",
            "DEFAULT_CANVAS", "GEOMETRIES", "ROLES", "ADAPT_COMBINE", "RUN_KEYS", "TRAIN_KEYS", "Split", "Dataset",
            "Study", "load_study", "check_conditions", "evaluated_datasets"]
 
@@ -81,7 +81,10 @@ CONDITIONS: dict[str, tuple[str, str]] = {
     "adapt-fuse": ("within", "adapt"),
     "adapt-self": ("within", "adapt"),
     "average": ("within", "average"),  # scored on the within test stores; resize reads their records' sources
+    "resize-vp": ("within", "resize"),  # resize + the VP channel: each frame's own (within-estimated) road VP
 }
+# condition -> the training settings it sets on top of the study's (and in its models' keys)
+CONDITION_TRAIN: dict[str, dict[str, Any]] = {"resize-vp": {"vp_channel": True}}
 # adaptation condition -> how its surrogate labels are made (vctrain.adapt.COMBINE): the prior's
 # tri-mask alone (paper §4.5), or the prior fused with the within model's own prediction (GeoSeg-like)
 ADAPT_COMBINE = {"adapt": "prior", "adapt-fuse": "fuse", "adapt-self": "self"}
