@@ -1,0 +1,124 @@
+"""Issue 44's candidates for a camera-aware model that wins when cameras are merged: one table of every measured one.
+
+    .venv/bin/python benchmarks/candidates.py [--workdir benchmarks/out/multi_camera/median] [--seeds 0,1]
+                                              [--held-out idd,bdd]
+
+Runs nothing: collects the finished leave-one-camera-out folds of ``benchmarks/multi_camera.py --extent
+median`` (the recipe: balance: datasets, shading_aug 0.4, 35 steps x 20 epochs a model; cameras of
+IDD-Lite, BDD100K and LUMS ASSUMED, in training and testing) from WORKDIR and its candidate studies:
+
+* WORKDIR/seed<k>: crossval conditions ``within``, ``resize`` (the baseline: the same frames, steps and
+  sampling, read as they are), ``average`` (within's and resize's probabilities averaged in the camera's
+  pixels) and ``resize-vp`` (resize plus each frame's own road VP as a 4th input channel);
+* WORKDIR/extra-<settings>/seed<k> (``multi_camera.py --train-extra``): ``within`` trained with extra
+  settings, e.g. ``blur_aug=1.5`` (resolution augmentation) or ``seen_only=true`` (completion-filled
+  labels ignored).
+
+Road IoU (%) on every frame of the held-out camera in its own pixels; each candidate against ``resize``
+of the same fold and seed (paired). Outputs benchmarks/results/multi_camera_candidates.{md,json}; the
+JSON's ``headline`` has ``<candidate>_minus_resize_<fold>`` (mean over the seeds measured) and
+``<candidate>_seeds_<fold>``. Which candidates and seeds are missing is listed, never filled in.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+from measure.data import ROOT
+from measure.report import machine, today, write_json
+
+CONDITIONS = ["resize", "within", "average", "resize-vp"]  # crossval conditions of the median study
+
+
+def studies(wd: Path) -> dict[str, tuple[Path, str]]:
+    """candidate name -> (study folder, crossval condition in it)."""
+    out = {c: (wd, c) for c in CONDITIONS}
+    for extra in sorted(wd.glob("extra-*")):
+        out["within + " + extra.name.removeprefix("extra-")] = (extra, "within")
+    return out
+
+
+def cells(wd: Path, seeds: list[int], held: list[str]) -> dict[str, dict[str, list]]:
+    """{candidate: {fold: [IoU % per seed, None where not finished]}}."""
+    out: dict[str, dict[str, list]] = {}
+    for name, (sd, cond) in studies(wd).items():
+        for t in held:
+            row = []
+            for s in seeds:
+                f = sd / f"seed{s}" / "runs" / t / cond / "result.json"
+                r = json.loads(f.read_text()) if f.is_file() else {}
+                # (a row scored before test splits were warped as predict warps them is not counted)
+                row.append(100 * r["iou"] if r.get("test_warp") else None)
+            out.setdefault(name, {})[t] = row
+    return out
+
+
+def headline(c: dict[str, dict[str, list]], held: list[str]) -> dict:
+    head: dict = {}
+    for name, folds in c.items():
+        key = name.replace(" + ", "_").replace(" ", "_").replace("=", "-")
+        for t in held:
+            d = [a - b for a, b in zip(folds[t], c["resize"][t]) if a is not None and b is not None]
+            head[f"{key}_{t}"] = round(float(np.mean([v for v in folds[t] if v is not None])), 2) \
+                if any(v is not None for v in folds[t]) else None
+            if name != "resize":
+                head[f"{key}_minus_resize_{t}"] = round(float(np.mean(d)), 2) if d else None
+                head[f"{key}_seeds_{t}"] = len(d)
+    return head
+
+
+def render(c: dict[str, dict[str, list]], seeds: list[int], held: list[str]) -> str:
+    f = lambda v: "-" if v is None else f"{v:.1f}"
+    lines = ["# Issue 44: candidates on the two losing folds (IDD-Lite and BDD100K held out)", "",
+             "Recipe of benchmarks/multi_camera.py --extent median (balance: datasets, shading_aug 0.4, 35 steps x 20 "
+             "epochs = 700 steps a model). Cameras: CamVid and Cityscapes calibrated; IDD-Lite, BDD100K and LUMS "
+             "ASSUMED, in training and in testing. Road IoU (%) on all frames of the held-out camera in its own "
+             "pixels, each fold trained on the other four; in brackets the difference to `resize` of the same "
+             f"fold and seed. Seeds {seeds}; test splits warped as `vctrain predict` warps them. Written by "
+             "benchmarks/candidates.py.", "",
+             "| candidate | " + " | ".join(f"{t} seed {s}" for t in held for s in seeds)
+             + " | " + " | ".join(f"{t} mean − resize" for t in held) + " |",
+             "|---|" + "---|" * (len(held) * len(seeds) + len(held))]
+    for name, folds in c.items():
+        vals = []
+        for t in held:
+            for i, _ in enumerate(seeds):
+                v, r = folds[t][i], c["resize"][t][i]
+                vals.append(f(v) + ("" if name == "resize" or v is None or r is None else f" ({v - r:+.1f})"))
+        means = []
+        for t in held:
+            d = [a - b for a, b in zip(folds[t], c["resize"][t]) if a is not None and b is not None]
+            means.append("" if name == "resize" else (f"{np.mean(d):+.1f} (n={len(d)})" if d else "-"))
+        lines.append(f"| {name} | " + " | ".join(vals) + " | " + " | ".join(means) + " |")
+    missing = [f"{n} {t} seed {s}" for n, folds in c.items() for t in held for i, s in enumerate(seeds)
+               if folds[t][i] is None]
+    if missing:
+        lines += ["", "Not measured: " + ", ".join(missing) + "."]
+    return "\n".join(lines) + "\n"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--workdir", type=Path, default=ROOT / "benchmarks" / "out" / "multi_camera" / "median")
+    ap.add_argument("--seeds", default="0,1")
+    ap.add_argument("--held-out", default="idd,bdd")
+    a = ap.parse_args()
+    seeds, held = [int(s) for s in a.seeds.split(",")], a.held_out.split(",")
+    c = cells(a.workdir, seeds, held)
+    table = render(c, seeds, held)
+    print(table)
+    res = ROOT / "benchmarks" / "results"
+    (res / "multi_camera_candidates.md").write_text(table)
+    head = headline(c, held)
+    write_json(res / "multi_camera_candidates.json", {
+        "headline": head, "cells": c, "seeds": seeds, "held_out": held, "workdir": str(a.workdir),
+        "machine": machine(), "date": today(),
+        "command": f"benchmarks/candidates.py --seeds {a.seeds} --held-out {a.held_out}"})
+    print(json.dumps(head))
+
+
+if __name__ == "__main__":
+    main()
