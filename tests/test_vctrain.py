@@ -8,7 +8,6 @@ import subprocess
 import sys
 from pathlib import Path
 
-import cv2
 import numpy as np
 import pytest
 import torch
@@ -334,35 +333,6 @@ def test_fit_learns_the_training_scenes(trained):
     assert m["iou"] > 0.85 and m["iou"] > trivial + 0.3
     log = [json.loads(l) for l in (root / "model.log.jsonl").read_text().splitlines()]
     assert [r["epoch"] for r in log] == list(range(1, 21)) and log[-1]["train_loss"] < log[0]["train_loss"]
-
-
-def test_seen_only_ignores_the_labels_completion_filled_in(trained):
-    """seen_only: the label of every pixel outside the camera's view (the homography of the source
-    image's rectangle, an independent oracle of the store's valid mask) is ignore, every seen pixel
-    keeps its label; without it completion's labels are supervised."""
-    from vcprep.warp import apply_homography
-    from vctrain.data import store_samples
-
-    root = trained[0]
-    cam = PRESETS["camvid"].resized(0.1)
-    fmt = get_label_format(FMT)
-    store, _ = warp_dataset(list_dataset(root / "src/images", root / "src/labels", fmt), root / "completed",
-                            WarpSettings(cam, PRESETS["virtual"], 0.02, fmt, progress=False, completion="projective"))
-    plain = RoadDataset(store_samples(store), store.store_size)
-    seen = RoadDataset(store_samples(store, seen_only=True), store.store_size)
-    rec = next(iter(store))
-    H = np.asarray(rec["H"], dtype=np.float64).reshape(3, 3)
-    w, h = rec["size"]
-    corners = apply_homography(H, [(-0.5, -0.5), (w - 0.5, -0.5), (w - 0.5, h - 0.5), (-0.5, h - 0.5)])
-    inside = np.zeros(store.store_size[::-1], np.uint8)
-    cv2.fillPoly(inside, [np.round(corners * 16).astype(np.int32)], 1, shift=4)
-    interior = cv2.erode(inside, np.ones((5, 5), np.uint8)).astype(bool)
-    outside = ~cv2.dilate(inside, np.ones((5, 5), np.uint8)).astype(bool)
-    a, b = plain.item(0)[1], seen.item(0)[1]
-    assert (a[outside] != 255).mean() > 0.5          # completion labels there, supervised without seen_only
-    assert (b[outside] == 255).all()                 # ignored with it
-    assert np.array_equal(a[interior], b[interior])  # the camera's own pixels keep their labels
-    assert np.array_equal(b[b != 255], a[b != 255])
 
 
 def test_checkpoint_is_self_describing(trained):

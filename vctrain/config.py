@@ -18,10 +18,10 @@ __all__ = ["TrainConfig", "RECIPES", "DEFAULT_RECIPE", "SCHEDULES", "OPTIMIZERS"
 RECIPES: dict[str, dict[str, Any]] = {
     "paper": {"arch": "segnet", "epochs": 30, "batch_size": 8, "optimizer": "sgd", "lr": 0.005, "momentum": 0.9,
               "weight_decay": 0.0005, "schedule": "poly", "hflip": False, "scale_aug": 0.0, "shift_aug": 0.0,
-              "color_aug": 0.0, "shading_aug": 0.0, "blur_aug": 0.0},
+              "color_aug": 0.0, "shading_aug": 0.0},
     "cpu": {"arch": "resfpn", "epochs": 20, "batch_size": 8, "optimizer": "adamw", "lr": 0.002, "momentum": 0.9,
             "weight_decay": 0.01, "schedule": "cosine", "hflip": True, "scale_aug": 0.25, "shift_aug": 0.05,
-            "color_aug": 0.3, "shading_aug": 0.0, "blur_aug": 0.0},
+            "color_aug": 0.3, "shading_aug": 0.0},
 }
 # the default on every device, a GPU included: every benchmark of the project was measured with it (on an H100
 # too, issue 44); 'paper' (the paper's segnet, SGD, no augmentation) has no measurement behind it and is on request
@@ -61,7 +61,6 @@ class TrainConfig:
     shift_aug: Optional[float] = None  # random shift up to this share of the width/height
     color_aug: Optional[float] = None  # photometric jitter strength (0: off)
     shading_aug: Optional[float] = None  # colour shading: smooth per-channel log-gain field up to +-this (0: off)
-    blur_aug: Optional[float] = None   # resolution: half the items down- and up-sampled by up to 1 + this (0: off)
     seed: int = 0                      # seeds init, split, order and augmentation
     device: str = "auto"               # 'auto' (cuda if present), 'cpu', 'cuda', 'cuda:1'
     val_fraction: float = 0.1          # held-out share of the training items (0: none)
@@ -70,8 +69,6 @@ class TrainConfig:
     hflip: Optional[bool] = None       # random horizontal flip, p = 0.5
     greyscale: float = 0.0             # probability of a greyscale image (1.0: greyscale model)
     vp_channel: bool = False           # 4th input channel: VP proximity map
-    seen_only: bool = False            # virtual camera: supervise only the pixels the camera saw (the store's
-                                       # valid masks); labels filled in by completion are ignored (input unchanged)
     resume: Optional[str] = None       # continue from this checkpoint ('.last.pt') up to `epochs`
     init: Optional[str] = None         # start from this checkpoint's network and weights (fine-tuning, vctrain adapt)
     workers: int = 0                   # DataLoader worker processes

@@ -17,10 +17,6 @@ green and magenta, which a network reads as "not road"): with probability 1/2 ea
 by a smooth gain field exp(g), g bicubically interpolated from a 3 x 3 grid of values uniform in [-a, a]
 (per channel, so both the brightness and the colour vary over the image). Applied after the
 photometric jitter below, to the image only.
-Resolution (``blur_aug`` a): with probability 1/2 the image is down-sampled (area) by a factor s,
-log-uniform in [1, 1 + a], and up-sampled (bilinear) back to its size: a wide or low-resolution camera
-warped into the virtual camera is magnified (IDD-Lite's 320-pixel, 90-degree frames by 2 to 2.6), so
-its detail is that of a camera with s times fewer pixels per degree. The label is unchanged.
 Photometric: brightness, contrast and per-channel gain drawn in 1 ± ``color_aug`` (gain ±1/3 of it)
 and a gamma in [1/(1+c), 1+c] (dusk and over-exposed frames differ by more than a linear map).
 
@@ -74,8 +70,6 @@ class Sample:
     ``label_format`` None: the label is a store label (0/1/255 already). ``vp`` is the road VP in
     the coordinates of ``image`` (None: unknown, only needed for the VP channel). ``source`` is the
     store (or image folder) it comes from: the group ``balance: datasets`` draws equally often.
-    ``valid`` (``seen_only``): the store's mask of the pixels the camera saw; the label is ignore
-    (255) elsewhere, where completion filled it in.
     """
 
     id: str
@@ -84,7 +78,6 @@ class Sample:
     label_format: str | None = None
     vp: tuple[float, float] | None = None
     source: str = ""
-    valid: Path | None = None
 
 
 def vp_in_store(record: dict[str, Any], store: Store | None = None) -> tuple[float, float]:
@@ -104,19 +97,14 @@ def vp_in_store(record: dict[str, Any], store: Store | None = None) -> tuple[flo
     return vs.cx, vs.cy
 
 
-def store_samples(store: Store, seen_only: bool = False) -> list[Sample]:
-    """Samples for every labelled item of ``store`` (items without a label are skipped); with
-    ``seen_only`` each carries its valid mask (supervised only where the camera saw)."""
+def store_samples(store: Store) -> list[Sample]:
+    """Samples for every labelled item of ``store`` (items without a label are skipped)."""
     out = []
     for rec in store:
         if not rec.get("label"):
             continue
-        if seen_only and not rec.get("valid"):
-            raise InputError(f"item {rec['id']} has no valid mask, needed for seen_only", store.root,
-                             "rebuild the store with vcprep warp, or train without seen_only")
-        valid = store.path(rec["valid"]) if seen_only else None
         out.append(Sample(rec["id"], store.path(rec["image"]), store.path(rec["label"]), None, vp_in_store(rec, store),
-                          str(store.root), valid))
+                          str(store.root)))
     return out
 
 
@@ -168,12 +156,6 @@ def _load(sample: Sample) -> tuple[np.ndarray, np.ndarray]:
         lab = raw if raw.ndim == 2 else raw[..., 0]
     else:
         lab = decode_label(raw, get_label_format(sample.label_format), sample.label)
-    if sample.valid is not None:
-        seen = read_image(sample.valid, label=True).array
-        if seen.shape[:2] != lab.shape[:2]:
-            raise InputError(f"valid mask is {seen.shape[1]}x{seen.shape[0]} but its label is "
-                             f"{lab.shape[1]}x{lab.shape[0]}", sample.valid, "rebuild the store")
-        lab = np.where((seen if seen.ndim == 2 else seen[..., 0]) > 0, lab, IGNORE).astype(lab.dtype)
     if lab.shape[:2] != img.shape[:2]:
         raise InputError(f"label is {lab.shape[1]}x{lab.shape[0]} but its image is {img.shape[1]}x{img.shape[0]}",
                          sample.label, "labels must have the size of their images")
@@ -186,8 +168,7 @@ class RoadDataset(torch.utils.data.Dataset):
 
     def __init__(self, samples: Sequence[Sample], size: tuple[int, int], hflip: bool = False,
                  greyscale: float = 0.0, vp_channel: bool = False, scale_aug: float = 0.0, shift_aug: float = 0.0,
-                 color_aug: float = 0.0, crop: tuple[int, int] | None = None, shading_aug: float = 0.0,
-                 blur_aug: float = 0.0):
+                 color_aug: float = 0.0, crop: tuple[int, int] | None = None, shading_aug: float = 0.0):
         self.samples = list(samples)
         self.size = (int(size[0]), int(size[1]))
         self.crop = None
@@ -198,7 +179,6 @@ class RoadDataset(torch.utils.data.Dataset):
         self.hflip = bool(hflip)
         self.scale_aug, self.shift_aug, self.color_aug = float(scale_aug or 0), float(shift_aug or 0), float(color_aug or 0)
         self.shading_aug = float(shading_aug or 0)
-        self.blur_aug = float(blur_aug or 0)
         self.greyscale = float(greyscale)
         self.vp_channel = vp_channel
         self._cache: dict[int, tuple[np.ndarray, np.ndarray, tuple[float, float] | None]] = {}
@@ -248,21 +228,6 @@ class RoadDataset(torch.utils.data.Dataset):
         if vp is not None:
             vp = (s * vp[0] + M[0, 2], s * vp[1] + M[1, 2])
         return img, lab, vp
-
-    def _blur(self, img: np.ndarray) -> np.ndarray:
-        """One draw of ``blur_aug`` a on an 8-bit image (h, w[, 3]): unchanged in half the draws, else
-        down-sampled (area) by a factor s, log-uniform in [1, 1 + a], and up-sampled (bilinear) back:
-        the detail of a camera with s times fewer pixels per degree (module docstring)."""
-        r = torch.rand(2).tolist()  # torch RNG: seeded per run, epoch and worker
-        if r[0] >= 0.5:
-            return img
-        s = math.exp(r[1] * math.log1p(self.blur_aug))
-        h, w = img.shape[:2]
-        small = (max(1, round(w / s)), max(1, round(h / s)))
-        if small == (w, h):
-            return img
-        low = cv2.resize(img, small, interpolation=cv2.INTER_AREA)
-        return cv2.resize(low, (w, h), interpolation=cv2.INTER_LINEAR)
 
     def _photometric_draw(self) -> tuple[float, float, np.ndarray, float]:
         """One draw of (brightness, contrast, per-channel gain (3,), gamma); see the module docstring."""
@@ -318,8 +283,6 @@ class RoadDataset(torch.utils.data.Dataset):
             img = np.ascontiguousarray(img[y0:y0 + ch, x0:x0 + cw])
             lab = np.ascontiguousarray(lab[y0:y0 + ch, x0:x0 + cw])
             vp = (vp[0] - x0, vp[1] - y0) if vp is not None else None
-        if self.blur_aug > 0:
-            img = self._blur(img)
         out_w = img.shape[1]
         grey = self.greyscale >= 1.0 or (self.greyscale > 0 and float(torch.rand(())) < self.greyscale)
         if self.color_aug > 0 and not grey and img.dtype == np.uint8 and img.ndim == 3 and img.shape[2] == 3:
@@ -378,10 +341,10 @@ def _open_stores(paths: list[str]) -> list[Store]:
     return stores
 
 
-def _samples(stores: list[Store], baseline: str, seen_only: bool = False) -> list[Sample]:
+def _samples(stores: list[Store], baseline: str) -> list[Sample]:
     out: list[Sample] = []
     for s in stores:
-        got = resize_samples(s) if baseline == "resize" else store_samples(s, seen_only)
+        got = resize_samples(s) if baseline == "resize" else store_samples(s)
         if not got:
             raise InputError("store has no labelled items", s.root, "build it with --labels")
         out += got
@@ -404,8 +367,7 @@ def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str
     info: dict[str, Any] = {"mode": "resize" if cfg.baseline == "resize" else "virtual",
                             "store_params": stores[0].params if stores else None,
                             "completion": _completion(stores) if stores else "none",
-                            "vp_channel": cfg.vp_channel, "greyscale": cfg.greyscale,
-                            "seen_only": bool(cfg.seen_only and cfg.baseline != "resize")}
+                            "vp_channel": cfg.vp_channel, "greyscale": cfg.greyscale}
     if cfg.images is not None:
         if cfg.baseline != "resize":
             raise InputError("--images is for the resize baseline", cfg.images,
@@ -416,9 +378,9 @@ def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str
         train = [Sample(j.id, j.image, j.label, fmt.name, source=str(cfg.images))
                  for j in list_dataset(cfg.images, cfg.labels, fmt)]
         if stores:
-            train += _samples(stores, cfg.baseline, cfg.seen_only)
+            train += _samples(stores, cfg.baseline)
     elif stores:
-        train = _samples(stores, cfg.baseline, cfg.seen_only)
+        train = _samples(stores, cfg.baseline)
     else:
         raise InputError("no training data", None, "give STORE... (or --baseline resize --images/--labels)")
     if cfg.val_stores:
@@ -428,7 +390,7 @@ def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str
                 if vstores[0].params.get(k) != stores[0].params.get(k):
                     raise InputError(f"validation store has another {k} than the training store", vstores[0].root,
                                      "validate on a store of the same virtual camera and scale")
-        val = _samples(vstores, cfg.baseline, cfg.seen_only)
+        val = _samples(vstores, cfg.baseline)
     elif cfg.val_fraction > 0:
         if not 0 < cfg.val_fraction < 1:
             raise InputError(f"validation fraction {cfg.val_fraction} is not in [0, 1)", None, "use e.g. 0.1")

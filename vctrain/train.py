@@ -95,7 +95,7 @@ def resolve_recipe(cfg: TrainConfig, device: torch.device | None = None) -> Trai
     for k in ("epochs", "batch_size"):
         if int(getattr(cfg, k)) < 1:
             raise InputError(f"{k.replace('_', ' ')} must be at least 1, got {getattr(cfg, k)}", None, "use e.g. 8")
-    for k in ("lr", "scale_aug", "shift_aug", "color_aug", "weight_decay", "shading_aug", "blur_aug"):
+    for k in ("lr", "scale_aug", "shift_aug", "color_aug", "weight_decay", "shading_aug"):
         v = float(getattr(cfg, k))
         if not math.isfinite(v) or v < 0 or (k == "lr" and v == 0) :
             raise InputError(f"{k.replace('_', '-')} must be a finite number >= 0 (lr > 0), got {v}", None,
@@ -254,8 +254,7 @@ def _datasets(cfg: TrainConfig, train_s: list, val_s: list, info: dict[str, Any]
     size = tuple(info["input_size"])
     train_ds = RoadDataset(train_s, size, hflip=cfg.hflip, greyscale=cfg.greyscale, vp_channel=cfg.vp_channel,
                            scale_aug=cfg.scale_aug, shift_aug=cfg.shift_aug, color_aug=cfg.color_aug,
-                           crop=tuple(info["crop_size"]), shading_aug=cfg.shading_aug,
-                           blur_aug=cfg.blur_aug)
+                           crop=tuple(info["crop_size"]), shading_aug=cfg.shading_aug)
     val_ds = RoadDataset(val_s, size, greyscale=1.0 if cfg.greyscale >= 1 else 0.0, vp_channel=cfg.vp_channel)
     return train_ds, val_ds
 

@@ -95,14 +95,10 @@ def fit_cmd(
                                                                         "the size (cpu: 0.05)"),
     shading_aug: Optional[float] = typer.Option(None, "--shading-aug", help="augment: lens shading, a smooth "
                                                 "per-channel gain field exp(+-A) on half the items"),
-    blur_aug: Optional[float] = typer.Option(None, "--blur-aug", help="augment: resolution, half the items down- "
-                                             "and up-sampled by a factor up to 1 + A (a low-resolution camera)"),
     color_aug: Optional[float] = typer.Option(None, "--color-aug", help="augment: brightness/contrast/gain jitter "
                                                                         "(cpu: 0.3)"),
     greyscale: float = typer.Option(TRAIN.greyscale, "--greyscale", help="augment: probability of greyscale (1 = a greyscale model)"),
     vp_channel: bool = typer.Option(TRAIN.vp_channel, "--vp-channel", help="extra input channel: the VP proximity map"),
-    seen_only: bool = typer.Option(TRAIN.seen_only, "--seen-only", help="supervise only the pixels the camera saw "
-                                   "(the store's valid masks; labels filled in by completion are ignored)"),
     resume: Optional[Path] = typer.Option(None, "--resume", help="continue from a checkpoint (OUT-stem.last.pt) up to --epochs"),
     init: Optional[Path] = typer.Option(None, "--init", help="fine-tune: start from this checkpoint's weights (same "
                                                              "model, width, input channels and --baseline)"),
