@@ -25,8 +25,9 @@ from vcprep.store import Store
 from conftest import EXAMPLES, run_cli
 from studies import _mixed_study
 
-CONDS = ["resize", "between", "within"]
-GEOMETRY = {"resize": "between", "between": "between", "within": "within"}  # (resize reads the store's sources)
+CONDS = ["resize", "between", "within", "resize-vp"]
+# (resize reads the store's sources; resize-vp also the within store's per-frame VPs)
+GEOMETRY = {"resize": "between", "between": "between", "within": "within", "resize-vp": "within"}
 CAMERAS = {"kitti": "kitti.yaml", "cityscapes": "cityscapes.yaml", "camvid2": "camvid.yaml"}
 
 
@@ -127,7 +128,7 @@ def test_predict_gives_the_studys_masks_and_iou_on_the_examples(examples_run, tm
     labels, fmt = ((EXAMPLES / "camvid" / "labels", "camvid") if name == "0001TP" else
                    (EXAMPLES / "kitti" / "gt_image_2", "kitti"))
     ego = 18 if name == "0001TP" else 0  # ego: 36 of the preset's 720 rows, at the 360-row frame's size
-    if cond != "resize":
+    if cond not in ("resize", "resize-vp"):
         assert _run_result(examples_run, "_all", name, cond)["test_warp"]["ego_rows"] == [ego]
     _assert_predict_gives_the_studys(examples_run, "_all", name, cond, frames, camera, labels, fmt, ego,
                                      tmp_path / "preds")

@@ -39,7 +39,7 @@ from vcprep.camera import extend_canvas
 
 from ..data import vp_in_store
 
-__all__ = ["StageTimes", "FramePredictor", "StreamingVPs", "warps_frames"]
+__all__ = ["StageTimes", "FramePredictor", "StreamingVPs", "warps_frames", "reads_road_vps"]
 
 
 @dataclass
@@ -178,6 +178,13 @@ def warps_frames(predictor: Any) -> bool:
     """Whether frames are warped into a virtual camera before ``predictor`` sees them: a virtual-camera
     model or the prior, not a resize model nor a graph that holds its warp inside."""
     return predictor.mode == "virtual" and not getattr(predictor, "takes_frames", False)
+
+
+def reads_road_vps(predictor: Any) -> bool:
+    """Whether ``predictor`` sees each frame's road VP: it warps frames (:func:`warps_frames`), or it is a
+    resize model with the VP channel (crossval's ``resize-vp``). Its own vehicle then counts as for the
+    study's stores: the bonnet's rows are left out of the VP estimate."""
+    return warps_frames(predictor) or bool(getattr(predictor, "vp_channel", False))
 
 
 @dataclass

@@ -183,7 +183,7 @@ def _predict_image_files(predictor, images: Sequence[Path], out: Path, camera_fo
     from vcprep.cliutil import err
     from vcprep.dataset import collect_images
 
-    from .frames import warps_frames
+    from .frames import reads_road_vps, warps_frames
     from .predictor import predict_frames
     from .road import folder_ego_camera
 
@@ -191,13 +191,13 @@ def _predict_image_files(predictor, images: Sequence[Path], out: Path, camera_fo
     if camera_for is not None:  # checked even where the model needs none: a typo is never silent
         jobs = collect_images(images)
         cam = camera_for(jobs[0].image, frames=[j.image for j in jobs], needed=not _needs_no_camera(predictor))
-        if warps_frames(predictor) and isinstance(cam, Camera):  # one camera's frames: its own vehicle, as a video's
+        if reads_road_vps(predictor) and isinstance(cam, Camera):  # one camera's frames: its own vehicle, as a video's
             stated = cam.ego_rows
             tell = (lambda msg: err(f"{jobs[0].image.parent}: {msg}")) if progress else None
             cam = folder_ego_camera(cam, [j.image for j in jobs], ego, tell)
             ego_source = (f"--ego {ego}" if ego not in ("auto", "none") else "the camera's ego_rows" if stated
                           else "found from the frames" if cam.ego_rows else "")
-        elif warps_frames(predictor) and ego not in ("auto", "none"):
+        elif reads_road_vps(predictor) and ego not in ("auto", "none"):
             raise InputError("--ego N needs one camera; per-frame calibration files give the frames' cameras",
                              jobs[0].image, "write ego_rows in a camera file, or drop --ego")
     elif warps_frames(predictor):

@@ -93,7 +93,8 @@ def within_rule(predictor: Any, within: str, camera: Camera | FrameCameras | Non
 
     ``auto``: per-frame VPs when the model was trained with them (a virtual-camera model whose
     training store has estimated VPs, a graph exported with ``--vp-input``), else the camera's
-    pose. A resize model takes a VP only through its VP channel."""
+    pose. A resize model takes a VP only through its VP channel, by the same rule (crossval's
+    ``resize-vp``: each frame's own estimated VP, as it was trained)."""
     if getattr(predictor, "takes_frames", False):
         if not predictor.vp_input:
             if within not in ("auto", "none"):
@@ -101,8 +102,8 @@ def within_rule(predictor: Any, within: str, camera: Camera | FrameCameras | Non
                                  predictor.path, "drop --within, or export with --vp-input")
             return "none"
         return "estimate" if within == "auto" else within
-    if not warps_frames(predictor):
-        return within if within != "auto" and getattr(predictor, "vp_channel", False) else "none"
+    if not warps_frames(predictor) and not getattr(predictor, "vp_channel", False):
+        return "none"
     return virtual_within(predictor.data, within, camera)
 
 

@@ -44,7 +44,7 @@ from vcprep.errors import InputError
 from vcprep.io import VideoInfo, open_video, read_frames, sample_frames
 from vcprep.warp import ground_to_image, pose_from_vp, vp_from_pose
 
-from .frames import FramePredictor, StageTimes, StreamingVPs, warps_frames
+from .frames import FramePredictor, StageTimes, StreamingVPs, reads_road_vps, warps_frames
 from .road import model_vp_rule, own_vehicle, within_rule
 
 __all__ = ["check_video_stems", "ego_camera", "predict_video", "draw_overlay", "horizon_segment"]
@@ -202,7 +202,7 @@ def _video_camera(predictor, camera: Camera | None, video: Path, info: VideoInfo
         if camera is None:
             return None
     cam = camera.for_image_size(info.size, video)
-    if warps_frames(predictor):
+    if reads_road_vps(predictor):
         say = (lambda msg: tqdm.write(f"{video}: {msg}", file=sys.stderr)) if progress else None
         cam = ego_camera(cam, info, ego, say)
     return cam
