@@ -271,3 +271,10 @@ def test_condition_resize_vp_is_resize_with_each_frames_own_vp_channel(tmp_path)
         m.add(prob >= 0.5, label)
     row = json.loads((run_dir / "result.json").read_text())
     assert row["iou"] == pytest.approx(m.result()["iou"], abs=1e-9)
+    # predict without the camera: one line naming the model, the need and the fix (no traceback)
+    from conftest import assert_one_error_line
+
+    frame = Path(rec["source"])
+    bad = run_cli("predict", run_dir / "model.pt", frame, "--out", tmp_path / "p", "--device", "cpu", prog="vctrain")
+    assert bad.returncode != 0
+    assert_one_error_line(bad, "vanishing point", "--camera")

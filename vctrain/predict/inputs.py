@@ -203,5 +203,8 @@ def _predict_image_files(predictor, images: Sequence[Path], out: Path, camera_fo
     elif warps_frames(predictor):
         raise InputError("a virtual-camera model needs the camera of the images", predictor.path,
                          "add --camera (preset or calibration file)")
+    elif reads_road_vps(predictor):
+        raise InputError("this model reads each frame's road vanishing point (VP channel): it needs the camera of "
+                         "the images", predictor.path, "add --camera (preset, calibration file, or estimate)")
     return predict_frames(predictor, images, out, cam, progress=progress, keep_store=keep_store, overlay=overlay,
                           within=within, vp_rule=vp_rule, say=say, ego_source=ego_source)

@@ -198,6 +198,9 @@ def _video_camera(predictor, camera: Camera | None, video: Path, info: VideoInfo
         if warps_frames(predictor):
             raise InputError("a virtual-camera model needs the camera of the video", video,
                              "add --camera (preset or calibration file)")
+        if reads_road_vps(predictor):
+            raise InputError("this model reads each frame's road vanishing point (VP channel): it needs the camera "
+                             "of the video", video, "add --camera (preset, calibration file, or estimate)")
         camera = getattr(predictor, "camera", None)  # a graph's own (its VPs, the overlay's horizon)
         if camera is None:
             return None
