@@ -11,8 +11,10 @@ IDD-Lite, BDD100K and LUMS ASSUMED, in training and testing) from WORKDIR and it
   sampling, read as they are), ``average`` (within's and resize's probabilities averaged in the camera's
   pixels) and ``resize-vp`` (resize plus each frame's own road VP as a 4th input channel);
 * WORKDIR/extra-<settings>/seed<k> (``multi_camera.py --train-extra``): ``within`` trained with extra
-  settings, e.g. ``blur_aug=1.5`` (resolution augmentation) or ``seen_only=true`` (completion-filled
-  labels ignored).
+  settings. Two were measured and dropped again (the settings are gone; commits 76215da and 7b31c8a
+  have them): ``blur_aug=1.5`` (half the items down- and up-sampled by up to 2.5x: IDD-Lite's frames
+  are magnified 2.1-2.6x in the virtual camera) and ``seen_only=true`` (the loss ignores the labels
+  completion filled in).
 
 Road IoU (%) on every frame of the held-out camera in its own pixels; each candidate against ``resize``
 of the same fold and seed (paired). Outputs benchmarks/results/multi_camera_candidates.{md,json}; the

@@ -296,7 +296,7 @@ def _args() -> argparse.Namespace:
                     "WORKDIR[/median]/train-<names>; resize (and condition average's resize model) from the "
                     "study of all four (WORKDIR[/median], run there with --conditions within,resize,average)")
     ap.add_argument("--train-extra", default="", help="training settings added to the virtual-camera conditions' "
-                    "study, KEY=VALUE[,KEY=VALUE] (e.g. blur_aug=1.5, seen_only=true; issue 44's candidates), in "
+                    "study, KEY=VALUE[,KEY=VALUE] (e.g. shading_aug=0.2; issue 44's candidates), in "
                     "WORKDIR[/median]/extra-<settings> with the stores of WORKDIR[/median]; resize from there")
     return ap.parse_args()
 
