@@ -52,8 +52,10 @@ def cells(wd: Path, seeds: list[int], held: list[str]) -> dict[str, dict[str, li
             for s in seeds:
                 f = sd / f"seed{s}" / "runs" / t / cond / "result.json"
                 r = json.loads(f.read_text()) if f.is_file() else {}
-                # (a row scored before test splits were warped as predict warps them is not counted)
-                row.append(100 * r["iou"] if r.get("test_warp") else None)
+                # (a row of a warping condition scored before test splits were warped as predict warps them
+                # is not counted; resize and resize-vp read the frames as they are)
+                ok = r.get("test_warp") or (r and cond in ("resize", "resize-vp"))
+                row.append(100 * r["iou"] if ok else None)
             out.setdefault(name, {})[t] = row
     return out
 

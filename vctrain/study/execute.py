@@ -83,7 +83,8 @@ def execute(run: Run, ctx: Context, tag: str) -> list[dict[str, Any]]:
         predictor, store, before, extra = kind.scored(ds)
         t0 = time.perf_counter()
         metrics = score_store(predictor, store, ctx.progress)
-        if predictor.mode == "virtual":  # what its frames were warped with: what vctrain predict says it uses
+        if predictor.mode == "virtual" or getattr(predictor, "vp_channel", False):
+            # what its frames were warped with (resize-vp: whose VPs it read): what vctrain predict says it uses
             from ..predict.predictor import warp_geometry
 
             extra = {**extra, "test_warp": warp_geometry(Store.open(store))}
