@@ -1,6 +1,6 @@
 """Issue 44's candidates for a camera-aware model that wins when cameras are merged: one table of every measured one.
 
-    .venv/bin/python benchmarks/candidates.py [--workdir benchmarks/out/multi_camera/median] [--seeds 0,1]
+    .venv/bin/python benchmarks/multi_camera_candidates.py [--workdir benchmarks/out/multi_camera/median] [--seeds 0,1]
                                               [--held-out idd,bdd]
 
 Runs nothing: collects the finished leave-one-camera-out folds of ``benchmarks/multi_camera.py --extent
@@ -82,7 +82,7 @@ def render(c: dict[str, dict[str, list]], seeds: list[int], held: list[str]) -> 
              "ASSUMED, in training and in testing. Road IoU (%) on all frames of the held-out camera in its own "
              "pixels, each fold trained on the other four; in brackets the difference to `resize` of the same "
              f"fold and seed. Seeds {seeds}; test splits warped as `vctrain predict` warps them. Written by "
-             "benchmarks/candidates.py.", "",
+             "benchmarks/multi_camera_candidates.py.", "",
              "| candidate | " + " | ".join(f"{t} seed {s}" for t in held for s in seeds)
              + " | " + " | ".join(f"{t} mean − resize" for t in held) + " |",
              "|---|" + "---|" * (len(held) * len(seeds) + len(held))]
@@ -120,7 +120,7 @@ def main() -> None:
     write_json(res / "multi_camera_candidates.json", {
         "headline": head, "cells": c, "seeds": seeds, "held_out": held, "workdir": str(a.workdir),
         "machine": machine(), "date": today(),
-        "command": f"benchmarks/candidates.py --seeds {a.seeds} --held-out {a.held_out}"})
+        "command": f"benchmarks/multi_camera_candidates.py --seeds {a.seeds} --held-out {a.held_out}"})
     print(json.dumps(head))
 
 
