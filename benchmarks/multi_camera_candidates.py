@@ -76,7 +76,7 @@ def headline(c: dict[str, dict[str, list]], held: list[str]) -> dict:
 
 def render(c: dict[str, dict[str, list]], seeds: list[int], held: list[str]) -> str:
     f = lambda v: "-" if v is None else f"{v:.1f}"
-    lines = ["# Issue 44: candidates on the two losing folds (IDD-Lite and BDD100K held out)", "",
+    lines = ["# Issue 44: candidates on the two losing folds (IDD-Lite and BDD100K held out), and LUMS", "",
              "Recipe of benchmarks/multi_camera.py --extent median (balance: datasets, shading_aug 0.4, 35 steps x 20 "
              "epochs = 700 steps a model). Cameras: CamVid and Cityscapes calibrated; IDD-Lite, BDD100K and LUMS "
              "ASSUMED, in training and in testing. Road IoU (%) on all frames of the held-out camera in its own "
