@@ -104,13 +104,18 @@ def render(c: dict[str, dict[str, list]], seeds: list[int], held: list[str]) -> 
     return "\n".join(lines) + "\n"
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+def fold_args(doc: str) -> tuple[argparse.Namespace, list[int], list[str]]:
+    """The options of the scripts that read a finished median workdir: (args, seeds, held-out folds)."""
+    ap = argparse.ArgumentParser(description=doc.splitlines()[0])
     ap.add_argument("--workdir", type=Path, default=ROOT / "benchmarks" / "out" / "multi_camera" / "median")
     ap.add_argument("--seeds", default="0,1")
     ap.add_argument("--held-out", default="idd,bdd")
     a = ap.parse_args()
-    seeds, held = [int(s) for s in a.seeds.split(",")], a.held_out.split(",")
+    return a, [int(s) for s in a.seeds.split(",")], a.held_out.split(",")
+
+
+def main() -> None:
+    a, seeds, held = fold_args(__doc__)
     c = cells(a.workdir, seeds, held)
     table = render(c, seeds, held)
     print(table)

@@ -21,13 +21,13 @@ the geometry's share of average's gain. Outputs benchmarks/results/multi_camera_
 """
 from __future__ import annotations
 
-import argparse
 import json
 from pathlib import Path
 
 import numpy as np
 
 from measure.data import ROOT
+from multi_camera_candidates import fold_args
 from measure.report import machine, today, write_json
 
 
@@ -83,13 +83,8 @@ def render(cells: dict[str, dict[str, float]], seeds: list[int]) -> str:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--workdir", type=Path, default=ROOT / "benchmarks" / "out" / "multi_camera" / "median")
-    ap.add_argument("--seeds", default="0,1")
-    ap.add_argument("--held-out", default="idd,bdd")
-    a = ap.parse_args()
-    seeds = [int(s) for s in a.seeds.split(",")]
-    cells = {t: score_fold(a.workdir, seeds, t) for t in a.held_out.split(",")}
+    a, seeds, held = fold_args(__doc__)
+    cells = {t: score_fold(a.workdir, seeds, t) for t in held}
     table = render(cells, seeds)
     print(table)
     res = ROOT / "benchmarks" / "results"

@@ -169,7 +169,9 @@ def _needs_no_camera(predictor) -> bool:
     checked, not estimated: a folder of three frames is enough)."""
     if getattr(predictor, "takes_frames", False):
         return not predictor.vp_input
-    return getattr(predictor, "mode", None) == "resize" and not getattr(predictor, "vp_channel", False)
+    from .frames import reads_road_vps
+
+    return not reads_road_vps(predictor)
 
 
 def _predict_image_files(predictor, images: Sequence[Path], out: Path, camera_for: Optional[CameraFor],

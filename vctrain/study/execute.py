@@ -83,7 +83,9 @@ def execute(run: Run, ctx: Context, tag: str) -> list[dict[str, Any]]:
         predictor, store, before, extra = kind.scored(ds)
         t0 = time.perf_counter()
         metrics = score_store(predictor, store, ctx.progress)
-        if predictor.mode == "virtual" or getattr(predictor, "vp_channel", False):
+        from ..predict.frames import reads_road_vps
+
+        if reads_road_vps(predictor):
             # what its frames were warped with (resize-vp: whose VPs it read): what vctrain predict says it uses
             from ..predict.predictor import warp_geometry
 
