@@ -99,17 +99,19 @@ def _link_all(dst: Path, parts: list[tuple[Path, Path]], n: int | None = None) -
 
 def study_file(wd: Path, quick: bool, epochs: int | None, shading_aug: float = SHADING_AUG,
                extent: str = "max", train_on: list[str] | None = None, extra: dict | None = None,
-               home: Path | None = None) -> Path:
+               home: Path | None = None, estimate: list[str] | None = None) -> Path:
     """The study: the five real datasets held out in turn, KITTI a test set; ``extent`` the designed
     rectangle's rule (study key ``extent``). ``train_on``: only these datasets trained on (role
     train), every other one a test set (one model, runs/_all/). ``extra``: training settings added.
     ``home``: the study whose CamVid frames and camera file this one names (default ``wd``: its
-    own), so that a study sharing its stores names the very same source files."""
+    own), so that a study sharing its stores names the very same source files. ``estimate``: these
+    datasets get ``camera: estimate`` (their camera estimated from their own frames and labels)."""
     n = QUICK_FRAMES if quick else None
     home = home or wd
     camvid = ({"images": str(home / "frames" / "camvid" / "images"), "labels": str(home / "frames" / "camvid" / "labels")}
-              if home != wd else _link_all(wd / "frames" / "camvid", [(DATA / "train", DATA / "trainannot"),
-                                                                      (DATA / "val", DATA / "valannot")], n))
+              if home != wd and (home / "frames" / "camvid" / "images").is_dir() else
+              _link_all(home / "frames" / "camvid", [(DATA / "train", DATA / "trainannot"),
+                                                     (DATA / "val", DATA / "valannot")], n))
     split = lambda src: ({"images": str(src / "images"), "labels": str(src / "labels")} if not quick else
                          _link_all(wd / "frames" / src.name, [(src / "images", src / "labels")], n))
     idd = {"images": str(IDD / "leftImg8bit" / "train"), "labels": str(IDD / "gtFine" / "train"),
@@ -125,6 +127,8 @@ def study_file(wd: Path, quick: bool, epochs: int | None, shading_aug: float = S
              "test": {"images": str(KITTI / "image_2"), "labels": str(KITTI / "gt_image_2")}}
     train = ({"epochs": 1, "max_steps": 2} if quick else
              {"max_steps": camvid_steps_per_epoch(), **({"epochs": epochs} if epochs else {})})
+    for k in estimate or ():
+        datasets[k]["camera"] = "estimate"
     for k, d in datasets.items() if train_on else ():
         d["role"] = "train" if k in train_on else "test"
         del d["test" if k in train_on else "train"]
@@ -298,6 +302,11 @@ def _args() -> argparse.Namespace:
     ap.add_argument("--train-extra", default="", help="training settings added to the virtual-camera conditions' "
                     "study, KEY=VALUE[,KEY=VALUE] (e.g. shading_aug=0.2; issue 44's candidates), in "
                     "WORKDIR[/median]/extra-<settings> with the stores of WORKDIR[/median]; resize from there")
+    ap.add_argument("--camera-estimate", default="",
+                    help="these datasets' cameras estimated from their frames and labels (camera: estimate), e.g. "
+                    "bdd,lums: the assumed cameras of the TRAINING sets (issue 44; hold out a set whose camera is "
+                    "not estimated, or its test geometry reads its labels), in WORKDIR[/median]/estimate-<names> "
+                    "with its own stores; resize from WORKDIR[/median]")
     return ap.parse_args()
 
 
@@ -320,21 +329,27 @@ def main() -> None:
     base = a.workdir / "quick" if a.quick else a.workdir
     rd = wd = base / "median" if a.extent == "median" else base  # rd: the study that trains resize
     extra = train_extra(a.train_extra)
-    if train_on:
+    estimate = [t for t in LOO if t in a.camera_estimate.split(",")]
+    if estimate and (set(estimate) & set(held)):
+        raise SystemExit(f"--camera-estimate {a.camera_estimate}: a held-out set's camera would be estimated from "
+                         "its test labels; hold out only sets whose camera is not estimated (--held-out)")
+    if estimate:  # other cameras: another virtual camera, its own stores; resize (no rectangle) from the plain one
+        wd = wd / ("estimate-" + "-".join(estimate) + "".join(f"-{k}-{v}" for k, v in extra.items()))
+    elif train_on:
         wd = wd / ("train-" + "-".join(train_on))
     elif extra:  # the candidate's own study beside the plain one, sharing its stores; resize from the plain one
         wd = wd / ("extra-" + "-".join(f"{k}-{v}" for k, v in extra.items()))
         for seed in seeds:
             link_stores(wd / f"seed{seed}", rd / f"seed{seed}")
-    else:  # resize meets no rectangle: read from WORKDIR's studies, unless average needs its model here
-        rd = wd if a.extent == "max" or "average" in conds else base
+    else:  # resize meets no rectangle: from WORKDIR's studies, unless average or resize-vp (paired) needs it here
+        rd = wd if a.extent == "max" or {"average", "resize-vp"} & set(conds) else base
     wd.mkdir(parents=True, exist_ok=True)
     steps = 2 if a.quick else camvid_steps_per_epoch()
     run_conds = [k for k in conds if rd == wd or k not in ("resize", "average")]
 
     if not a.collect:
         study = study_file(wd, a.quick, a.epochs, a.shading_aug, a.extent, train_on or None, extra,
-                           rd if extra else None)
+                           rd if extra or estimate else None, estimate)
         for seed in seeds:
             if seed != seeds[0]:
                 link_stores(wd / f"seed{seed}", wd / f"seed{seeds[0]}")
@@ -359,7 +374,8 @@ def main() -> None:
 
 def _write(a: argparse.Namespace, wd: Path, table: str, out: dict, held: list[str], steps: int) -> None:
     """The table and the JSON (benchmarks/results, or WORKDIR's results for a smoke run or some folds)."""
-    res_dir = (wd / "results") if a.quick or held != LOO or a.train_on or a.train_extra else (ROOT / "benchmarks" / "results")
+    own = a.quick or held != LOO or a.train_on or a.train_extra or a.camera_estimate
+    res_dir = (wd / "results") if own else (ROOT / "benchmarks" / "results")
     res_dir.mkdir(parents=True, exist_ok=True)
     name = "multi_camera" + ("_median" if a.extent != "max" else "")
     (res_dir / f"{name}.md").write_text(table)
@@ -369,7 +385,8 @@ def _write(a: argparse.Namespace, wd: Path, table: str, out: dict, held: list[st
                + (f" --extent {a.extent}" if a.extent != "max" else "") + (" --collect" if a.collect else "")
                + (f" --held-out {','.join(held)}" if held != LOO else "")
                + (f" --train-on {a.train_on}" if a.train_on else "")
-               + (f" --train-extra {a.train_extra}" if a.train_extra else ""))
+               + (f" --train-extra {a.train_extra}" if a.train_extra else "")
+               + (f" --camera-estimate {a.camera_estimate}" if a.camera_estimate else ""))
     write_json(res_dir / f"{name}.json", {
         **out, "test_only": TEST_ONLY, "steps_per_epoch": steps, "epochs": a.epochs, "balance": "datasets",
         "shading_aug": a.shading_aug, "extent": a.extent,
