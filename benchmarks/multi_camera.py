@@ -4,6 +4,7 @@
                                                 [--workdir benchmarks/out/multi_camera] [--threads 2]
                                                 [--quick] [--collect] [--extent max|median]
                                                 [--held-out idd,bdd] [--train-on camvid,cityscapes]
+                                                [--train-extra KEY=VALUE,...] [--camera-estimate bdd,lums]
 
 **Data** (../shared/data, each with the camera it ships with), every one ``role: both``:
 ``camvid`` (CamVid train + val, 468 frames of the SegNet release, the camvid preset scaled to 480x360;
@@ -51,7 +52,12 @@ averaged in the held-out camera's pixels, no training of its own) makes the medi
 trains the virtual-camera conditions on those datasets only (the calibrated cameras: IDD-Lite's, BDD100K's
 and LUMS's files are assumed), one model per seed tested on every held-out set (WORKDIR[/median]/train-<names>),
 against the resize model of each fold (trained on the other four, in WORKDIR[/median]); ``average`` there is
-that within model averaged with the fold's resize model (:func:`mixed_average`).
+that within model averaged with the fold's resize model (:func:`mixed_average`). ``--train-extra KEY=VALUE``
+trains the virtual-camera conditions with extra settings (WORKDIR[/median]/extra-<settings>, sharing the stores).
+``--camera-estimate bdd,lums`` gives those datasets ``camera: estimate`` (estimated from their own frames and
+labels instead of their assumed files; WORKDIR[/median]/estimate-<names>, its own stores): for folds that hold
+out another set only, since a held-out set's estimate would read its test labels. Condition ``resize-vp``
+(resize plus each frame's road VP as a 4th channel) trains its paired ``resize`` in the same study.
 
 Outputs: benchmarks/results/multi_camera.{md,json} (``--quick``: a smoke run, a few frames, 2 steps, into
 WORKDIR/results). ``--collect`` runs nothing: it reports the folds finished so far (a cut-off run's) and
