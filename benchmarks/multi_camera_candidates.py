@@ -96,34 +96,36 @@ def headline(c: dict[str, dict[str, list]], held: list[str]) -> dict:
 
 
 def render(c: dict[str, dict[str, list]], seeds: list[int], held: list[str]) -> str:
+    """One row per candidate, one column per held-out fold: each seed's IoU (``-``: not measured) and,
+    in brackets, the candidate − resize paired per seed and averaged over the seeds that have both."""
     f = lambda v: "-" if v is None else f"{v:.1f}"
+    seeds_txt = " / ".join(f"s{s}" for s in seeds)
     lines = [f"# Issue 44: camera-aware candidates, leave one camera out (held out: {', '.join(held)})", "",
              "Recipe of benchmarks/multi_camera.py --extent median (balance: datasets, shading_aug 0.4, 35 steps x 20 "
              "epochs = 700 steps a model). Cameras: CamVid and Cityscapes calibrated; IDD-Lite, BDD100K and LUMS "
-             "ASSUMED, in training and in testing. Road IoU (%) on all frames of the held-out camera in its own "
-             "pixels, each fold trained on the other four; in brackets the difference to `resize` of the same "
-             f"fold and seed. Seeds {seeds}; test splits warped as `vctrain predict` warps them. Written by "
-             "benchmarks/multi_camera_candidates.py.", "",
-             "| candidate | " + " | ".join(f"{t} seed {s}" for t in held for s in seeds)
-             + " | " + " | ".join(f"{t} mean − resize" for t in held) + " | mean over the folds − resize |",
-             "|---|" + "---|" * (len(held) * len(seeds) + len(held) + 1)]
+             "ASSUMED, in training and in testing (unless a candidate estimates them). Road IoU (%) on all frames "
+             f"of the held-out camera in its own pixels, each fold trained on the other four; per cell seeds "
+             f"{seeds_txt}, in brackets the mean difference to `resize` of the same fold and seeds (paired). Test "
+             "splits warped as `vctrain predict` warps them. Written by benchmarks/multi_camera_candidates.py.", "",
+             "| candidate | " + " | ".join(held) + " | mean over the folds − resize |",
+             "|---|" + "---|" * (len(held) + 1)]
     for name, folds in c.items():
         vals = []
         for t in held:
-            for i, _ in enumerate(seeds):
-                v, r = folds[t][i], c["resize"][t][i]
-                vals.append(f(v) + ("" if name == "resize" or v is None or r is None else f" ({v - r:+.1f})"))
-        means = []
-        for t in held:
             d = [a - b for a, b in zip(folds[t], c["resize"][t]) if a is not None and b is not None]
-            means.append("" if name == "resize" else (f"{np.mean(d):+.1f} (n={len(d)})" if d else "-"))
+            vals.append(" / ".join(f(v) for v in folds[t])
+                        + ("" if name == "resize" or not d else f" ({np.mean(d):+.1f})"))
         over = fold_mean(folds, c["resize"], held)
-        means.append("" if name == "resize" else ("-" if over is None else f"{over:+.1f}"))
-        lines.append(f"| {name} | " + " | ".join(vals) + " | " + " | ".join(means) + " |")
-    missing = [f"{n} {t} seed {s}" for n, folds in c.items() for t in held for i, s in enumerate(seeds)
-               if folds[t][i] is None]
+        vals.append("" if name == "resize" else ("-" if over is None else f"{over:+.1f}"))
+        lines.append(f"| {name} | " + " | ".join(vals) + " |")
+    missing = []
+    for n, folds in c.items():
+        gaps = [f"{t} s{s}" for t in held for i, s in enumerate(seeds) if folds[t][i] is None]
+        if gaps:
+            missing.append(f"{n}: {', '.join(gaps)}")
     if missing:
-        lines += ["", "Not measured: " + ", ".join(missing) + "."]
+        lines += ["", "Not measured (a candidate is dropped as soon as its numbers say so): "
+                  + "; ".join(missing) + "."]
     return "\n".join(lines) + "\n"
 
 
