@@ -66,12 +66,17 @@ def cells(wd: Path, seeds: list[int], held: list[str]) -> dict[str, dict[str, li
     return out
 
 
+def paired(cand: list, resize: list) -> list[float]:
+    """candidate − resize per seed, over the seeds where both were measured."""
+    return [a - b for a, b in zip(cand, resize) if a is not None and b is not None]
+
+
 def fold_mean(folds: dict[str, list], resize: dict[str, list], held: list[str]) -> float | None:
     """The mean over the held-out folds of (candidate − resize, paired per seed, mean over the seeds);
     None unless every fold has at least one pair (a mean over some folds is not the target's)."""
     per = []
     for t in held:
-        d = [a - b for a, b in zip(folds[t], resize[t]) if a is not None and b is not None]
+        d = paired(folds[t], resize[t])
         if not d:
             return None
         per.append(float(np.mean(d)))
@@ -86,7 +91,7 @@ def headline(c: dict[str, dict[str, list]], held: list[str]) -> dict:
             over = fold_mean(folds, c["resize"], held)
             head[f"{key}_minus_resize_fold_mean"] = None if over is None else round(over, 2)
         for t in held:
-            d = [a - b for a, b in zip(folds[t], c["resize"][t]) if a is not None and b is not None]
+            d = paired(folds[t], c["resize"][t])
             head[f"{key}_{t}"] = round(float(np.mean([v for v in folds[t] if v is not None])), 2) \
                 if any(v is not None for v in folds[t]) else None
             if name != "resize":
@@ -112,7 +117,7 @@ def render(c: dict[str, dict[str, list]], seeds: list[int], held: list[str]) -> 
     for name, folds in c.items():
         vals = []
         for t in held:
-            d = [a - b for a, b in zip(folds[t], c["resize"][t]) if a is not None and b is not None]
+            d = paired(folds[t], c["resize"][t])
             vals.append(" / ".join(f(v) for v in folds[t])
                         + ("" if name == "resize" or not d else f" ({np.mean(d):+.1f})"))
         over = fold_mean(folds, c["resize"], held)
