@@ -44,8 +44,10 @@ class TrainConfig:
     labels: Optional[str] = None       #   ... label folder
     label_format: Optional[str] = None  #  ... label format (camvid, kitti, values:road=..)
     recipe: Optional[str] = None       # 'cpu' | 'paper' (vctrain.train); None: DEFAULT_RECIPE on every device
-    arch: Optional[str] = None         # 'resfpn' | 'segnet' | 'segnet-narrow'; None: the recipe's
+    arch: Optional[str] = None         # 'resfpn' | 'lite0fpn' | 'segnet' | 'segnet-narrow'; None: the recipe's
     base_width: Optional[int] = None   # override the architecture's first-block width
+    pretrained: Optional[bool] = None  # start the encoder from ImageNet weights (lite0fpn); None: yes where the
+                                       # architecture has them (vctrain.model.PRETRAINED), no elsewhere
     size: Optional[tuple[int, int]] = None  # working size (w, h); None: the store size (first image for folders)
     crop: Optional[Any] = None         # training window: (w, h) pixels (ints), a share of each side (float) or
                                        # of width and height (two floats); None: the whole image (validation

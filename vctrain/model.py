@@ -1,4 +1,4 @@
-"""The segmentation networks: the paper's SegNet, a narrow SegNet, and ``resfpn``, the CPU default.
+"""The segmentation networks: the paper's SegNet, a narrow SegNet, ``resfpn`` and ``lite0fpn``.
 
 ``segnet``: the VGG16 encoder-decoder with max-unpooling indices (Badrinarayanan et al.), as used by
 the VCSeg paper, plus ``segnet-narrow``, a narrow variant of the same topology.
@@ -20,6 +20,14 @@ the logits bilinearly. Skip connections and residual blocks train in minutes whe
 unpooling decoder needs hundreds of epochs; most of its work runs at 1/4 resolution or below,
 so it is about 6x faster per image than segnet-narrow on a CPU (benchmarks/real_cameras.py).
 
+``lite0fpn``: the ImageNet-pretrained EfficientNet-Lite0 encoder (vctrain.efficientnet: stem and 16
+MBConv blocks, its features at 1/4, 1/8, 1/16 and 1/32, 24/40/112/320 channels) with resfpn's decoder
+(width ``2 * base_width``), 3.0 M parameters. The project's input (BGR in [-1, 1]) is turned into the
+weights' convention (RGB, ``(x - 127) / 128``) inside the network; no per-image standardisation (the
+pretrained statistics expect the colours as they are). Extra input channels (the VP channel) start
+at zero weight in the stem. :func:`build_model` gives it random weights; training loads the ImageNet
+weights (``pretrained``, vctrain.train), a checkpoint its own.
+
 Shapes (all): input (N, in_channels, H, W) float, output (N, num_classes, H, W) logits, for any
 H, W (odd sizes: SegNet unpools to the exact pre-pooling size, resfpn interpolates to it).
 """
@@ -31,9 +39,13 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
-__all__ = ["ModelArgs", "SegNet", "ResFPN", "ARCHITECTURES", "build_model", "model_args_for"]
+from .efficientnet import FEATURE_WIDTHS, EfficientNetLite0, from_project_input
 
-ARCHITECTURES = {"segnet": 64, "segnet-narrow": 16, "resfpn": 16}  # name -> default base width
+__all__ = ["ModelArgs", "SegNet", "ResFPN", "Lite0FPN", "ARCHITECTURES", "PRETRAINED", "build_model",
+           "model_args_for"]
+
+ARCHITECTURES = {"segnet": 64, "segnet-narrow": 16, "resfpn": 16, "lite0fpn": 16}  # name -> default base width
+PRETRAINED = ("lite0fpn",)  # architectures whose encoder starts from ImageNet weights (unless --no-pretrained)
 _ENC_LAYERS = (2, 2, 3, 3, 3)  # VGG16's 13 conv layers
 _WIDTH_MULT = (1, 2, 4, 8, 8)
 
@@ -42,8 +54,8 @@ _WIDTH_MULT = (1, 2, 4, 8, 8)
 class ModelArgs:
     """Everything needed to rebuild the network (stored in every checkpoint)."""
 
-    arch: str = "segnet-narrow"  # 'segnet', 'segnet-narrow' (same topology, other widths) or 'resfpn'
-    base_width: int = 16         # channels of the first block; 64 = the paper's VGG16 SegNet
+    arch: str = "segnet-narrow"  # 'segnet', 'segnet-narrow' (same topology, other widths), 'resfpn' or 'lite0fpn'
+    base_width: int = 16         # channels of the first block (lite0fpn: half the decoder's); 64 = the paper's SegNet
     in_channels: int = 3         # 3 (colour) or 4 (colour + VP proximity map)
     num_classes: int = 2         # 0 = not road, 1 = road
 
@@ -86,11 +98,7 @@ class SegNet(nn.Module):
             layers = [_conv_bn_relu(w, w) for _ in range(n - 1)] + [_conv_bn_relu(w, out)]
             self.decoders.append(nn.Sequential(*layers))
         self.classifier = nn.Conv2d(widths[0], args.num_classes, 3, padding=1)
-        for m in self.modules():
-            if isinstance(m, nn.Conv2d):
-                nn.init.kaiming_normal_(m.weight, mode="fan_out", nonlinearity="relu")
-                if m.bias is not None:
-                    nn.init.zeros_(m.bias)
+        _kaiming(self.modules())
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         indices, sizes = [], []
@@ -135,7 +143,34 @@ class _BasicBlock(nn.Module):
         return F.relu(y + (x if self.shortcut is None else self.shortcut(x)), inplace=True)
 
 
-class ResFPN(nn.Module):
+class _FPN(nn.Module):
+    """The feature-pyramid decoder resfpn and lite0fpn share: 1x1 lateral projections summed top-down
+    with bilinear upsampling, one 3x3 conv-BN-ReLU per level, global-average context added at the
+    coarsest level, logits at the finest upsampled to the input (attribute names kept: checkpoints)."""
+
+    def _decoder(self, widths, dec: int, num_classes: int) -> None:
+        self.lateral = nn.ModuleList(nn.Conv2d(w, dec, 1) for w in widths)
+        self.context = nn.Conv2d(widths[-1], dec, 1)
+        self.smooth = nn.ModuleList(_conv_bn_relu(dec, dec) for _ in widths[:-1])
+        self.classifier = nn.Conv2d(dec, num_classes, 1)
+
+    def _decode(self, feats: list[torch.Tensor], size) -> torch.Tensor:
+        p = self.lateral[-1](feats[-1]) + self.context(feats[-1].mean((2, 3), keepdim=True))
+        for i in reversed(range(len(feats) - 1)):
+            up = F.interpolate(p, size=feats[i].shape[-2:], mode="bilinear", align_corners=False)
+            p = self.smooth[i](up + self.lateral[i](feats[i]))
+        return F.interpolate(self.classifier(p), size=size, mode="bilinear", align_corners=False)
+
+
+def _kaiming(modules) -> None:
+    for m in modules:
+        if isinstance(m, nn.Conv2d):
+            nn.init.kaiming_normal_(m.weight, mode="fan_out", nonlinearity="relu")
+            if m.bias is not None:
+                nn.init.zeros_(m.bias)
+
+
+class ResFPN(_FPN):
     """Residual encoder + feature-pyramid decoder; see the module docstring."""
 
     def __init__(self, args: ModelArgs = ModelArgs(arch="resfpn")):
@@ -143,22 +178,14 @@ class ResFPN(nn.Module):
         self.args = args
         b = args.base_width
         widths = [2 * b, 4 * b, 8 * b, 8 * b]   # stages at 1/4, 1/8, 1/16, 1/32
-        dec = 2 * b                            # decoder width
         self.stem = nn.Sequential(_conv_bn_relu(args.in_channels, b, 2), _conv_bn_relu(b, b))  # 1/2
         self.stages = nn.ModuleList()
         cin = b
         for w in widths:
             self.stages.append(nn.Sequential(_BasicBlock(cin, w, 2), _BasicBlock(w, w)))
             cin = w
-        self.lateral = nn.ModuleList(nn.Conv2d(w, dec, 1) for w in widths)
-        self.context = nn.Conv2d(widths[-1], dec, 1)
-        self.smooth = nn.ModuleList(_conv_bn_relu(dec, dec) for _ in widths[:-1])
-        self.classifier = nn.Conv2d(dec, args.num_classes, 1)
-        for m in self.modules():
-            if isinstance(m, nn.Conv2d):
-                nn.init.kaiming_normal_(m.weight, mode="fan_out", nonlinearity="relu")
-                if m.bias is not None:
-                    nn.init.zeros_(m.bias)
+        self._decoder(widths, 2 * b, args.num_classes)
+        _kaiming(self.modules())
         for blk in self.modules():  # zero-init the last BN of each residual branch (Goyal et al.)
             if isinstance(blk, _BasicBlock):
                 nn.init.zeros_(blk.bn2.weight)
@@ -176,14 +203,30 @@ class ResFPN(nn.Module):
         for stage in self.stages:
             x = stage(x)
             feats.append(x)
-        p = self.lateral[-1](feats[-1]) + self.context(feats[-1].mean((2, 3), keepdim=True))
-        for i in reversed(range(len(feats) - 1)):
-            up = F.interpolate(p, size=feats[i].shape[-2:], mode="bilinear", align_corners=False)
-            p = self.smooth[i](up + self.lateral[i](feats[i]))
-        return F.interpolate(self.classifier(p), size=size, mode="bilinear", align_corners=False)
+        return self._decode(feats, size)
+
+
+class Lite0FPN(_FPN):
+    """EfficientNet-Lite0 encoder + resfpn's decoder; see the module docstring."""
+
+    def __init__(self, args: ModelArgs = ModelArgs(arch="lite0fpn")):
+        super().__init__()
+        self.args = args
+        self.encoder = EfficientNetLite0(args.in_channels)
+        self._decoder(FEATURE_WIDTHS, 2 * args.base_width, args.num_classes)
+        _kaiming(m for name, m in self.named_modules() if not name.startswith("encoder"))
+
+    def load_pretrained(self) -> None:
+        """The encoder's ImageNet weights (vctrain.efficientnet.pretrained_state)."""
+        self.encoder.load_pretrained()
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self._decode(self.encoder.features(from_project_input(x)), x.shape[-2:])
 
 
 def build_model(args: ModelArgs | dict) -> nn.Module:
     if isinstance(args, dict):
         args = ModelArgs(**args)
+    if args.arch == "lite0fpn":
+        return Lite0FPN(args)
     return ResFPN(args) if args.arch == "resfpn" else SegNet(args)

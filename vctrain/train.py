@@ -63,7 +63,7 @@ from .config import ADAPT_LR_FACTOR, BALANCES, DEFAULT_RECIPE, OPTIMIZERS, RECIP
 from .data import (RoadDataset, class_frequencies, crop_size, epoch_order, median_frequency_weights,
                    prepare_data)
 from .metrics import RoadMetrics
-from .model import ARCHITECTURES, build_model, model_args_for
+from .model import ARCHITECTURES, PRETRAINED, build_model, model_args_for
 
 __all__ = ["TrainConfig", "RECIPES", "fit", "evaluate", "get_lr", "resolve_device", "resolve_recipe", "last_path",
            "crop_size"]
@@ -92,6 +92,11 @@ def resolve_recipe(cfg: TrainConfig, device: torch.device | None = None) -> Trai
         raise InputError(f"unknown optimizer '{cfg.optimizer}'", None, f"use one of {', '.join(OPTIMIZERS)}")
     if cfg.balance not in BALANCES:
         raise InputError(f"unknown balance '{cfg.balance}'", None, f"use one of {', '.join(BALANCES)}")
+    if cfg.pretrained is None:  # ImageNet weights where the architecture has them
+        cfg.pretrained = cfg.arch in PRETRAINED
+    elif cfg.pretrained and cfg.arch not in PRETRAINED:
+        raise InputError(f"model '{cfg.arch}' has no pretrained weights", None,
+                         f"use --model {' or '.join(PRETRAINED)}, or leave --pretrained out")
     for k in ("epochs", "batch_size"):
         if int(getattr(cfg, k)) < 1:
             raise InputError(f"{k.replace('_', ' ')} must be at least 1, got {getattr(cfg, k)}", None, "use e.g. 8")
@@ -192,6 +197,8 @@ def _network(cfg: TrainConfig, resume: dict[str, Any] | None, init: dict[str, An
         _check_init(cfg, init, info)
         model_args = init["model_args"]
     model = build_model(model_args)
+    if resume is None and init is None and cfg.pretrained:
+        model.load_pretrained()  # the encoder's ImageNet weights (vctrain.efficientnet)
     if resume is not None:
         model = model_from_checkpoint(resume, cfg.resume)
     elif init is not None:
@@ -239,6 +246,8 @@ def _unset_from_checkpoints(cfg: TrainConfig, resume: dict[str, Any] | None, ini
     takes its network and rate from ``init`` (:func:`_init_network`)."""
     if resume is not None and cfg.lr is None:
         cfg.lr = (resume.get("config") or {}).get("lr")
+    if resume is not None and cfg.arch is None:  # the checkpoint's network, not the recipe's
+        cfg.arch = resume["model_args"]["arch"]
     if init is not None:
         _init_network(cfg, init)
 

@@ -16,7 +16,8 @@ from .common import LABEL_FORMAT_HELP, TRAIN, app, parse_size, path_or_json, pin
 RECIPE_HELP = ("defaults of every setting below: 'cpu' (resfpn, AdamW, cosine, augmentation; CamVid train in 3.3 min "
                "on 2 cores at --size 344x176, 14.2 at 688x350) or 'paper' (segnet, SGD 0.005, poly); default: cpu on "
                "every device, a GPU included (the recipe every measured number comes from)")
-MODEL_HELP = ("resfpn (residual encoder + FPN decoder, 1.3 M parameters), segnet (VGG16 SegNet, 29 M) or "
+MODEL_HELP = ("resfpn (residual encoder + FPN decoder, 1.3 M parameters, from scratch), lite0fpn (EfficientNet-Lite0 "
+              "encoder from ImageNet weights + the same decoder, 3.0 M), segnet (VGG16 SegNet, 29 M) or "
               "segnet-narrow (same topology, 1/4 width, 1.8 M); default: the recipe's")
 CROP_HELP = ("train on random windows of the working image: WxH pixels, a share of each side (0.67) or of width and "
              "height (0.44x1: full height); validation and prediction see the whole image (default: no crop)")
@@ -68,6 +69,8 @@ def fit_cmd(
     recipe: Optional[str] = typer.Option(None, "--recipe", help=RECIPE_HELP),
     model: Optional[str] = typer.Option(None, "--model", "-m", help=MODEL_HELP),
     width: Optional[int] = typer.Option(None, "--width", help="first-block width override (64 = segnet, 16 = narrow)"),
+    pretrained: Optional[bool] = typer.Option(None, "--pretrained/--no-pretrained", help="start the encoder from its "
+                                              "ImageNet weights (lite0fpn; default: yes where the model has them)"),
     baseline: str = typer.Option(TRAIN.baseline, "--baseline", help="'resize': the paper's baseline, the same network on the "
                                                             "original images simply resized (no virtual camera)"),
     images: Optional[Path] = typer.Option(None, "--images", help="baseline only: folder of original images"),
@@ -131,6 +134,7 @@ def fit_cmd(
       vctrain fit stores/camvid_train --baseline resize --size 344x176 --out runs/resize.pt
       vctrain fit stores/camvid_train --out runs/vc.pt --resume runs/vc.last.pt --epochs 40
       vctrain fit stores/camvid_train_fine --crop 0.67 --out runs/vc_fine.pt
+      vctrain fit stores/camvid_train --model lite0fpn --out runs/vc_lite0.pt   # ImageNet encoder
     """
     cfg = _fit_config(locals())  # (first: locals() are the options, each named as its TrainConfig field)
     from ..train import fit

