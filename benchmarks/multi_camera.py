@@ -5,6 +5,7 @@
                                                 [--quick] [--collect] [--extent max|median]
                                                 [--held-out idd,bdd] [--train-on camvid,cityscapes]
                                                 [--train-extra KEY=VALUE,...] [--camera-estimate bdd,lums]
+                                                [--model lite0fpn]
 
 **Data** (../shared/data, each with the camera it ships with), every one ``role: both``:
 ``camvid`` (CamVid train + val, 468 frames of the SegNet release, the camvid preset scaled to 480x360;
@@ -59,6 +60,10 @@ labels instead of their assumed files; WORKDIR[/median]/estimate-<names>, its ow
 out another set only, since a held-out set's estimate would read its test labels. Condition ``resize-vp``
 (resize plus each frame's road VP as a 4th channel) trains its paired ``resize`` in the same study.
 
+**Network** (``--model``, issue 53): every condition of the study, resize included, trains that
+architecture (study ``train: arch``; ``lite0fpn`` starts from its ImageNet weights), in
+WORKDIR/model-<name>[/median] with its own stores, results in that folder's results/.
+
 Outputs: benchmarks/results/multi_camera.{md,json} (``--quick``: a smoke run, a few frames, 2 steps, into
 WORKDIR/results). ``--collect`` runs nothing: it reports the folds finished so far (a cut-off run's) and
 names the missing ones. The last stdout line is one JSON object: ``loo_within_minus_resize`` (and
@@ -105,13 +110,14 @@ def _link_all(dst: Path, parts: list[tuple[Path, Path]], n: int | None = None) -
 
 def study_file(wd: Path, quick: bool, epochs: int | None, shading_aug: float = SHADING_AUG,
                extent: str = "max", train_on: list[str] | None = None, extra: dict | None = None,
-               home: Path | None = None, estimate: list[str] | None = None) -> Path:
+               home: Path | None = None, estimate: list[str] | None = None, model: str | None = None) -> Path:
     """The study: the five real datasets held out in turn, KITTI a test set; ``extent`` the designed
     rectangle's rule (study key ``extent``). ``train_on``: only these datasets trained on (role
     train), every other one a test set (one model, runs/_all/). ``extra``: training settings added.
     ``home``: the study whose CamVid frames and camera file this one names (default ``wd``: its
     own), so that a study sharing its stores names the very same source files. ``estimate``: these
-    datasets get ``camera: estimate`` (their camera estimated from their own frames and labels)."""
+    datasets get ``camera: estimate`` (their camera estimated from their own frames and labels).
+    ``model``: every condition's architecture (study ``train: arch``; default the recipe's)."""
     n = QUICK_FRAMES if quick else None
     home = home or wd
     camvid = ({"images": str(home / "frames" / "camvid" / "images"), "labels": str(home / "frames" / "camvid" / "labels")}
@@ -142,7 +148,7 @@ def study_file(wd: Path, quick: bool, epochs: int | None, shading_aug: float = S
     path.write_text(yaml.safe_dump({"datasets": [datasets[k] for k in LOO] + [kitti],
                                     **({"extent": extent} if extent != "max" else {}),
                                     "train": {**train, "balance": "datasets", "shading_aug": shading_aug,
-                                              **(extra or {})}},
+                                              **({"arch": model} if model else {}), **(extra or {})}},
                                    sort_keys=False))
     return path
 
@@ -308,6 +314,8 @@ def _args() -> argparse.Namespace:
     ap.add_argument("--train-extra", default="", help="training settings added to the virtual-camera conditions' "
                     "study, KEY=VALUE[,KEY=VALUE] (e.g. shading_aug=0.2; issue 44's candidates), in "
                     "WORKDIR[/median]/extra-<settings> with the stores of WORKDIR[/median]; resize from there")
+    ap.add_argument("--model", default=None, help="every condition's network (study train: arch), e.g. lite0fpn; "
+                    "WORKDIR/model-<name>, its own stores")
     ap.add_argument("--camera-estimate", default="",
                     help="these datasets' cameras estimated from their frames and labels (camera: estimate), e.g. "
                     "bdd,lums: the assumed cameras of the TRAINING sets (issue 44; hold out a set whose camera is "
@@ -333,6 +341,8 @@ def main() -> None:
     seeds = [0] if a.quick else [int(s) for s in a.seeds.split(",") if s]
     conds = a.conditions.split(",")
     base = a.workdir / "quick" if a.quick else a.workdir
+    if a.model:  # another network for every condition: its own studies (and stores)
+        base = base / f"model-{a.model}"
     rd = wd = base / "median" if a.extent == "median" else base  # rd: the study that trains resize
     extra = train_extra(a.train_extra)
     estimate = [t for t in LOO if t in a.camera_estimate.split(",")]
@@ -348,14 +358,14 @@ def main() -> None:
         for seed in seeds:
             link_stores(wd / f"seed{seed}", rd / f"seed{seed}")
     else:  # resize meets no rectangle: from WORKDIR's studies, unless average or resize-vp (paired) needs it here
-        rd = wd if a.extent == "max" or {"average", "resize-vp"} & set(conds) else base
+        rd = wd if a.extent == "max" or a.model or {"average", "resize-vp"} & set(conds) else base
     wd.mkdir(parents=True, exist_ok=True)
     steps = 2 if a.quick else camvid_steps_per_epoch()
     run_conds = [k for k in conds if rd == wd or k not in ("resize", "average")]
 
     if not a.collect:
         study = study_file(wd, a.quick, a.epochs, a.shading_aug, a.extent, train_on or None, extra,
-                           rd if extra or estimate else None, estimate)
+                           rd if extra or estimate else None, estimate, a.model)
         for seed in seeds:
             if seed != seeds[0]:
                 link_stores(wd / f"seed{seed}", wd / f"seed{seeds[0]}")
@@ -380,7 +390,7 @@ def main() -> None:
 
 def _write(a: argparse.Namespace, wd: Path, table: str, out: dict, held: list[str], steps: int) -> None:
     """The table and the JSON (benchmarks/results, or WORKDIR's results for a smoke run or some folds)."""
-    own = a.quick or held != LOO or a.train_on or a.train_extra or a.camera_estimate
+    own = a.quick or held != LOO or a.train_on or a.train_extra or a.camera_estimate or a.model
     res_dir = (wd / "results") if own else (ROOT / "benchmarks" / "results")
     res_dir.mkdir(parents=True, exist_ok=True)
     name = "multi_camera" + ("_median" if a.extent != "max" else "")
@@ -392,10 +402,11 @@ def _write(a: argparse.Namespace, wd: Path, table: str, out: dict, held: list[st
                + (f" --held-out {','.join(held)}" if held != LOO else "")
                + (f" --train-on {a.train_on}" if a.train_on else "")
                + (f" --train-extra {a.train_extra}" if a.train_extra else "")
-               + (f" --camera-estimate {a.camera_estimate}" if a.camera_estimate else ""))
+               + (f" --camera-estimate {a.camera_estimate}" if a.camera_estimate else "")
+               + (f" --model {a.model}" if a.model else ""))
     write_json(res_dir / f"{name}.json", {
         **out, "test_only": TEST_ONLY, "steps_per_epoch": steps, "epochs": a.epochs, "balance": "datasets",
-        "shading_aug": a.shading_aug, "extent": a.extent,
+        "shading_aug": a.shading_aug, "extent": a.extent, "model": a.model,
         "threads": a.threads, "machine": machine(), "date": today(), "command": command})
 
 
