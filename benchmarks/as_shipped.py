@@ -165,7 +165,7 @@ def _write(wd: Path, name: str, datasets: list[dict], train: dict, extra: dict |
     return path
 
 
-def study_file(wd: Path, quick: bool, epochs: int | None, canvas: str = "shared") -> Path:
+def study_file(wd: Path, quick: bool, epochs: int | None, canvas: str = "shared", model: str | None = None) -> Path:
     """Study 1: one model per condition trained on CamVid minus 0001TP, every other set a test, in
     the virtual camera's rectangle rule ``canvas`` (written out: the study is the same whatever
     crossval's default)."""
@@ -191,6 +191,7 @@ def study_file(wd: Path, quick: bool, epochs: int | None, canvas: str = "shared"
         for name, (camera, split) in _simulated(wd, cam, f).items():
             datasets += [d(name, camera, "camvid", split), d(name + "-est", "estimate", "camvid", split)]
     train_cfg = {"epochs": 1, "max_steps": 2} if quick else ({"epochs": epochs} if epochs else {})
+    train_cfg.update({"arch": model} if model else {})  # --model: every condition's network
     return _write(wd, "study.yaml" if canvas == "shared" else f"study-{canvas}.yaml", datasets, train_cfg,
                   {"canvas": canvas})
 
@@ -199,11 +200,11 @@ NO_GEOMETRIC_AUG = {"scale_aug": 0.0, "shift_aug": 0.0}   # the ablation's train
 ABLATION_TESTS = ["camvid-val", "camvid-0001TP"] + ["cityscapes", "idd", "kitti", "bdd", "lums"]
 
 
-def ablation_study_file(wd: Path, quick: bool, epochs: int | None) -> Path:
+def ablation_study_file(wd: Path, quick: bool, epochs: int | None, model: str | None = None) -> Path:
     """Study 1 in the default rectangle, trained WITHOUT geometric augmentation (random scale about
     the VP and shift off, both conditions), on the in-domain and real test sets only: is the resize
     baseline's augmentation what holds within - resize down?"""
-    full = yaml.safe_load(study_file(wd, quick, epochs, DEFAULT_CANVAS).read_text())
+    full = yaml.safe_load(study_file(wd, quick, epochs, DEFAULT_CANVAS, model).read_text())
     datasets = [x for x in full["datasets"] if x["role"] == "train" or x["name"] in ABLATION_TESTS]
     return _write(wd, "study-noaug.yaml", datasets, {**full.get("train", {}), **NO_GEOMETRIC_AUG},
                   {"canvas": DEFAULT_CANVAS})
@@ -334,7 +335,12 @@ def parse_args() -> argparse.Namespace:
     ap.add_argument("--workdir", type=Path, default=ROOT / "benchmarks" / "out" / "as_shipped")
     ap.add_argument("--threads", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--quick", action="store_true")
-    return ap.parse_args()
+    ap.add_argument("--model", default=None, help="every condition's network (study train: arch), e.g. lite0fpn "
+                    "(issue 53); WORKDIR/model-<name>, results in its results/ (the LOO study keeps the recipe's)")
+    a = ap.parse_args()
+    if a.model:
+        a.workdir = a.workdir / f"model-{a.model}"
+    return a
 
 
 def plan(a: argparse.Namespace) -> Runs:
@@ -357,7 +363,7 @@ def run_study1(a: argparse.Namespace, r: Runs) -> None:
     seeds, conds, canvases, cell, minutes = r.seeds, r.conds, r.canvases, r.cell, r.minutes
     found, estimated = {}, {}
     for canvas in canvases:
-        study = study_file(a.workdir, a.quick, a.epochs, canvas)
+        study = study_file(a.workdir, a.quick, a.epochs, canvas, a.model)
         wd = a.workdir if canvas == "shared" else a.workdir / canvas
         cc = conds if canvas == "shared" else [k for k in conds if k != "resize"]
         for seed in seeds:
@@ -392,7 +398,7 @@ def run_ablation(a: argparse.Namespace, r: Runs) -> None:
     """The ablation: study 1 without geometric augmentation (stores shared with the default rectangle's)."""
     seeds, abl_seeds, conds, abl = r.seeds, r.abl_seeds, r.conds, r.abl
     if abl_seeds:
-        abl_study = ablation_study_file(a.workdir, a.quick, a.epochs)
+        abl_study = ablation_study_file(a.workdir, a.quick, a.epochs, a.model)
         for seed in abl_seeds:
             out = a.workdir / "noaug" / f"seed{seed}"
             link_stores(out, a.workdir / DEFAULT_CANVAS / f"seed{seeds[0]}")  # the default rectangle's stores
@@ -551,7 +557,7 @@ def write_results(a: argparse.Namespace, r: Runs, head: dict, targets: dict, tab
     cell, loo, abl, c = r.cell, r.loo, r.abl, r.c
     found, estimated = r.found, r.estimated
     others = r.others()
-    res_dir = (a.workdir / "results") if a.quick else (ROOT / "benchmarks" / "results")
+    res_dir = (a.workdir / "results") if a.quick or a.model else (ROOT / "benchmarks" / "results")
     res_dir.mkdir(parents=True, exist_ok=True)
     (res_dir / "as_shipped.md").write_text(table)
     groups = ["camvid-val", "camvid-0001TP"] + REAL_OTHER
@@ -568,7 +574,7 @@ def write_results(a: argparse.Namespace, r: Runs, head: dict, targets: dict, tab
          "loo_cells": {f"{t}|{k}": v for (t, k), v in loo.items()}, "ego_found": found,
          "ablation_cells": {f"{t}|{k}": v for (t, k), v in abl.items()}, "ablation_seeds": abl_seeds,
          "cameras_estimated": estimated, "seeds": seeds, "loo_seeds": loo_seeds, "conditions": conds,
-         "canvases": canvases,
+         "canvases": canvases, "model": a.model,
          "loo_steps_per_epoch": camvid_steps_per_epoch(), "epochs": a.epochs, "threads": a.threads,
          "machine": machine(), "date": today(),
          "command": "benchmarks/as_shipped.py " + " ".join(f"--{k} {v}" for k, v in
@@ -576,7 +582,8 @@ def write_results(a: argparse.Namespace, r: Runs, head: dict, targets: dict, tab
                                                              *((("ablation-seeds", a.ablation_seeds),)
                                                                if a.ablation_seeds else ()),
                                                              ("conditions", a.conditions),
-                                                             ("canvases", a.canvases)))},
+                                                             ("canvases", a.canvases),
+                                                             *((("model", a.model),) if a.model else ())))},
         indent=1))
 
 

@@ -94,20 +94,22 @@ def frames() -> dict[str, tuple[np.ndarray, object, str]]:
     return out
 
 
-def checkpoints(folder: Path) -> tuple[Path, Path, dict]:
-    """A virtual-camera checkpoint and its resize twin with random weights (module docstring)."""
+def checkpoints(folder: Path, arch: str = "resfpn") -> tuple[Path, Path, dict]:
+    """A virtual-camera checkpoint and its resize twin with random weights (module docstring); ``arch``
+    their network (benchmarks/networks.py compares them)."""
     virt = design_virtual_camera([PRESETS["camvid"]], 10.0, 5.0, name="study-virtual", above=DEFAULT_ABOVE).camera
     sp = store_params(virt, math.sqrt(DEFAULT_STORE_PIXELS / (virt.size[0] * virt.size[1])))
     torch.manual_seed(0)
-    args = model_args_for("resfpn", 3).to_dict()
+    args = model_args_for(arch, 3).to_dict()
     ck = {"model": build_model(args).state_dict(), "model_args": args, "config": {"recipe": "cpu"},
           "data": {"mode": "virtual", "input_size": sp["store_size"], "store_params": sp,
                    "completion": "projective", "vp_channel": False, "greyscale": 0.0}}
-    save_checkpoint(folder / "vc.pt", ck)
+    save_checkpoint(folder / f"vc-{arch}.pt" if arch != "resfpn" else folder / "vc.pt", ck)
     ck["data"] = {"mode": "resize", "input_size": list(RESIZE_SIZE), "store_params": None, "completion": "none",
                   "vp_channel": False, "greyscale": 0.0}
-    save_checkpoint(folder / "rs.pt", ck)
-    return folder / "vc.pt", folder / "rs.pt", sp
+    names = ("vc.pt", "rs.pt") if arch == "resfpn" else (f"vc-{arch}.pt", f"rs-{arch}.pt")
+    save_checkpoint(folder / names[1], ck)
+    return folder / names[0], folder / names[1], sp
 
 
 def timed(fn, repeats: int) -> list[float]:

