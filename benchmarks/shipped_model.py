@@ -79,8 +79,9 @@ def _first(split: dict, n: int) -> dict:
     return {"images": split["images"], "labels": split["labels"], "include": stems[:n]}
 
 
-def study_file(wd: Path, quick: bool, epochs: int) -> Path:
-    """The study: five training splits (role train), six held-out splits (role test)."""
+def study_file(wd: Path, quick: bool, epochs: int, model: str | None = None) -> Path:
+    """The study: five training splits (role train), six held-out splits (role test); ``model``: every
+    condition's network (study ``train: arch``; default the recipe's)."""
     n = 3 if quick else None
     cam = str(native_camera(wd))
     cs = {"images": str(CITYSCAPES / "images"), "labels": str(CITYSCAPES / "labels")}
@@ -104,6 +105,7 @@ def study_file(wd: Path, quick: bool, epochs: int) -> Path:
     datasets.append({"name": "kitti", "role": "test", "camera": str(KITTI / "calib"), "label_format": "kitti",
                      "test": {"images": str(KITTI / "image_2"), "labels": str(KITTI / "gt_image_2")}})
     train = {"epochs": 1, "max_steps": 2} if quick else {"epochs": epochs, "max_steps": STEPS}
+    train.update({"arch": model} if model else {})
     path = wd / "study.yaml"
     path.write_text(yaml.safe_dump({"datasets": datasets, "train": {**train, "balance": "datasets",
                                                                      "shading_aug": SHADING_AUG}},
@@ -149,6 +151,18 @@ def predict_ms(model: Path, threads: int, frames: int = 8) -> float:
     for im in imgs:
         fp.predict(im)
     return 1000.0 * (time.perf_counter() - t0) / len(imgs)
+
+
+def ship_checkpoint(model: Path, out: Path) -> None:
+    """``model`` as shipped: the same checkpoint less the optimizer state (2/3 of an AdamW checkpoint;
+    predict, export, adapt and ``vctrain fit --init`` never read it, only ``--resume`` does)."""
+    import torch
+
+    from vctrain.checkpoint import save_checkpoint
+
+    ck = torch.load(model, map_location="cpu", weights_only=False)
+    ck.pop("optimizer", None)
+    save_checkpoint(out, ck)  # (its own format, version and tool version kept)
 
 
 def figure(model: Path, wd: Path, out_png: Path) -> Path:
@@ -221,14 +235,18 @@ def main() -> None:
     ap.add_argument("--ship", type=Path, default=None, help="copy the best measured model here (road.pt, results.json)")
     ap.add_argument("--quick", action="store_true", help="smoke run: a few frames, 2 steps")
     ap.add_argument("--collect", action="store_true", help="run nothing: report what is finished")
+    ap.add_argument("--model", default=None, help="every condition's network (study train: arch), e.g. lite0fpn "
+                    "(issue 53); WORKDIR/model-<name>; results in benchmarks/results only with --ship")
     a = ap.parse_args()
+    if a.model:
+        a.workdir = a.workdir / f"model-{a.model}"
     require_data(CITYSCAPES, IDD, DATA, KITTI, BDD, LUMS)
     conds = a.conditions.split(",")
     wd = (a.workdir / "quick" if a.quick else a.workdir).resolve()  # the study file holds absolute paths
     wd.mkdir(parents=True, exist_ok=True)
     sd = wd / f"seed{a.seed}"
     if not a.collect:
-        run_study(study_file(wd, a.quick, a.epochs), sd, conds, a.seed, a.threads)
+        run_study(study_file(wd, a.quick, a.epochs, a.model), sd, conds, a.seed, a.threads)
     cells, missing, minutes = collect(sd, conds)
     head: dict = {}
     for t in SETS:
@@ -242,7 +260,7 @@ def main() -> None:
         head[f"mean_{c}"] = round(m, 2)
     head["shipped_condition"] = ship
     model = sd / "runs" / "_all" / ship / "model.pt"
-    head["checkpoint_mb"] = round(model.stat().st_size / 1e6, 2) if model.is_file() else None
+    head["checkpoint_mb"] = round(model.stat().st_size / 1e6, 2) if model.is_file() else None  # (with the optimizer)
     for c in conds:
         m = sd / "runs" / "_all" / c / "model.pt"
         for th in (1, 2):
@@ -259,10 +277,11 @@ def main() -> None:
     targets["checkpoint <= 20 MB"] = None if head["checkpoint_mb"] is None else head["checkpoint_mb"] <= 20
     table = render(cells, minutes, head, missing)
     print(table)
-    res_dir = (wd / "results") if a.quick else (ROOT / "benchmarks" / "results")
+    res_dir = (wd / "results") if a.quick or (a.model and not a.ship) else (ROOT / "benchmarks" / "results")
     command = (f"benchmarks/shipped_model.py {'--quick ' if a.quick else ''}--epochs {a.epochs} --seed {a.seed} "
-               f"--conditions {a.conditions} --threads {a.threads}" + (" --collect" if a.collect else ""))
-    result = {"headline": head, "targets": targets, "cells": cells, "sets": SETS, "epochs": a.epochs,
+               f"--conditions {a.conditions} --threads {a.threads}" + (" --collect" if a.collect else "")
+               + (f" --model {a.model}" if a.model else ""))
+    result = {"headline": head, "targets": targets, "cells": cells, "sets": SETS, "epochs": a.epochs, "model": a.model,
               "steps_per_epoch": 2 if a.quick else STEPS, "balance": "datasets", "seed": a.seed,
               "threads": a.threads, "machine": machine(), "date": today(), "command": command}
     (res_dir / "shipped_model.md").parent.mkdir(parents=True, exist_ok=True)
@@ -270,7 +289,7 @@ def main() -> None:
     write_json(res_dir / "shipped_model.json", result)
     if a.ship and model.is_file() and not missing:
         a.ship.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(model, a.ship / "road.pt")
+        ship_checkpoint(model, a.ship / "road.pt")
         write_json(a.ship / "results.json", result)
         print(figure(a.ship / "road.pt", wd, res_dir / "shipped_model.png"))
     print(json.dumps(head))
