@@ -159,17 +159,30 @@ def own_vehicle(cam: Camera, source: str | Path, ego: str, say: Callable[[str], 
 
 def folder_ego_camera(camera: Camera, files: list[Path], ego: str = "auto",
                       say: Callable[[str], None] | None = None) -> Camera:
-    """``camera`` at the size of the first of ``files`` (one camera's frames) with its own vehicle's
-    rows (:func:`own_vehicle`: 'auto' looks in up to :data:`vcprep.io.EGO_SAMPLES` frames spread
-    over the folder, as a video's are)."""
+    """``camera`` at the frames' size with its own vehicle's rows (:func:`own_vehicle`: 'auto' looks
+    in up to :data:`vcprep.io.EGO_SAMPLES` frames spread over the folder, as a video's are). The
+    frames' size is the most common among those sampled that the camera takes (a frame of another
+    size, or one that cannot be read, is left to the road, which skips and names it); none: the
+    first frame's error."""
+    from collections import Counter
+
     from vcprep.camera import ego_rows_from_frame_files
     from vcprep.io import EGO_SAMPLES
 
     files = [Path(f) for f in files]
-    cam = camera.for_image_size(image_size(files[0]), files[0])
     picks = sorted({int(round(k)) for k in np.linspace(0, len(files) - 1, min(EGO_SAMPLES, len(files)))})
-    return own_vehicle(cam, files[0].parent, ego, say,
-                       lambda: ego_rows_from_frame_files([files[k] for k in picks], files[0].parent))
+    sizes: dict[int, tuple[int, int]] = {}
+    for k in picks:
+        try:
+            sizes[k] = camera.for_image_size(image_size(files[k]), files[k]).size
+        except VCError:
+            continue
+    if not sizes:
+        return camera.for_image_size(image_size(files[0]), files[0])  # raises: no frame of this camera
+    size = Counter(sizes.values()).most_common(1)[0][0]
+    cam = camera.for_image_size(size)
+    same = [files[k] for k in picks if sizes.get(k) == size]
+    return own_vehicle(cam, files[0].parent, ego, say, lambda: ego_rows_from_frame_files(same, files[0].parent))
 
 
 def model_vp_rule(data: dict[str, Any], override: Any = None) -> tuple[Any, str]:
@@ -270,7 +283,7 @@ def _remove_outputs(out: Path, stem: str) -> None:
 def _predict_one(fps: dict, predictor: Any, job: Job, camera, views, vp, out: Path, overlay: bool) -> Path:
     img = read_image(job.image).array
     size = (img.shape[1], img.shape[0])
-    if hasattr(predictor, "check_frame_size"):  # a graph holds one frame size: say which graph this frame needs
+    if hasattr(predictor, "check_frame_size"):  # a graph takes its camera at any uniform rescale, nothing else
         predictor.check_frame_size(size, job.image)
     cam = camera_of_image(camera, job.image, size) if camera is not None else None
     fp = fps.get((cam, size))
