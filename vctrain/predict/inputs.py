@@ -226,7 +226,8 @@ def _predict_image_files(predictor, images: Sequence[Path], out: Path, camera_fo
         if reads_road_vps(predictor) and isinstance(cam, Camera):  # one camera's frames: its own vehicle, as a video's
             stated = cam.ego_rows
             tell = (lambda msg: err(f"{jobs[0].image.parent}: {msg}")) if progress else None
-            cam = folder_ego_camera(cam, [j.image for j in jobs], ego, tell)
+            cam = folder_ego_camera(cam, [j.image for j in jobs], ego, tell,
+                                    lambda msg: err(f"{jobs[0].image.parent}: warning: {msg}"))
             ego_source = (f"--ego {ego}" if ego not in ("auto", "none") else "the camera's ego_rows" if stated
                           else "found from the frames" if cam.ego_rows else "")
         elif reads_road_vps(predictor) and ego not in ("auto", "none"):

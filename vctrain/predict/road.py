@@ -120,13 +120,22 @@ def virtual_within(data: dict[str, Any], within: str, camera: Camera | FrameCame
     return within
 
 
+# said (through ``warn``, even under --quiet) when the search from frames finds no own vehicle: it misses a
+# bonnet that reflects the road and one seen from several mounts (Cityscapes': its edge changes sign and
+# place from frame to frame; docs/cameras.md), and a missed bonnet is warped as road
+MISSED_VEHICLE = ("the search misses a bonnet that reflects the road or sits at several places (frames of "
+                  "several mounts), as Cityscapes' does: if the frames show your own vehicle give --ego N (its bottom "
+                  "rows) or ego_rows in the camera file; --ego 0 says there is none and ends this warning")
+
+
 def own_vehicle(cam: Camera, source: str | Path, ego: str, say: Callable[[str], None] | None,
-                estimate: Callable[[], Any]) -> Camera:
+                estimate: Callable[[], Any], warn: Callable[[str], None] | None = None) -> Camera:
     """``cam`` with its own vehicle's rows (``ego_rows``), one rule for a video and a folder of one
     camera's frames. ``ego``: 'auto' (the camera's ``ego_rows`` when it states them, else found by
     ``estimate()`` -> :class:`vcprep.camera.EgoEstimate` from frames, said through ``say``; too few
     distinct frames: none, also said), 'none' (the camera as given, no search) or a whole number of
-    rows at the camera's size (0: no own vehicle)."""
+    rows at the camera's size (0: no own vehicle). A search that finds none is a warning
+    (``warn``, given: the caller's even under --quiet; else ``say``) with :data:`MISSED_VEHICLE`."""
     from dataclasses import replace
 
     from vcprep.camera import rows_at_height
@@ -152,13 +161,12 @@ def own_vehicle(cam: Camera, source: str | Path, ego: str, say: Callable[[str], 
         say(f"own vehicle: {est.rows} rows found from the frames ({est.describe()}); set ego_rows in the "
             f"camera file to override")
     else:
-        say(f"own vehicle: none found from the frames ({est.describe()}); set ego_rows in the camera file if "
-            f"it shows one")
+        (warn or say)(f"own vehicle: none found from the frames ({est.describe()}); {MISSED_VEHICLE}")
     return replace(cam, ego_rows=rows_at_height(est, cam.size[1]))
 
 
 def folder_ego_camera(camera: Camera, files: list[Path], ego: str = "auto",
-                      say: Callable[[str], None] | None = None) -> Camera:
+                      say: Callable[[str], None] | None = None, warn: Callable[[str], None] | None = None) -> Camera:
     """``camera`` at the frames' size with its own vehicle's rows (:func:`own_vehicle`: 'auto' looks
     in up to :data:`vcprep.io.EGO_SAMPLES` frames spread over the folder, as a video's are). The
     frames' size is the most common among those sampled that the camera takes (a frame of another
@@ -182,7 +190,7 @@ def folder_ego_camera(camera: Camera, files: list[Path], ego: str = "auto",
     size = Counter(sizes.values()).most_common(1)[0][0]
     cam = camera.for_image_size(size)
     same = [files[k] for k in picks if sizes.get(k) == size]
-    return own_vehicle(cam, files[0].parent, ego, say, lambda: ego_rows_from_frame_files(same, files[0].parent))
+    return own_vehicle(cam, files[0].parent, ego, say, lambda: ego_rows_from_frame_files(same, files[0].parent), warn)
 
 
 def model_vp_rule(data: dict[str, Any], override: Any = None) -> tuple[Any, str]:
