@@ -130,10 +130,10 @@ class Camera:
             return self.resized(sx, sy, size=(w, h))
         if lo <= hi:  # one factor fits, but within a few percent of 1: a crop as likely as a rescale
             raise InputError(
-                f"{what}: {abs(1.0 - sx):.1%} {'smaller' if sx < 1 else 'larger'} on both sides reads as a crop, not "
-                f"a uniform rescale of it (a rescale by less than {MIN_RESCALE:.0%} is not taken)", file,
-                f"give a camera file with image_size [{w}, {h}] (a crop keeps fx and fy and shifts cx and cy by the "
-                f"columns and rows cut off the left and top), or resize the images to {W}x{H}")
+                f"{what}: {abs(1.0 - sx):.1%} {'smaller' if sx < 1 else 'larger'} across, which reads as a crop, not a "
+                f"uniform rescale of it (a rescale must change the size by {MIN_RESCALE:.0%} or more)", file,
+                f"give a camera file with image_size [{w}, {h}]: a crop keeps fx and fy and shifts cx and cy by the "
+                f"columns and rows cut off the left and top; or resize the images to {W}x{H}")
         raise InputError(
             f"{what}, which is not a uniform rescale of it (aspect {w / h:.4f} against {W / H:.4f})", file,
             f"use a camera file calibrated for {w}x{h} images, or crop/resize the images uniformly to {W}x{H} "
