@@ -89,6 +89,40 @@ def test_non_uniform_size_is_an_error():
         PRESETS["camvid"].for_image_size((480, 300), "x.png")
 
 
+@pytest.mark.parametrize("size", [(1224, 370), (1226, 370), (1238, 374), (1241, 376)])
+def test_kittis_cropped_frames_are_not_rescales(size):
+    """KITTI's rectified frames come in several sizes cut from one sensor (crops: same fx, cx and cy
+    shifted); against the 1242x375 preset none is a uniform rescale, and the error names both sizes
+    and the camera file to write."""
+    with pytest.raises(InputError) as e:
+        PRESETS["kitti"].for_image_size(size, "000000.png")
+    msg = str(e.value)
+    assert f"{size[0]}x{size[1]}" in msg and "1242x375" in msg and "not a uniform rescale" in msg
+    assert "000000.png" in msg and (f"image_size [{size[0]}, {size[1]}]" in msg or "calibrated for" in msg)
+
+
+@pytest.mark.parametrize("name,factor", [("camvid", 0.5), ("kitti", 0.5), ("kitti", 1 / 3), ("kitti", 0.25),
+                                         ("cityscapes", 0.125), ("toronto2020", 0.1), ("camvid", 2.0),
+                                         ("kitti", 0.9), ("qian", 0.3)])
+def test_true_rescales_are_taken(name, factor):
+    """Every size cv2.resize gives for a factor (rounded per side) is a rescale; K follows the sides'
+    true ratios (the oracle: the pixel-centre rule on each axis)."""
+    cam = PRESETS[name]
+    size = (int(round(cam.size[0] * factor)), int(round(cam.size[1] * factor)))
+    got = cam.for_image_size(size)
+    sx, sy = size[0] / cam.size[0], size[1] / cam.size[1]
+    assert got.size == size and got.fx == pytest.approx(cam.fx * sx) and got.fy == pytest.approx(cam.fy * sy)
+    assert got.cx == pytest.approx(sx * (cam.cx + 0.5) - 0.5) and got.cy == pytest.approx(sy * (cam.cy + 0.5) - 0.5)
+
+
+def test_one_pixel_off_the_rounding_is_not_a_rescale():
+    """480x361 is no rounding of any factor of 960x720 (the old one-pixel tolerance took it)."""
+    with pytest.raises(InputError, match="not a uniform rescale"):
+        PRESETS["camvid"].for_image_size((480, 361))
+    with pytest.raises(InputError, match="not a uniform rescale"):
+        PRESETS["kitti"].for_image_size((622, 187))
+
+
 def test_kitti_calib_reader():
     cam = read_kitti_calib(EXAMPLES / "kitti" / "calib" / "um_000000.txt")
     assert cam.fx == pytest.approx(721.5377) and cam.cx == pytest.approx(609.5593) and cam.cy == pytest.approx(172.854)

@@ -132,18 +132,78 @@ def test_a_graph_predicts_a_video_and_the_model_without_a_camera(drive, tmp_path
     assert_one_error_line(run_cli("export", SHIPPED, "-o", tmp_path / "x.onnx", prog="vctrain"), "--frame", "--size")
 
 
-def test_a_graph_for_the_same_camera_at_another_size_says_what_to_pass(drive, tmp_path):  # noqa: F811
+def _masks(folder: Path) -> dict[str, np.ndarray]:
+    return {p.relative_to(folder).as_posix(): read_image(p).array for p in sorted(folder.rglob("*_mask.png"))}
+
+
+@pytest.mark.parametrize("which", ["virtual", "resize"])
+def test_a_graph_takes_its_camera_at_another_resolution(model, drive, which, tmp_path):  # noqa: F811
+    """A graph exported for the drive's camera at 480x360 takes the 240x180 frames (a folder and a
+    video) of the same camera: resized in, P(road) resized back to the frame. The oracle is the .pt
+    model on the same frames with the camera scaled exactly (no resampling of the frame): the masks
+    agree but for the resampling at the road's edge."""
     root, cam, frames, video = drive
     (tmp_path / "big.yaml").write_text(camera_to_yaml(cam.resized(2.0)))  # the same camera at 480x360
     (tmp_path / "frames").mkdir()
-    write_png(tmp_path / "frames/f0.png", frames[0])
-    assert run_cli("export", SHIPPED, "--camera", tmp_path / "big.yaml", "-o", tmp_path / "big.onnx",
+    for i, f in enumerate(frames[:4]):
+        write_png(tmp_path / f"frames/f{i}.png", f)
+    ckpt = model if which == "virtual" else SHIPPED
+    assert run_cli("export", ckpt, "--camera", tmp_path / "big.yaml", "-o", tmp_path / "big.onnx",
                    prog="vctrain").returncode == 0
-    proc = run_cli("predict", tmp_path / "big.onnx", tmp_path / "frames", "--out", tmp_path / "o", prog="vctrain")
-    assert_one_error_line(proc, "240x180", "480x360", "the same camera at 0.5x",
-                          f"--camera {tmp_path / 'big.yaml'} --frame {tmp_path / 'frames/f0.png'}")
-    # what it says to pass works: the camera scaled to the frame
-    assert run_cli("export", SHIPPED, "--camera", tmp_path / "big.yaml", "--frame", tmp_path / "frames/f0.png", "-o",
-                   tmp_path / "small.onnx", prog="vctrain").returncode == 0
-    proc = run_cli("predict", tmp_path / "small.onnx", tmp_path / "frames", "--out", tmp_path / "o", prog="vctrain")
-    assert proc.returncode == 0, proc.stderr
+    for src, out in ((tmp_path / "frames", "f"), (video, "v")):
+        g = run_cli("predict", tmp_path / "big.onnx", src, "--out", tmp_path / f"g{out}", prog="vctrain")
+        assert g.returncode == 0, g.stderr
+        pt = run_cli("predict", ckpt, "--camera", tmp_path / "big.yaml", src, "--out", tmp_path / f"pt{out}",
+                     "--ego", "none", prog="vctrain")
+        assert pt.returncode == 0, pt.stderr
+        a, b = _masks(tmp_path / f"g{out}"), _masks(tmp_path / f"pt{out}")
+        assert a.keys() == b.keys() and len(a) == (4 if out == "f" else len(frames))
+        for name in a:
+            assert a[name].shape == (180, 240), name
+            assert (a[name] == b[name]).mean() > 0.97, (name, (a[name] == b[name]).mean())
+            assert 0.02 < (a[name] > 0).mean() < 0.98, name  # road and not road: a real mask, not an empty one
+
+
+def test_a_graph_refuses_another_aspect_and_leaves_no_folder(drive, tmp_path):  # noqa: F811
+    root, cam, frames, video = drive
+    assert run_cli("export", SHIPPED, "--camera", root / "cam.yaml", "-o", tmp_path / "g.onnx",
+                   prog="vctrain").returncode == 0
+    (tmp_path / "frames").mkdir()
+    write_png(tmp_path / "frames/wide.png", frames[0][:150])  # 240x150: another aspect (a crop)
+    proc = run_cli("predict", tmp_path / "g.onnx", tmp_path / "frames", "--out", tmp_path / "o", prog="vctrain")
+    assert proc.returncode == 1
+    error = [ln for ln in proc.stderr.splitlines() if ln.startswith("Error: ")]
+    assert len(error) == 1 and "wide.png" in error[0] and "240x150" in error[0] and "240x180" in error[0]
+    assert "not a uniform rescale" in error[0] and "vctrain export" in error[0]
+    assert not (tmp_path / "o").exists()
+
+
+def _folder_with_an_odd_frame_first(tmp_path: Path) -> Path:
+    """The shipped CamVid frames, a truncated one and, first in order, one of another aspect (a crop)."""
+    folder = _folder_with_a_bad_frame(tmp_path)
+    write_png(folder / "0000_odd.png", read_image(sorted(CAMVID.iterdir())[0]).array[:250, :400])
+    return folder
+
+
+@pytest.mark.parametrize("which", ["virtual", "resize", "graph"])
+def test_every_model_skips_and_names_a_frame_it_cannot_predict(model, which, tmp_path):  # noqa: F811
+    """A folder whose first frame is of another size and one of whose frames is truncated: every
+    model kind names each frame it cannot predict ('skipped: <file>: ...'), writes the others and
+    exits 1 (a resize model reads the other size as it is)."""
+    folder = _folder_with_an_odd_frame_first(tmp_path)
+    ckpt = {"virtual": model, "resize": SHIPPED, "graph": tmp_path / "g.onnx"}[which]
+    if which == "graph":
+        assert run_cli("export", SHIPPED, "--camera", "camvid", "--frame", CAMVID / "0001TP_007170.png", "-o", ckpt,
+                       prog="vctrain").returncode == 0
+    proc = run_cli("predict", ckpt, "--camera", "camvid", folder, "--out", tmp_path / "out", prog="vctrain")
+    assert proc.returncode == 1
+    skipped = sorted(Path(ln.split(": ")[1]).name for ln in proc.stderr.splitlines() if ln.startswith("skipped: "))
+    odd_ok = which == "resize"
+    assert skipped == (["broken.png"] if odd_ok else ["0000_odd.png", "broken.png"]), proc.stderr
+    written = sorted(Path(x).name for x in proc.stdout.split())
+    assert written == (["0000_odd_mask.png"] if odd_ok else []) + ["0001TP_007170_mask.png", "0006R0_f02400_mask.png"]
+    for name in written:
+        assert read_image(tmp_path / "out" / name).array.shape == ((250, 400) if "odd" in name else (360, 480))
+    if not odd_ok:
+        odd = [ln for ln in proc.stderr.splitlines() if "0000_odd.png" in ln and ln.startswith("skipped: ")][0]
+        assert "400x250" in odd and "480x360" in odd and "not a uniform rescale" in odd

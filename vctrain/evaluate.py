@@ -15,7 +15,7 @@ from tqdm import tqdm
 from vcprep.dataset import find_images
 from vcprep.errors import InputError
 from vcprep.io import read_image
-from vcprep.labels import LabelFormat, decode_label, label_stem_for
+from vcprep.labels import LabelFormat, RoadShare, decode_label, label_stem_for
 
 from .metrics import KittiMetrics, RoadMetrics
 
@@ -33,14 +33,16 @@ def prediction_stems(pred_dir: Path) -> dict[str, dict[str, Path]]:
 
 
 def evaluate_folder(pred_dir: str | Path, labels: str | Path, fmt: LabelFormat,
-                    progress: bool = True) -> tuple[dict[str, float], int]:
+                    progress: bool = True, road_share: RoadShare | None = None) -> tuple[dict[str, float], int]:
     """Road metrics (and KITTI metrics from probability maps) of ``pred_dir`` against ``labels``,
     and the number of images. Keys: iou, mean_image_iou, precision, recall, f1; with probability
     maps also maxf, ap, kitti_precision, kitti_recall, kitti_fpr, kitti_fnr, kitti_threshold (the
     operating point of MaxF). Every value is in [0, 1].
 
     Every prediction must have its label (the reverse is not required: evaluate a subset by
-    predicting a subset). Raises :class:`InputError` on a missing label or a size mismatch."""
+    predicting a subset). Raises :class:`InputError` on a missing label or a size mismatch.
+    ``road_share`` (given) gets every decoded label (:class:`vcprep.labels.RoadShare`: where road
+    lies, and whether that makes sense)."""
     pred_dir, labels = Path(pred_dir), Path(labels)
     if not pred_dir.is_dir():
         raise InputError("prediction folder not found", pred_dir, "give the --out folder of 'vctrain predict'")
@@ -69,6 +71,8 @@ def evaluate_folder(pred_dir: str | Path, labels: str | Path, fmt: LabelFormat,
                              files.get("mask") or files.get("prob"), "evaluate one split at a time")
         lf = found[0]
         label = decode_label(read_image(lf, label=True).array, fmt, lf)
+        if road_share is not None:
+            road_share.add(label)
         prob = None
         if "prob" in files:
             prob = read_image(files["prob"], label=True).array

@@ -110,24 +110,34 @@ class Camera:
     def for_image_size(self, size: tuple[int, int], file: str | Path | None = None) -> "Camera":
         """This camera for images of ``size`` (w, h).
 
-        Equal size: unchanged. A uniform rescale of the calibrated size (each side within one
-        pixel of the same factor): K is scaled exactly per axis by the true size ratios. Anything
-        else raises :class:`InputError`.
+        Equal size: unchanged. A uniform rescale of the calibrated size: K is scaled exactly per
+        axis by the true size ratios. Uniform means one factor ``s`` that rounds to both sides
+        (``|s*W - w| <= 1/2`` and ``|s*H - h| <= 1/2``: integer rounding of a true rescale, so the
+        aspect ratios agree to what rounding can produce) and ``s`` at least :data:`MIN_RESCALE`
+        away from 1: sizes alone cannot tell a rescale by a few percent from a crop of a few pixels
+        (KITTI's rectified frames, 1224x370 to 1242x375, are crops: same fx, cx and cy shifted), and
+        a crop read as a rescale gets a wrong focal length without a word. Anything else raises
+        :class:`InputError` naming both sizes and the fix.
         """
         w, h = int(size[0]), int(size[1])
         W, H = self.size
         if (w, h) == (W, H):
             return self
         sx, sy = w / W, h / H
-        # uniform: one factor s that, rounded either way, gives both sides (|s*W - w| <= 1, |s*H - h| <= 1)
-        if max((w - 1) / W, (h - 1) / H) <= min((w + 1) / W, (h + 1) / H):
+        lo, hi = max((w - 0.5) / W, (h - 0.5) / H), min((w + 0.5) / W, (h + 0.5) / H)
+        what = f"image is {w}x{h} but camera '{self.name}' is calibrated for {W}x{H}"
+        if lo <= hi and not (1.0 - MIN_RESCALE < lo and hi < 1.0 + MIN_RESCALE):
             return self.resized(sx, sy, size=(w, h))
+        if lo <= hi:  # one factor fits, but within a few percent of 1: a crop as likely as a rescale
+            raise InputError(
+                f"{what}: {abs(1.0 - sx):.1%} {'smaller' if sx < 1 else 'larger'} across, which reads as a crop, not a "
+                f"uniform rescale of it (a rescale must change the size by {MIN_RESCALE:.0%} or more)", file,
+                f"give a camera file with image_size [{w}, {h}]: a crop keeps fx and fy and shifts cx and cy by the "
+                f"columns and rows cut off the left and top; or resize the images to {W}x{H}")
         raise InputError(
-            f"image is {w}x{h} but camera '{self.name}' is calibrated for {W}x{H}, "
-            "which is not a uniform rescale of it",
-            file,
-            "use a camera file calibrated for this image size, or crop/resize the images uniformly",
-        )
+            f"{what}, which is not a uniform rescale of it (aspect {w / h:.4f} against {W / H:.4f})", file,
+            f"use a camera file calibrated for {w}x{h} images, or crop/resize the images uniformly to {W}x{H} "
+            "or a fraction of it")
 
     def with_pose(self, pan: float | None = None, tilt: float | None = None) -> "Camera":
         return replace(self, pan=self.pan if pan is None else float(pan), tilt=self.tilt if tilt is None else float(tilt))
@@ -140,6 +150,12 @@ class Camera:
         if self.ego_rows:
             d["ego_rows"] = int(self.ego_rows)
         return d
+
+
+# a rescale must change the size by at least this share (module text of Camera.for_image_size): the
+# datasets here come rescaled by 1/2 (CamVid) to 1/8 (Cityscapes pix2pix) and the tests by 1/3 to 1/10,
+# while crops of a few pixels (1 to 2 %: KITTI's rectified frames) are common and look like rescales
+MIN_RESCALE = 0.05
 
 
 # --- presets: the one table of built-in cameras (paper Table 1; virtual fx = 2262, see method.md)

@@ -94,6 +94,8 @@ def warp_cmd(
         raise InputError("--within needs one camera; a per-frame calibration folder already gives every frame its "
                          "exact pose", camera, "drop --within, or give one camera file or preset")
     virt = load_camera(virtual)
+    if fmt is not None:
+        _check_labels(items, fmt, labels)
     # VPs over all frames even for one shard: the fallback VP and smoothing depend on the whole run
     poses = _within_poses(items, cam, within, vp_smooth, id_prefix, quiet, fmt)
     settings = WarpSettings(camera=cam, virtual=virt, scale=scale, label_format=fmt, completion=complete, poses=poses,
@@ -105,6 +107,28 @@ def warp_cmd(
             err(estimated_line(estimate, f"the frames ({out / 'camera.estimated.yaml'})"))
     finish(out, summary, quiet, f" (store {store.store_size[0]}x{store.store_size[1]}"
                                  f"{f', shard {part}' if part else ''})")
+
+
+def _check_labels(items: list, fmt, labels: Path, samples: int = 48) -> None:
+    """Warn (stderr, even under --quiet) when road in up to ``samples`` labels spread over the set
+    makes no sense under ``fmt`` (:class:`vcprep.labels.RoadShare`); a label that cannot be read or
+    decoded is left to the build, which says so."""
+    import numpy as np
+
+    from ..errors import VCError
+    from ..io.images import read_image
+    from ..labels import RoadShare, decode_label
+
+    labelled = [j for j in items if j.label is not None]
+    share = RoadShare()
+    for k in sorted({int(round(k)) for k in np.linspace(0, len(labelled) - 1, min(samples, len(labelled)))}):
+        try:
+            share.add(decode_label(read_image(labelled[k].label, label=True).array, fmt, labelled[k].label))
+        except VCError:
+            continue
+    warning = share.warning(fmt, labels)
+    if warning:
+        err(warning)
 
 
 def _warp_camera(camera: str, items: list, fmt, quiet: bool):

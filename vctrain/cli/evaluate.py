@@ -28,18 +28,24 @@ def eval_cmd(
     precision/recall/FPR/FNR at the MaxF threshold (KITTI devkit definitions). The table starts
     with a '#' line naming the folder and the number of frames scored and, with MaxF, ends with a
     '#' note: IoU and F1 score the masks (P >= 0.5), MaxF the best threshold of P. --json prints
-    the metrics alone.
+    the metrics alone. Labels in which road covers none or nearly all of the labelled pixels, or
+    lies mostly in the frames' upper half, are a warning on stderr (the label format probably does
+    not fit them).
 
     \b
     Example:
       vctrain eval preds/camvid_val --labels data/camvid/valannot --label-format camvid
       vctrain eval preds/kitti --labels data/kitti/gt_image_2 --label-format kitti --json
     """
-    from vcprep.labels import get_label_format
+    from vcprep.labels import RoadShare, get_label_format
 
     from ..evaluate import evaluate_folder
 
-    result, n = evaluate_folder(pred_dir, labels, get_label_format(label_format), progress=not quiet)
+    fmt, share = get_label_format(label_format), RoadShare()
+    result, n = evaluate_folder(pred_dir, labels, fmt, progress=not quiet, road_share=share)
+    warning = share.warning(fmt, labels)
+    if warning:  # a parseable but wrong label format scores nonsense: said even under --quiet
+        err(warning)
     if as_json:
         emit_json(result)
     else:

@@ -71,8 +71,7 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
         raise InputError("no model given", None, "give MODEL.pt, or --prior prior.npy to segment with the prior")
     from vcprep.io import is_video
 
-    from .frames import StageTimes
-    from .video import check_video_stems, predict_video
+    from .video import check_video_stems
 
     if mask_video and not any(is_video(p) for p in images or []):
         raise InputError("--mask-video is for videos", None, "give a video file, or drop --mask-video")
@@ -87,6 +86,37 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
     videos = check_video_stems([p for p in images or [] if is_video(p)])
     images = [p for p in images or [] if not is_video(p)]
     predictor = _predictor(checkpoint, prior, device)
+    existed = Path(out).exists()
+    try:
+        result = _predict_all(predictor, prior, images, videos, out, camera_for, store, keep_store, within, overlay,
+                              mask_video, ego, progress, vp_range, vp_smooth, vp_sequences, say)
+    except BaseException:
+        if not existed:
+            _remove_empty(Path(out))
+        raise
+    if not existed and not result.written:
+        _remove_empty(Path(out))
+    return result
+
+
+def _remove_empty(out: Path) -> None:
+    """Remove ``out`` (created by this run) where nothing was written in it: a refused run leaves no
+    empty output folder behind (a video's frame folder included)."""
+    if not out.is_dir():
+        return
+    for d in sorted((p for p in out.rglob("*") if p.is_dir()), key=lambda p: len(p.parts), reverse=True):
+        if not any(d.iterdir()):
+            d.rmdir()
+    if not any(out.iterdir()):
+        out.rmdir()
+
+
+def _predict_all(predictor, prior, images, videos, out, camera_for, store, keep_store, within, overlay, mask_video,
+                 ego, progress, vp_range, vp_smooth, vp_sequences, say) -> Predicted:
+    """:func:`predict_inputs` once its inputs are checked: the videos, the store, the image files."""
+    from .frames import StageTimes
+    from .video import predict_video
+
     rule = _vp_rule(predictor, vp_range, vp_smooth, vp_sequences)
     written, t0, times = [], time.perf_counter(), StageTimes()
     if videos:
@@ -196,7 +226,8 @@ def _predict_image_files(predictor, images: Sequence[Path], out: Path, camera_fo
         if reads_road_vps(predictor) and isinstance(cam, Camera):  # one camera's frames: its own vehicle, as a video's
             stated = cam.ego_rows
             tell = (lambda msg: err(f"{jobs[0].image.parent}: {msg}")) if progress else None
-            cam = folder_ego_camera(cam, [j.image for j in jobs], ego, tell)
+            cam = folder_ego_camera(cam, [j.image for j in jobs], ego, tell,
+                                    lambda msg: err(f"{jobs[0].image.parent}: warning: {msg}"))
             ego_source = (f"--ego {ego}" if ego not in ("auto", "none") else "the camera's ego_rows" if stated
                           else "found from the frames" if cam.ego_rows else "")
         elif reads_road_vps(predictor) and ego not in ("auto", "none"):

@@ -120,13 +120,22 @@ def virtual_within(data: dict[str, Any], within: str, camera: Camera | FrameCame
     return within
 
 
+# said (through ``warn``, even under --quiet) when the search from frames finds no own vehicle: it misses a
+# bonnet that reflects the road and one seen from several mounts (Cityscapes': its edge changes sign and
+# place from frame to frame; docs/cameras.md), and a missed bonnet is warped as road
+MISSED_VEHICLE = ("the search misses a bonnet that reflects the road or sits at several places (frames of "
+                  "several mounts), as Cityscapes' does: if the frames show your own vehicle give --ego N (its bottom "
+                  "rows) or ego_rows in the camera file; --ego 0 says there is none and ends this warning")
+
+
 def own_vehicle(cam: Camera, source: str | Path, ego: str, say: Callable[[str], None] | None,
-                estimate: Callable[[], Any]) -> Camera:
+                estimate: Callable[[], Any], warn: Callable[[str], None] | None = None) -> Camera:
     """``cam`` with its own vehicle's rows (``ego_rows``), one rule for a video and a folder of one
     camera's frames. ``ego``: 'auto' (the camera's ``ego_rows`` when it states them, else found by
     ``estimate()`` -> :class:`vcprep.camera.EgoEstimate` from frames, said through ``say``; too few
     distinct frames: none, also said), 'none' (the camera as given, no search) or a whole number of
-    rows at the camera's size (0: no own vehicle)."""
+    rows at the camera's size (0: no own vehicle). A search that finds none is a warning
+    (``warn``, given: the caller's even under --quiet; else ``say``) with :data:`MISSED_VEHICLE`."""
     from dataclasses import replace
 
     from vcprep.camera import rows_at_height
@@ -152,24 +161,36 @@ def own_vehicle(cam: Camera, source: str | Path, ego: str, say: Callable[[str], 
         say(f"own vehicle: {est.rows} rows found from the frames ({est.describe()}); set ego_rows in the "
             f"camera file to override")
     else:
-        say(f"own vehicle: none found from the frames ({est.describe()}); set ego_rows in the camera file if "
-            f"it shows one")
+        (warn or say)(f"own vehicle: none found from the frames ({est.describe()}); {MISSED_VEHICLE}")
     return replace(cam, ego_rows=rows_at_height(est, cam.size[1]))
 
 
 def folder_ego_camera(camera: Camera, files: list[Path], ego: str = "auto",
-                      say: Callable[[str], None] | None = None) -> Camera:
-    """``camera`` at the size of the first of ``files`` (one camera's frames) with its own vehicle's
-    rows (:func:`own_vehicle`: 'auto' looks in up to :data:`vcprep.io.EGO_SAMPLES` frames spread
-    over the folder, as a video's are)."""
+                      say: Callable[[str], None] | None = None, warn: Callable[[str], None] | None = None) -> Camera:
+    """``camera`` at the frames' size with its own vehicle's rows (:func:`own_vehicle`: 'auto' looks
+    in up to :data:`vcprep.io.EGO_SAMPLES` frames spread over the folder, as a video's are). The
+    frames' size is the most common among those sampled that the camera takes (a frame of another
+    size, or one that cannot be read, is left to the road, which skips and names it); none: the
+    first frame's error."""
+    from collections import Counter
+
     from vcprep.camera import ego_rows_from_frame_files
     from vcprep.io import EGO_SAMPLES
 
     files = [Path(f) for f in files]
-    cam = camera.for_image_size(image_size(files[0]), files[0])
     picks = sorted({int(round(k)) for k in np.linspace(0, len(files) - 1, min(EGO_SAMPLES, len(files)))})
-    return own_vehicle(cam, files[0].parent, ego, say,
-                       lambda: ego_rows_from_frame_files([files[k] for k in picks], files[0].parent))
+    sizes: dict[int, tuple[int, int]] = {}
+    for k in picks:
+        try:
+            sizes[k] = camera.for_image_size(image_size(files[k]), files[k]).size
+        except VCError:
+            continue
+    if not sizes:
+        return camera.for_image_size(image_size(files[0]), files[0])  # raises: no frame of this camera
+    size = Counter(sizes.values()).most_common(1)[0][0]
+    cam = camera.for_image_size(size)
+    same = [files[k] for k in picks if sizes.get(k) == size]
+    return own_vehicle(cam, files[0].parent, ego, say, lambda: ego_rows_from_frame_files(same, files[0].parent), warn)
 
 
 def model_vp_rule(data: dict[str, Any], override: Any = None) -> tuple[Any, str]:
@@ -270,7 +291,7 @@ def _remove_outputs(out: Path, stem: str) -> None:
 def _predict_one(fps: dict, predictor: Any, job: Job, camera, views, vp, out: Path, overlay: bool) -> Path:
     img = read_image(job.image).array
     size = (img.shape[1], img.shape[0])
-    if hasattr(predictor, "check_frame_size"):  # a graph holds one frame size: say which graph this frame needs
+    if hasattr(predictor, "check_frame_size"):  # a graph takes its camera at any uniform rescale, nothing else
         predictor.check_frame_size(size, job.image)
     cam = camera_of_image(camera, job.image, size) if camera is not None else None
     fp = fps.get((cam, size))

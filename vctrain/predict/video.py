@@ -125,13 +125,14 @@ class _VideoOut:
 
 
 
-def ego_camera(camera: Camera, info: VideoInfo, ego: str = "auto", say: Callable[[str], None] | None = None) -> Camera:
+def ego_camera(camera: Camera, info: VideoInfo, ego: str = "auto", say: Callable[[str], None] | None = None,
+               warn: Callable[[str], None] | None = None) -> Camera:
     """``camera`` at the video's size with its own vehicle's rows (:func:`vctrain.predict.road.own_vehicle`:
     'auto' looks in :data:`vcprep.io.EGO_SAMPLES` frames spread over the video)."""
     from vcprep.camera import ego_rows_from_frames
 
     return own_vehicle(camera.for_image_size(info.size, info.path), info.path, ego, say,
-                       lambda: ego_rows_from_frames(sample_frames(info), info.path))
+                       lambda: ego_rows_from_frames(sample_frames(info), info.path), warn)
 
 
 def _now(fn, *args) -> Future:
@@ -207,7 +208,7 @@ def _video_camera(predictor, camera: Camera | None, video: Path, info: VideoInfo
     cam = camera.for_image_size(info.size, video)
     if reads_road_vps(predictor):
         say = (lambda msg: tqdm.write(f"{video}: {msg}", file=sys.stderr)) if progress else None
-        cam = ego_camera(cam, info, ego, say)
+        cam = ego_camera(cam, info, ego, say, lambda msg: tqdm.write(f"{video}: warning: {msg}", file=sys.stderr))
     return cam
 
 
