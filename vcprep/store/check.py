@@ -191,7 +191,8 @@ def repair_store(root: str | Path, report: VerifyReport) -> tuple[list[str], int
         files += [store.path(rec[k]) for k in ("image", "label", "valid") if rec.get(k)]
     kept = {store.path(r[k]) for r in store for k in ("image", "label", "valid") if r.get(k)}
     files = list(dict.fromkeys(f for f in files if f not in kept))  # a shared valid mask other items still use stays
-    store.save()  # the records first: a crash in between leaves orphans, never a record without files
+    if drop or store.parts:  # the records first: a crash in between leaves orphans, never a record without files
+        store.save()
     removed = 0
     for f in files:
         try:
@@ -259,7 +260,10 @@ def merge_store(root: str | Path, on_wait: Callable[[str], None] | None = None) 
     with store_lock(root, on_wait=on_wait):
         store = Store.open(root)
         n = len(store.parts)
-        store.save()
+        if n:  # (nothing to fold: nothing is written)
+            store.save()
+        else:
+            store.write_stamp()  # (only if missing or untrue: a store of an older version, or shards' partial views)
         for tmp in temp_files(store.root):
             tmp.unlink(missing_ok=True)
         store.prune_orphans()
