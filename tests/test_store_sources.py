@@ -109,6 +109,8 @@ def test_an_older_store_reads_from_its_directory_and_is_rerecorded_absolute(proj
     assert _records(store)[0]["source"] == "../data/images/seq_0000.png"
     proc = run_cli("store", "verify", store, cwd=work)  # read from where it was built: as before
     assert proc.returncode == 0, proc.stdout + proc.stderr
+    proc = run_cli("store", "verify", store, cwd=tmp_path / "elsewhere")  # from elsewhere: missing, and why
+    assert proc.returncode == 1 and "re-run its vcprep warp once" in proc.stdout, proc.stdout
     # its next warp, from another directory: nothing rebuilt, the sources recorded absolute
     data = project / "data"
     proc = _warp(data / "images", data / "labels", store, tmp_path / "elsewhere")

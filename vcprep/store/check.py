@@ -137,7 +137,11 @@ def check_item(ctx: _VerifyContext, rec: dict[str, Any]) -> list[Problem]:
                 continue
             got = _sha256(Path(src))
             if got is None:
-                out.append(Problem(rid, src, "source missing", f"source {kind} not found"))
+                hint = "" if Path(src).is_absolute() else (
+                    " (a relative path, from a store of an older version: it is read from the working directory; "
+                    "run from the directory the store was built from, or re-run its vcprep warp once to record "
+                    "the sources absolute)")
+                out.append(Problem(rid, src, "source missing", f"source {kind} not found{hint}"))
             elif got != want:
                 out.append(Problem(rid, src, "source changed", f"source {kind} changed since it was stored"))
     return out
