@@ -30,8 +30,8 @@ from ..warp.homography import apply_homography, check_not_folded, pose_from_vp, 
 from ..io.images import image_size_from_header, read_image, write_png
 from ..labels import LabelFormat, decode_label
 from .parallel import ItemError, run_items
-from .record import ItemRecord, completion_fields, valid_path
-from .layout import Shard, Store, store_lock, temp_files
+from .record import ItemRecord, completion_fields, same_source, source_path, valid_path
+from .layout import STAMP, Shard, Store, store_lock, temp_files
 from ..warp.completion import border_ignore, check_method, completion_maps
 from ..warp.remap import warp_image, warp_label
 
@@ -244,13 +244,16 @@ def warp_item(job: Job, camera: Camera, store_size: tuple[int, int], H: np.ndarr
 @dataclass(frozen=True)
 class ItemResult:
     """What one item's build returned: 'built' (files written; ``record`` is new) or
-    'up_to_date' (``record`` is the stored one); ``note`` is a remark for the user or None."""
+    'up_to_date' (``record`` is the stored one, or it with its input paths re-recorded when
+    ``rerecorded``: a record of an older version, relative paths); ``note`` is a remark for the
+    user or None."""
 
     id: str
     status: str
     record: dict[str, Any]
     note: str | None = None
     off_vp: str | None = None  # VP outside the covered region: 'fine' or 'check' (off_vp_note)
+    rerecorded: bool = False  # up to date, but the record changed: save it (no file is written)
 
 
 @dataclass(frozen=True)
@@ -338,10 +341,10 @@ def build_item(ctx: _WarpContext, task: _WarpTask) -> ItemResult:
     the PNGs (atomically) and return the new record. Raises :class:`VCError` on bad input."""
     job, old, camera, fmt = task.job, task.old, ctx.camera, ctx.fmt
     store_size = (int(ctx.params["store_size"][0]), int(ctx.params["store_size"][1]))
-    if old is not None and old.get("source") != str(job.image):
+    src_hash, data = sha256_file(job.image, "image")
+    if old is not None and not same_source(old.get("source"), job.image, old.get("source_sha256"), src_hash):
         raise InputError(f"store item '{job.id}' already holds another source ({old.get('source')})", job.image,
                          "use --id-prefix to keep datasets apart, or another --out")
-    src_hash, data = sha256_file(job.image, "image")
     size = image_size_from_header(data)
     if size is None:
         size = read_image(job.image).size
@@ -352,10 +355,10 @@ def build_item(ctx: _WarpContext, task: _WarpTask) -> ItemResult:
     vp_store = tuple(apply_homography(H, [vp])[0])  # = the virtual principal point (H maps VP -> pp)
     lab_hash, lab_data = sha256_file(job.label, "label") if job.label is not None else (None, None)
     rec = ItemRecord(
-        id=job.id, source=str(job.image), source_sha256=src_hash,
-        label_source=str(job.label) if job.label else None, label_sha256=lab_hash,
+        id=job.id, source=source_path(job.image), source_sha256=src_hash,
+        label_source=source_path(job.label) if job.label else None, label_sha256=lab_hash,
         label_format=fmt.name if fmt and job.label else None, camera=camera.name, camera_params=cam.to_dict(),
-        camera_file=str(camera.file_for(job.image)) if per_frame else None, size=list(cam.size),
+        camera_file=source_path(camera.file_for(job.image)) if per_frame else None, size=list(cam.size),
         ego_rows=int(cam.ego_rows or 0), vp=[float(vp[0]), float(vp[1])], vp_status=vp_status,
         vp_rule=dict(task.pose.rule) if task.pose is not None and task.pose.rule else None, pan_deg=pan,
         tilt_deg=tilt, H=H.ravel().tolist(), image=f"images/{job.id}.png",
@@ -364,7 +367,10 @@ def build_item(ctx: _WarpContext, task: _WarpTask) -> ItemResult:
         completion_unlabelled=ctx.unlabelled and job.label is not None,
     ).keyed(ctx.params)
     if old is not None and old.get("key") == rec.key and files_present(ctx.root, old):
-        return ItemResult(job.id, "up_to_date", old)
+        paths = {k: getattr(rec, k) for k in ("source", "label_source", "camera_file") if old.get(k) is not None}
+        if all(old[k] == v for k, v in paths.items()):
+            return ItemResult(job.id, "up_to_date", old)
+        return ItemResult(job.id, "up_to_date", {**old, **paths}, rerecorded=True)  # an older version's relative paths
     item = warp_item_full(job, store_size=store_size, H=H, fmt=fmt, completion=ctx.completion, vp_store=vp_store,
                           data=(data, lab_data), ego_rows=cam.ego_rows, unlabelled=rec.completion_unlabelled)
     rec = replace(rec, **completion_fields(item.maps))
@@ -397,8 +403,10 @@ def build_loop(store: Store, step: LoopStep, tasks: list, ids: list[str], settin
             tmp.unlink(missing_ok=True)
     id_of = dict(zip(map(id, tasks), ids))
     first_error: list[VCError] = []
+    rerecorded = 0
 
     def on_result(task, res) -> bool:
+        nonlocal rerecorded
         if isinstance(res, ItemError):
             summary.failed.append(id_of[id(task)])
             summary.errors.append(str(res.error))
@@ -407,8 +415,9 @@ def build_loop(store: Store, step: LoopStep, tasks: list, ids: list[str], settin
             if not first_error:
                 first_error.append(res.error)
             return False
-        if res.status == "built":
+        if res.status == "built" or res.rerecorded:
             store.record(res.record)
+            rerecorded += res.rerecorded
         summary.count(res)
         return True
 
@@ -418,8 +427,10 @@ def build_loop(store: Store, step: LoopStep, tasks: list, ids: list[str], settin
     finally:
         summary.seconds = time.perf_counter() - t0
         summary.notes.sort()
-        if summary.built or (store.shard is None and store.parts):  # (folds a killed build's journal)
-            store.save()
+        if summary.built or rerecorded or (store.shard is None and store.parts):  # (folds a killed build's journal)
+            store.save()  # (and rewrites content.stamp if the content changed)
+        elif not (store.root / STAMP).exists():  # a store of an older version: its first stamp
+            store.write_stamp()
         if store.shard is None:
             store.prune_orphans()
     if first_error:

@@ -137,7 +137,11 @@ def check_item(ctx: _VerifyContext, rec: dict[str, Any]) -> list[Problem]:
                 continue
             got = _sha256(Path(src))
             if got is None:
-                out.append(Problem(rid, src, "source missing", f"source {kind} not found"))
+                hint = "" if Path(src).is_absolute() else (
+                    " (a relative path, from a store of an older version: it is read from the working directory; "
+                    "run from the directory the store was built from, or re-run its vcprep warp once to record "
+                    "the sources absolute)")
+                out.append(Problem(rid, src, "source missing", f"source {kind} not found{hint}"))
             elif got != want:
                 out.append(Problem(rid, src, "source changed", f"source {kind} changed since it was stored"))
     return out
@@ -191,7 +195,8 @@ def repair_store(root: str | Path, report: VerifyReport) -> tuple[list[str], int
         files += [store.path(rec[k]) for k in ("image", "label", "valid") if rec.get(k)]
     kept = {store.path(r[k]) for r in store for k in ("image", "label", "valid") if r.get(k)}
     files = list(dict.fromkeys(f for f in files if f not in kept))  # a shared valid mask other items still use stays
-    store.save()  # the records first: a crash in between leaves orphans, never a record without files
+    if drop or store.parts:  # the records first: a crash in between leaves orphans, never a record without files
+        store.save()
     removed = 0
     for f in files:
         try:
@@ -259,7 +264,10 @@ def merge_store(root: str | Path, on_wait: Callable[[str], None] | None = None) 
     with store_lock(root, on_wait=on_wait):
         store = Store.open(root)
         n = len(store.parts)
-        store.save()
+        if n:  # (nothing to fold: nothing is written)
+            store.save()
+        else:
+            store.write_stamp()  # (only if missing or untrue: a store of an older version, or shards' partial views)
         for tmp in temp_files(store.root):
             tmp.unlink(missing_ok=True)
         store.prune_orphans()

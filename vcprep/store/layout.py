@@ -9,10 +9,13 @@ Layout::
     STORE/valid/H-HASH.png 1 where a source pixel landed, 0 elsewhere: one file per geometry (H and
                            sizes), shared by the items that have it (all of a camera's images in
                            between-camera mode); older stores' records name valid/ID.png
+    STORE/content.stamp    the SHA-256 of the store's content (:func:`content_digest`), rewritten
+                           exactly when that changes: the file a Makefile keys on
 
 Item record (``vcprep store show --json``)::
 
-    id, source, source_sha256, label_source, label_sha256, label_format,
+    id, source (absolute, resolved: :func:`vcprep.store.record.source_path`; relative to the build's
+    working directory in stores of older versions), source_sha256, label_source, label_sha256, label_format,
     camera (name), camera_params ({name, image_size, fx, fy, cx, cy, height, tilt, pan} of the
     camera at this image's size), size [w, h] of the source,
     vp [u, v] (source pixels), vp_status ('camera' = the camera's average pose; later 'accepted',
@@ -48,6 +51,11 @@ from before it reads the manifest until its records are saved. An unsharded writ
 it shared, so shards run together but never beside an unsharded writer, which would fold and
 delete their part files. A second writer waits for the first (saying so on stderr), then reads
 the manifest the first one saved: two writers never lose each other's records.
+
+Make-friendly: a command with nothing to do writes nothing (no record saved, no part file, the
+lock file's time set back after its holder's note), and ``content.stamp`` is rewritten only when
+the digest of the records changes (:meth:`Store.write_stamp`): its time is the time of the last
+change of the store's content, whichever writer made it.
 """
 from __future__ import annotations
 
@@ -68,8 +76,8 @@ from ..camera.files import camera_from_dict
 from ..errors import StoreError
 from ..io.images import write_bytes_atomic
 
-__all__ = ["Store", "Shard", "STORE_FORMAT", "STORE_VERSION", "LAYOUT_DIRS", "VALID_PREFIX", "LOCK", "temp_files",
-           "store_lock"]
+__all__ = ["Store", "Shard", "STORE_FORMAT", "STORE_VERSION", "LAYOUT_DIRS", "VALID_PREFIX", "LOCK", "STAMP",
+           "temp_files", "store_lock", "content_digest"]
 
 VALID_PREFIX = "H-"  # shared valid masks: valid/H-<hash of H and sizes>.png
 STORE_FORMAT = "vcseg-store"
@@ -78,6 +86,10 @@ LAYOUT_DIRS = ("images", "labels", "valid")
 MANIFEST = "manifest.jsonl"
 JOURNAL = "manifest.journal.jsonl"  # the part file of an unsharded build
 LOCK = "store.lock"  # the writers' lock file (see store_lock)
+STAMP = "content.stamp"  # the digest of the store's content, rewritten only when it changes (Store.write_stamp)
+# record fields that name where an input lives, not what it holds: the same content under another
+# path spelling (a store of an older version, its sources re-recorded absolute) has the same digest
+_PATH_FIELDS = ("source", "label_source", "camera_file")
 LOCK_POLL_S = 0.1
 
 
@@ -125,7 +137,8 @@ def temp_files(root: Path) -> list[Path]:
 
 def _our_name(p: Path) -> bool:
     """A name a store (or a build creating one) may hold."""
-    return p.name.startswith(".") or p.name in LAYOUT_DIRS or p.name.startswith("manifest.") or p.name == LOCK
+    return (p.name.startswith(".") or p.name in LAYOUT_DIRS or p.name.startswith("manifest.")
+            or p.name in (LOCK, STAMP))
 
 
 def _lock_dir(root: Path) -> None:
@@ -196,7 +209,9 @@ def store_lock(root: str | Path, shared: bool = False, on_wait: Callable[[str], 
             time.sleep(LOCK_POLL_S)
         if told and on_wait:
             on_wait(f"{root}: got the store lock after {time.monotonic() - t0:.1f} s")
-        if locked and not shared:
+        note = locked and not shared
+        if note:
+            before = os.fstat(fd)  # the holder's note is no change of the store: its time is set back on release
             cmd = " ".join(Path(a).name if i == 0 else a for i, a in enumerate(sys.argv))
             info = f"pid {os.getpid()} ({cmd})"[:500].encode()
             os.ftruncate(fd, 0)
@@ -204,10 +219,11 @@ def store_lock(root: str | Path, shared: bool = False, on_wait: Callable[[str], 
         try:
             yield path
         finally:
-            if locked and not shared:
+            if note:
                 try:
                     os.ftruncate(fd, 0)
-                except OSError:
+                    os.utime(fd, ns=(before.st_atime_ns, before.st_mtime_ns))
+                except (OSError, NotImplementedError):
                     pass
     finally:
         os.close(fd)  # releases the flock
@@ -234,6 +250,17 @@ def _read_records(path: Path, items: dict[str, dict[str, Any]], torn_ok: bool) -
         mine[rid] = rec
     items.update(mine)
     return mine
+
+
+def content_digest(items: dict[str, dict[str, Any]]) -> str:
+    """SHA-256 (hex) of a store's content: every record (what its files hold, how they were made,
+    their SHA-256) sorted by id, without the fields that only say where an input lives
+    (:data:`_PATH_FIELDS`). Equal for equal content, whatever wrote it (shards or one build)."""
+    h = hashlib.sha256()
+    for k in sorted(items):
+        rec = {f: v for f, v in items[k].items() if f not in _PATH_FIELDS}
+        h.update(json.dumps(rec, sort_keys=True, separators=(",", ":")).encode() + b"\n")
+    return h.hexdigest()
 
 
 class Store:
@@ -362,12 +389,14 @@ class Store:
     def save(self) -> None:
         """Make the records compact and permanent. Unsharded: rewrite ``manifest.jsonl`` with
         every record (sorted by id, atomically), then delete the part files it now contains.
-        Shard: rewrite only this shard's part file, compacted."""
+        Shard: rewrite only this shard's part file, compacted. Then :meth:`write_stamp`."""
         self._close_journal()
         if self.shard is not None:
             self._write_lines(self.root / self.shard.part_name, self._part_items)
+            self.write_stamp()
             return
         self._write_manifest()
+        self.write_stamp()
         for part in {*self.parts, self.root / JOURNAL}:
             try:
                 part.unlink()
@@ -375,6 +404,24 @@ class Store:
                 pass
         self.parts = []
         self._part_items = {}
+
+    def write_stamp(self) -> bool:
+        """Rewrite ``content.stamp`` with :func:`content_digest` of the records if it differs (or
+        the stamp is missing: a store of an older version); returns whether it was written. A
+        shard writer digests what it sees (the manifest, the parts read at open, its own records);
+        ``store merge`` then digests the whole."""
+        path = self.root / STAMP
+        text = content_digest(self.items) + "\n"
+        try:
+            if path.read_text() == text:
+                return False
+        except (OSError, UnicodeDecodeError):
+            pass
+        try:
+            write_bytes_atomic(path, text.encode())
+        except OSError as e:
+            raise StoreError(f"cannot write: {e.strerror or e}", path, "check permissions and free disk space") from None
+        return True
 
     def _write_manifest(self) -> None:
         self._write_lines(self.root / MANIFEST, self.items)

@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 from dataclasses import asdict, dataclass, field, fields, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -19,7 +21,8 @@ from vcprep import __version__
 from ..warp.completion import COMPLETION_VERSION
 from .layout import VALID_PREFIX
 
-__all__ = ["WARP_ALGORITHM", "ItemRecord", "record_key", "valid_path", "completion_key_part", "completion_fields"]
+__all__ = ["WARP_ALGORITHM", "ItemRecord", "record_key", "valid_path", "completion_key_part", "completion_fields",
+           "source_path", "same_source"]
 
 WARP_ALGORITHM = "warp-v1"  # bump when stored outputs of identical inputs would change
 STORE_KEY_PARAMS = ("virtual", "scale", "store_size")  # the store parameters an item key depends on
@@ -32,6 +35,35 @@ def _hash(parts: dict[str, Any]) -> str:
 def _rounded(H: Any) -> list[float]:
     """H as the key sees it: float64, rounded to 12 decimals (the JSON round trip of a record is exact)."""
     return np.round(np.asarray(H, dtype=np.float64), 12).ravel().tolist()
+
+
+def source_path(path: str | Path) -> str:
+    """How a record names an input file (source image, label, calibration file): its absolute path
+    with symlinks and ``..`` resolved. The same file under any spelling is one string, and the
+    record means the same from every working directory (the store may be read from anywhere; a
+    path relative to the store would break when the store alone is copied elsewhere, e.g. to a
+    cluster's scratch space, while the data stay put). Stores of older versions hold the path as
+    given, relative to the directory they were built from."""
+    return os.path.realpath(path)
+
+
+def same_source(recorded: str | None, given: str | Path, recorded_sha256: str | None = None,
+                given_sha256: str | None = None) -> bool:
+    """Whether the file a record names (``recorded``) is the file ``given`` (a path as typed).
+
+    The same path once resolved, or the same file (a hard link, a bind mount). A relative
+    ``recorded`` (a store of an older version: relative to the working directory of its build,
+    which is unknown) that names no file from here is the same source if the bytes are the same
+    (``recorded_sha256`` == ``given_sha256``)."""
+    if recorded is None:
+        return False
+    if source_path(recorded) == source_path(given):
+        return True
+    try:
+        return os.path.samefile(recorded, given)
+    except OSError:  # the recorded file is not there (from here)
+        pass
+    return (not os.path.isabs(recorded) and recorded_sha256 is not None and recorded_sha256 == given_sha256)
 
 
 def completion_key_part(completion: str) -> str:
@@ -69,14 +101,14 @@ class ItemRecord:
     image as stored, ego rows cut off, to store pixels)."""
 
     id: str
-    source: str | None = None                 # the source image as given
+    source: str | None = None                 # the source image (source_path: absolute, resolved)
     source_sha256: str | None = None
-    label_source: str | None = None           # the source label, or None
+    label_source: str | None = None           # the source label (source_path), or None
     label_sha256: str | None = None
     label_format: str | None = None           # the format's name (None without a label)
     camera: str | None = None                 # the camera's name (per-frame: the calibration folder's)
     camera_params: dict[str, Any] | None = None  # the camera at this image's size and pose
-    camera_file: str | None = None            # per-frame calibration: this frame's file
+    camera_file: str | None = None            # per-frame calibration: this frame's file (source_path)
     size: list[int] | None = None             # source image size (the full frame, ego rows included)
     ego_rows: int = 0                         # bottom rows showing the own vehicle (cut off before warping)
     vp: list[float] | None = None             # road VP [u, v] in source pixels
