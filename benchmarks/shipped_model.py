@@ -79,9 +79,10 @@ def _first(split: dict, n: int) -> dict:
     return {"images": split["images"], "labels": split["labels"], "include": stems[:n]}
 
 
-def study_file(wd: Path, quick: bool, epochs: int, model: str | None = None) -> Path:
+def study_file(wd: Path, quick: bool, epochs: int, model: str | None = None, pretrained: bool = True) -> Path:
     """The study: five training splits (role train), six held-out splits (role test); ``model``: every
-    condition's network (study ``train: arch``; default the recipe's)."""
+    condition's network (study ``train: arch``; default the recipe's); ``pretrained`` False: trained
+    from scratch (the control of a pretrained network)."""
     n = 3 if quick else None
     cam = str(native_camera(wd))
     cs = {"images": str(CITYSCAPES / "images"), "labels": str(CITYSCAPES / "labels")}
@@ -106,6 +107,7 @@ def study_file(wd: Path, quick: bool, epochs: int, model: str | None = None) -> 
                      "test": {"images": str(KITTI / "image_2"), "labels": str(KITTI / "gt_image_2")}})
     train = {"epochs": 1, "max_steps": 2} if quick else {"epochs": epochs, "max_steps": STEPS}
     train.update({"arch": model} if model else {})
+    train.update({} if pretrained else {"pretrained": False})
     path = wd / "study.yaml"
     path.write_text(yaml.safe_dump({"datasets": datasets, "train": {**train, "balance": "datasets",
                                                                      "shading_aug": SHADING_AUG}},
@@ -237,16 +239,18 @@ def main() -> None:
     ap.add_argument("--collect", action="store_true", help="run nothing: report what is finished")
     ap.add_argument("--model", default=None, help="every condition's network (study train: arch), e.g. lite0fpn "
                     "(issue 53); WORKDIR/model-<name>; results in benchmarks/results only with --ship")
+    ap.add_argument("--no-pretrained", action="store_true", help="with --model: the network from scratch (the "
+                    "control of its ImageNet weights); WORKDIR/model-<name>-scratch")
     a = ap.parse_args()
     if a.model:
-        a.workdir = a.workdir / f"model-{a.model}"
+        a.workdir = a.workdir / (f"model-{a.model}" + ("-scratch" if a.no_pretrained else ""))
     require_data(CITYSCAPES, IDD, DATA, KITTI, BDD, LUMS)
     conds = a.conditions.split(",")
     wd = (a.workdir / "quick" if a.quick else a.workdir).resolve()  # the study file holds absolute paths
     wd.mkdir(parents=True, exist_ok=True)
     sd = wd / f"seed{a.seed}"
     if not a.collect:
-        run_study(study_file(wd, a.quick, a.epochs, a.model), sd, conds, a.seed, a.threads)
+        run_study(study_file(wd, a.quick, a.epochs, a.model, not a.no_pretrained), sd, conds, a.seed, a.threads)
     cells, missing, minutes = collect(sd, conds)
     head: dict = {}
     for t in SETS:
@@ -280,7 +284,7 @@ def main() -> None:
     res_dir = (wd / "results") if a.quick or (a.model and not a.ship) else (ROOT / "benchmarks" / "results")
     command = (f"benchmarks/shipped_model.py {'--quick ' if a.quick else ''}--epochs {a.epochs} --seed {a.seed} "
                f"--conditions {a.conditions} --threads {a.threads}" + (" --collect" if a.collect else "")
-               + (f" --model {a.model}" if a.model else ""))
+               + (f" --model {a.model}" if a.model else "") + (" --no-pretrained" if a.no_pretrained else ""))
     result = {"headline": head, "targets": targets, "cells": cells, "sets": SETS, "epochs": a.epochs, "model": a.model,
               "steps_per_epoch": 2 if a.quick else STEPS, "balance": "datasets", "seed": a.seed,
               "threads": a.threads, "machine": machine(), "date": today(), "command": command}
