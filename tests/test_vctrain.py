@@ -438,6 +438,12 @@ def test_predict_store_and_resize_baseline(trained, tmp_path):
     r = runner.invoke(app, ["predict", str(tmp_path / "resize.pt"), str(img), "--out", str(tmp_path / "rp"), "--quiet"])
     assert r.exit_code == 0, r.output
     assert read_image(tmp_path / "rp" / f"{img.stem}_mask.png", label=True).array.shape == (72, 96)
+    # no --size: the store's pixel count (110x56 = 6160) at the frames' own 4:3 (96x72), not the store's 2:1
+    r = runner.invoke(app, ["fit", str(root / "store"), "--baseline", "resize", "--width", "8", "--epochs", "1",
+                            "--batch-size", "3", "--val-fraction", "0", "--out", str(tmp_path / "rs2.pt"), "--quiet"])
+    assert r.exit_code == 0, r.output
+    w, h = load_checkpoint(tmp_path / "rs2.pt")["data"]["input_size"]
+    assert (w, h) == (91, 68) and abs(w / h - 96 / 72) < 0.01 and abs(w * h - 110 * 56) < 110
 
 
 def test_predict_store_in_a_wider_canvas_of_the_models_virtual_camera(trained, tmp_path):

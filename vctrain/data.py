@@ -50,7 +50,7 @@ from vcprep.dataset import list_dataset
 from vcprep.camera import scale_matrix
 from vcprep.errors import InputError
 from vcprep.warp import apply_homography
-from vcprep.io import read_image
+from vcprep.io import image_size, read_image
 from vcprep.labels import IGNORE, decode_label, get_label_format
 from vcprep.store import Store
 
@@ -405,6 +405,8 @@ def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str
         val = []
     if cfg.size is not None:
         size = (int(cfg.size[0]), int(cfg.size[1]))
+    elif stores and cfg.baseline == "resize":  # the store's pixels at the frames' own aspect (as a study's twin)
+        size = resize_working_size(stores[0].store_size, image_size(train[0].image))
     elif stores:
         size = stores[0].store_size
     else:
@@ -424,6 +426,15 @@ def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str
     info["train_items_per_source"] = dict(Counter(t.source for t in train))  # (in the stores' order)
     info["val_items"] = len(val)
     return train, val, info
+
+
+def resize_working_size(store_size: tuple[int, int], frame_size: tuple[int, int]) -> tuple[int, int]:
+    """The resize baseline's working size (w, h): the virtual store's pixel count at the aspect of the
+    frames (``frame_size``, w, h), so the twin gets the same pixel budget and no frame is squashed
+    (``vctrain fit STORE --baseline resize`` without --size, and a study's resize twin)."""
+    n = store_size[0] * store_size[1]
+    w0, h0 = frame_size
+    return max(32, int(round(math.sqrt(n * w0 / h0)))), max(32, int(round(math.sqrt(n * h0 / w0))))
 
 
 def crop_size(crop: Any, size: tuple[int, int]) -> tuple[int, int]:

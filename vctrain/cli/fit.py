@@ -76,7 +76,8 @@ def fit_cmd(
     images: Optional[Path] = typer.Option(None, "--images", help="baseline only: folder of original images"),
     labels: Optional[Path] = typer.Option(None, "--labels", help="baseline only: folder of their labels"),
     label_format: Optional[str] = typer.Option(None, "--label-format", help=f"baseline only: {LABEL_FORMAT_HELP}"),
-    size: Optional[str] = typer.Option(None, "--size", help="working size WxH (default: the store size)"),
+    size: Optional[str] = typer.Option(None, "--size", help="working size WxH (default: the store size; "
+                                       "--baseline resize: the store's pixel count at the frames' own aspect)"),
     crop: Optional[str] = typer.Option(None, "--crop", help=CROP_HELP),
     epochs: Optional[int] = typer.Option(None, "--epochs", "-e", help="epochs (cpu recipe: 20, paper recipe: 30; the paper: 600 on a GPU)"),
     batch_size: Optional[int] = typer.Option(None, "--batch-size", "-b", help="global batch size (recipes: 8)"),
@@ -131,7 +132,7 @@ def fit_cmd(
     Example:
       vctrain fit stores/camvid_train --size 344x176 --out runs/vc.pt    # 3.3 min on 2 cores
       vctrain fit stores/camvid_train --val-store stores/camvid_val --epochs 20 --out runs/vc.pt
-      vctrain fit stores/camvid_train --baseline resize --size 344x176 --out runs/resize.pt
+      vctrain fit stores/camvid_train --baseline resize --out runs/resize.pt   # store's pixels, frames' aspect
       vctrain fit stores/camvid_train --out runs/vc.pt --resume runs/vc.last.pt --epochs 40
       vctrain fit stores/camvid_train_fine --crop 0.67 --out runs/vc_fine.pt
       vctrain fit stores/camvid_train --model lite0fpn --out runs/vc_lite0.pt   # ImageNet encoder

@@ -10,7 +10,6 @@ back to the mean accepted VP, see :mod:`vcprep.vp`); the stores record that rule
 """
 from __future__ import annotations
 
-import math
 import shutil
 from pathlib import Path
 from typing import Sequence
@@ -39,10 +38,9 @@ class Stores:
     def resize_size(self, datasets: Sequence[Dataset], store_size: tuple[int, int]) -> tuple[int, int]:
         """The resize baseline's working size: the virtual store's pixel count at the aspect of
         the first training dataset's images (same pixel budget, no squashing of the source)."""
-        first = self.res.items(datasets[0], "train")[0].image
-        w0, h0 = image_size(first)
-        n = store_size[0] * store_size[1]
-        return max(32, int(round(math.sqrt(n * w0 / h0)))), max(32, int(round(math.sqrt(n * h0 / w0))))
+        from ..data import resize_working_size
+
+        return resize_working_size(store_size, image_size(self.res.items(datasets[0], "train")[0].image))
 
     def has_given_vps(self, ds: Dataset, split: str) -> bool:
         return self.res.split(ds, split).vps is not None
