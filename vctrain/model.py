@@ -39,10 +39,12 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
+from vcprep.errors import InputError
+
 from .efficientnet import FEATURE_WIDTHS, EfficientNetLite0, from_project_input
 
 __all__ = ["ModelArgs", "SegNet", "ResFPN", "Lite0FPN", "ARCHITECTURES", "PRETRAINED", "build_model",
-           "model_args_for"]
+           "model_args_for", "resolve_pretrained"]
 
 ARCHITECTURES = {"segnet": 64, "segnet-narrow": 16, "resfpn": 16, "lite0fpn": 16}  # name -> default base width
 PRETRAINED = ("lite0fpn",)  # architectures whose encoder starts from ImageNet weights (unless --no-pretrained)
@@ -222,6 +224,18 @@ class Lite0FPN(_FPN):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return self._decode(self.encoder.features(from_project_input(x)), x.shape[-2:])
+
+
+def resolve_pretrained(arch: str, asked: bool | None) -> bool:
+    """Whether a fresh ``arch`` starts from ImageNet weights: ``asked`` (``--pretrained/--no-pretrained``),
+    or by default where the architecture has them (:data:`PRETRAINED`); asking for weights an
+    architecture does not have is an InputError."""
+    if asked is None:
+        return arch in PRETRAINED
+    if asked and arch not in PRETRAINED:
+        raise InputError(f"model '{arch}' has no pretrained weights", None,
+                         f"use --model {' or '.join(PRETRAINED)}, or leave --pretrained out")
+    return bool(asked)
 
 
 def build_model(args: ModelArgs | dict) -> nn.Module:

@@ -63,7 +63,7 @@ from .config import ADAPT_LR_FACTOR, BALANCES, DEFAULT_RECIPE, OPTIMIZERS, RECIP
 from .data import (RoadDataset, class_frequencies, crop_size, epoch_order, median_frequency_weights,
                    prepare_data)
 from .metrics import RoadMetrics
-from .model import ARCHITECTURES, PRETRAINED, build_model, model_args_for
+from .model import ARCHITECTURES, build_model, model_args_for, resolve_pretrained
 
 __all__ = ["TrainConfig", "RECIPES", "fit", "evaluate", "get_lr", "resolve_device", "resolve_recipe", "last_path",
            "crop_size"]
@@ -92,11 +92,7 @@ def resolve_recipe(cfg: TrainConfig, device: torch.device | None = None) -> Trai
         raise InputError(f"unknown optimizer '{cfg.optimizer}'", None, f"use one of {', '.join(OPTIMIZERS)}")
     if cfg.balance not in BALANCES:
         raise InputError(f"unknown balance '{cfg.balance}'", None, f"use one of {', '.join(BALANCES)}")
-    if cfg.pretrained is None:  # ImageNet weights where the architecture has them
-        cfg.pretrained = cfg.arch in PRETRAINED
-    elif cfg.pretrained and cfg.arch not in PRETRAINED:
-        raise InputError(f"model '{cfg.arch}' has no pretrained weights", None,
-                         f"use --model {' or '.join(PRETRAINED)}, or leave --pretrained out")
+    cfg.pretrained = resolve_pretrained(cfg.arch, cfg.pretrained)
     for k in ("epochs", "batch_size"):
         if int(getattr(cfg, k)) < 1:
             raise InputError(f"{k.replace('_', ' ')} must be at least 1, got {getattr(cfg, k)}", None, "use e.g. 8")

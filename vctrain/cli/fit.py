@@ -19,6 +19,9 @@ RECIPE_HELP = ("defaults of every setting below: 'cpu' (resfpn, AdamW, cosine, a
 MODEL_HELP = ("resfpn (residual encoder + FPN decoder, 1.3 M parameters, from scratch), lite0fpn (EfficientNet-Lite0 "
               "encoder from ImageNet weights + the same decoder, 3.0 M), segnet (VGG16 SegNet, 29 M) or "
               "segnet-narrow (same topology, 1/4 width, 1.8 M); default: the recipe's")
+PRETRAINED_HELP = "start the encoder from its ImageNet weights (lite0fpn; default: yes where the model has them)"
+SIZE_HELP = ("working size WxH (default: the store size; --baseline resize: the store's pixel count at the frames' "
+             "own aspect)")
 CROP_HELP = ("train on random windows of the working image: WxH pixels, a share of each side (0.67) or of width and "
              "height (0.44x1: full height); validation and prediction see the whole image (default: no crop)")
 # fit's options named otherwise than the TrainConfig field they set; every other option is named as
@@ -69,15 +72,13 @@ def fit_cmd(
     recipe: Optional[str] = typer.Option(None, "--recipe", help=RECIPE_HELP),
     model: Optional[str] = typer.Option(None, "--model", "-m", help=MODEL_HELP),
     width: Optional[int] = typer.Option(None, "--width", help="first-block width override (64 = segnet, 16 = narrow)"),
-    pretrained: Optional[bool] = typer.Option(None, "--pretrained/--no-pretrained", help="start the encoder from its "
-                                              "ImageNet weights (lite0fpn; default: yes where the model has them)"),
+    pretrained: Optional[bool] = typer.Option(None, "--pretrained/--no-pretrained", help=PRETRAINED_HELP),
     baseline: str = typer.Option(TRAIN.baseline, "--baseline", help="'resize': the paper's baseline, the same network on the "
                                                             "original images simply resized (no virtual camera)"),
     images: Optional[Path] = typer.Option(None, "--images", help="baseline only: folder of original images"),
     labels: Optional[Path] = typer.Option(None, "--labels", help="baseline only: folder of their labels"),
     label_format: Optional[str] = typer.Option(None, "--label-format", help=f"baseline only: {LABEL_FORMAT_HELP}"),
-    size: Optional[str] = typer.Option(None, "--size", help="working size WxH (default: the store size; "
-                                       "--baseline resize: the store's pixel count at the frames' own aspect)"),
+    size: Optional[str] = typer.Option(None, "--size", help=SIZE_HELP),
     crop: Optional[str] = typer.Option(None, "--crop", help=CROP_HELP),
     epochs: Optional[int] = typer.Option(None, "--epochs", "-e", help="epochs (cpu recipe: 20, paper recipe: 30; the paper: 600 on a GPU)"),
     batch_size: Optional[int] = typer.Option(None, "--batch-size", "-b", help="global batch size (recipes: 8)"),
