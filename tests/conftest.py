@@ -19,6 +19,9 @@ from vcprep.synthetic import RoadScene, render_road
 
 BIN = Path(sys.executable).parent
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+# `vcprep warp` into the paper's virtual camera at 1/8 (688x350), each frame at its camera's average pose:
+# the store of the tests of store mechanics (the default, the measured design: tests/test_user_route.py)
+PAPER_STORE = ("--virtual", "virtual", "--scale", "0.125", "--within", "none")
 
 cv2.setNumThreads(1)
 

@@ -12,7 +12,7 @@ import pytest
 from vcprep.camera import PRESETS, camera_to_yaml
 from vcprep.warp import virt_H_src, virtual_at_scale
 
-from conftest import EXAMPLES, assert_one_error_line, run_cli, write_synthetic_dataset
+from conftest import PAPER_STORE, EXAMPLES, assert_one_error_line, run_cli, write_synthetic_dataset
 
 
 @pytest.fixture(scope="module")
@@ -24,7 +24,7 @@ def dataset(tmp_path_factory, camvid_half):
 
 def _warp(images, labels, out, *extra):
     return run_cli("warp", "--camera", "camvid", "--images", images, "--labels", labels, "--label-format", "camvid",
-                   "--out", out, *extra)
+                   "--out", out, *PAPER_STORE, *extra)
 
 
 def _records(store):

@@ -25,7 +25,7 @@ from vcprep.labels import LABEL_FORMATS
 from vcprep.synthetic import RoadScene, render_road
 from vcprep.warp import OUTSIDE, maps_for, warp_image, warp_label
 
-from conftest import EXAMPLES, assert_one_error_line, run_cli, write_synthetic_dataset
+from conftest import PAPER_STORE, EXAMPLES, assert_one_error_line, run_cli, write_synthetic_dataset
 
 V8 = virtual_at_scale(PRESETS["virtual"], 0.125)  # 688 x 350
 SCENE = RoadScene(offset=0.8, width=9.0, texture_seed=3)
@@ -288,7 +288,7 @@ def dataset(tmp_path_factory, camvid_half):
 
 def _warp(images, labels, out, *extra):
     return run_cli("warp", "--camera", "camvid", "--images", images, "--labels", labels, "--label-format", "camvid",
-                   "--out", out, "--quiet", *extra)
+                   "--out", out, "--quiet", *PAPER_STORE, *extra)
 
 
 def _files(store: Path) -> dict[str, bytes]:
@@ -314,7 +314,7 @@ def test_complete_command_equals_warp_complete_and_is_idempotent(dataset, tmp_pa
     assert _files(b) == before
     # warp with the same method is up to date too (same keys)
     proc = run_cli("warp", "--camera", "camvid", "--images", images, "--labels", labels, "--label-format", "camvid",
-                   "--out", b)
+                   "--out", b, *PAPER_STORE)
     assert "0 built, 2 up to date" in proc.stderr
     lab = cv2.imread(str(a / "labels" / "seq_0000.png"), cv2.IMREAD_UNCHANGED)
     rec0 = json.loads((a / "manifest.jsonl").read_text().splitlines()[0])
@@ -341,7 +341,8 @@ def test_complete_cli_errors(dataset, tmp_path):
     for p in images.iterdir():
         (moved / p.name).write_bytes(p.read_bytes())
     st2 = tmp_path / "st2"
-    proc = run_cli("warp", "--camera", "camvid", "--images", moved, "--out", st2, "--complete", "none", "--quiet")
+    proc = run_cli("warp", "--camera", "camvid", "--images", moved, "--out", st2, "--complete", "none", "--quiet",
+                   *PAPER_STORE)
     assert proc.returncode == 0, proc.stderr
     victim = moved / "seq_0001.png"
     img = cv2.imread(str(victim))
@@ -420,7 +421,7 @@ def test_real_kitti_frame_road_continues_below_it(tmp_path):
     kitti = EXAMPLES / "kitti"
     out = tmp_path / "store"
     proc = run_cli("warp", "--camera", kitti / "calib" / "um_000000.txt", "--images", kitti / "image_2", "--labels",
-                   kitti / "gt_image_2", "--label-format", "kitti", "--out", out, "--jobs", "1", "-q")
+                   kitti / "gt_image_2", "--label-format", "kitti", "--out", out, "--jobs", "1", "-q", *PAPER_STORE)
     assert proc.returncode == 0, proc.stderr
     rec = json.loads((out / "manifest.jsonl").read_text())
     assert rec["key"] and "completion" in rec

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 import yaml
 
-from conftest import assert_one_error_line, run_cli
+from conftest import PAPER_STORE, assert_one_error_line, run_cli
 from vcprep.camera import PRESETS, Camera
 from vcprep.warp import apply_homography, virt_H_src, virtual_at_scale, vp_from_pose
 from vcprep.store import Store
@@ -102,7 +102,7 @@ def city(tmp_path_factory):
 
 
 def _warp(camera, images, out, labels=None, fmt=None, *extra):
-    args = ["warp", "--camera", camera, "--images", images, "--out", out, "--scale", SCALE, "--jobs", "1", "-q"]
+    args = ["warp", "--camera", camera, "--images", images, "--out", out, *PAPER_STORE, "--scale", SCALE, "--jobs", "1", "-q"]
     if labels is not None:
         args += ["--labels", labels, "--label-format", fmt]
     return run_cli(*args, *extra)

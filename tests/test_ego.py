@@ -21,7 +21,7 @@ from vcprep.errors import InputError
 from vcprep.warp import vp_from_pose
 from vcprep.synthetic import RoadScene, render_road
 
-from conftest import assert_one_error_line, run_cli
+from conftest import PAPER_STORE, assert_one_error_line, run_cli
 
 EGO = 36  # CamVid 0001TP: the bonnet fills the bottom 36 rows of the 480x360 frames
 BONNET_BGR = (255, 0, 255)  # magenta: no colour of the synthetic scene comes near it
@@ -73,7 +73,7 @@ def frames(tmp_path_factory, camvid_half):
 
 def _warp(root, which, camera, out, *extra):
     proc = run_cli("warp", "--camera", root / camera, "--images", root / which / "images", "--labels",
-                   root / which / "labels", "--label-format", "camvid", "--scale", "0.1", "--out", out,
+                   root / which / "labels", "--label-format", "camvid", *PAPER_STORE, "--scale", "0.1", "--out", out,
                    "--within", root / "vps.csv", "--jobs", "1", *extra)
     assert proc.returncode == 0, proc.stderr
     return proc

@@ -23,7 +23,7 @@ pytestmark = pytest.mark.skipif(shutil.which("make") is None, reason="needs make
 
 def _make(out: Path, camvid: Path, *goals: str, check: bool = True) -> subprocess.CompletedProcess:
     proc = subprocess.run(["make", "-f", "examples/Makefile", f"BIN={BIN}", f"OUT={out}", f"CAMVID={camvid}",
-                           "EPOCHS=1", "SIZE=172x88", *goals], cwd=ROOT, capture_output=True, text=True, timeout=600)
+                           "EPOCHS=1", *goals], cwd=ROOT, capture_output=True, text=True, timeout=600)
     if check:
         assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-2000:]
     return proc

@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 import pytest
 
-from conftest import BIN, _in_process, assert_one_error_line, run_cli, write_synthetic_dataset
+from conftest import PAPER_STORE, BIN, _in_process, assert_one_error_line, run_cli, write_synthetic_dataset
 from vcprep.store import Shard, Store
 
 N_ITEMS = 40
@@ -29,7 +29,7 @@ def ds(tmp_path_factory, camvid_half):
 
 def _warp_args(images, labels, out, *extra):
     return ["warp", "--camera", "camvid", "--images", images, "--labels", labels, "--label-format", "camvid",
-            "--out", out, *extra]
+            "--out", out, *PAPER_STORE, *extra]
 
 
 def _warp(images, labels, out, *extra):

@@ -83,18 +83,16 @@ def test_test_role_models_never_see_test_data(mixed_run):
 
 
 def test_settings_the_study_leaves_out_are_vctrain_fits_defaults(mixed_run, tmp_path):
-    """A study trains exactly as `vctrain fit` does with the same few options (the project's recipe),
-    its default training windows (DEFAULT_TRAIN) given to fit as --crop."""
+    """A study trains exactly as `vctrain fit` does with the same few options (the project's recipe):
+    its default training windows (DEFAULT_TRAIN) are fit's too (issue 52: the README's route)."""
     import torch
-
-    from vctrain.study import DEFAULT_TRAIN
 
     _, out, _ = mixed_run
     ck = torch.load(out / "runs" / "_all" / "within" / "model.pt", map_location="cpu", weights_only=False)
     assert ck["config"]["seed"] == 3                                   # --seed
     fit = run_cli("fit", *ck["config"]["stores"], "--out", tmp_path / "m.pt", "--epochs", "1", "--batch-size", "2",
                   "--model", "segnet-narrow", "--width", "4", "--val-fraction", "0", "--seed", "3", "--quiet",
-                  "--crop", "x".join(repr(float(v)) for v in DEFAULT_TRAIN["crop"]), prog="vctrain")
+                  prog="vctrain")
     assert fit.returncode == 0, fit.stderr
     direct = torch.load(tmp_path / "m.pt", map_location="cpu", weights_only=False)
     per_run = {"stores", "out", "log", "progress", "max_steps", "size", "workers"}

@@ -452,7 +452,7 @@ def test_warp_within_maps_each_vp_to_virtual_principal_point(posed_dataset, tmp_
     arg = str(root / "vps.csv") if within == "file" else "estimate"
     out = tmp_path / "store"
     proc = run_cli("warp", "--camera", "camvid", "--images", img_dir, "--out", out, "--within", arg,
-                   "--complete", "none", "-q")
+                   "--complete", "none", "-q", "--virtual", "virtual", "--scale", "0.125")
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == str(out)
     vs = virtual_at_scale(PRESETS["virtual"], 0.125)

@@ -286,9 +286,13 @@ def test_crop_size_from_shares_or_pixels():
                                                                               (0.5, 1.0)]
     with pytest.raises(InputError):
         _parse_crop("wide")
-    for bad in (0.0, 1.5, (500, 200), (20, 20), 0.05, (0.5, 1.5), (0.05, 1.0)):
+    for bad in (0.0, 1.5, (500, 200), (20, 20), (0.5, 1.5)):
         with pytest.raises(InputError):
             crop_size(bad, (480, 360))
+    # a share never makes a side below MIN_SIDE (32), so the cpu recipe's window works on any store
+    assert crop_size(0.05, (480, 360)) == (32, 32) and crop_size((0.05, 1.0), (480, 360)) == (32, 360)
+    assert crop_size(RECIPES["cpu"]["crop"], (64, 40)) == (32, 40)
+    assert crop_size(RECIPES["cpu"]["crop"], (638, 271)) == (284, 271)
 
 
 # -- end to end on a synthetic store ----------------------------------------------------------------
@@ -314,7 +318,7 @@ def trained(tmp_path_factory):
     store, _ = warp_dataset(list_dataset(root / "src/images", root / "src/labels", fmt), root / "store",
                             WarpSettings(cam, PRESETS["virtual"], 0.02, fmt, progress=False))
     cfg = TrainConfig(stores=[str(root / "store")], out=str(root / "model.pt"), base_width=8, epochs=20,
-                      batch_size=2, val_fraction=0, progress=False, device="cpu")
+                      batch_size=2, val_fraction=0, progress=False, device="cpu", crop=1.0)  # (too small to window)
     summary = fit(cfg)
     return root, store, summary
 

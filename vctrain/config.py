@@ -11,9 +11,12 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Optional
 
-__all__ = ["TrainConfig", "RECIPES", "DEFAULT_RECIPE", "SCHEDULES", "OPTIMIZERS", "BALANCES", "AdaptSettings", "ADAPT_EPOCHS",
+__all__ = ["TrainConfig", "TRAIN_WINDOW", "RECIPES", "DEFAULT_RECIPE", "SCHEDULES", "OPTIMIZERS", "BALANCES", "AdaptSettings", "ADAPT_EPOCHS",
            "ADAPT_LR_FACTOR"]
 
+# full-height training windows of 4/9 of the working width: the measured best design (a crossval study's
+# and the cpu recipe's default; 76800 px a step at 172800-px stores)
+TRAIN_WINDOW = (4 / 9, 1.0)
 # recipe -> the defaults it gives every TrainConfig field left at None (vctrain.train's docstring)
 RECIPES: dict[str, dict[str, Any]] = {
     "paper": {"arch": "segnet", "epochs": 30, "batch_size": 8, "optimizer": "sgd", "lr": 0.005, "momentum": 0.9,
@@ -21,7 +24,7 @@ RECIPES: dict[str, dict[str, Any]] = {
               "color_aug": 0.0, "shading_aug": 0.0},
     "cpu": {"arch": "resfpn", "epochs": 20, "batch_size": 8, "optimizer": "adamw", "lr": 0.002, "momentum": 0.9,
             "weight_decay": 0.01, "schedule": "cosine", "hflip": True, "scale_aug": 0.25, "shift_aug": 0.05,
-            "color_aug": 0.3, "shading_aug": 0.0},
+            "color_aug": 0.3, "shading_aug": 0.0, "crop": TRAIN_WINDOW},
 }
 # the default on every device, a GPU included: every benchmark of the project was measured with it (on an H100
 # too, issue 44); 'paper' (the paper's segnet, SGD, no augmentation) has no measurement behind it and is on request
@@ -50,8 +53,9 @@ class TrainConfig:
                                        # architecture has them (vctrain.model.PRETRAINED), no elsewhere
     size: Optional[tuple[int, int]] = None  # working size (w, h); None: the store size (first image for folders)
     crop: Optional[Any] = None         # training window: (w, h) pixels (ints), a share of each side (float) or
-                                       # of width and height (two floats); None: the whole image (validation
-                                       # and prediction always see it whole)
+                                       # of width and height (two floats); 1.0: the whole image; None: the
+                                       # recipe's (cpu: TRAIN_WINDOW; paper: the whole image). Validation and
+                                       # prediction always see the image whole
     epochs: Optional[int] = None       # None: the recipe's (the paper trains 600 on a GPU)
     batch_size: Optional[int] = None   # global batch (paper Table 2: 8)
     optimizer: Optional[str] = None    # 'sgd' (momentum) | 'adamw'

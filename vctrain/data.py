@@ -441,14 +441,15 @@ def crop_size(crop: Any, size: tuple[int, int]) -> tuple[int, int]:
     """The training window (w, h) of ``crop`` at working size ``size``: None -> ``size``; a number
     in (0, 1] -> that share of each side; a pair of floats in (0, 1] -> the shares of the width
     and the height (e.g. (0.44, 1.0): full-height windows); a pair of ints -> pixels. Shares are
-    rounded. The window must fit ``size`` and be at least MIN_SIDE on each side."""
+    rounded, and never below MIN_SIDE (so the recipe's share works on small stores too). The window
+    must fit ``size`` and be at least MIN_SIDE on each side."""
     if crop is None:
         return tuple(size)
 
     def share(v: Any, side: int) -> int:
         if not 0 < float(v) <= 1:
             raise InputError(f"crop share {v} is not in (0, 1]", None, "use e.g. --crop 0.67, 0.44x1 or 320x240")
-        return int(round(side * float(v)))
+        return max(int(round(side * float(v))), min(MIN_SIDE, side))  # a share never below MIN_SIDE
 
     if isinstance(crop, (int, float)) and not isinstance(crop, bool):
         out = (share(crop, size[0]), share(crop, size[1]))

@@ -5,14 +5,15 @@
 
 =========  ==============================================================================
 paper      VCSeg's own (Table 2): segnet, SGD momentum 0.9, lr 0.005, weight decay 0.0005,
-           batch 8, "poly" decay lr·(1 − it/total)^0.9, no augmentation. The default on a GPU.
-cpu        CamVid train (367 images) on a 2-core CPU: 3.3 minutes at 344x176, 14.2 at 688x350:
+           batch 8, "poly" decay lr·(1 − it/total)^0.9, no augmentation, whole images. On request.
+cpu        305 CamVid frames on a 2-core CPU in about 7 minutes at the default store's 638x271:
            resfpn (residual encoder + FPN decoder, see model.py), AdamW lr 0.002, weight decay
            0.01, batch 8, cosine decay after a linear warm-up over the first 3 % of the steps,
            augmentation: horizontal flip, random scale 1/1.25..1.25 about the VP (the image
            centre when the VP is unknown) with a shift of up to 5 % of the size, and photometric
-           jitter (brightness, contrast, per-channel gain, gamma; 0.3); 20 epochs. The default
-           without a GPU.
+           jitter (brightness, contrast, per-channel gain, gamma; 0.3); full-height windows of 4/9
+           of the width (config.TRAIN_WINDOW, a crossval study's); 20 epochs. The default on
+           every device.
 =========  ==============================================================================
 
 Loss: cross-entropy over {not road, road}, label 255 ignored, optionally weighted by

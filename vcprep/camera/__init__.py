@@ -16,7 +16,8 @@ from .estimate import (ASSUMED_HEIGHT, ASSUMED_HFOV, ROAD_WIDTH, estimate_camera
 from .files import camera_from_dict, camera_to_yaml, read_camera_yaml, read_cityscapes_camera, read_kitti_calib
 from .pinhole import Camera, PRESETS, scale_matrix
 from .sources import FrameCameras, PRESET_PREFIX, camera_of_image, load_camera, load_cameras, preset_name
-from .virtual import EXTENTS, design_virtual_camera, extend_canvas, same_camera_other_canvas
+from .virtual import (DESIGN_ABOVE, DESIGN_PAN_RANGE, DESIGN_TILT_RANGE, EXTENTS, STORE_PIXELS, design_virtual_camera,
+                      extend_canvas, same_camera_other_canvas, scale_for_pixels)
 
 __all__ = ["EgoEstimate", "MIN_DISTINCT", "ego_rows_from_frame_files", "ego_rows_from_frames",
            "ego_rows_from_label_files", "ego_rows_from_labels", "rows_at_height", "ASSUMED_HEIGHT", "ASSUMED_HFOV",
@@ -24,4 +25,5 @@ __all__ = ["EgoEstimate", "MIN_DISTINCT", "ego_rows_from_frame_files", "ego_rows
            "whole_frame_vp_config", "camera_from_dict", "camera_to_yaml", "read_camera_yaml", "read_cityscapes_camera",
            "read_kitti_calib", "Camera", "PRESETS", "scale_matrix", "FrameCameras", "PRESET_PREFIX", "camera_of_image",
            "load_camera", "load_cameras", "preset_name", "EXTENTS", "design_virtual_camera", "extend_canvas",
-           "same_camera_other_canvas"]
+           "same_camera_other_canvas", "DESIGN_ABOVE", "DESIGN_PAN_RANGE", "DESIGN_TILT_RANGE", "STORE_PIXELS",
+           "scale_for_pixels"]

@@ -35,9 +35,24 @@ from .files import camera_from_dict
 from ..errors import InputError
 from ..warp.homography import apply_homography, virt_H_src
 
-__all__ = ["VirtualDesign", "design_virtual_camera", "same_camera_other_canvas", "extend_canvas", "EXTENTS"]
+__all__ = ["VirtualDesign", "design_virtual_camera", "same_camera_other_canvas", "extend_canvas", "EXTENTS",
+           "DESIGN_PAN_RANGE", "DESIGN_TILT_RANGE", "DESIGN_ABOVE", "STORE_PIXELS", "scale_for_pixels"]
 
 EXTENTS = ("max", "median")  # design_virtual_camera's rectangle: every camera's reach, or the median's
+# The measured best design (issues 24-26; docs/studies.md), one source of truth for `vcprep warp`'s
+# defaults and a crossval study's: the virtual camera designed to hold the pose variation
+# +/-DESIGN_PAN_RANGE, +/-DESIGN_TILT_RANGE (degrees; also the range road VPs are accepted in),
+# cropped to DESIGN_ABOVE degrees above the horizon, its stores STORE_PIXELS pixels (480x360's).
+DESIGN_PAN_RANGE = 10.0
+DESIGN_TILT_RANGE = 5.0
+DESIGN_ABOVE = 8.0
+STORE_PIXELS = 172800
+
+
+def scale_for_pixels(virtual: Camera, pixels: int = STORE_PIXELS) -> float:
+    """The store scale at which ``virtual``'s full rectangle has ``pixels`` pixels."""
+    w, h = virtual.size
+    return math.sqrt(pixels / (w * h))
 
 
 @dataclass(frozen=True)

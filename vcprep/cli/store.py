@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from dataclasses import asdict
 from pathlib import Path
-from typing import List, Optional
+from typing import Any, List, Optional
 
 import typer
 from tqdm import tqdm
@@ -12,6 +12,10 @@ from ..warp.backproject import backproject_folder
 from ..store.build import WarpSettings, frame_poses, say_on_stderr, warp_dataset
 from ..camera.pinhole import Camera
 from ..camera.sources import load_camera
+from ..camera.files import camera_from_dict
+from ..camera.virtual import (DESIGN_ABOVE, DESIGN_PAN_RANGE, DESIGN_TILT_RANGE, STORE_PIXELS, design_virtual_camera,
+                              scale_for_pixels)
+from ..io.images import image_size
 from ..camera.estimate import estimate_camera, estimate_to_yaml
 from ..cliutil import check_data_folders, count, emit_json, ensure_parent, err
 from ..dataset import list_dataset
@@ -29,6 +33,16 @@ from .common import (COMPLETE_HELP, FRAMES_HELP, JOBS_HELP, KEEP_GOING_HELP, LAB
                      vp_counts)
 
 
+DESIGN_NAME = "design"  # the name of the virtual camera `vcprep warp` designs (no --virtual)
+DESIGN = (f"pan +/-{DESIGN_PAN_RANGE:g} deg, tilt +/-{DESIGN_TILT_RANGE:g} deg, {DESIGN_ABOVE:g} deg above the horizon, "
+          f"{STORE_PIXELS:,} px")
+VIRTUAL_HELP = ("virtual camera: 'design' (designed from --camera: the measured design), a preset or a YAML file "
+                "(e.g. from 'vcprep camera design CAM1 CAM2 ...' for several cameras in one store); default: the "
+                "store's own when OUT is a store, else 'design'")
+SCALE_HELP = (f"store scale of the full virtual camera (0.125: the 'virtual' preset at 688x350); default: the store's "
+              f"own, else the scale giving {STORE_PIXELS:,} pixels (480x360's)")
+
+
 @app.command("warp")
 def warp_cmd(
     camera: str = typer.Option(..., "--camera", "-c", help=FRAMES_HELP + ", or 'estimate': estimated from these "
@@ -39,11 +53,12 @@ def warp_cmd(
                                           "--images (e.g. gtFine/train for leftImg8bit/train)"),
     label_format: Optional[str] = typer.Option(None, "--label-format", "-f",
                                                help=LABEL_FORMAT_HELP),
-    virtual: str = typer.Option("virtual", "--virtual", help="virtual camera: preset or YAML file"),
-    scale: float = typer.Option(0.125, "--scale", "-s", help="store scale of the full virtual camera (1/8 -> 688x350)"),
+    virtual: Optional[str] = typer.Option(None, "--virtual", help=VIRTUAL_HELP),
+    scale: Optional[float] = typer.Option(None, "--scale", "-s", help=SCALE_HELP),
     id_prefix: str = typer.Option("", "--id-prefix", help="prefix for item ids (keeps datasets apart in one store)"),
     complete: str = typer.Option("projective", "--complete", help=COMPLETE_HELP),
-    within: str = typer.Option("none", "--within", help=WITHIN_HELP),
+    within: Optional[str] = typer.Option(None, "--within", help=WITHIN_HELP + "; default: 'estimate' for one "
+                                         "camera, 'none' for per-frame calibration (each frame's exact pose)"),
     vp_smooth: int = typer.Option(0, "--vp-smooth", min=0, help=SMOOTH_HELP),
     jobs: Optional[int] = typer.Option(None, "--jobs", "-j", min=1, help=JOBS_HELP),
     shard: Optional[str] = typer.Option(None, "--shard", help=SHARD_HELP),
@@ -51,6 +66,12 @@ def warp_cmd(
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar or summary on stderr"),
 ):
     """Warp a folder of images (and labels) from CAMERA into the virtual camera store OUT.
+
+    With no --virtual, --scale or --within this is the measured design, what 'vctrain crossval'
+    trains on for one camera: a virtual camera designed from CAMERA (as 'vcprep camera design
+    CAMERA --pan-range 10 --tilt-range 5 --above 8' does), stores of 172,800 pixels (480x360's),
+    each image's pose from its own road vanishing point (--within estimate). A store that exists
+    keeps its own virtual camera and scale, so another camera's frames join it.
 
     Images are resampled bilinearly, labels by nearest neighbour and stored as 0 = not road,
     1 = road, 255 = ignore. Virtual pixels no source pixel covers are filled in the same remap
@@ -90,14 +111,16 @@ def warp_cmd(
     check_data_folders(images, labels)
     items = list_dataset(images, labels, fmt, id_prefix)
     cam, estimate = _warp_camera(camera, items, fmt, quiet)
+    if within is None:
+        within = "estimate" if isinstance(cam, Camera) else "none"
     if not isinstance(cam, Camera) and within != "none":
         raise InputError("--within needs one camera; a per-frame calibration folder already gives every frame its "
                          "exact pose", camera, "drop --within, or give one camera file or preset")
-    virt = load_camera(virtual)
+    virt, scale, design = _warp_virtual(virtual, scale, cam, items, out)
     if fmt is not None:
         _check_labels(items, fmt, labels)
     # VPs over all frames even for one shard: the fallback VP and smoothing depend on the whole run
-    poses = _within_poses(items, cam, within, vp_smooth, id_prefix, quiet, fmt)
+    poses, vps = _within_poses(items, cam, within, vp_smooth, id_prefix, quiet, fmt, bool(design))
     settings = WarpSettings(camera=cam, virtual=virt, scale=scale, label_format=fmt, completion=complete, poses=poses,
                             workers=jobs or default_jobs(), shard=part, keep_going=keep_going, progress=not quiet)
     store, summary = warp_dataset(items, out, settings)
@@ -105,8 +128,8 @@ def warp_cmd(
         write_bytes_atomic(out / "camera.estimated.yaml", estimate_to_yaml(estimate).encode())
         if not quiet:
             err(estimated_line(estimate, f"the frames ({out / 'camera.estimated.yaml'})"))
-    finish(out, summary, quiet, f" (store {store.store_size[0]}x{store.store_size[1]}"
-                                 f"{f', shard {part}' if part else ''})")
+    finish(out, summary, quiet, f" (store {store.store_size[0]}x{store.store_size[1]}{design}"
+                                 f"{f', shard {part}' if part else ''}{vps})")
 
 
 def _check_labels(items: list, fmt, labels: Path, samples: int = 48) -> None:
@@ -144,25 +167,49 @@ def _warp_camera(camera: str, items: list, fmt, quiet: bool):
     return estimate.camera, estimate
 
 
-def _within_poses(jobs, cam: Camera, within: str, smooth: int, id_prefix: str, quiet: bool, fmt=None):
-    """The ``poses`` mapping of :class:`vcprep.store.build.WarpSettings` from ``--within`` (None for 'none')."""
+def _warp_virtual(virtual: Optional[str], scale: Optional[float], cam, items: list,
+                  out: Path) -> tuple[Camera, float, str]:
+    """(virtual camera, store scale, what the summary says of a designed one, else '') of ``vcprep
+    warp``: --virtual (a preset or file; 'design': designed from the frames' camera as :data:`DESIGN`
+    says); none given, the store's own when OUT is one, else the design. --scale, else the store's,
+    else the scale of :data:`STORE_PIXELS` pixels."""
+    if virtual is None and (out / "store.json").is_file():
+        store = Store.open(out)
+        virt = camera_from_dict(store.params["virtual"], out / "store.json")
+        own = ", the store's designed virtual camera" if virt.name == DESIGN_NAME else ""
+        return virt, float(store.scale if scale is None else scale), own
+    if virtual in (None, "design"):
+        one = cam if isinstance(cam, Camera) else cam.for_image(items[0].image, image_size(items[0].image))
+        virt = design_virtual_camera([one], DESIGN_PAN_RANGE, DESIGN_TILT_RANGE, name=DESIGN_NAME,
+                                     above=DESIGN_ABOVE).camera
+        return (virt, scale_for_pixels(virt) if scale is None else float(scale),
+                f", virtual camera designed from {one.name}: {DESIGN}")
+    virt = load_camera(virtual)
+    return virt, scale_for_pixels(virt) if scale is None else float(scale), ""
+
+
+def _within_poses(jobs, cam: Camera, within: str, smooth: int, id_prefix: str, quiet: bool, fmt=None,
+                  designed: bool = False) -> tuple[Any, str]:
+    """(the ``poses`` mapping of :class:`vcprep.store.build.WarpSettings` from ``--within``, None for
+    'none'; the summary's words on the VPs); ``designed``: VPs accepted within the design's pose
+    ranges (as a crossval study's)."""
     if within == "none":
         if smooth:
             raise InputError("--vp-smooth needs --within estimate", None, "add --within estimate or drop --vp-smooth")
-        return None
+        return None, ""
 
     if within != "estimate" and smooth:
         raise InputError("--vp-smooth applies to estimated VPs only", within, "use --within estimate")
     bar = tqdm(total=len(jobs), desc="vp", unit="img", disable=True if quiet or within != "estimate" else None, leave=False)
     try:
         # IDD's file names repeat from drive to drive: its frames' sequences are their folders, as its item ids say
-        rule = VPRule(smooth=smooth, sequences="folder" if fmt is not None and fmt.drive_in_id else "name")
+        seqs = "folder" if fmt is not None and fmt.drive_in_id else "name"
+        rule = (VPRule(DESIGN_PAN_RANGE, DESIGN_TILT_RANGE, smooth=smooth, sequences=seqs) if designed
+                else VPRule(smooth=smooth, sequences=seqs))
         poses, results = frame_poses(jobs, cam, within, rule, id_prefix, lambda i: bar.update())
     finally:
         bar.close()
-    if not quiet:
-        err(f"vanishing points: {vp_counts(results)}")
-    return poses
+    return poses, f"; road VPs: {vp_counts(results)}"
 
 
 @app.command("complete")

@@ -13,9 +13,10 @@ from vcprep.errors import InputError
 from ..config import TrainConfig
 from .common import LABEL_FORMAT_HELP, TRAIN, app, parse_size, path_or_json, pin_threads, threads_option
 
-RECIPE_HELP = ("defaults of every setting below: 'cpu' (resfpn, AdamW, cosine, augmentation; CamVid train in 3.3 min "
-               "on 2 cores at --size 344x176, 14.2 at 688x350) or 'paper' (segnet, SGD 0.005, poly); default: cpu on "
-               "every device, a GPU included (the recipe every measured number comes from)")
+RECIPE_HELP = ("defaults of every setting below: 'cpu' (resfpn, AdamW, cosine, augmentation, full-height windows of "
+               "4/9 of the width; 305 CamVid frames in about 7 min on 2 cores at the default store's 638x271) or "
+               "'paper' (segnet, SGD 0.005, poly, whole images); default: cpu on every device, a GPU included (the "
+               "recipe every measured number comes from)")
 MODEL_HELP = ("resfpn (residual encoder + FPN decoder, 1.3 M parameters, from scratch), lite0fpn (EfficientNet-Lite0 "
               "encoder from ImageNet weights + the same decoder, 3.0 M), segnet (VGG16 SegNet, 29 M) or "
               "segnet-narrow (same topology, 1/4 width, 1.8 M); default: the recipe's")
@@ -23,7 +24,8 @@ PRETRAINED_HELP = "start the encoder from its ImageNet weights (lite0fpn; defaul
 SIZE_HELP = ("working size WxH (default: the store size; --baseline resize: the store's pixel count at the frames' "
              "own aspect)")
 CROP_HELP = ("train on random windows of the working image: WxH pixels, a share of each side (0.67) or of width and "
-             "height (0.44x1: full height); validation and prediction see the whole image (default: no crop)")
+             "height (0.44x1: full height); 1: the whole image; validation and prediction see the whole image "
+             "(default: the recipe's: cpu 0.4444x1, the measured design of 'vctrain crossval'; paper: 1)")
 # fit's options named otherwise than the TrainConfig field they set; every other option is named as
 # its field, except FIT_NOT_CONFIG (how the command runs, not what it trains), and fit takes none
 # for FIT_NO_OPTION (tests/test_vctrain.py checks both ways)
@@ -119,19 +121,21 @@ def fit_cmd(
 
     Cross-entropy over not road / road, label 255 ignored. Two recipes set the defaults: 'cpu'
     (the default on every device, a GPU included: resfpn, AdamW 0.002, cosine, flip/scale/shift/
-    colour augmentation, 20 epochs; every measured number of the project comes from it) and
+    colour augmentation, full-height windows of 4/9 of the width, 20 epochs; every measured number
+    of the project comes from it; on a store of 'vcprep warp' with no flags, this is what
+    'vctrain crossval' trains for one camera) and
     'paper' (on request: segnet, SGD 0.005 momentum 0.9, weight decay 0.0005, batch 8, poly
     decay); any option given wins. The checkpoint describes itself (model, training
     config, virtual camera, scale, completion, metrics), so predict and eval need no repeated
     flags. Prints the checkpoint path; OUT's folder is created. Launch with 'torchrun
     --nproc-per-node N' for data-parallel training.
 
-    Time, measured with the cpu recipe on 2 cores for CamVid train (367 images): 3.3 minutes at
-    --size 344x176 (half the default store's size), 14.2 minutes at the default store's 688x350.
+    Time, measured with the cpu recipe on 2 cores: about 7 minutes for 305 CamVid frames at the
+    default store's 638x271 (benchmarks/as_shipped.py).
 
     \b
     Example:
-      vctrain fit stores/camvid_train --size 344x176 --out runs/vc.pt    # 3.3 min on 2 cores
+      vctrain fit stores/camvid_train --out runs/vc.pt    # about 7 min on 2 cores
       vctrain fit stores/camvid_train --val-store stores/camvid_val --epochs 20 --out runs/vc.pt
       vctrain fit stores/camvid_train --baseline resize --out runs/resize.pt   # store's pixels, frames' aspect
       vctrain fit stores/camvid_train --out runs/vc.pt --resume runs/vc.last.pt --epochs 40

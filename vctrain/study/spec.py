@@ -49,12 +49,13 @@ from fnmatch import fnmatchcase
 from pathlib import Path
 from typing import Any, Sequence
 
-from vcprep.camera import PRESET_PREFIX, PRESETS, preset_name
+from vcprep.camera import (DESIGN_ABOVE, DESIGN_PAN_RANGE, DESIGN_TILT_RANGE, PRESET_PREFIX, PRESETS, STORE_PIXELS,
+                           preset_name)
 from vcprep.errors import InputError
 from vcprep.io import read_text
 from vcprep.labels import get_label_format
 
-from ..config import TrainConfig
+from ..config import TRAIN_WINDOW, TrainConfig
 
 __all__ = ["CONDITIONS", "CONDITION_TRAIN", "DEFAULT_CONDITIONS", "DEFAULT_STORE_PIXELS", "DEFAULT_ABOVE", "DEFAULT_TRAIN", "CANVASES",
            "DEFAULT_CANVAS", "GEOMETRIES", "ROLES", "ADAPT_COMBINE", "RUN_KEYS", "TRAIN_KEYS", "Split", "Dataset",
@@ -92,8 +93,9 @@ DEFAULT_CONDITIONS = ("resize", "between", "within", "within-gt", "zero")  # a s
 # The measured best design (benchmarks/real_cameras.py --dev and issue 24's real cameras: 56.7 vs 55.7
 # road IoU on four real other cameras, 81.1 vs 75.5 on CamVid's unseen rig, against store_width 320,
 # no crop above the horizon and whole-image training): the defaults of a study that sets nothing.
-DEFAULT_STORE_PIXELS = 172800          # the pixels of 480x360 per virtual store image
-DEFAULT_ABOVE = 8.0                    # degrees of the designed virtual camera kept above the horizon
+# (one source of truth with `vcprep warp`'s defaults: vcprep.camera.virtual, vctrain.config.TRAIN_WINDOW)
+DEFAULT_STORE_PIXELS = STORE_PIXELS    # the pixels of 480x360 per virtual store image
+DEFAULT_ABOVE = DESIGN_ABOVE           # degrees of the designed virtual camera kept above the horizon
 # How the designed virtual camera's rectangle is sized per store (vctrain.study.resolve.Resolution.virtual_for):
 # 'shared' -- one rectangle holding every dataset's camera (the paper's rule); 'footprint' -- the same
 # virtual camera (focal length, height, level pose, top edge), its rectangle holding only the trainable
@@ -106,7 +108,7 @@ DEFAULT_ABOVE = 8.0                    # degrees of the designed virtual camera 
 # sized by the widest and steepest test cameras, KITTI and LUMS) -- see docs/studies.md for the numbers.
 CANVASES = ("shared", "footprint")
 DEFAULT_CANVAS = "footprint"
-DEFAULT_TRAIN = {"crop": (4 / 9, 1.0)}  # full-height training windows of 4/9 of the width (76800 px a step)
+DEFAULT_TRAIN = {"crop": TRAIN_WINDOW}  # full-height training windows of 4/9 of the width (76800 px a step)
 # the study file's `train:` section may set any TrainConfig field except these, which the study sets per run
 RUN_KEYS = ("stores", "out", "baseline", "images", "labels", "label_format", "size", "val_stores", "resume", "log",
             "progress")
@@ -163,8 +165,8 @@ class Study:
     datasets: list[Dataset]
     conditions: list[str] = field(default_factory=lambda: list(DEFAULT_CONDITIONS))
     virtual: str = "design"         # 'design' (from the datasets' cameras), a preset or a camera file
-    pan_range: float = 10.0         # pose variation the designed virtual camera must hold (degrees)
-    tilt_range: float = 5.0
+    pan_range: float = DESIGN_PAN_RANGE  # pose variation the designed virtual camera must hold (degrees)
+    tilt_range: float = DESIGN_TILT_RANGE
     store_width: int | None = None   # working width (px) of the virtual stores (unless store_pixels)
     store_pixels: int | None = None  # pixel budget of the virtual stores (wins over store_width); neither
                                      # given: DEFAULT_STORE_PIXELS
