@@ -8,7 +8,7 @@ Run:
 
 Data: ``../shared/data/camvid/train`` (all of it, or its first ``--frames`` images) (SegNet release, 480x360,
 camvid camera) with their ``trainannot`` labels (camvid format), warped at scale 1/8 of the
-``virtual`` preset (688x350) with projective completion (the ``vcprep warp`` default). When that
+``virtual`` preset (688x350) with projective completion (the paper's store). When that
 folder is absent the script says so and uses synthetic ``render_road`` frames of the same size.
 
 Timed per repeat (wall clock, fresh store each time, order of the three stages rotated):

@@ -46,8 +46,13 @@ from .efficientnet import FEATURE_WIDTHS, EfficientNetLite0, from_project_input
 __all__ = ["ModelArgs", "SegNet", "ResFPN", "Lite0FPN", "ARCHITECTURES", "PRETRAINED", "build_model",
            "model_args_for", "resolve_pretrained"]
 
-ARCHITECTURES = {"segnet": 64, "segnet-narrow": 16, "resfpn": 16, "lite0fpn": 16}  # name -> default base width
-PRETRAINED = ("lite0fpn",)  # architectures whose encoder starts from ImageNet weights (unless --no-pretrained)
+ARCHITECTURES = {"segnet": 64, "segnet-narrow": 16, "resfpn": 16, "lite0fpn": 16, "lite0fpn-std": 16}  # -> base width
+PRETRAINED = ("lite0fpn", "lite0fpn-std")  # architectures whose encoder starts from ImageNet weights (unless --no-pretrained)
+# lite0fpn-std: each image's colour channels standardised (as resfpn's), then given ImageNet's mean and
+# standard deviation per channel in the weights' convention ((x - 127) / 128, RGB): every image reaches
+# the encoder with the colour statistics its weights were trained on, whatever the camera's exposure
+IMAGENET_MEAN = tuple((255 * m - 127) / 128 for m in (0.485, 0.456, 0.406))
+IMAGENET_STD = tuple(255 * s / 128 for s in (0.229, 0.224, 0.225))
 _ENC_LAYERS = (2, 2, 3, 3, 3)  # VGG16's 13 conv layers
 _WIDTH_MULT = (1, 2, 4, 8, 8)
 
@@ -214,6 +219,7 @@ class Lite0FPN(_FPN):
     def __init__(self, args: ModelArgs = ModelArgs(arch="lite0fpn")):
         super().__init__()
         self.args = args
+        self.standardise = args.arch == "lite0fpn-std"
         self.encoder = EfficientNetLite0(args.in_channels)
         self._decoder(FEATURE_WIDTHS, 2 * args.base_width, args.num_classes)
         _kaiming(m for name, m in self.named_modules() if not name.startswith("encoder"))
@@ -223,7 +229,15 @@ class Lite0FPN(_FPN):
         self.encoder.load_pretrained()
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return self._decode(self.encoder.features(from_project_input(x)), x.shape[-2:])
+        size = x.shape[-2:]
+        x = from_project_input(x)
+        if self.standardise:  # (lite0fpn-std: ImageNet's colour statistics for every image)
+            c = x[:, :3]
+            z = (c - c.mean((2, 3), keepdim=True)) / c.std((2, 3), keepdim=True).clamp_min(1e-2)
+            mean = torch.tensor(IMAGENET_MEAN, dtype=x.dtype, device=x.device).view(1, 3, 1, 1)
+            std = torch.tensor(IMAGENET_STD, dtype=x.dtype, device=x.device).view(1, 3, 1, 1)
+            x = torch.cat([z * std + mean, x[:, 3:]], 1)
+        return self._decode(self.encoder.features(x), size)
 
 
 def resolve_pretrained(arch: str, asked: bool | None) -> bool:
@@ -241,6 +255,6 @@ def resolve_pretrained(arch: str, asked: bool | None) -> bool:
 def build_model(args: ModelArgs | dict) -> nn.Module:
     if isinstance(args, dict):
         args = ModelArgs(**args)
-    if args.arch == "lite0fpn":
+    if args.arch in ("lite0fpn", "lite0fpn-std"):
         return Lite0FPN(args)
     return ResFPN(args) if args.arch == "resfpn" else SegNet(args)
