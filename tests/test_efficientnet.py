@@ -77,6 +77,30 @@ def test_extra_channels_start_at_zero_weight():
     assert [f.shape[-2:] for f in a] == [(16, 24), (8, 12), (4, 6), (2, 3)]
 
 
+def test_standardised_variant_gives_every_image_imagenets_colour_statistics():
+    """lite0fpn-std: what reaches the encoder has ImageNet's per-channel mean and std (weights' convention),
+    so a frame under another exposure and white balance (a gain and offset per channel) predicts the same."""
+    from vctrain.model import IMAGENET_MEAN, IMAGENET_STD
+
+    net = build_model(model_args_for("lite0fpn-std"))
+    net.load_pretrained()
+    net.eval()
+    seen = []
+    net.encoder.features = lambda x, f=net.encoder.features: seen.append(x) or f(x)
+    bgr = torch.from_numpy(to_input(cv2.imread(str(FRAME))))[None]
+    other = (bgr * torch.tensor([0.6, 0.8, 0.5]).view(1, 3, 1, 1) + torch.tensor([0.1, -0.2, 0.0]).view(1, 3, 1, 1))
+    with torch.no_grad():
+        a, b = net(bgr), net(other)
+    c = seen[0][0]
+    assert torch.allclose(c.mean((1, 2)), torch.tensor(IMAGENET_MEAN), atol=1e-5)
+    assert torch.allclose(c.std((1, 2)), torch.tensor(IMAGENET_STD), atol=1e-4)
+    assert (a - b).abs().max().item() < 1e-3 and (a.argmax(1) == b.argmax(1)).float().mean().item() > 0.999
+    plain = build_model(model_args_for("lite0fpn"))
+    plain.load_state_dict(net.state_dict())  # the same weights: only the input differs
+    with torch.no_grad():
+        assert (plain.eval()(bgr) - a).abs().max().item() > 1e-2
+
+
 def test_segmentation_shapes_for_any_size():
     net = build_model(model_args_for("lite0fpn")).eval()
     with torch.no_grad():

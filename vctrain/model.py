@@ -26,7 +26,9 @@ MBConv blocks, its features at 1/4, 1/8, 1/16 and 1/32, 24/40/112/320 channels) 
 weights' convention (RGB, ``(x - 127) / 128``) inside the network; no per-image standardisation (the
 pretrained statistics expect the colours as they are). Extra input channels (the VP channel) start
 at zero weight in the stem. :func:`build_model` gives it random weights; training loads the ImageNet
-weights (``pretrained``, vctrain.train), a checkpoint its own.
+weights (``pretrained``, vctrain.train), a checkpoint its own. ``lite0fpn-std`` (issue 53's test of
+the colour suspect): the same network, each image's colour channels standardised as resfpn's and
+then given ImageNet's per-channel mean and standard deviation in the weights' convention.
 
 Shapes (all): input (N, in_channels, H, W) float, output (N, num_classes, H, W) logits, for any
 H, W (odd sizes: SegNet unpools to the exact pre-pooling size, resfpn interpolates to it).
