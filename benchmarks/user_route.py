@@ -15,7 +15,8 @@ subprocesses of the installed tools:
 
 (``--seed`` only where k > 0; ``--epochs`` only when given), on the real other cameras of
 ``../shared/data`` with the camera files they ship: Cityscapes (400), IDD-Lite (1,403), the KITTI road
-frame, BDD100K (41), LUMS (144). Road IoU per set (sum over its frames), the mean over the five, and
+frame, BDD100K (41), LUMS (144) (IDD-Lite's drive tree as links named ``<drive>_<file>``: its file names
+repeat from drive to drive, and ``vctrain predict`` names outputs by file stem). Road IoU per set (sum over its frames), the mean over the five, and
 virtual camera - resize per seed; beside it crossval's figures for the same frames, training and seeds
 (benchmarks/results/as_shipped.json: ``within`` in the default rectangle rule, ``resize``). Targets
 (issue 52, checked, not asserted): route virtual camera >= route resize + 3 on the mean; route virtual
@@ -57,13 +58,25 @@ def my_frames(wd: Path, quick: bool) -> tuple[Path, Path]:
                                                                                  wd / "mine" / "labels")
 
 
+def flat_drives(images: Path, dst: Path) -> Path:
+    """dst: links to a drive tree's frames named ``<drive>_<file>`` (IDD's file names repeat from drive to
+    drive, and ``vctrain predict`` names its outputs by file stem; ``vctrain eval`` matches
+    ``<drive>_<id>`` to ``<drive>/<id>_label.png``), the frames of a drive one VP sequence by name."""
+    dst.mkdir(parents=True, exist_ok=True)
+    for f in sorted(images.rglob("*.jpg")):
+        link = dst / f"{f.parent.name}_{f.name}"
+        if not link.exists():
+            link.symlink_to(f.resolve())
+    return dst
+
+
 def test_set(wd: Path, name: str, quick: bool) -> tuple[Path, Path, Path, str]:
     """(camera, images, labels, format) of a test set; a smoke run: links to a few of its frames."""
     cam, images, labels, fmt = SETS[name]
+    if name == "idd":
+        return cam, flat_drives(images / "0" if quick else images, wd / "flat" / "idd"), labels, fmt
     if not quick or name == "kitti":
         return cam, images, labels, fmt
-    if name == "idd":  # (a tree: two drives)
-        return cam, images, labels, fmt  # predicted in full only outside a smoke run; see main
     picked = sorted(images.iterdir())[:6]
     dst = wd / "quick" / name
     link_files([p.name for p in picked], images, dst / "images")
@@ -75,8 +88,6 @@ def test_set(wd: Path, name: str, quick: bool) -> tuple[Path, Path, Path, str]:
 def road_iou(wd: Path, model: Path, name: str, out: Path, quick: bool) -> float:
     """Predict ``name``'s frames with ``model`` as the README says, score them with ``vctrain eval``."""
     cam, images, labels, fmt = test_set(wd, name, quick)
-    if quick and name == "idd":
-        images, labels = images / "0", labels / "0"
     if not (out / "eval.json").exists():
         run(BIN / "vctrain", "predict", model, "--camera", cam, images, "--out", out, "-q")
         (out / "eval.json").write_text(run(BIN / "vctrain", "eval", out, "--labels", labels, "--label-format", fmt,
