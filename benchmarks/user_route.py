@@ -110,6 +110,12 @@ def crossval_figures(seeds: list[int]) -> dict[str, dict[str, list[float]]] | No
     return {m: {n: [cells[f"{n}|{c}"][i] for i in at] for n in SETS} for m, c in (("vc", "within"), ("resize", "resize"))}
 
 
+def crossval_seeds() -> list[int]:
+    """The seeds benchmarks/results/as_shipped.json holds."""
+    path = ROOT / "benchmarks" / "results" / "as_shipped.json"
+    return json.loads(path.read_text())["seeds"] if path.exists() else []
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seeds", default="0")
@@ -148,6 +154,9 @@ def main() -> None:
     ref = None if (a.quick or epochs is not None) else crossval_figures(seeds)
     ref_mean = None if ref is None else {m: [float(np.mean([ref[m][n][i] for n in SETS])) for i in range(len(seeds))]
                                          for m in MODELS}
+    every = None if ref is None else crossval_figures(crossval_seeds())  # (crossval's seed spread, for scale)
+    every_mean = None if every is None else {m: [float(np.mean([every[m][n][i] for n in SETS]))
+                                                 for i in range(len(every[m][next(iter(SETS))]))] for m in MODELS}
     head = {"route_vc_mean": round(float(np.mean(mean["vc"])), 2), "route_resize_mean": round(float(np.mean(mean["resize"])), 2),
             "route_vc_minus_resize": round(float(np.mean(gain)), 2),
             **{f"route_{m}_{n}": round(float(np.mean(iou[m][n])), 2) for m in MODELS for n in SETS}}
@@ -155,6 +164,11 @@ def main() -> None:
         head.update({"crossval_vc_mean": round(float(np.mean(ref_mean["vc"])), 2),
                      "crossval_resize_mean": round(float(np.mean(ref_mean["resize"])), 2),
                      "route_vc_minus_crossval": round(float(np.mean(mean["vc"]) - np.mean(ref_mean["vc"])), 2)})
+    if every_mean is not None:
+        head.update({f"crossval_{m}_mean_every_seed": round(float(np.mean(every_mean[m])), 2) for m in MODELS})
+        head.update({f"crossval_{m}_mean_every_seed_std": round(float(np.std(every_mean[m], ddof=1)), 2)
+                     for m in MODELS if len(every_mean[m]) > 1})
+        head["crossval_seeds"] = crossval_seeds()
     targets = {f"route vc >= route resize + {TARGET_GAIN:g}": bool(head["route_vc_minus_resize"] >= TARGET_GAIN)}
     if ref_mean is not None:
         targets[f"route vc within {TARGET_CROSSVAL:g} of crossval's"] = bool(abs(head["route_vc_minus_crossval"])
@@ -167,8 +181,13 @@ def main() -> None:
                     + f" | {np.mean(mean[m]):.1f} |")
     if ref is not None:
         for m, what in (("vc", "within"), ("resize", "resize")):
-            rows.append(f"| `vctrain crossval` (as_shipped.json), {what} | "
+            rows.append(f"| `vctrain crossval` (as_shipped.json), {what}, the same seeds | "
                         + " | ".join(f"{np.mean(ref[m][n]):.1f}" for n in SETS) + f" | {np.mean(ref_mean[m]):.1f} |")
+    if every is not None:
+        for m, what in (("vc", "within"), ("resize", "resize")):
+            rows.append(f"| `vctrain crossval`, {what}, seeds {','.join(map(str, crossval_seeds()))} (mean ± std) | "
+                        + " | ".join(f"{np.mean(every[m][n]):.1f} ± {np.std(every[m][n], ddof=1):.1f}" for n in SETS)
+                        + f" | {np.mean(every_mean[m]):.1f} ± {np.std(every_mean[m], ddof=1):.1f} |")
     table = "\n".join(rows)
     cmd = "benchmarks/user_route.py " + " ".join(
         x for x in (f"--seeds {a.seeds}", f"--epochs {a.epochs}" if a.epochs else "", "--quick" if a.quick else "") if x)
