@@ -98,7 +98,8 @@ def warp_cmd(
           --labels data/camvid/trainannot --label-format camvid --out stores/camvid
       vcprep warp --camera camvid --images data/camvid/train --out stores/camvid --shard 2/8
       (with --shard, give --within a CSV from 'vcprep vp', or every shard estimates every VP)
-      vcprep warp --camera camvid --images data/camvid/val --out stores/val --within estimate
+      vcprep warp --camera camvid --images data/camvid/val --out stores/paper \\
+          --virtual virtual --scale 0.125 --within none   # the paper's 688x350 store
       vcprep warp --camera camvid --images data/camvid/val --out stores/val --within vps.csv
       vcprep warp --camera kitti/training/calib --images kitti/training/image_2 \\
           --labels kitti/training/gt_image_2 --label-format kitti --out stores/kitti   # per-frame calibration
