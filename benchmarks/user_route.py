@@ -149,6 +149,12 @@ def main() -> None:
             for n in SETS:
                 iou[m][n].append(road_iou(wd, ckpt, n, sd / m / n, a.quick))
                 print(f"seed {seed} {m} {n}: {iou[m][n][-1]:.1f}", flush=True)
+    report(a, wd, seeds, epochs, iou, fit_s, warp, warp_s)
+
+
+def report(a: argparse.Namespace, wd: Path, seeds: list[int], epochs: int | None, iou: dict, fit_s: dict,
+           warp: list, warp_s: float) -> None:
+    """The summary against resize and crossval: user_route.{md,json}, the table and the JSON line on stdout."""
     mean = {m: [float(np.mean([iou[m][n][i] for n in SETS])) for i in range(len(seeds))] for m in MODELS}
     gain = [v - r for v, r in zip(mean["vc"], mean["resize"])]
     ref = None if (a.quick or epochs is not None) else crossval_figures(seeds)

@@ -201,18 +201,20 @@ class ResFPN(_FPN):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         size = x.shape[-2:]
-        # per-image, per-channel standardisation of the colour channels: exposure, contrast and
-        # white balance differ between cameras (and CamVid's own sequences: 0001TP is at dusk)
-        c = x[:, :3]
-        mu = c.mean((2, 3), keepdim=True)
-        sd = c.std((2, 3), keepdim=True).clamp_min(1e-2)
-        x = torch.cat([(c - mu) / sd, x[:, 3:]], 1)
+        # exposure, contrast and white balance differ between cameras (and CamVid's own sequences:
+        # 0001TP is at dusk)
+        x = torch.cat([_standardised(x[:, :3]), x[:, 3:]], 1)
         feats = []
         x = self.stem(x)
         for stage in self.stages:
             x = stage(x)
             feats.append(x)
         return self._decode(feats, size)
+
+
+def _standardised(c: torch.Tensor) -> torch.Tensor:
+    """Each image's channels of ``c`` (N, C, H, W) at zero mean and unit variance (std floored at 0.01)."""
+    return (c - c.mean((2, 3), keepdim=True)) / c.std((2, 3), keepdim=True).clamp_min(1e-2)
 
 
 class Lite0FPN(_FPN):
@@ -234,8 +236,7 @@ class Lite0FPN(_FPN):
         size = x.shape[-2:]
         x = from_project_input(x)
         if self.standardise:  # (lite0fpn-std: ImageNet's colour statistics for every image)
-            c = x[:, :3]
-            z = (c - c.mean((2, 3), keepdim=True)) / c.std((2, 3), keepdim=True).clamp_min(1e-2)
+            z = _standardised(x[:, :3])
             mean = torch.tensor(IMAGENET_MEAN, dtype=x.dtype, device=x.device).view(1, 3, 1, 1)
             std = torch.tensor(IMAGENET_STD, dtype=x.dtype, device=x.device).view(1, 3, 1, 1)
             x = torch.cat([z * std + mean, x[:, 3:]], 1)

@@ -112,11 +112,7 @@ def warp_cmd(
     check_data_folders(images, labels)
     items = list_dataset(images, labels, fmt, id_prefix)
     cam, estimate = _warp_camera(camera, items, fmt, quiet)
-    if within is None:
-        within = "estimate" if isinstance(cam, Camera) else "none"
-    if not isinstance(cam, Camera) and within != "none":
-        raise InputError("--within needs one camera; a per-frame calibration folder already gives every frame its "
-                         "exact pose", camera, "drop --within, or give one camera file or preset")
+    within = _within_rule(within, cam, camera)
     virt, scale, design = _warp_virtual(virtual, scale, cam, items, out)
     if fmt is not None:
         _check_labels(items, fmt, labels)
@@ -166,6 +162,17 @@ def _warp_camera(camera: str, items: list, fmt, quiet: bool):
     estimate = estimate_camera([j.image for j in items], name="estimated", ids=[j.id for j in items],
                                labels=est_labels if len(est_labels) >= 5 else None, label_format=fmt)
     return estimate.camera, estimate
+
+
+def _within_rule(within: Optional[str], cam, camera: str) -> str:
+    """--within, or its default: 'estimate' for one camera, 'none' for per-frame calibration (which
+    refuses any other)."""
+    if within is None:
+        return "estimate" if isinstance(cam, Camera) else "none"
+    if not isinstance(cam, Camera) and within != "none":
+        raise InputError("--within needs one camera; a per-frame calibration folder already gives every frame its "
+                         "exact pose", camera, "drop --within, or give one camera file or preset")
+    return within
 
 
 def _warp_virtual(virtual: Optional[str], scale: Optional[float], cam, items: list,
