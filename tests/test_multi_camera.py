@@ -278,3 +278,122 @@ def test_condition_resize_vp_is_resize_with_each_frames_own_vp_channel(tmp_path)
     bad = run_cli("predict", run_dir / "model.pt", frame, "--out", tmp_path / "p", "--device", "cpu", prog="vctrain")
     assert bad.returncode != 0
     assert_one_error_line(bad, "vanishing point", "--camera")
+
+
+def test_condition_mixed_trains_one_network_on_both_views_and_averages_them(tmp_path):
+    """Condition mixed (issue 53): ONE model trained on both views of every training frame (the
+    within store item at the store's size, the source resized at the resize twin's size; every batch
+    of one view, the steps of one view's run), scored as the mean of its two views' probabilities in
+    the evaluated camera's pixels; frames, video and export refuse it in one line."""
+    import json
+
+    from conftest import run_cli
+    from studies import _mixed_study
+    from vcprep.store import Store
+    from vctrain.data import MixedViews, view_batches
+    from vctrain.predict import Predictor
+    from vctrain.predict.predictor import refuse_mixed
+
+    study, out = _mixed_study(tmp_path / "data"), tmp_path / "out"
+    proc = run_cli("crossval", study, "--out", out, "--conditions", "resize,mixed", "--heldout", "kitti",
+                   prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.count("training on") == 2  # its own model, not the resize model's
+    run_dir = out / "runs" / "kitti" / "mixed"
+    ck = load_checkpoint(run_dir / "model.pt")
+    rz = load_checkpoint(out / "runs" / "kitti" / "resize" / "model.pt")
+    data = ck["data"]
+    assert data["mode"] == "mixed"
+    assert data["resize_size"] == rz["data"]["input_size"]  # the resize view: the twin's size
+    n = data["views"][0]
+    assert data["views"] == [n, n] and data["train_items"] == 2 * n
+    assert [Path(p).parts[-3:] for p in ck["config"]["stores"]] == [("camvid", "train", "within")]
+    assert tuple(data["input_size"]) == Store.open(ck["config"]["stores"][0]).store_size  # the virtual view
+    assert ck["step"] == rz["step"]  # the same optimiser steps as the one-view twin
+    # scored: the mean of the virtual view (back-projected) and the resized view, in the camera's pixels
+    model = Predictor(run_dir / "model.pt", device="cpu")
+    store = Store.open(out / "stores" / "kitti" / "test" / "within")
+    rec = next(iter(store))
+    got = model.store_item(store, rec)
+    both = (model._virtual_item(store, rec), model._resized_item(rec, tuple(data["resize_size"])))
+    assert np.allclose(got, (both[0] + both[1]) / 2) and not np.allclose(both[0], both[1])
+    assert got.shape == (rec["size"][1], rec["size"][0])
+    # batches hold one view each, in the order's order
+    a, b = (RoadDataset([Sample(f"{v}{i}", Path("x"), None) for i in range(5)], (64, 32)) for v in "ab")
+    mixed = MixedViews(a, b)
+    batches = view_batches(mixed, [0, 5, 1, 6, 7, 2, 8, 9, 3, 4], 2)
+    assert batches == [[0, 1], [5, 6], [7, 8], [2, 3], [4], [9]]
+    assert all({mixed.view(i) for i in bt} in ({0}, {1}) for bt in batches)
+    assert sorted(i for bt in batches for i in bt) == list(range(10))
+    with pytest.raises(InputError, match="mixed-view"):
+        refuse_mixed(model)
+
+
+def test_ray_channels_are_each_pixels_angles_from_the_vp_and_focal_length(tmp_path):
+    """Ray-angle channels (issue 53, CAM-Convs): channel 3 = atan((x - x_vp) / f_x), channel 4 =
+    atan((y - y_vp) / f_y) in working pixels. Oracle: a 2x zoom about the VP is a camera of twice the
+    focal length, so the augmented item's angles equal the formula with f scaled by the zoom; a
+    flip mirrors the angle beside the VP."""
+    import math
+
+    from vctrain.data import ray_angles
+
+    img = (np.arange(40 * 80 * 3, dtype=np.uint32).reshape(40, 80, 3) % 251).astype(np.uint8)
+    write_png(tmp_path / "a.png", img)
+    write_png(tmp_path / "a_lab.png", np.ones((40, 80), np.uint8))
+    s = Sample("a", tmp_path / "a.png", tmp_path / "a_lab.png", None, vp=(30.0, 10.0), focal=(100.0, 90.0))
+    ds = RoadDataset([s], (160, 80), ray_channels=True)  # the working size: 2x the image
+    x, _ = ds[0]
+    assert x.shape == (5, 80, 160)
+    # working pixels (pixel centres scaled: (v + 0.5) * 2 - 0.5): VP (60.5, 20.5), focal (200, 180)
+    assert float(x[3, 7, 60]) == pytest.approx(math.atan(-0.5 / 200), abs=1e-6)
+    assert float(x[4, 20, 3]) == pytest.approx(math.atan(-0.5 / 180), abs=1e-6)
+    assert float(x[3, 0, 160 - 1]) == pytest.approx(math.atan(98.5 / 200), abs=1e-5)
+    assert float(x[4, 79, 0]) == pytest.approx(math.atan(58.5 / 180), abs=1e-5)
+    assert np.allclose(ray_angles((160, 80), (60.5, 20.5), (200.0, 180.0)), x[3:].numpy(), atol=1e-6)
+    # a zoom about the VP (scale augmentation) is a longer focal length: the angles follow it
+    torch.manual_seed(0)
+    aug = RoadDataset([s], (160, 80), ray_channels=True, scale_aug=1.0, hflip=True)
+    for _ in range(6):
+        torch.manual_seed(_)
+        xa, _y = aug[0]
+        torch.manual_seed(_)
+        img_w, lab_w, vp_w, zoom = aug._affine(*aug.item(0))
+        flipped = not np.allclose(xa[3].numpy(), ray_angles((160, 80), vp_w, (200 * zoom, 180 * zoom))[0], atol=1e-5)
+        vp_x = 160 - 1 - vp_w[0] if flipped else vp_w[0]
+        want = ray_angles((160, 80), (vp_x, vp_w[1]), (200 * zoom, 180 * zoom))
+        assert np.allclose(xa[3:].numpy(), want, atol=1e-5)
+    with pytest.raises(InputError, match="ray channels"):
+        RoadDataset([Sample("a", tmp_path / "a.png", tmp_path / "a_lab.png", None, vp=(30.0, 10.0))], (80, 40),
+                    ray_channels=True).item(0)
+
+
+def test_condition_resize_rays_trains_on_each_frames_camera_and_vp(tmp_path):
+    """Condition resize-rays (issue 53): the resize twin with two more inputs (lite0fpn's stem gives them
+    zero weight at the start: test_efficientnet); scored with each record's own VP and focal length: a longer focal length in
+    the record changes its probabilities; frames, video and export refuse the model in one line."""
+    import json
+
+    from conftest import run_cli
+    from studies import _mixed_study
+    from vcprep.store import Store
+    from vctrain.predict import Predictor
+    from vctrain.predict.predictor import refuse_mixed
+
+    study, out = _mixed_study(tmp_path / "data"), tmp_path / "out"
+    proc = run_cli("crossval", study, "--out", out, "--conditions", "resize,resize-rays", "--heldout", "kitti",
+                   prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.count("training on") == 2
+    ck = load_checkpoint(out / "runs" / "kitti" / "resize-rays" / "model.pt")
+    assert ck["data"]["mode"] == "resize" and ck["data"]["ray_channels"] is True
+    assert ck["model_args"]["in_channels"] == 5
+    model = Predictor(out / "runs" / "kitti" / "resize-rays" / "model.pt", device="cpu")
+    store = Store.open(out / "stores" / "kitti" / "test" / "within")
+    rec = next(iter(store))
+    cp = rec["camera_params"]
+    longer = {**rec, "camera_params": {**cp, "fx": 3 * cp["fx"], "fy": 3 * cp["fy"]}}
+    assert not np.allclose(model.store_item(store, rec), model.store_item(store, longer))
+    assert json.loads((out / "runs" / "kitti" / "resize-rays" / "result.json").read_text())["test_items"] == 2
+    with pytest.raises(InputError, match="ray-channel"):
+        refuse_mixed(model)

@@ -42,7 +42,8 @@ class TrainConfig:
 
     stores: list[str] = field(default_factory=list)  # training stores (one virtual camera and scale)
     out: str = "model.pt"              # best checkpoint; '<stem>.last.pt' beside it is the latest epoch
-    baseline: str = "none"             # 'none': train on the stores; 'resize': original images resized
+    baseline: str = "none"             # 'none': train on the stores; 'resize': original images resized;
+                                       # 'mixed': both views of every store frame (vctrain.data.MixedViews)
     images: Optional[str] = None       # baseline from folders instead of stores: image folder
     labels: Optional[str] = None       #   ... label folder
     label_format: Optional[str] = None  #  ... label format (camvid, kitti, values:road=..)
@@ -75,6 +76,7 @@ class TrainConfig:
     hflip: Optional[bool] = None       # random horizontal flip, p = 0.5
     greyscale: float = 0.0             # probability of a greyscale image (1.0: greyscale model)
     vp_channel: bool = False           # 4th input channel: VP proximity map
+    ray_channels: bool = False         # 2 more input channels: each pixel's ray angles beside/below the road VP
     resume: Optional[str] = None       # continue from this checkpoint ('.last.pt') up to `epochs`
     init: Optional[str] = None         # start from this checkpoint's network and weights (fine-tuning, vctrain adapt)
     workers: int = 0                   # DataLoader worker processes
@@ -83,6 +85,11 @@ class TrainConfig:
     max_steps: Optional[int] = None    # stop each epoch after this many steps (smoke tests)
     balance: str = "items"             # 'items': each training item once an epoch; 'datasets': each training
                                        # store (and the --images folder) drawn equally often (BALANCES)
+
+    @property
+    def in_channels(self) -> int:
+        """The network's input channels: colour, the VP map, the two ray angles."""
+        return 3 + int(bool(self.vp_channel)) + 2 * int(bool(self.ray_channels))
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)

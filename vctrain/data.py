@@ -29,6 +29,12 @@ affine map above and the crop are one warp, so a crop costs no more than the aug
 A model trains on windows of a finer store at the pixel cost of the window and predicts on the
 whole working size (the networks are fully convolutional).
 
+Ray-angle channels (``ray_channels``, CAM-Convs; issue 53's camera-aware resize candidate): two more
+inputs, each pixel's signed angles (radians) beside and below the road VP, ``atan((x - x_vp) / f_x)``
+and ``atan((y - y_vp) / f_y)`` with the camera's focal lengths in working pixels (the source camera's,
+scaled with the image, and with the random scale above: a zoom changes the focal length), so the
+network knows what each pixel looks at whatever the camera's field of view.
+
 VP proximity map (VPSeg): ``1 - max(|x - x_vp| / w, |y - y_vp| / h)`` over working-size pixel
 centres, with the VP in working coordinates (flipped with the image); (w, h) is always the working
 size, so a crop sees exactly its window of the whole image's map.
@@ -38,7 +44,7 @@ from __future__ import annotations
 import json
 import math
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -56,11 +62,14 @@ from vcprep.store import Store
 
 from .config import BALANCES, TrainConfig
 
-__all__ = ["Sample", "store_samples", "resize_samples", "RoadDataset", "to_input", "vp_proximity",
-           "vp_in_store", "resize_pair", "class_frequencies", "median_frequency_weights", "prepare_data", "crop_size",
+__all__ = ["Sample", "store_samples", "resize_samples", "RoadDataset", "MixedViews", "view_batches", "BASELINES", "to_input", "vp_proximity",
+           "vp_in_store", "ray_angles", "resize_pair", "class_frequencies", "median_frequency_weights", "prepare_data", "crop_size",
            "epoch_order", "MIN_SIDE"]
 
 MIN_SIDE = 32  # the smallest working side: five 2x2 poolings
+# what a model is trained on (TrainConfig.baseline): 'none' the virtual camera's store items, 'resize'
+# the original images simply resized, 'mixed' both views of every frame (:class:`MixedViews`)
+BASELINES = ("none", "resize", "mixed")
 
 
 @dataclass(frozen=True)
@@ -68,7 +77,8 @@ class Sample:
     """One training item: where its image and label are and how to decode them.
 
     ``label_format`` None: the label is a store label (0/1/255 already). ``vp`` is the road VP in
-    the coordinates of ``image`` (None: unknown, only needed for the VP channel). ``source`` is the
+    the coordinates of ``image`` (None: unknown, only needed for the VP and ray channels); ``focal``
+    the camera's focal lengths in its pixels (ray channels). ``source`` is the
     store (or image folder) it comes from: the group ``balance: datasets`` draws equally often.
     """
 
@@ -78,6 +88,7 @@ class Sample:
     label_format: str | None = None
     vp: tuple[float, float] | None = None
     source: str = ""
+    focal: tuple[float, float] | None = None  # (f_x, f_y) in the pixels of ``image`` (ray channels)
 
 
 def vp_in_store(record: dict[str, Any], store: Store | None = None) -> tuple[float, float]:
@@ -99,13 +110,26 @@ def vp_in_store(record: dict[str, Any], store: Store | None = None) -> tuple[flo
 
 def store_samples(store: Store) -> list[Sample]:
     """Samples for every labelled item of ``store`` (items without a label are skipped)."""
+    vs = store.params.get("virtual_scaled") or {}
+    focal = (float(vs["fx"]), float(vs["fy"])) if vs.get("fx") else None
     out = []
     for rec in store:
         if not rec.get("label"):
             continue
         out.append(Sample(rec["id"], store.path(rec["image"]), store.path(rec["label"]), None, vp_in_store(rec, store),
-                          str(store.root)))
+                          str(store.root), focal))
     return out
+
+
+def source_focal(rec: dict[str, Any]) -> tuple[float, float] | None:
+    """A store record's source camera's focal lengths (f_x, f_y) in the source image's pixels (None:
+    the record has no camera parameters)."""
+    cp = rec.get("camera_params") or {}
+    if not cp.get("fx"):
+        return None
+    sx = rec["size"][0] / cp["image_size"][0] if cp.get("image_size") and rec.get("size") else 1.0
+    sy = rec["size"][1] / cp["image_size"][1] if cp.get("image_size") and rec.get("size") else 1.0
+    return float(cp["fx"]) * sx, float(cp["fy"]) * sy
 
 
 def resize_samples(store: Store) -> list[Sample]:
@@ -115,7 +139,7 @@ def resize_samples(store: Store) -> list[Sample]:
         if not rec.get("label_source"):
             continue
         out.append(Sample(rec["id"], Path(rec["source"]), Path(rec["label_source"]), rec["label_format"],
-                          tuple(rec["vp"]) if rec.get("vp") else None, str(store.root)))
+                          tuple(rec["vp"]) if rec.get("vp") else None, str(store.root), source_focal(rec)))
     return out
 
 
@@ -138,6 +162,16 @@ def vp_proximity(size: tuple[int, int], vp: tuple[float, float], norm: tuple[int
     x = np.abs(np.arange(w, dtype=np.float32) - np.float32(vp[0])) / np.float32(nw)
     y = np.abs(np.arange(h, dtype=np.float32) - np.float32(vp[1])) / np.float32(nh)
     return (1.0 - np.maximum(x[None, :], y[:, None])).astype(np.float32)  # (a NumPy-float VP kept it float64)
+
+
+def ray_angles(size: tuple[int, int], vp: tuple[float, float], focal: tuple[float, float]) -> np.ndarray:
+    """Ray-angle channels (2, h, w) float32 at ``size`` (w, h): each pixel centre's signed angle (radians)
+    beside the road VP, ``atan((x - x_vp) / f_x)``, and below it, ``atan((y - y_vp) / f_y)`` (module
+    docstring); ``vp`` and ``focal`` in the same pixels."""
+    w, h = size
+    ax = np.arctan((np.arange(w, dtype=np.float64) - vp[0]) / focal[0]).astype(np.float32)
+    ay = np.arctan((np.arange(h, dtype=np.float64) - vp[1]) / focal[1]).astype(np.float32)
+    return np.stack([np.broadcast_to(ax[None, :], (h, w)), np.broadcast_to(ay[:, None], (h, w))])
 
 
 def resize_pair(image: np.ndarray, label: np.ndarray | None, size: tuple[int, int]):
@@ -168,7 +202,8 @@ class RoadDataset(torch.utils.data.Dataset):
 
     def __init__(self, samples: Sequence[Sample], size: tuple[int, int], hflip: bool = False,
                  greyscale: float = 0.0, vp_channel: bool = False, scale_aug: float = 0.0, shift_aug: float = 0.0,
-                 color_aug: float = 0.0, crop: tuple[int, int] | None = None, shading_aug: float = 0.0):
+                 color_aug: float = 0.0, crop: tuple[int, int] | None = None, shading_aug: float = 0.0,
+                 ray_channels: bool = False):
         self.samples = list(samples)
         self.size = (int(size[0]), int(size[1]))
         self.crop = None
@@ -181,7 +216,9 @@ class RoadDataset(torch.utils.data.Dataset):
         self.shading_aug = float(shading_aug or 0)
         self.greyscale = float(greyscale)
         self.vp_channel = vp_channel
+        self.ray_channels = bool(ray_channels)
         self._cache: dict[int, tuple[np.ndarray, np.ndarray, tuple[float, float] | None]] = {}
+        self._focal: dict[int, tuple[float, float]] = {}  # (ray channels: f_x, f_y in working pixels)
 
     def __len__(self) -> int:
         return len(self.samples)
@@ -201,6 +238,11 @@ class RoadDataset(torch.utils.data.Dataset):
             if self.vp_channel and vp is None:
                 raise InputError("item has no vanishing point, needed for the VP channel", s.image,
                                  "train without --vp-channel or rebuild the store with VPs")
+            if self.ray_channels and (vp is None or s.focal is None):
+                raise InputError("item has no vanishing point or camera focal length, needed for the ray channels",
+                                 s.image, "train without --ray-channels, or on a store built with 'vcprep warp'")
+            if s.focal is not None:
+                self._focal[i] = (s.focal[0] * self.size[0] / w0, s.focal[1] * self.size[1] / h0)
             hit = (img, lab, vp)
             self._cache[i] = hit
         return hit
@@ -211,10 +253,16 @@ class RoadDataset(torch.utils.data.Dataset):
         r = torch.rand(2).tolist()  # torch RNG: seeded per run, epoch and worker
         return min(int(r[0] * (w - cw + 1)), w - cw), min(int(r[1] * (h - ch + 1)), h - ch)
 
+    def focal(self, i: int) -> tuple[float, float]:
+        """Item ``i``'s camera focal lengths (f_x, f_y) in working pixels (un-augmented)."""
+        self.item(i)
+        return self._focal[i]
+
     def _affine(self, img: np.ndarray, lab: np.ndarray, vp: tuple[float, float] | None,
                 origin: tuple[int, int] = (0, 0)):
         """Random scale about the VP (or the centre) plus a random shift, then the window at
-        ``origin`` of the crop size (the whole image without a crop); see the module docstring."""
+        ``origin`` of the crop size (the whole image without a crop); see the module docstring.
+        Returns (image, label, vp, scale)."""
         w, h = self.size
         r = torch.rand(3).tolist()  # torch RNG: seeded per run, epoch and worker
         s = math.exp((2 * r[0] - 1) * math.log1p(self.scale_aug))
@@ -227,7 +275,7 @@ class RoadDataset(torch.utils.data.Dataset):
                              borderValue=IGNORE)
         if vp is not None:
             vp = (s * vp[0] + M[0, 2], s * vp[1] + M[1, 2])
-        return img, lab, vp
+        return img, lab, vp, s
 
     def _photometric_draw(self) -> tuple[float, float, np.ndarray, float]:
         """One draw of (brightness, contrast, per-channel gain (3,), gamma); see the module docstring."""
@@ -276,8 +324,9 @@ class RoadDataset(torch.utils.data.Dataset):
     def __getitem__(self, i: int):
         img, lab, vp = self.item(i)
         origin = self._crop_origin() if self.crop else (0, 0)
+        zoom = 1.0
         if self.scale_aug > 0 or self.shift_aug > 0:
-            img, lab, vp = self._affine(img, lab, vp, origin)
+            img, lab, vp, zoom = self._affine(img, lab, vp, origin)
         elif self.crop:
             (x0, y0), (cw, ch) = origin, self.crop
             img = np.ascontiguousarray(img[y0:y0 + ch, x0:x0 + cw])
@@ -301,7 +350,58 @@ class RoadDataset(torch.utils.data.Dataset):
                 vp = (out_w - 1 - vp[0], vp[1])
         if self.vp_channel:
             x = np.concatenate([x, vp_proximity((out_w, img.shape[0]), vp, norm=self.size)[None]], axis=0)
+        if self.ray_channels:  # (after the flip: the VP is flipped, so the angle beside it changes sign)
+            f = self.focal(i)
+            x = np.concatenate([x, ray_angles((out_w, img.shape[0]), vp, (f[0] * zoom, f[1] * zoom))], axis=0)
         return torch.from_numpy(x), torch.from_numpy(y.astype(np.int64))
+
+
+class MixedViews(torch.utils.data.Dataset):
+    """Mixed-view training (issue 53's candidate): every frame twice, its virtual-camera store item
+    (view 0) and its original image simply resized (view 1), each view at its own working size and
+    training window; items ``[0, len(virtual))`` are view 0, the rest view 1. Batches hold one view
+    (:func:`view_batches`), so each keeps its own input size. At test time the model's two views'
+    probabilities are averaged in the camera's own pixels (:class:`vctrain.predict.Predictor`)."""
+
+    def __init__(self, virtual: RoadDataset, resized: RoadDataset):
+        self.parts = (virtual, resized)
+        self.samples = virtual.samples + resized.samples
+        self.n_virtual = len(virtual)
+
+    def __len__(self) -> int:
+        return len(self.samples)
+
+    def view(self, i: int) -> int:
+        return 0 if i < self.n_virtual else 1
+
+    def _part(self, i: int) -> tuple[RoadDataset, int]:
+        return (self.parts[0], i) if i < self.n_virtual else (self.parts[1], i - self.n_virtual)
+
+    def item(self, i: int):
+        ds, j = self._part(i)
+        return ds.item(j)
+
+    def __getitem__(self, i: int):
+        ds, j = self._part(i)
+        return ds[j]
+
+
+def view_batches(dataset: Any, order: Sequence[int], batch: int) -> list[list[int]]:
+    """``order`` cut into batches of ``batch`` items; for :class:`MixedViews` every batch holds one
+    view (items join their view's open batch in ``order``'s order; a batch is emitted when full,
+    then the open ones), so the order's randomness carries over to the batches."""
+    if not isinstance(dataset, MixedViews):
+        return [list(order[k:k + batch]) for k in range(0, len(order), batch)]
+    out: list[list[int]] = []
+    pending: dict[int, list[int]] = {0: [], 1: []}
+    for i in order:
+        b = pending[dataset.view(i)]
+        b.append(i)
+        if len(b) == batch:
+            out.append(list(b))
+            b.clear()
+    out += [b for b in pending.values() if b]
+    return out
 
 
 def class_frequencies(dataset: RoadDataset, num_classes: int = 2) -> np.ndarray:
@@ -342,6 +442,7 @@ def _open_stores(paths: list[str]) -> list[Store]:
 
 
 def _samples(stores: list[Store], baseline: str) -> list[Sample]:
+    """The stores' samples in the view ``baseline`` trains on ('mixed': call once per view)."""
     out: list[Sample] = []
     for s in stores:
         got = resize_samples(s) if baseline == "resize" else store_samples(s)
@@ -361,13 +462,16 @@ def _completion(stores: list[Store]) -> str:
 
 def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str, Any]]:
     """Training and validation samples plus the checkpoint's ``data`` description."""
-    if cfg.baseline not in ("none", "resize"):
-        raise InputError(f"unknown baseline '{cfg.baseline}'", None, "use --baseline resize (or leave it out)")
+    if cfg.baseline not in BASELINES:
+        raise InputError(f"unknown baseline '{cfg.baseline}'", None, "use --baseline resize or mixed (or leave it out)")
+    if cfg.baseline == "mixed":
+        return _prepare_mixed(cfg)
     stores = _open_stores(cfg.stores) if cfg.stores else []
     info: dict[str, Any] = {"mode": "resize" if cfg.baseline == "resize" else "virtual",
                             "store_params": stores[0].params if stores else None,
                             "completion": _completion(stores) if stores else "none",
-                            "vp_channel": cfg.vp_channel, "greyscale": cfg.greyscale}
+                            "vp_channel": cfg.vp_channel, "greyscale": cfg.greyscale,
+                            **({"ray_channels": True} if cfg.ray_channels else {})}
     if cfg.images is not None:
         if cfg.baseline != "resize":
             raise InputError("--images is for the resize baseline", cfg.images,
@@ -426,6 +530,28 @@ def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str
     info["train_items_per_source"] = dict(Counter(t.source for t in train))  # (in the stores' order)
     info["val_items"] = len(val)
     return train, val, info
+
+
+def _prepare_mixed(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str, Any]]:
+    """:func:`prepare_data` for ``baseline: mixed`` (:class:`MixedViews`): the virtual-camera run's
+    data, its resize twin's (the same frames, the same validation share: one seeded split of the
+    frames), and ``resize_size`` / ``resize_crop_size`` (the twin's working size and window). The
+    samples are the virtual view's then the resize view's; ``info['views']`` their counts."""
+    if cfg.images is not None or not cfg.stores:
+        raise InputError("--baseline mixed trains on stores (both views of their frames)", cfg.images,
+                         "give STORE... built with 'vcprep warp' --labels")
+    parts = {}
+    for view in ("none", "resize"):
+        sub = replace(cfg, baseline=view, size=cfg.size if view == "none" else None)
+        parts[view] = prepare_data(sub)
+    (tv, vv, info), (tr, vr, rinfo) = parts["none"], parts["resize"]
+    if [s.id for s in tv] != [s.id for s in tr] or [s.id for s in vv] != [s.id for s in vr]:
+        raise InputError("the store's labelled items and their sources differ", cfg.stores[0],
+                         "rebuild the store with 'vcprep warp --labels'")
+    info = {**info, "mode": "mixed", "resize_size": rinfo["input_size"], "resize_crop_size": rinfo["crop_size"],
+            "views": [len(tv), len(tr)], "train_items": len(tv) + len(tr), "val_items": len(vv) + len(vr),
+            "train_items_per_source": dict(Counter(t.source for t in tv + tr))}
+    return tv + tr, vv + vr, info
 
 
 def resize_working_size(store_size: tuple[int, int], frame_size: tuple[int, int]) -> tuple[int, int]:

@@ -61,8 +61,8 @@ from vcprep.errors import InputError
 
 from .checkpoint import load_checkpoint, model_from_checkpoint, save_checkpoint
 from .config import ADAPT_LR_FACTOR, BALANCES, DEFAULT_RECIPE, OPTIMIZERS, RECIPES, SCHEDULES, TrainConfig
-from .data import (RoadDataset, class_frequencies, crop_size, epoch_order, median_frequency_weights,
-                   prepare_data)
+from .data import (MixedViews, RoadDataset, class_frequencies, crop_size, epoch_order, median_frequency_weights,
+                   prepare_data, view_batches)
 from .metrics import RoadMetrics
 from .model import ARCHITECTURES, build_model, model_args_for, resolve_pretrained
 
@@ -187,7 +187,7 @@ def _network(cfg: TrainConfig, resume: dict[str, Any] | None, init: dict[str, An
         arch = cfg.arch
         if arch not in ARCHITECTURES:
             raise InputError(f"unknown model '{arch}'", None, f"use one of {', '.join(ARCHITECTURES)}")
-        model_args = model_args_for(arch, 4 if cfg.vp_channel else 3, cfg.base_width).to_dict()
+        model_args = model_args_for(arch, cfg.in_channels, cfg.base_width).to_dict()
 
     torch.manual_seed(cfg.seed)
     if init is not None:  # fine-tuning: the checkpoint's network (weights loaded below), a fresh optimiser
@@ -214,10 +214,10 @@ def _check_init(cfg: TrainConfig, init: dict[str, Any], info: dict[str, Any]) ->
     if width != int(args["base_width"]):
         raise InputError(f"checkpoint has width {args['base_width']} but --width {width} was asked", cfg.init,
                          f"use --width {args['base_width']} or leave --width out")
-    if args["in_channels"] != (4 if cfg.vp_channel else 3):
+    if args["in_channels"] != cfg.in_channels:
         raise InputError(f"checkpoint takes {args['in_channels']} input channels, the data "
-                         f"{4 if cfg.vp_channel else 3}", cfg.init,
-                         "fine-tune with the model's own --vp-channel setting")
+                         f"{cfg.in_channels}", cfg.init,
+                         "fine-tune with the model's own --vp-channel and --ray-channels settings")
     mode = (init.get("data") or {}).get("mode", "virtual")
     if mode != info["mode"]:
         raise InputError(f"checkpoint was trained in mode '{mode}' but this run is '{info['mode']}'", cfg.init,
@@ -255,14 +255,22 @@ def _init_record(path: str, init: dict[str, Any]) -> dict[str, Any]:
             "epoch": init.get("epoch"), "best_iou": init.get("best_iou"), "model_args": init["model_args"]}
 
 
-def _datasets(cfg: TrainConfig, train_s: list, val_s: list, info: dict[str, Any]) -> tuple[RoadDataset, RoadDataset]:
-    """(training set with the augmentations and crop, validation set) at the working size."""
-    size = tuple(info["input_size"])
-    train_ds = RoadDataset(train_s, size, hflip=cfg.hflip, greyscale=cfg.greyscale, vp_channel=cfg.vp_channel,
-                           scale_aug=cfg.scale_aug, shift_aug=cfg.shift_aug, color_aug=cfg.color_aug,
-                           crop=tuple(info["crop_size"]), shading_aug=cfg.shading_aug)
-    val_ds = RoadDataset(val_s, size, greyscale=1.0 if cfg.greyscale >= 1 else 0.0, vp_channel=cfg.vp_channel)
-    return train_ds, val_ds
+def _datasets(cfg: TrainConfig, train_s: list, val_s: list, info: dict[str, Any]) -> tuple[Any, Any]:
+    """(training set with the augmentations and crop, validation set) at the working size; for
+    ``mixed`` each view at its own working size and window (:class:`vctrain.data.MixedViews`)."""
+    def pair(train: list, val: list, size: list[int], crop: list[int]) -> tuple[RoadDataset, RoadDataset]:
+        return (RoadDataset(train, tuple(size), hflip=cfg.hflip, greyscale=cfg.greyscale, vp_channel=cfg.vp_channel,
+                            scale_aug=cfg.scale_aug, shift_aug=cfg.shift_aug, color_aug=cfg.color_aug,
+                            crop=tuple(crop), shading_aug=cfg.shading_aug, ray_channels=cfg.ray_channels),
+                RoadDataset(val, tuple(size), greyscale=1.0 if cfg.greyscale >= 1 else 0.0, vp_channel=cfg.vp_channel,
+                            ray_channels=cfg.ray_channels))
+
+    if info["mode"] != "mixed":
+        return pair(train_s, val_s, info["input_size"], info["crop_size"])
+    nt, nv = len(train_s) // 2, len(val_s) // 2  # (the virtual view's samples, then the resize view's)
+    tv, vv = pair(train_s[:nt], val_s[:nv], info["input_size"], info["crop_size"])
+    tr, vr = pair(train_s[nt:], val_s[nv:], info["resize_size"], info["resize_crop_size"])
+    return MixedViews(tv, tr), MixedViews(vv, vr)
 
 
 def _validate(row: dict[str, Any], model: nn.Module, loader, device: torch.device, weight: torch.Tensor | None,
@@ -301,6 +309,9 @@ def _epoch_loader(train_ds: RoadDataset, cfg: TrainConfig, epoch: int, rank: int
         order += order[: (-len(order)) % world]
         order = order[rank::world]
     torch.manual_seed(cfg.seed * 1000003 + epoch * 101 + rank + 1)
+    if isinstance(train_ds, MixedViews):  # batches of one view each (its own working size)
+        return torch.utils.data.DataLoader(train_ds, batch_sampler=view_batches(train_ds, order, batch),
+                                           num_workers=cfg.workers)
     return torch.utils.data.DataLoader(torch.utils.data.Subset(train_ds, order), batch_size=batch, shuffle=False,
                                        num_workers=cfg.workers, drop_last=False)
 
@@ -448,10 +459,13 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
     train_ds, val_ds = _datasets(cfg, train_s, val_s, info)
     weight = _class_weight(cfg, train_ds, info, device)
 
-    per_rank_batch, steps_per_epoch = _steps_per_epoch(cfg, len(train_ds), world)
+    # mixed views: the steps of one view's run (each frame once an epoch, in one view or the other)
+    frames = len(train_ds) // 2 if isinstance(train_ds, MixedViews) else len(train_ds)
+    per_rank_batch, steps_per_epoch = _steps_per_epoch(cfg, frames, world)
     total_steps = steps_per_epoch * cfg.epochs
     opt = _optimizer(cfg, model)
-    val_loader = torch.utils.data.DataLoader(val_ds, batch_size=per_rank_batch, shuffle=False,
+    val_loader = torch.utils.data.DataLoader(val_ds, batch_sampler=view_batches(val_ds, range(len(val_ds)),
+                                                                                per_rank_batch),
                                              num_workers=cfg.workers)
 
     start_epoch, step, best_iou, best_epoch, history = _resumed(resume, opt)

@@ -42,8 +42,10 @@ def crossval_cmd(
     unlabelled images with that prior's tri-mask), adapt-fuse (as adapt, the prior fused with the
     model's own prediction), adapt-self (as adapt, the model's own prediction alone: the control for
     what the prior adds), average (within's and resize's probabilities averaged), resize-vp (resize
-    plus the VP channel: each frame's own estimated road VP as a 4th input); prior, the adapt
-    conditions, average and resize-vp are not among the defaults. Prints the
+    plus the VP channel: each frame's own estimated road VP as a 4th input), mixed (one network
+    trained on both views, within and resized, the two averaged), resize-rays (resize plus each
+    pixel's ray angles from its VP and focal length); prior, the adapt conditions, average,
+    resize-vp, mixed and resize-rays are not among the defaults. Prints the
     table (rows: evaluated dataset and mean; columns: conditions; road IoU in %) and writes
     OUT/table.md, table.csv, results.jsonl,
     summary.json and per-run logs under OUT/runs. Training settings the study does not give are

@@ -77,7 +77,8 @@ def fit_cmd(
     width: Optional[int] = typer.Option(None, "--width", help="first-block width override (64 = segnet, 16 = narrow)"),
     pretrained: Optional[bool] = typer.Option(None, "--pretrained/--no-pretrained", help=PRETRAINED_HELP),
     baseline: str = typer.Option(TRAIN.baseline, "--baseline", help="'resize': the paper's baseline, the same network on the "
-                                                            "original images simply resized (no virtual camera)"),
+                                                            "original images simply resized (no virtual camera); "
+                                                            "'mixed': both views of every store frame, one network"),
     images: Optional[Path] = typer.Option(None, "--images", help="baseline only: folder of original images"),
     labels: Optional[Path] = typer.Option(None, "--labels", help="baseline only: folder of their labels"),
     label_format: Optional[str] = typer.Option(None, "--label-format", help=f"baseline only: {LABEL_FORMAT_HELP}"),
@@ -107,6 +108,8 @@ def fit_cmd(
                                                                         "(cpu: 0.3)"),
     greyscale: float = typer.Option(TRAIN.greyscale, "--greyscale", help="augment: probability of greyscale (1 = a greyscale model)"),
     vp_channel: bool = typer.Option(TRAIN.vp_channel, "--vp-channel", help="extra input channel: the VP proximity map"),
+    ray_channels: bool = typer.Option(TRAIN.ray_channels, "--ray-channels", help="two extra input channels: each "
+                                      "pixel's ray angles beside and below the road VP, from the camera's focal length"),
     resume: Optional[Path] = typer.Option(None, "--resume", help="continue from a checkpoint (OUT-stem.last.pt) up to --epochs"),
     init: Optional[Path] = typer.Option(None, "--init", help="fine-tune: start from this checkpoint's weights (same "
                                                              "model, width, input channels and --baseline)"),

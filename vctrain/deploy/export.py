@@ -181,6 +181,9 @@ def _geometry(predictor, camera: Camera, vp_input: bool, pose_range: tuple[float
     from ..data import vp_proximity
 
     assert (C.TABLE_ARC, C.FALLBACK_TOWARD) == (TABLE_ARC, FALLBACK_TOWARD)  # the in-graph completion's constants
+    from ..predict.predictor import refuse_mixed
+
+    refuse_mixed(predictor)
     data = predictor.data
     cam = camera.for_image_size(camera.size)
     w, h = cam.size

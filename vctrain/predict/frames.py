@@ -72,6 +72,10 @@ class FramePredictor:
     def __init__(self, predictor: Any, camera: Camera | None, frame_size: tuple[int, int],
                  poses: Iterable[tuple[float, float]] = (),
                  views: list[tuple[Camera, float, float]] | None = None):
+        if getattr(predictor, "mode", None) == "mixed" or getattr(predictor, "ray_channels", False):  # (refuse_mixed)
+            from .predictor import refuse_mixed
+
+            refuse_mixed(predictor)
         self.predictor = predictor
         self.size = (int(frame_size[0]), int(frame_size[1]))
         self.camera = camera.for_image_size(self.size) if camera is not None else None
@@ -184,7 +188,8 @@ def reads_road_vps(predictor: Any) -> bool:
     """Whether ``predictor`` sees each frame's road VP: it warps frames (:func:`warps_frames`), or it is a
     resize model with the VP channel (crossval's ``resize-vp``). Its own vehicle then counts as for the
     study's stores: the bonnet's rows are left out of the VP estimate."""
-    return warps_frames(predictor) or bool(getattr(predictor, "vp_channel", False))
+    return warps_frames(predictor) or bool(getattr(predictor, "vp_channel", False)
+                                           or getattr(predictor, "ray_channels", False))
 
 
 @dataclass

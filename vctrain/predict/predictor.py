@@ -7,6 +7,9 @@ The preprocessing is the checkpoint's own (no repeated flags):
   (:func:`vcprep.warp.backproject_array`, bilinear; pixels outside the virtual image get 0).
 - ``resize`` baseline models: the image is resized to the working size, inferred, and the
   probability resized back (bilinear).
+- ``mixed`` models (trained on both views, :class:`vctrain.data.MixedViews`): on a store item, the
+  mean of the two, each in the item's original camera (the resize view at the checkpoint's
+  ``resize_size``). Scored by studies on stores; frames, video and export take the other two modes.
 
 New frames take one road (:mod:`vctrain.predict.road`, in memory). The store path is for stores:
 :func:`predict_store` predicts the items of a store that exists (``vctrain predict --store``), and
@@ -35,7 +38,7 @@ from vcprep.io import read_image
 from vcprep.store import Store
 
 from ..checkpoint import load_checkpoint, model_from_checkpoint
-from ..data import resize_pair, to_input, vp_in_store, vp_proximity
+from ..data import ray_angles, resize_pair, source_focal, to_input, vp_in_store, vp_proximity
 from ..train import resolve_device
 from .frames import warps_frames
 from .road import (RoadRun, frames_canvas, geometry_line, model_vp_rule, out_dir, run_road, virtual_within,
@@ -57,6 +60,7 @@ class Predictor:
         self.size = tuple(self.data["input_size"])
         self.greyscale = float(self.data.get("greyscale", 0.0)) >= 1.0
         self.vp_channel = bool(self.data.get("vp_channel", False))
+        self.ray_channels = bool(self.data.get("ray_channels", False))
 
     @property
     def mode(self) -> str:
@@ -64,9 +68,10 @@ class Predictor:
 
     @torch.no_grad()
     def road_probability(self, image: np.ndarray, vp: tuple[float, float] | None = None,
-                         size: tuple[int, int] | None = None) -> np.ndarray:
+                         size: tuple[int, int] | None = None, focal: tuple[float, float] | None = None) -> np.ndarray:
         """P(road) float32 at the size of ``image`` (any size; resized to the working size, or to
-        ``size`` (w, h), and back). ``vp`` (image pixels) is needed for models with the VP channel."""
+        ``size`` (w, h), and back). ``vp`` (image pixels) is needed for models with the VP channel,
+        and with ``focal`` (the camera's f_x, f_y in image pixels) for models with ray channels."""
         h0, w0 = image.shape[:2]
         size = tuple(size) if size is not None else self.size
         img, _ = resize_pair(image, None, size)
@@ -78,6 +83,13 @@ class Predictor:
             S = scale_matrix(size[0] / w0, size[1] / h0)
             v = S @ np.array([vp[0], vp[1], 1.0])
             x = np.concatenate([x, vp_proximity(size, (v[0], v[1]))[None]], axis=0)
+        if self.ray_channels:
+            if vp is None or focal is None:
+                raise InputError("this model needs each image's road VP and focal length (ray channels)", self.path,
+                                 "predict a store built with 'vcprep warp'")
+            sx, sy = size[0] / w0, size[1] / h0
+            v = scale_matrix(sx, sy) @ np.array([vp[0], vp[1], 1.0])  # (pixel centres, as the training's)
+            x = np.concatenate([x, ray_angles(size, (v[0], v[1]), (focal[0] * sx, focal[1] * sy))], axis=0)
         logits = self.model(torch.from_numpy(x)[None].to(self.device))
         prob = torch.softmax(logits.float(), dim=1)[0, 1].cpu().numpy().astype(np.float32)
         if (w0, h0) != size:
@@ -96,12 +108,23 @@ class Predictor:
                 max(1, int(round(store_size[1] * self.size[1] / trained[1]))))
 
     def store_item(self, store: Store, rec: dict[str, Any]) -> np.ndarray:
-        """P(road) in the item's ORIGINAL camera (source size), for either model mode."""
+        """P(road) in the item's ORIGINAL camera (source size), for every model mode."""
+        if self.mode == "mixed":
+            return 0.5 * (self._virtual_item(store, rec) + self._resized_item(rec, tuple(self.data["resize_size"])))
         if self.mode == "resize":
-            img = read_image(rec["source"]).array
-            return self.road_probability(img, tuple(rec["vp"]) if rec.get("vp") else None)
+            return self._resized_item(rec, self.size)
+        return self._virtual_item(store, rec)
+
+    def _resized_item(self, rec: dict[str, Any], size: tuple[int, int]) -> np.ndarray:
+        img = read_image(rec["source"]).array
+        return self.road_probability(img, tuple(rec["vp"]) if rec.get("vp") else None, size, source_focal(rec))
+
+    def _virtual_item(self, store: Store, rec: dict[str, Any]) -> np.ndarray:
         img = read_image(store.path(rec["image"])).array
-        prob = self.road_probability(img, vp_in_store(rec, store), self.working_size((img.shape[1], img.shape[0])))
+        vs = store.params.get("virtual_scaled") or {}
+        focal = (vs["fx"], vs["fy"]) if vs.get("fx") else None
+        prob = self.road_probability(img, vp_in_store(rec, store), self.working_size((img.shape[1], img.shape[0])),
+                                     focal)
         return np.clip(backproject_array(prob, rec, kind="prob"), 0.0, 1.0)
 
 
@@ -110,7 +133,7 @@ def predict_store(predictor: Predictor, store: Store, out: str | Path, progress:
     """Predict every item of ``store`` (or those in ``ids``); writes ``<id>_mask.png`` and
     ``<id>_prob.png`` at the source image size. Returns the mask paths."""
     out = out_dir(out)
-    if predictor.mode == "virtual":
+    if predictor.mode in ("virtual", "mixed"):
         from vcprep.camera import same_camera_other_canvas
 
         sp = predictor.data.get("store_params") or {}
@@ -130,6 +153,18 @@ def predict_store(predictor: Predictor, store: Store, out: str | Path, progress:
     return written
 
 
+def refuse_mixed(predictor: Any) -> None:
+    """A mixed-view or ray-channel model (issue 53's study candidates) predicts store items only (the
+    two views averaged per store record; the record's camera gives the rays): one clear error for
+    frames, video and export."""
+    if getattr(predictor, "mode", None) == "mixed":
+        raise InputError("a mixed-view model (trained on both views) predicts store items only", predictor.path,
+                         "predict a store with --store, or use a virtual-camera or resize model")
+    if getattr(predictor, "ray_channels", False):
+        raise InputError("a ray-channel model predicts store items only (their records give each camera)",
+                         predictor.path, "predict a store with --store, or use a model without ray channels")
+
+
 def predict_frames(predictor: Any, images: Iterable[str | Path], out: str | Path,
                    camera: Camera | FrameCameras | None, progress: bool = True, keep_store: str | Path | None = None,
                    overlay: bool = False, within: str = "auto", vp_rule: Any = None,
@@ -138,6 +173,7 @@ def predict_frames(predictor: Any, images: Iterable[str | Path], out: str | Path
     a frame that fails is named and skipped); with ``keep_store`` (a model that warps frames) the
     warped frames are also kept as a store there, and predicted from it (the same masks). ``vp_rule``,
     ``say`` and ``ego_source`` as :func:`~vctrain.predict.road.run_road` takes them."""
+    refuse_mixed(predictor)
     if keep_store is None or not warps_frames(predictor):
         return run_road(predictor, images, out, camera, progress=progress, overlay=overlay, within=within,
                         vp_rule=vp_rule, say=say, ego_source=ego_source)

@@ -1,6 +1,6 @@
 """How each kind of condition comes by the predictor it is scored with (:data:`KINDS`):
 
-* :class:`Fit` (resize, between, within, within-gt, zero): a model trained with
+* :class:`Fit` (resize, between, within, within-gt, zero, mixed): a model trained with
   :func:`vctrain.train.fit` on the run's training stores of the condition's geometry;
 * :class:`Prior` (prior): no model, P(road) = the training datasets' geometric prior p_g;
 * :class:`Adapt` (adapt, adapt-fuse, adapt-self): the within run's model (trained once, shared with
@@ -58,7 +58,8 @@ def train_config(study: Study, stores: list[Path], out: Path, baseline: str, siz
 
 
 # settings added after studies were first keyed, and the value that leaves training as it was
-SETTINGS_ADDED: dict[str, Any] = {"balance": "items", "shading_aug": 0.0, "pretrained": False}
+SETTINGS_ADDED: dict[str, Any] = {"balance": "items", "shading_aug": 0.0, "pretrained": False,
+                                  "ray_channels": False}
 
 
 def training_settings(study: Study, overrides: dict[str, Any] | None = None) -> dict[str, Any]:
@@ -347,4 +348,4 @@ class Average:
 
 
 # how a condition's predictor comes about (CONDITIONS[c][1]) -> its kind
-KINDS: dict[str, type] = {"none": Fit, "resize": Fit, "prior": Prior, "adapt": Adapt, "average": Average}
+KINDS: dict[str, type] = {"none": Fit, "resize": Fit, "mixed": Fit, "prior": Prior, "adapt": Adapt, "average": Average}

@@ -33,10 +33,17 @@ adapt-self  as adapt, the surrogate labels from the within model's own predictio
 average     no training of its own: P(road) = the mean of the ``within`` and ``resize`` models'
             probabilities (those runs' own checkpoints, trained once and shared with those
             conditions), each in the evaluated camera's own pixels
+mixed       ONE network trained on both views of every training frame (its ``within`` store
+            item and its original image resized as ``resize`` does; batches of one view, the
+            steps of one view's run); P(road) = the mean of its two views' probabilities in
+            the evaluated camera's own pixels (issue 53's mixed-view candidate)
+resize-rays resize plus two input channels, each pixel's signed ray angles beside and below
+            its frame's own estimated road VP from the camera file's focal length (CAM-Convs;
+            zero weight at the start in the first convolution)
 ==========  ==========================================================================
 
 A study's default conditions are the first five (:data:`DEFAULT_CONDITIONS`); ``prior``,
-``adapt``, ``adapt-fuse``, ``adapt-self`` and ``average`` run when asked for (study ``conditions:`` or ``--conditions``).
+``adapt``, ``adapt-fuse``, ``adapt-self``, ``average``, ``resize-vp``, ``mixed`` and ``resize-rays`` run when asked for (study ``conditions:`` or ``--conditions``).
 Training settings the study's ``train:`` does not give are :class:`vctrain.train.TrainConfig`'s
 defaults. How a study runs: :mod:`vctrain.study.execute`; its tables: :mod:`vctrain.report`.
 """
@@ -83,9 +90,11 @@ CONDITIONS: dict[str, tuple[str, str]] = {
     "adapt-self": ("within", "adapt"),
     "average": ("within", "average"),  # scored on the within test stores; resize reads their records' sources
     "resize-vp": ("within", "resize"),  # resize + the VP channel: each frame's own (within-estimated) road VP
+    "mixed": ("within", "mixed"),  # one network on both views (within items + resized sources), the two averaged
+    "resize-rays": ("within", "resize"),  # resize + each pixel's ray angles from its VP and focal length
 }
 # condition -> the training settings it sets on top of the study's (and in its models' keys)
-CONDITION_TRAIN: dict[str, dict[str, Any]] = {"resize-vp": {"vp_channel": True}}
+CONDITION_TRAIN: dict[str, dict[str, Any]] = {"resize-vp": {"vp_channel": True}, "resize-rays": {"ray_channels": True}}
 # adaptation condition -> how its surrogate labels are made (vctrain.adapt.COMBINE): the prior's
 # tri-mask alone (paper §4.5), or the prior fused with the within model's own prediction (GeoSeg-like)
 ADAPT_COMBINE = {"adapt": "prior", "adapt-fuse": "fuse", "adapt-self": "self"}
