@@ -327,6 +327,13 @@ def test_condition_mixed_trains_one_network_on_both_views_and_averages_them(tmp_
     assert sorted(i for bt in batches for i in bt) == list(range(10))
     with pytest.raises(InputError, match="mixed-view"):
         refuse_mixed(model)
+    from conftest import assert_one_error_line
+
+    camera = tmp_path / "data" / "kitti.yaml"
+    bad = run_cli("predict", run_dir / "model.pt", rec["source"], "--camera", camera, "--out", tmp_path / "p",
+                  "--device", "cpu", prog="vctrain")
+    assert bad.returncode != 0
+    assert_one_error_line(bad, "mixed-view", "--store")
 
 
 def test_ray_channels_are_each_pixels_angles_from_the_vp_and_focal_length(tmp_path):
@@ -397,3 +404,9 @@ def test_condition_resize_rays_trains_on_each_frames_camera_and_vp(tmp_path):
     assert json.loads((out / "runs" / "kitti" / "resize-rays" / "result.json").read_text())["test_items"] == 2
     with pytest.raises(InputError, match="ray-channel"):
         refuse_mixed(model)
+    from conftest import assert_one_error_line
+
+    bad = run_cli("predict", out / "runs" / "kitti" / "resize-rays" / "model.pt", rec["source"], "--camera",
+                  tmp_path / "data" / "kitti.yaml", "--out", tmp_path / "p", "--device", "cpu", prog="vctrain")
+    assert bad.returncode != 0
+    assert_one_error_line(bad, "ray-channel", "--store")

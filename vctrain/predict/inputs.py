@@ -86,6 +86,10 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
     videos = check_video_stems([p for p in images or [] if is_video(p)])
     images = [p for p in images or [] if not is_video(p)]
     predictor = _predictor(checkpoint, prior, device)
+    if store is None:  # (frames: a study's candidate model takes stores only, said before any frame is read)
+        from .predictor import refuse_mixed
+
+        refuse_mixed(predictor)
     existed = Path(out).exists()
     try:
         result = _predict_all(predictor, prior, images, videos, out, camera_for, store, keep_store, within, overlay,
