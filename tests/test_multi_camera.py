@@ -233,6 +233,20 @@ def test_condition_average_trains_nothing_and_averages_within_and_resize(tmp_pat
     assert got.shape == (rec["size"][1], rec["size"][0])
 
 
+def _resize_and(condition: str, tmp_path: Path) -> tuple[Path, Path]:
+    """A mixed study's kitti fold with conditions resize and ``condition`` (each its own model);
+    returns (study output, the condition's run folder)."""
+    from conftest import run_cli
+    from studies import _mixed_study
+
+    study, out = _mixed_study(tmp_path / "data"), tmp_path / "out"
+    proc = run_cli("crossval", study, "--out", out, "--conditions", f"resize,{condition}", "--heldout", "kitti",
+                   prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.count("training on") == 2  # its own model, not the resize model's
+    return out, out / "runs" / "kitti" / condition
+
+
 def test_condition_resize_vp_is_resize_with_each_frames_own_vp_channel(tmp_path):
     """Condition resize-vp (issue 44): the resize baseline's frames read as they are plus a 4th input,
     the VP proximity map of each frame's own estimated VP (the within stores' records); its own
@@ -241,19 +255,13 @@ def test_condition_resize_vp_is_resize_with_each_frames_own_vp_channel(tmp_path)
     import json
 
     from conftest import run_cli
-    from studies import _mixed_study
     from vcprep.labels import decode_label, get_label_format
     from vcprep.io import read_image
     from vcprep.store import Store
     from vctrain.metrics import RoadMetrics
     from vctrain.predict import Predictor
 
-    study, out = _mixed_study(tmp_path / "data"), tmp_path / "out"
-    proc = run_cli("crossval", study, "--out", out, "--conditions", "resize,resize-vp", "--heldout", "kitti",
-                   prog="vctrain")
-    assert proc.returncode == 0, proc.stderr
-    assert proc.stderr.count("training on") == 2  # its own model, not the resize model's
-    run_dir = out / "runs" / "kitti" / "resize-vp"
+    out, run_dir = _resize_and("resize-vp", tmp_path)
     ck = load_checkpoint(run_dir / "model.pt")
     assert ck["data"]["mode"] == "resize" and ck["data"]["vp_channel"] is True
     assert ck["model_args"]["in_channels"] == 4
@@ -288,18 +296,12 @@ def test_condition_mixed_trains_one_network_on_both_views_and_averages_them(tmp_
     import json
 
     from conftest import run_cli
-    from studies import _mixed_study
     from vcprep.store import Store
     from vctrain.data import MixedViews, view_batches
     from vctrain.predict import Predictor
     from vctrain.predict.predictor import refuse_mixed
 
-    study, out = _mixed_study(tmp_path / "data"), tmp_path / "out"
-    proc = run_cli("crossval", study, "--out", out, "--conditions", "resize,mixed", "--heldout", "kitti",
-                   prog="vctrain")
-    assert proc.returncode == 0, proc.stderr
-    assert proc.stderr.count("training on") == 2  # its own model, not the resize model's
-    run_dir = out / "runs" / "kitti" / "mixed"
+    out, run_dir = _resize_and("mixed", tmp_path)
     ck = load_checkpoint(run_dir / "model.pt")
     rz = load_checkpoint(out / "runs" / "kitti" / "resize" / "model.pt")
     data = ck["data"]
@@ -376,37 +378,31 @@ def test_ray_channels_are_each_pixels_angles_from_the_vp_and_focal_length(tmp_pa
 
 
 def test_condition_resize_rays_trains_on_each_frames_camera_and_vp(tmp_path):
-    """Condition resize-rays (issue 53): the resize twin with two more inputs (lite0fpn's stem gives them
-    zero weight at the start: test_efficientnet); scored with each record's own VP and focal length: a longer focal length in
-    the record changes its probabilities; frames, video and export refuse the model in one line."""
+    """Condition resize-rays (issue 53): the resize twin with two more inputs (lite0fpn's stem gives
+    them zero weight at the start: test_efficientnet); scored with each record's own VP and focal
+    length: a longer focal length in the record changes its probabilities; frames, video and export
+    refuse the model in one line."""
     import json
 
-    from conftest import run_cli
-    from studies import _mixed_study
+    from conftest import assert_one_error_line, run_cli
     from vcprep.store import Store
     from vctrain.predict import Predictor
     from vctrain.predict.predictor import refuse_mixed
 
-    study, out = _mixed_study(tmp_path / "data"), tmp_path / "out"
-    proc = run_cli("crossval", study, "--out", out, "--conditions", "resize,resize-rays", "--heldout", "kitti",
-                   prog="vctrain")
-    assert proc.returncode == 0, proc.stderr
-    assert proc.stderr.count("training on") == 2
-    ck = load_checkpoint(out / "runs" / "kitti" / "resize-rays" / "model.pt")
+    out, run_dir = _resize_and("resize-rays", tmp_path)
+    ck = load_checkpoint(run_dir / "model.pt")
     assert ck["data"]["mode"] == "resize" and ck["data"]["ray_channels"] is True
     assert ck["model_args"]["in_channels"] == 5
-    model = Predictor(out / "runs" / "kitti" / "resize-rays" / "model.pt", device="cpu")
+    model = Predictor(run_dir / "model.pt", device="cpu")
     store = Store.open(out / "stores" / "kitti" / "test" / "within")
     rec = next(iter(store))
     cp = rec["camera_params"]
     longer = {**rec, "camera_params": {**cp, "fx": 3 * cp["fx"], "fy": 3 * cp["fy"]}}
     assert not np.allclose(model.store_item(store, rec), model.store_item(store, longer))
-    assert json.loads((out / "runs" / "kitti" / "resize-rays" / "result.json").read_text())["test_items"] == 2
+    assert json.loads((run_dir / "result.json").read_text())["test_items"] == 2
     with pytest.raises(InputError, match="ray-channel"):
         refuse_mixed(model)
-    from conftest import assert_one_error_line
-
-    bad = run_cli("predict", out / "runs" / "kitti" / "resize-rays" / "model.pt", rec["source"], "--camera",
+    bad = run_cli("predict", run_dir / "model.pt", rec["source"], "--camera",
                   tmp_path / "data" / "kitti.yaml", "--out", tmp_path / "p", "--device", "cpu", prog="vctrain")
     assert bad.returncode != 0
     assert_one_error_line(bad, "ray-channel", "--store")
