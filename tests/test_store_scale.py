@@ -357,15 +357,20 @@ def test_sigint_stops_cleanly_and_says_how_to_resume(ds, reference, tmp_path, jo
 
 
 def _recorded_ids(store: Path) -> set[str]:
-    """Ids recorded in the manifest or a part file (a torn last line ignored), read while a build runs."""
-    ids = set()
-    for part in store.glob("manifest*.jsonl"):
-        for line in part.read_text().splitlines():
-            try:
-                ids.add(json.loads(line)["id"])
-            except ValueError:
-                pass
-    return ids
+    """Ids recorded in the manifest or a part file (a torn last line ignored), read while a build runs;
+    read again when a part is merged away between the listing and the read."""
+    while True:
+        ids = set()
+        try:
+            for part in store.glob("manifest*.jsonl"):
+                for line in part.read_text().splitlines():
+                    try:
+                        ids.add(json.loads(line)["id"])
+                    except ValueError:
+                        pass
+        except FileNotFoundError:
+            continue
+        return ids
 
 
 def _kill_in_the_orphan_window(proc, out: Path, delay: float) -> None:

@@ -181,7 +181,7 @@ def _geometry(predictor, camera: Camera, vp_input: bool, pose_range: tuple[float
     from ..data import vp_proximity
 
     assert (C.TABLE_ARC, C.FALLBACK_TOWARD) == (TABLE_ARC, FALLBACK_TOWARD)  # the in-graph completion's constants
-    from ..predict.predictor import refuse_mixed
+    from ..predict.frames import refuse_mixed
 
     refuse_mixed(predictor)
     data = predictor.data

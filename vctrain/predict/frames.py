@@ -72,10 +72,7 @@ class FramePredictor:
     def __init__(self, predictor: Any, camera: Camera | None, frame_size: tuple[int, int],
                  poses: Iterable[tuple[float, float]] = (),
                  views: list[tuple[Camera, float, float]] | None = None):
-        if getattr(predictor, "mode", None) == "mixed" or getattr(predictor, "ray_channels", False):  # (refuse_mixed)
-            from .predictor import refuse_mixed
-
-            refuse_mixed(predictor)
+        refuse_mixed(predictor)
         self.predictor = predictor
         self.size = (int(frame_size[0]), int(frame_size[1]))
         self.camera = camera.for_image_size(self.size) if camera is not None else None
@@ -176,6 +173,18 @@ class FramePredictor:
         self.times.backproject += t3 - t2
         self.times.frames += 1
         return out
+
+
+def refuse_mixed(predictor: Any) -> None:
+    """A mixed-view or ray-channel model (issue 53's study candidates) predicts store items only (the
+    two views averaged per store record; the record's camera gives the rays): one clear error for
+    frames, video and export."""
+    if getattr(predictor, "mode", None) == "mixed":
+        raise InputError("a mixed-view model (trained on both views) predicts store items only", predictor.path,
+                         "predict a store with --store, or use a virtual-camera or resize model")
+    if getattr(predictor, "ray_channels", False):
+        raise InputError("a ray-channel model predicts store items only (their records give each camera)",
+                         predictor.path, "predict a store with --store, or use a model without ray channels")
 
 
 def warps_frames(predictor: Any) -> bool:

@@ -87,7 +87,7 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
     images = [p for p in images or [] if not is_video(p)]
     predictor = _predictor(checkpoint, prior, device)
     if store is None:  # (frames: a study's candidate model takes stores only, said before any frame is read)
-        from .predictor import refuse_mixed
+        from .frames import refuse_mixed
 
         refuse_mixed(predictor)
     existed = Path(out).exists()

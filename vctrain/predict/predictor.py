@@ -40,7 +40,7 @@ from vcprep.store import Store
 from ..checkpoint import load_checkpoint, model_from_checkpoint
 from ..data import ray_angles, resize_pair, source_focal, to_input, vp_in_store, vp_proximity
 from ..train import resolve_device
-from .frames import warps_frames
+from .frames import refuse_mixed, warps_frames
 from .road import (RoadRun, frames_canvas, geometry_line, model_vp_rule, out_dir, run_road, virtual_within,
                    write_prediction)
 
@@ -151,18 +151,6 @@ def predict_store(predictor: Predictor, store: Store, out: str | Path, progress:
         written.append(write_prediction(out, rec["id"], predictor.store_item(store, rec),
                                         rec["source"] if overlay else None)[0])
     return written
-
-
-def refuse_mixed(predictor: Any) -> None:
-    """A mixed-view or ray-channel model (issue 53's study candidates) predicts store items only (the
-    two views averaged per store record; the record's camera gives the rays): one clear error for
-    frames, video and export."""
-    if getattr(predictor, "mode", None) == "mixed":
-        raise InputError("a mixed-view model (trained on both views) predicts store items only", predictor.path,
-                         "predict a store with --store, or use a virtual-camera or resize model")
-    if getattr(predictor, "ray_channels", False):
-        raise InputError("a ray-channel model predicts store items only (their records give each camera)",
-                         predictor.path, "predict a store with --store, or use a model without ray channels")
 
 
 def predict_frames(predictor: Any, images: Iterable[str | Path], out: str | Path,
