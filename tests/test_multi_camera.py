@@ -1,4 +1,4 @@
-"""Training on several stores: per-dataset balance of an epoch's draws (vctrain.data.epoch_order,
+"""Training on several stores: per-dataset balance of an epoch's draws (vctrain.trainset.epoch_order,
 the trainer's epoch loader) and fine-tuning from a checkpoint (``vctrain fit --init``)."""
 from __future__ import annotations
 
@@ -20,7 +20,8 @@ from vcprep.synthetic import RoadScene, render_road
 from vctrain.checkpoint import load_checkpoint
 from vctrain.cli import app
 from vctrain.config import TrainConfig
-from vctrain.data import RoadDataset, Sample, epoch_order
+from vctrain.data import RoadDataset, Sample
+from vctrain.trainset import epoch_order
 from vctrain.train import _epoch_loader, fit
 
 torch.set_num_threads(1)
@@ -297,7 +298,7 @@ def test_condition_mixed_trains_one_network_on_both_views_and_averages_them(tmp_
 
     from conftest import run_cli
     from vcprep.store import Store
-    from vctrain.data import MixedViews, view_batches
+    from vctrain.trainset import MixedViews, view_batches
     from vctrain.predict import Predictor
     from vctrain.predict.predictor import refuse_mixed
 

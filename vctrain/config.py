@@ -31,7 +31,7 @@ RECIPES: dict[str, dict[str, Any]] = {
 DEFAULT_RECIPE = "cpu"
 SCHEDULES = ("poly", "cosine", "constant")
 OPTIMIZERS = ("sgd", "adamw")
-# how an epoch draws from several training stores (vctrain.data.epoch_order): 'items' every item
+# how an epoch draws from several training stores (vctrain.trainset.epoch_order): 'items' every item
 # once (a store's share is its size), 'datasets' every store equally often (small ones repeated)
 BALANCES = ("items", "datasets")
 
@@ -43,7 +43,7 @@ class TrainConfig:
     stores: list[str] = field(default_factory=list)  # training stores (one virtual camera and scale)
     out: str = "model.pt"              # best checkpoint; '<stem>.last.pt' beside it is the latest epoch
     baseline: str = "none"             # 'none': train on the stores; 'resize': original images resized;
-                                       # 'mixed': both views of every store frame (vctrain.data.MixedViews)
+                                       # 'mixed': both views of every store frame (vctrain.trainset.MixedViews)
     images: Optional[str] = None       # baseline from folders instead of stores: image folder
     labels: Optional[str] = None       #   ... label folder
     label_format: Optional[str] = None  #  ... label format (camvid, kitti, values:road=..)

@@ -30,7 +30,7 @@ Determinism: the item order and augmentations of epoch e depend only on (seed, e
 resumed run continues exactly where the interrupted one would have gone (on the CPU).
 
 Several stores (one virtual camera and scale, e.g. one per source camera): ``balance`` says how an
-epoch draws from them (:func:`vctrain.data.epoch_order`): ``items`` every item once, ``datasets``
+epoch draws from them (:func:`vctrain.trainset.epoch_order`): ``items`` every item once, ``datasets``
 every store an equal share of the epoch. Fine-tuning: ``init`` starts from a checkpoint's network
 and weights with a fresh optimiser; another architecture, width, input channels or mode (virtual
 camera vs resize) is refused, and the new checkpoint records the one it started from (``init``).
@@ -61,8 +61,8 @@ from vcprep.errors import InputError
 
 from .checkpoint import load_checkpoint, model_from_checkpoint, save_checkpoint
 from .config import ADAPT_LR_FACTOR, BALANCES, DEFAULT_RECIPE, OPTIMIZERS, RECIPES, SCHEDULES, TrainConfig
-from .data import (MixedViews, RoadDataset, class_frequencies, crop_size, epoch_order, median_frequency_weights,
-                   prepare_data, view_batches)
+from .data import RoadDataset, class_frequencies, median_frequency_weights
+from .trainset import MixedViews, crop_size, epoch_order, prepare_data, training_sets, view_batches
 from .metrics import RoadMetrics
 from .model import ARCHITECTURES, build_model, model_args_for, resolve_pretrained
 
@@ -255,24 +255,6 @@ def _init_record(path: str, init: dict[str, Any]) -> dict[str, Any]:
             "epoch": init.get("epoch"), "best_iou": init.get("best_iou"), "model_args": init["model_args"]}
 
 
-def _datasets(cfg: TrainConfig, train_s: list, val_s: list, info: dict[str, Any]) -> tuple[Any, Any]:
-    """(training set with the augmentations and crop, validation set) at the working size; for
-    ``mixed`` each view at its own working size and window (:class:`vctrain.data.MixedViews`)."""
-    def pair(train: list, val: list, size: list[int], crop: list[int]) -> tuple[RoadDataset, RoadDataset]:
-        return (RoadDataset(train, tuple(size), hflip=cfg.hflip, greyscale=cfg.greyscale, vp_channel=cfg.vp_channel,
-                            scale_aug=cfg.scale_aug, shift_aug=cfg.shift_aug, color_aug=cfg.color_aug,
-                            crop=tuple(crop), shading_aug=cfg.shading_aug, ray_channels=cfg.ray_channels),
-                RoadDataset(val, tuple(size), greyscale=1.0 if cfg.greyscale >= 1 else 0.0, vp_channel=cfg.vp_channel,
-                            ray_channels=cfg.ray_channels))
-
-    if info["mode"] != "mixed":
-        return pair(train_s, val_s, info["input_size"], info["crop_size"])
-    nt, nv = len(train_s) // 2, len(val_s) // 2  # (the virtual view's samples, then the resize view's)
-    tv, vv = pair(train_s[:nt], val_s[:nv], info["input_size"], info["crop_size"])
-    tr, vr = pair(train_s[nt:], val_s[nv:], info["resize_size"], info["resize_crop_size"])
-    return MixedViews(tv, tr), MixedViews(vv, vr)
-
-
 def _validate(row: dict[str, Any], model: nn.Module, loader, device: torch.device, weight: torch.Tensor | None,
               best_iou: float) -> bool:
     """Add the validation metrics to the epoch's ``row``; whether its road IoU beats ``best_iou``."""
@@ -301,7 +283,7 @@ def _optimizer(cfg: TrainConfig, model: nn.Module) -> torch.optim.Optimizer:
 
 
 def _epoch_loader(train_ds: RoadDataset, cfg: TrainConfig, epoch: int, rank: int, world: int, batch: int):
-    """This rank's batches of ``epoch``: item order (:func:`vctrain.data.epoch_order`, ``cfg.balance``)
+    """This rank's batches of ``epoch``: item order (:func:`vctrain.trainset.epoch_order`, ``cfg.balance``)
     and augmentation depend on (seed, epoch, rank) only -> exact resume."""
     gen = torch.Generator().manual_seed(cfg.seed * 1000003 + epoch)
     order = epoch_order([x.source for x in train_ds.samples], cfg.balance, gen)
@@ -422,9 +404,11 @@ def _replicas_identical(model: nn.Module, world: int) -> bool:
     return same
 
 
-def _steps_per_epoch(cfg: TrainConfig, n_train: int, world: int) -> tuple[int, int]:
+def _steps_per_epoch(cfg: TrainConfig, train_ds: Any, world: int) -> tuple[int, int]:
     """(batch per rank, optimiser steps per epoch): every training item once per epoch over all
-    ranks, capped at ``cfg.max_steps``."""
+    ranks, capped at ``cfg.max_steps``; mixed views take the steps of one view's run (each frame
+    once an epoch, in one view or the other)."""
+    n_train = len(train_ds) // 2 if isinstance(train_ds, MixedViews) else len(train_ds)
     per_rank_batch = max(1, math.ceil(cfg.batch_size / world))
     steps = math.ceil(n_train / (per_rank_batch * world))
     return per_rank_batch, (min(steps, cfg.max_steps) if cfg.max_steps else steps)
@@ -456,12 +440,10 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
     net = nn.parallel.DistributedDataParallel(model, device_ids=[device.index] if device.type == "cuda" else None) \
         if distributed else model
 
-    train_ds, val_ds = _datasets(cfg, train_s, val_s, info)
+    train_ds, val_ds = training_sets(cfg, train_s, val_s, info)
     weight = _class_weight(cfg, train_ds, info, device)
 
-    # mixed views: the steps of one view's run (each frame once an epoch, in one view or the other)
-    frames = len(train_ds) // 2 if isinstance(train_ds, MixedViews) else len(train_ds)
-    per_rank_batch, steps_per_epoch = _steps_per_epoch(cfg, frames, world)
+    per_rank_batch, steps_per_epoch = _steps_per_epoch(cfg, train_ds, world)
     total_steps = steps_per_epoch * cfg.epochs
     opt = _optimizer(cfg, model)
     val_loader = torch.utils.data.DataLoader(val_ds, batch_sampler=view_batches(val_ds, range(len(val_ds)),

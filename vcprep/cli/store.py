@@ -121,12 +121,18 @@ def warp_cmd(
     settings = WarpSettings(camera=cam, virtual=virt, scale=scale, label_format=fmt, completion=complete, poses=poses,
                             workers=jobs or default_jobs(), shard=part, keep_going=keep_going, progress=not quiet)
     store, summary = warp_dataset(items, out, settings)
-    if estimate is not None:
-        write_bytes_atomic(out / "camera.estimated.yaml", estimate_to_yaml(estimate).encode())
-        if not quiet:
-            err(estimated_line(estimate, f"the frames ({out / 'camera.estimated.yaml'})"))
+    _keep_estimate(out, estimate, quiet)
     finish(out, summary, quiet, f" (store {store.store_size[0]}x{store.store_size[1]}{design}"
                                  f"{f', shard {part}' if part else ''}{vps})")
+
+
+def _keep_estimate(out: Path, estimate, quiet: bool) -> None:
+    """A camera estimated from the frames is kept beside the store (``camera.estimated.yaml``) and said."""
+    if estimate is None:
+        return
+    write_bytes_atomic(out / "camera.estimated.yaml", estimate_to_yaml(estimate).encode())
+    if not quiet:
+        err(estimated_line(estimate, f"the frames ({out / 'camera.estimated.yaml'})"))
 
 
 def _check_labels(items: list, fmt, labels: Path, samples: int = 48) -> None:

@@ -7,7 +7,7 @@ The preprocessing is the checkpoint's own (no repeated flags):
   (:func:`vcprep.warp.backproject_array`, bilinear; pixels outside the virtual image get 0).
 - ``resize`` baseline models: the image is resized to the working size, inferred, and the
   probability resized back (bilinear).
-- ``mixed`` models (trained on both views, :class:`vctrain.data.MixedViews`): on a store item, the
+- ``mixed`` models (trained on both views, :class:`vctrain.trainset.MixedViews`): on a store item, the
   mean of the two, each in the item's original camera (the resize view at the checkpoint's
   ``resize_size``). Scored by studies on stores; frames, video and export take the other two modes.
 

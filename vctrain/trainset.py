@@ -1,0 +1,292 @@
+"""A training run's data: its stores opened and checked, the samples of the view it trains on
+(:data:`BASELINES`), the validation share or stores, the working size, the training window
+(:func:`crop_size`), the datasets (:func:`training_sets`) and each epoch's batches
+(:func:`epoch_order`, :func:`view_batches`). The items themselves, their decoding and augmentation:
+:mod:`vctrain.data`.
+
+Mixed views (``baseline: mixed``, issue 53's candidate): every frame twice, its virtual-camera store
+item and its original image resized, each view at its own working size and window
+(:class:`MixedViews`); a batch holds one view.
+"""
+from __future__ import annotations
+
+import json
+import math
+from collections import Counter
+from dataclasses import replace
+from typing import Any, Sequence
+
+import numpy as np
+import torch
+
+from vcprep.dataset import list_dataset
+from vcprep.errors import InputError
+from vcprep.io import image_size
+from vcprep.labels import get_label_format
+from vcprep.store import Store
+
+from .config import BALANCES, TrainConfig
+from .data import RoadDataset, Sample, resize_samples, store_samples
+
+__all__ = ["BASELINES", "MIN_SIDE", "MixedViews", "view_batches", "prepare_data", "resize_working_size", "crop_size",
+           "epoch_order", "training_sets"]
+
+MIN_SIDE = 32  # the smallest working side: five 2x2 poolings
+# what a model is trained on (TrainConfig.baseline): 'none' the virtual camera's store items, 'resize'
+# the original images simply resized, 'mixed' both views of every frame (:class:`MixedViews`)
+BASELINES = ("none", "resize", "mixed")
+
+
+class MixedViews(torch.utils.data.Dataset):
+    """Mixed-view training (issue 53's candidate): every frame twice, its virtual-camera store item
+    (view 0) and its original image simply resized (view 1), each view at its own working size and
+    training window; items ``[0, len(virtual))`` are view 0, the rest view 1. Batches hold one view
+    (:func:`view_batches`), so each keeps its own input size. At test time the model's two views'
+    probabilities are averaged in the camera's own pixels (:class:`vctrain.predict.Predictor`)."""
+
+    def __init__(self, virtual: RoadDataset, resized: RoadDataset):
+        self.parts = (virtual, resized)
+        self.samples = virtual.samples + resized.samples
+        self.n_virtual = len(virtual)
+
+    def __len__(self) -> int:
+        return len(self.samples)
+
+    def view(self, i: int) -> int:
+        return 0 if i < self.n_virtual else 1
+
+    def _part(self, i: int) -> tuple[RoadDataset, int]:
+        return (self.parts[0], i) if i < self.n_virtual else (self.parts[1], i - self.n_virtual)
+
+    def item(self, i: int):
+        ds, j = self._part(i)
+        return ds.item(j)
+
+    def __getitem__(self, i: int):
+        ds, j = self._part(i)
+        return ds[j]
+
+
+def view_batches(dataset: Any, order: Sequence[int], batch: int) -> list[list[int]]:
+    """``order`` cut into batches of ``batch`` items; for :class:`MixedViews` every batch holds one
+    view (items join their view's open batch in ``order``'s order; a batch is emitted when full,
+    then the open ones), so the order's randomness carries over to the batches."""
+    if not isinstance(dataset, MixedViews):
+        return [list(order[k:k + batch]) for k in range(0, len(order), batch)]
+    out: list[list[int]] = []
+    pending: dict[int, list[int]] = {0: [], 1: []}
+    for i in order:
+        b = pending[dataset.view(i)]
+        b.append(i)
+        if len(b) == batch:
+            out.append(list(b))
+            b.clear()
+    out += [b for b in pending.values() if b]
+    return out
+
+
+def _open_stores(paths: list[str]) -> list[Store]:
+    stores = [Store.open(p) for p in paths]
+    for s in stores[1:]:
+        for k in ("virtual", "scale", "store_size"):
+            if s.params.get(k) != stores[0].params.get(k):
+                raise InputError(f"store has another {k} than {stores[0].root}", s.root,
+                                 "train on stores of one virtual camera at one scale")
+    return stores
+
+
+def _samples(stores: list[Store], baseline: str) -> list[Sample]:
+    """The stores' samples in the view ``baseline`` trains on ('mixed': call once per view)."""
+    out: list[Sample] = []
+    for s in stores:
+        got = resize_samples(s) if baseline == "resize" else store_samples(s)
+        if not got:
+            raise InputError("store has no labelled items", s.root, "build it with --labels")
+        out += got
+    return out
+
+
+def _completion(stores: list[Store]) -> str:
+    kinds = {rec.get("completion", "none") for s in stores for rec in s}
+    if len(kinds) > 1:
+        raise InputError(f"stores mix completion methods ({', '.join(sorted(kinds))})", stores[0].root,
+                         "train on items built with one --complete method")
+    return kinds.pop() if kinds else "none"
+
+
+def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str, Any]]:
+    """Training and validation samples plus the checkpoint's ``data`` description."""
+    if cfg.baseline not in BASELINES:
+        raise InputError(f"unknown baseline '{cfg.baseline}'", None, "use --baseline resize or mixed (or leave it out)")
+    if cfg.baseline == "mixed":
+        return _prepare_mixed(cfg)
+    stores = _open_stores(cfg.stores) if cfg.stores else []
+    info: dict[str, Any] = {"mode": "resize" if cfg.baseline == "resize" else "virtual",
+                            "store_params": stores[0].params if stores else None,
+                            "completion": _completion(stores) if stores else "none",
+                            "vp_channel": cfg.vp_channel, "greyscale": cfg.greyscale,
+                            **({"ray_channels": True} if cfg.ray_channels else {})}
+    if cfg.images is not None:
+        if cfg.baseline != "resize":
+            raise InputError("--images is for the resize baseline", cfg.images,
+                             "add --baseline resize, or train on a store built with 'vcprep warp'")
+        if cfg.labels is None or cfg.label_format is None:
+            raise InputError("--images needs --labels and --label-format", cfg.images, "add them")
+        fmt = get_label_format(cfg.label_format)
+        train = [Sample(j.id, j.image, j.label, fmt.name, source=str(cfg.images))
+                 for j in list_dataset(cfg.images, cfg.labels, fmt)]
+        if stores:
+            train += _samples(stores, cfg.baseline)
+    elif stores:
+        train = _samples(stores, cfg.baseline)
+    else:
+        raise InputError("no training data", None, "give STORE... (or --baseline resize --images/--labels)")
+    if cfg.val_stores:
+        vstores = _open_stores(cfg.val_stores)
+        if cfg.baseline != "resize" and stores:
+            for k in ("virtual", "scale"):
+                if vstores[0].params.get(k) != stores[0].params.get(k):
+                    raise InputError(f"validation store has another {k} than the training store", vstores[0].root,
+                                     "validate on a store of the same virtual camera and scale")
+        val = _samples(vstores, cfg.baseline)
+    elif cfg.val_fraction > 0:
+        if not 0 < cfg.val_fraction < 1:
+            raise InputError(f"validation fraction {cfg.val_fraction} is not in [0, 1)", None, "use e.g. 0.1")
+        perm = np.random.default_rng(cfg.seed).permutation(len(train))
+        n_val = max(1, int(round(cfg.val_fraction * len(train))))
+        if n_val >= len(train):
+            raise InputError(f"{len(train)} items are too few to hold out {cfg.val_fraction:g}", None,
+                             "add items, or use --val-fraction 0 / --val-store")
+        val = [train[i] for i in sorted(perm[:n_val])]
+        train = [train[i] for i in sorted(perm[n_val:])]
+    else:
+        val = []
+    if cfg.size is not None:
+        size = (int(cfg.size[0]), int(cfg.size[1]))
+    elif stores and cfg.baseline == "resize":  # the store's pixels at the frames' own aspect (as a study's twin)
+        size = resize_working_size(stores[0].store_size, image_size(train[0].image))
+    elif stores:
+        size = stores[0].store_size
+    else:
+        from vcprep.io import read_image
+
+        size = read_image(train[0].image).size
+    if min(size) < MIN_SIDE:
+        raise InputError(f"working size {size[0]}x{size[1]} is below {MIN_SIDE} pixels", None,
+                         "use a larger --size or store scale")
+    info["input_size"] = list(size)
+    info["crop_size"] = list(crop_size(cfg.crop, size))
+    info["vp_status"] = sorted({rec.get("vp_status", "camera") for s in stores for rec in s})
+    rules = Counter(json.dumps(rec["vp_rule"], sort_keys=True) for s in stores for rec in s if rec.get("vp_rule"))
+    if rules:  # the rule the estimated VPs were found with (of most items): predict follows it
+        info["vp_rule"] = json.loads(max(sorted(rules), key=rules.get))
+    info["train_items"] = len(train)
+    info["train_items_per_source"] = dict(Counter(t.source for t in train))  # (in the stores' order)
+    info["val_items"] = len(val)
+    return train, val, info
+
+
+def _prepare_mixed(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str, Any]]:
+    """:func:`prepare_data` for ``baseline: mixed`` (:class:`MixedViews`): the virtual-camera run's
+    data, its resize twin's (the same frames, the same validation share: one seeded split of the
+    frames), and ``resize_size`` / ``resize_crop_size`` (the twin's working size and window). The
+    samples are the virtual view's then the resize view's; ``info['views']`` their counts."""
+    if cfg.images is not None or not cfg.stores:
+        raise InputError("--baseline mixed trains on stores (both views of their frames)", cfg.images,
+                         "give STORE... built with 'vcprep warp' --labels")
+    parts = {}
+    for view in ("none", "resize"):
+        sub = replace(cfg, baseline=view, size=cfg.size if view == "none" else None)
+        parts[view] = prepare_data(sub)
+    (tv, vv, info), (tr, vr, rinfo) = parts["none"], parts["resize"]
+    if [s.id for s in tv] != [s.id for s in tr] or [s.id for s in vv] != [s.id for s in vr]:
+        raise InputError("the store's labelled items and their sources differ", cfg.stores[0],
+                         "rebuild the store with 'vcprep warp --labels'")
+    info = {**info, "mode": "mixed", "resize_size": rinfo["input_size"], "resize_crop_size": rinfo["crop_size"],
+            "views": [len(tv), len(tr)], "train_items": len(tv) + len(tr), "val_items": len(vv) + len(vr),
+            "train_items_per_source": dict(Counter(t.source for t in tv + tr))}
+    return tv + tr, vv + vr, info
+
+
+def resize_working_size(store_size: tuple[int, int], frame_size: tuple[int, int]) -> tuple[int, int]:
+    """The resize baseline's working size (w, h): the virtual store's pixel count at the aspect of the
+    frames (``frame_size``, w, h), so the twin gets the same pixel budget and no frame is squashed
+    (``vctrain fit STORE --baseline resize`` without --size, and a study's resize twin)."""
+    n = store_size[0] * store_size[1]
+    w0, h0 = frame_size
+    return max(32, int(round(math.sqrt(n * w0 / h0)))), max(32, int(round(math.sqrt(n * h0 / w0))))
+
+
+def crop_size(crop: Any, size: tuple[int, int]) -> tuple[int, int]:
+    """The training window (w, h) of ``crop`` at working size ``size``: None -> ``size``; a number
+    in (0, 1] -> that share of each side; a pair of floats in (0, 1] -> the shares of the width
+    and the height (e.g. (0.44, 1.0): full-height windows); a pair of ints -> pixels. Shares are
+    rounded, and never below MIN_SIDE (so the recipe's share works on small stores too). The window
+    must fit ``size`` and be at least MIN_SIDE on each side."""
+    if crop is None:
+        return tuple(size)
+
+    def share(v: Any, side: int) -> int:
+        if not 0 < float(v) <= 1:
+            raise InputError(f"crop share {v} is not in (0, 1]", None, "use e.g. --crop 0.67, 0.44x1 or 320x240")
+        return max(int(round(side * float(v))), min(MIN_SIDE, side))  # a share never below MIN_SIDE
+
+    if isinstance(crop, (int, float)) and not isinstance(crop, bool):
+        out = (share(crop, size[0]), share(crop, size[1]))
+    elif all(isinstance(v, float) for v in crop):
+        out = (share(crop[0], size[0]), share(crop[1], size[1]))
+    else:
+        out = (int(crop[0]), int(crop[1]))
+    if out[0] > size[0] or out[1] > size[1] or min(out) < MIN_SIDE:
+        raise InputError(f"crop {out[0]}x{out[1]} does not fit the working size {size[0]}x{size[1]} (or is below "
+                         f"{MIN_SIDE} px)", None, "use a smaller --crop, a larger --size, or leave --crop out")
+    return out
+
+
+def epoch_order(sources: Sequence[str], balance: str, generator: torch.Generator) -> list[int]:
+    """The training items (indices into ``sources``, each item's store or folder) one epoch visits,
+    in order: as many as there are items, drawn with ``generator`` (seeded per run and epoch, so a
+    resumed run and the resize twin of a virtual-camera run draw the same).
+
+    ``items``: a random permutation (every item once; a store weighs as many items as it holds).
+    ``datasets``: every source gets an equal share of the epoch (the remainder to sources chosen at
+    random), filled with fresh random permutations of its own items -- a small store is repeated,
+    a large one sampled without replacement -- then the whole epoch shuffled. With one source it is
+    ``items``' permutation."""
+    n = len(sources)
+    groups: dict[str, list[int]] = {}
+    for i, s in enumerate(sources):
+        groups.setdefault(s, []).append(i)
+    if balance == "items" or len(groups) < 2:
+        return torch.randperm(n, generator=generator).tolist()
+    if balance != "datasets":
+        raise InputError(f"unknown balance '{balance}'", None, f"use one of {', '.join(BALANCES)}")
+    members = list(groups.values())
+    quota = [n // len(members)] * len(members)
+    for g in torch.randperm(len(members), generator=generator)[: n % len(members)].tolist():
+        quota[g] += 1
+    drawn: list[int] = []
+    for idx, q in zip(members, quota):
+        while q > 0:
+            take = torch.randperm(len(idx), generator=generator)[:q].tolist()
+            drawn += [idx[k] for k in take]
+            q -= len(take)
+    return [drawn[k] for k in torch.randperm(len(drawn), generator=generator).tolist()]
+
+
+def training_sets(cfg: TrainConfig, train_s: list, val_s: list, info: dict[str, Any]) -> tuple[Any, Any]:
+    """(training set with the augmentations and crop, validation set) at the working size; for
+    ``mixed`` each view at its own working size and window (:class:`MixedViews`)."""
+    def pair(train: list, val: list, size: list[int], crop: list[int]) -> tuple[RoadDataset, RoadDataset]:
+        return (RoadDataset(train, tuple(size), hflip=cfg.hflip, greyscale=cfg.greyscale, vp_channel=cfg.vp_channel,
+                            scale_aug=cfg.scale_aug, shift_aug=cfg.shift_aug, color_aug=cfg.color_aug,
+                            crop=tuple(crop), shading_aug=cfg.shading_aug, ray_channels=cfg.ray_channels),
+                RoadDataset(val, tuple(size), greyscale=1.0 if cfg.greyscale >= 1 else 0.0, vp_channel=cfg.vp_channel,
+                            ray_channels=cfg.ray_channels))
+
+    if info["mode"] != "mixed":
+        return pair(train_s, val_s, info["input_size"], info["crop_size"])
+    nt, nv = len(train_s) // 2, len(val_s) // 2  # (the virtual view's samples, then the resize view's)
+    tv, vv = pair(train_s[:nt], val_s[:nv], info["input_size"], info["crop_size"])
+    tr, vr = pair(train_s[nt:], val_s[nv:], info["resize_size"], info["resize_crop_size"])
+    return MixedViews(tv, tr), MixedViews(vv, vr)
