@@ -6,6 +6,7 @@ a dev dependency, never imported by the package), run on the same weights and th
 """
 from __future__ import annotations
 
+import copy
 import sys
 from pathlib import Path
 
@@ -16,8 +17,8 @@ import torch
 
 from vcprep.errors import InputError
 from vctrain.data import to_input
-from vctrain.efficientnet import EfficientNetLite0, from_project_input, pretrained_state, weights_path
-from vctrain.model import Lite0FPN, build_model, model_args_for
+from vctrain.efficientnet import EfficientNetLite0, SameConv2d, from_project_input, pretrained_state, weights_path
+from vctrain.model import ARCHITECTURES, Lite0FPN, build_model, fold_batchnorm, model_args_for
 
 from conftest import run_cli
 
@@ -106,6 +107,46 @@ def test_segmentation_shapes_for_any_size():
     with torch.no_grad():
         assert net(torch.zeros(2, 3, 57, 101)).shape == (2, 2, 57, 101)
     assert 2.9e6 < sum(p.numel() for p in net.parameters()) < 3.1e6
+
+
+@pytest.mark.parametrize("size", [(57, 101), (64, 96)])
+@pytest.mark.parametrize("kernel,stride", [(3, 1), (5, 1), (3, 2), (5, 2)])
+def test_same_padding_is_tensorflows_for_any_size(size, kernel, stride):
+    """SameConv2d against TensorFlow's rule written out: out = ceil(n / s), total pad
+    max((out - 1) s + k - n, 0), the smaller half before (both the symmetric and the asymmetric cases)."""
+    torch.manual_seed(0)
+    conv = SameConv2d(4, 6, kernel, stride, bias=False)
+    x = torch.randn(1, 4, *size)
+    pads = []
+    for n in (size[1], size[0]):
+        total = max((-(-n // stride) - 1) * stride + kernel - n, 0)
+        pads += [total // 2, total - total // 2]
+    want = torch.nn.functional.conv2d(torch.nn.functional.pad(x, pads), conv.weight, None, stride)
+    with torch.no_grad():
+        got = conv(x)
+    assert got.shape == want.shape == (1, 6, -(-size[0] // stride), -(-size[1] // stride))
+    assert torch.allclose(got, want, atol=1e-5)
+
+
+@pytest.mark.parametrize("arch", sorted(ARCHITECTURES))
+def test_folded_batchnorm_predicts_what_the_network_does(arch):
+    """fold_batchnorm (what every Predictor runs): the same outputs as the network in eval mode, with
+    BN statistics far from the identity (so a wrongly paired or skipped BN shows), and no BN left."""
+    torch.manual_seed(0)
+    net = build_model(model_args_for(arch, in_channels=4)).eval()
+    for m in net.modules():
+        if isinstance(m, torch.nn.BatchNorm2d):
+            m.running_mean.uniform_(-1, 1), m.running_var.uniform_(0.5, 2)
+            m.weight.data.uniform_(0.5, 1.5), m.bias.data.uniform_(-0.5, 0.5)
+    x = torch.randn(2, 4, 64, 96)
+    with torch.no_grad():
+        want = net(x)
+        folded = fold_batchnorm(copy.deepcopy(net))
+        got = folded(x)
+    assert not any(isinstance(m, torch.nn.BatchNorm2d) for m in folded.modules())
+    assert (got - want).abs().max().item() < 1e-3 * max(1.0, want.abs().max().item())
+    with pytest.raises(ValueError, match="eval mode"):
+        fold_batchnorm(build_model(model_args_for(arch)).train())
 
 
 def _store(tmp: Path) -> Path:

