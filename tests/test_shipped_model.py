@@ -58,3 +58,19 @@ def test_the_card_states_the_measured_fine_tuning_figures():
     ft = json.loads((ROOT / "benchmarks" / "results" / "finetune.json").read_text())["headline"]
     for key in ("as-is", "fine-tuned", "scratch", "fine-tuned_minus_as-is", "fine-tuned_minus_scratch"):
         assert f"{ft[key]:.1f}" in card, key  # the card's fine-tuning figures are the benchmark's
+
+
+def test_the_multicamera_recipe_is_the_shipped_models():
+    """``--recipe multicamera`` trains what the shipped checkpoint records it was trained with (every
+    setting the recipe fills), so a user's own multi-camera model follows the measured recipe."""
+    import torch
+
+    from vctrain.config import RECIPES, TrainConfig
+    from vctrain.train import resolve_recipe
+
+    shipped = torch.load(MODEL, map_location="cpu", weights_only=False)["config"]
+    recipe = resolve_recipe(TrainConfig(recipe="multicamera")).to_dict()
+    for key in RECIPES["multicamera"]:
+        want = shipped[key]
+        assert recipe[key] == (tuple(want) if isinstance(want, list) else want), key
+    assert shipped["baseline"] == "resize" and recipe["pretrained"] is shipped["pretrained"] is True

@@ -147,8 +147,13 @@ def test_recipes_fill_only_unset_fields():
     # on a GPU too (issue 44: the measured recipe wherever it runs, not the paper's unmeasured segnet)
     on_gpu = resolve_recipe(TrainConfig(device="cuda"), torch.device("cuda"))
     assert (on_gpu.recipe, on_gpu.arch, on_gpu.optimizer) == ("cpu", "resfpn", "adamw")
+    assert cpu.balance == paper.balance == "items"
+    multi = resolve_recipe(TrainConfig(recipe="multicamera"))
+    assert (multi.arch, multi.pretrained, multi.balance, multi.shading_aug, multi.epochs) == \
+        ("lite0fpn", True, "datasets", 0.4, 30)
+    assert resolve_recipe(TrainConfig(recipe="multicamera", balance="items", arch="resfpn")).pretrained is False
     for bad in (dict(recipe="gpu"), dict(optimizer="adam"), dict(schedule="step"), dict(lr=0.0),
-                dict(scale_aug=-0.1), dict(epochs=0)):
+                dict(scale_aug=-0.1), dict(epochs=0), dict(balance="frames")):
         with pytest.raises(InputError):
             resolve_recipe(TrainConfig(**{"recipe": "cpu", **bad}))
 

@@ -14,9 +14,10 @@ from ..config import TrainConfig
 from .common import LABEL_FORMAT_HELP, TRAIN, app, parse_size, path_or_json, pin_threads, threads_option
 
 RECIPE_HELP = ("defaults of every setting below: 'cpu' (resfpn, AdamW, cosine, augmentation, full-height windows of "
-               "4/9 of the width; 305 CamVid frames in about 7 min on 2 cores at the default store's 638x271) or "
-               "'paper' (segnet, SGD 0.005, poly, whole images); default: cpu on every device, a GPU included (the "
-               "recipe every measured number comes from)")
+               "4/9 of the width; 305 CamVid frames in about 7 min on 2 cores at the default store's 638x271), "
+               "'multicamera' (several cameras merged, the shipped model's recipe: cpu with the ImageNet-pretrained "
+               "lite0fpn, 30 epochs, --balance datasets, --shading-aug 0.4) or 'paper' (segnet, SGD 0.005, poly, "
+               "whole images); default: cpu on every device, a GPU included")
 MODEL_HELP = ("resfpn (residual encoder + FPN decoder, 1.3 M parameters, from scratch), lite0fpn (EfficientNet-Lite0 "
               "encoder from ImageNet weights + the same decoder, 3.0 M; lite0fpn-std: each image given ImageNet's colour "
               "statistics first), segnet (VGG16 SegNet, 29 M) or "
@@ -113,8 +114,9 @@ def fit_cmd(
     resume: Optional[Path] = typer.Option(None, "--resume", help="continue from a checkpoint (OUT-stem.last.pt) up to --epochs"),
     init: Optional[Path] = typer.Option(None, "--init", help="fine-tune: start from this checkpoint's weights (same "
                                                              "model, width, input channels and --baseline)"),
-    balance: str = typer.Option(TRAIN.balance, "--balance", help="several stores: 'items' (each item once an "
-                                                                  "epoch) or 'datasets' (each store equally often)"),
+    balance: Optional[str] = typer.Option(None, "--balance", help="several stores: 'items' (each item once an epoch) "
+                                          "or 'datasets' (each store equally often); default: the recipe's "
+                                          "(multicamera: datasets; cpu, paper: items)"),
     workers: int = typer.Option(TRAIN.workers, "--workers", help="data loader processes"),
     log: Optional[Path] = typer.Option(None, "--log", help="JSON-lines log, one row per epoch (default OUT-stem.log.jsonl)"),
     as_json: bool = typer.Option(False, "--json", help="print the run summary as one JSON object instead of the path"),
@@ -123,13 +125,15 @@ def fit_cmd(
 ):
     """Train a road segmentation network on virtual-camera stores (or the resize baseline).
 
-    Cross-entropy over not road / road, label 255 ignored. Two recipes set the defaults: 'cpu'
+    Cross-entropy over not road / road, label 255 ignored. Three recipes set the defaults: 'cpu'
     (the default on every device, a GPU included: resfpn, AdamW 0.002, cosine, flip/scale/shift/
-    colour augmentation, full-height windows of 4/9 of the width, 20 epochs; every measured number
-    of the project comes from it; on a store of 'vcprep warp' with no flags, this is what
-    'vctrain crossval' trains for one camera) and
-    'paper' (on request: segnet, SGD 0.005 momentum 0.9, weight decay 0.0005, batch 8, poly
-    decay); any option given wins. The checkpoint describes itself (model, training
+    colour augmentation, full-height windows of 4/9 of the width, 20 epochs; on a store of
+    'vcprep warp' with no flags, this is what 'vctrain crossval' trains for one camera),
+    'multicamera' (several cameras merged, the shipped model's recipe: cpu with the ImageNet-
+    pretrained lite0fpn, 30 epochs, every store an equal share of each epoch, lens-shading colour
+    augmentation; add --baseline resize, which wins when cameras are merged) and 'paper' (on
+    request: segnet, SGD 0.005 momentum 0.9, weight decay 0.0005, batch 8, poly decay); any option
+    given wins. The checkpoint describes itself (model, training
     config, virtual camera, scale, completion, metrics), so predict and eval need no repeated
     flags. Prints the checkpoint path; OUT's folder is created. Launch with 'torchrun
     --nproc-per-node N' for data-parallel training.
@@ -145,6 +149,7 @@ def fit_cmd(
       vctrain fit stores/camvid_train --out runs/vc.pt --resume runs/vc.last.pt --epochs 40
       vctrain fit stores/camvid_train_fine --crop 0.67 --out runs/vc_fine.pt
       vctrain fit stores/camvid_train --model lite0fpn --out runs/vc_lite0.pt   # ImageNet encoder
+      vctrain fit stores/cam_a stores/cam_b stores/cam_c --recipe multicamera --baseline resize --out runs/road.pt
     """
     cfg = _fit_config(locals())  # (first: locals() are the options, each named as its TrainConfig field)
     from ..train import fit
