@@ -22,7 +22,7 @@ from vctrain.cli import app
 from vctrain.config import TrainConfig
 from vctrain.data import RoadDataset, Sample
 from vctrain.trainset import epoch_order
-from vctrain.train import _epoch_loader, fit
+from vctrain.train import _epoch_loader, fit, resolve_recipe
 
 torch.set_num_threads(1)
 FMT = "values:road=1"  # the synthetic labels: 0 not road, 1 road
@@ -61,8 +61,8 @@ def test_balance_datasets_draws_each_store_equally_often():
     assert all(abs(per_item[i] - 130) <= 10 for i in range(300, 312))
     assert _drawn(ds, cfg, 4) == _drawn(ds, cfg, 4)  # seeded: the same run draws the same
     assert _drawn(ds, cfg, 4) != _drawn(ds, TrainConfig(balance="datasets", seed=4), 4)
-    # 'items' (the default) visits every item once: the large store holds 96 % of the epoch
-    items = _drawn(ds, TrainConfig(seed=3), 0)
+    # 'items' (the cpu recipe's default) visits every item once: the large store holds 96 % of the epoch
+    items = _drawn(ds, resolve_recipe(TrainConfig(seed=3)), 0)
     assert sorted(items) == list(range(312))
     assert Counter(source[i] for i in items)["small"] == 12
 
