@@ -186,10 +186,8 @@ def measure(name: str, frame: np.ndarray, cam, vc: Path, rs: Path, tmp: Path, th
         d["agreement_resize"] = agreement(OnnxPredictor(tmp / f"{name}_rs.onnx", 1).road_probability(frame),
                                           fp_rs.predict(frame))
     img, _ = fp.warp(frame)
-    cl = torch.channels_last  # (as the Predictor feeds its model)
-    x = torch.from_numpy(to_input(cv2.resize(img, work) if tuple(work) != fp.store_size else img))[None]
-    xr = torch.from_numpy(to_input(cv2.resize(frame, RESIZE_SIZE)))[None].contiguous(memory_format=cl)
-    x = x.contiguous(memory_format=cl)
+    x = p.network_input(to_input(cv2.resize(img, work) if tuple(work) != fp.store_size else img))
+    xr = p.network_input(to_input(cv2.resize(frame, RESIZE_SIZE)))
     net_vc, net_rs = network_graph(p.model, work), network_graph(p.model, RESIZE_SIZE)
     d["threads"] = {}
     for label, t in threads:

@@ -73,8 +73,7 @@ def main() -> None:
         p = Predictor(vc, "cpu")
         fps[m] = (FramePredictor(p, cam, (w, h)), FramePredictor(Predictor(rs, "cpu"), cam, (w, h)))
         work = p.working_size(fps[m][0].store_size)
-        x = torch.from_numpy(to_input(cv2.resize(frame, tuple(work))))[None]
-        nets[m] = (p.model, x.contiguous(memory_format=torch.channels_last))  # (as the Predictor feeds it)
+        nets[m] = (p.model, p.network_input(to_input(cv2.resize(frame, tuple(work)))))
         torch.manual_seed(0)
         net = build_model(model_args_for(m)).train()
         g = torch.Generator().manual_seed(0)

@@ -70,6 +70,11 @@ class Predictor:
     def mode(self) -> str:
         return self.data["mode"]
 
+    def network_input(self, x: np.ndarray) -> torch.Tensor:
+        """One input array (C, H, W; :func:`vctrain.data.to_input` and any extra channels) as the
+        network takes it: a batch of one on the device, channels-last like the model."""
+        return torch.from_numpy(x)[None].to(self.device).contiguous(memory_format=torch.channels_last)
+
     @torch.no_grad()
     def road_probability(self, image: np.ndarray, vp: tuple[float, float] | None = None,
                          size: tuple[int, int] | None = None, focal: tuple[float, float] | None = None) -> np.ndarray:
@@ -94,7 +99,7 @@ class Predictor:
             sx, sy = size[0] / w0, size[1] / h0
             v = scale_matrix(sx, sy) @ np.array([vp[0], vp[1], 1.0])  # (pixel centres, as the training's)
             x = np.concatenate([x, ray_angles(size, (v[0], v[1]), (focal[0] * sx, focal[1] * sy))], axis=0)
-        logits = self.model(torch.from_numpy(x)[None].to(self.device).contiguous(memory_format=torch.channels_last))
+        logits = self.model(self.network_input(x))
         prob = torch.softmax(logits.float(), dim=1)[0, 1].cpu().numpy().astype(np.float32)
         if (w0, h0) != size:
             prob = cv2.resize(prob, (w0, h0), interpolation=cv2.INTER_LINEAR)
