@@ -32,9 +32,9 @@ demo: $(STAMP)
 		--labels examples/kitti/gt_image_2 --label-format kitti --out $(OUT)/store --quiet
 	$(BIN)/vcprep store show $(OUT)/store
 	$(BIN)/vcprep figure warp $(OUT)/store -o $(OUT)/warp.png
-	$(BIN)/vctrain predict $(MODEL) --camera examples/kitti/calib/um_000000.txt examples/kitti/image_2 \
-		--out $(OUT)/road-kitti --overlay --quiet
-	$(BIN)/vctrain predict $(MODEL) --camera camvid examples/camvid/images --out $(OUT)/road-camvid --overlay --quiet
+	# the shipped model reads frames as they are (a resize model): no --camera (a virtual-camera MODEL=... needs one)
+	$(BIN)/vctrain predict $(MODEL) examples/kitti/image_2 --out $(OUT)/road-kitti --overlay --quiet
+	$(BIN)/vctrain predict $(MODEL) examples/camvid/images --out $(OUT)/road-camvid --overlay --quiet
 	$(BIN)/vctrain eval $(OUT)/road-kitti --labels examples/kitti/gt_image_2 --label-format kitti --quiet
 	@echo "demo: open $(OUT)/warp.png (original | virtual camera; road green, ignore dark, real pixels outlined in yellow, red + = the road vanishing point)"
 	@echo "demo: the shipped road model on the examples: $(OUT)/road-kitti/um_000000_overlay.png, $(OUT)/road-camvid/*_overlay.png (road in green)"

@@ -114,9 +114,9 @@ def resize_adapted(model: Path, flat: Path, fmt: str, out: Path, seed: int, max_
     with the prior carried into each frame first), as ``vctrain adapt`` would (the model's own training
     settings, 5 epochs, a tenth of its learning rate, no validation)."""
     from vctrain.adapt import own_settings
-    from vctrain.checkpoint import load_checkpoint
-    from vctrain.config import ADAPT_EPOCHS, ADAPT_LR_FACTOR
-    from vctrain.train import fit
+    from vctrain.training import load_checkpoint
+    from vctrain.training import ADAPT_EPOCHS, ADAPT_LR_FACTOR
+    from vctrain.training import fit
 
     if (out / "result.json").is_file():
         return json.loads((out / "result.json").read_text())

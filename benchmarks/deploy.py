@@ -63,14 +63,13 @@ from vcprep.store import store_params
 from vcprep.camera import PRESETS, load_camera
 from vcprep.warp import vp_from_pose
 from vcprep.camera import design_virtual_camera
-from vctrain.checkpoint import save_checkpoint
-from vctrain.data import to_input
+from vctrain.training import save_checkpoint, to_input
 from vctrain.deploy import OnnxPredictor, export_onnx
 from vctrain.predict import FramePredictor, StageTimes
-from vctrain.model import build_model, model_args_for
+from vctrain.networks import build_model, model_args_for
 from vctrain.predict import Predictor
 from vctrain.threads import default_threads
-from vctrain.study.spec import DEFAULT_ABOVE, DEFAULT_STORE_PIXELS
+from vctrain.study import DEFAULT_ABOVE, DEFAULT_STORE_PIXELS
 
 DATA = SHARED_DATA
 RESIZE_SIZE = (480, 360)  # the resize twin's working size: the same 172800 pixels

@@ -55,7 +55,7 @@ from as_shipped import CITYSCAPES, LUMS
 from measure.data import BIN, CS_FORMAT, LUMS_FORMAT, ROOT, run
 from measure.report import machine, today, write_json
 from measure.stats import seed_stats
-from vctrain.checkpoint import load_checkpoint
+from vctrain.training import load_checkpoint
 
 N_TRAIN = 20
 

@@ -24,7 +24,7 @@ KITTI. Training: crossval's defaults plus ``balance: datasets`` (each training s
 an epoch: 41 BDD frames weigh as much as 1,403 IDD frames) and the step budget of the single-camera
 CamVid model of benchmarks/as_shipped.py (``max_steps`` per epoch = its steps per epoch, 305 frames less
 the 10 % validation share at batch 8), so every fold costs one model's time whatever its union's size.
-``shading_aug: 0.4`` (``--shading-aug``; vctrain.data: half the items get a smooth per-channel colour
+``shading_aug: 0.4`` (``--shading-aug``; vctrain.training.data: half the items get a smooth per-channel colour
 gain field, the lens shading of cheap cameras: LUMS's bottom corners are tinted green and magenta, which
 a model trained without it reads as "not road"; both conditions). The checkpoint of each model is
 chosen on its training frames' validation share, never on a test set.
@@ -91,7 +91,7 @@ LOO = ["lums", "bdd", "camvid", "cityscapes", "idd"]  # held out in turn (LUMS f
 TEST_ONLY = ["kitti"]                                  # tested by the model trained on all five
 TARGET_GAIN, TARGET_WORST = 5.0, -1.0
 QUICK_FRAMES = 6
-SHADING_AUG = 0.4  # the multi-camera recipe: colour shading (vctrain.data), both conditions
+SHADING_AUG = 0.4  # the multi-camera recipe: colour shading (vctrain.training.data), both conditions
 
 
 def _link_all(dst: Path, parts: list[tuple[Path, Path]], n: int | None = None) -> dict[str, str]:
@@ -273,7 +273,7 @@ def mixed_average(wd: Path, rd: Path, seeds: list[int], held: list[str]) -> None
     written where collect reads it (runs/_all/average/result-<t>.json; kept while it exists)."""
     from vctrain.predict import Predictor
     from vctrain.study.conditions import AveragePredictor
-    from vctrain.study.execute import score_store
+    from vctrain.study import score_store
 
     for seed in seeds:
         sd = wd / f"seed{seed}"

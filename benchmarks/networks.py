@@ -37,8 +37,8 @@ from torch.nn import functional as F
 from deploy import RESIZE_SIZE, checkpoints, frames
 from measure.data import ROOT
 from measure.report import machine, today, write_json
-from vctrain.data import to_input
-from vctrain.model import build_model, model_args_for
+from vctrain.training import to_input
+from vctrain.networks import build_model, model_args_for
 from vctrain.predict import FramePredictor, Predictor
 
 CROP = (round(RESIZE_SIZE[0] * 4 / 9), RESIZE_SIZE[1])  # the study's training window: 4/9 of the width, full height

@@ -160,7 +160,7 @@ def ship_checkpoint(model: Path, out: Path) -> None:
     predict, export, adapt and ``vctrain fit --init`` never read it, only ``--resume`` does)."""
     import torch
 
-    from vctrain.checkpoint import save_checkpoint
+    from vctrain.training import save_checkpoint
 
     ck = torch.load(model, map_location="cpu", weights_only=False)
     ck.pop("optimizer", None)

@@ -34,7 +34,7 @@ from vcprep.warp import completion_maps
 from vcprep.warp import apply_homography, pose_from_vp, virt_H_src, virtual_at_scale
 from vcprep.vp import detect_segments, estimate_vp, to_gray
 from vcprep.warp import build_maps, warp_image
-from vctrain.model import build_model, model_args_for
+from vctrain.networks import build_model, model_args_for
 
 DATA = SHARED_DATA / "camvid" / "val"
 PAPER_MS = {"line_detection": 6200, "vp": 25, "projection": 182, "completion": 85, "inference": 43,

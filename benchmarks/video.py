@@ -49,9 +49,9 @@ from measure.data import BIN, ROOT, SHARED_DATA
 from measure.report import machine, today, write_json
 from vcprep.store import store_params
 from vcprep.camera import PRESETS, load_camera
-from vctrain.checkpoint import save_checkpoint
+from vctrain.training import save_checkpoint
 from vctrain.predict import StageTimes
-from vctrain.model import build_model, model_args_for
+from vctrain.networks import build_model, model_args_for
 from vctrain.predict import Predictor
 from vcprep.io import open_video
 from vctrain.predict import ego_camera, predict_video

@@ -33,10 +33,9 @@ from vcprep.prior import compute_prior, prior_meta, write_prior
 from vcprep.store import Store
 from vcprep.synthetic import RoadScene, render_road
 from vctrain.adapt import AdaptSettings, PriorPredictor, adapt, fuse, surrogate_for_item
-from vctrain.checkpoint import load_checkpoint
+from vctrain.training import TrainConfig, fit, load_checkpoint
 from vctrain.metrics import road_metrics
 from vctrain.predict import Predictor, predict_images
-from vctrain.train import TrainConfig, fit
 
 torch.set_num_threads(1)
 FMT = get_label_format("values:road=1")
@@ -204,7 +203,7 @@ def test_adapt_self_trains_on_the_models_own_tri_mask(world, tmp_path):
     """``combine='self'`` (the control for what the prior adds): every surrogate label is the
     tri-mask of the source model's own P(road) on that warped target item, computed here by hand
     from the predictor; not the prior's."""
-    from vctrain.data import vp_in_store
+    from vctrain.training import vp_in_store
     from vcprep.prior import surrogate_labels
 
     _render(tmp_path / "src_more", SRC, 3, seed=5)  # the source camera: the model is sure of road and verge

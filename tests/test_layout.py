@@ -123,21 +123,31 @@ def test_every_face_name_exists():
         assert [n for n in names if not hasattr(mod, n)] == [], face
 
 
-def test_vcprep_subpackages_have_faces():
+def test_subpackages_have_faces():
     faces = _faces()
     for sub in ("io", "camera", "vp", "warp", "store", "simulate"):
         assert f"vcprep.{sub}" in faces
+    for sub in ("networks", "training", "predict", "deploy", "study"):
+        assert f"vctrain.{sub}" in faces
+
+
+def test_vctrain_keeps_at_most_8_modules_at_the_top():
+    """The rest lives in folders by concept (networks, training, predict, deploy, study, cli)."""
+    top = sorted(p.name for p in (ROOT / "vctrain").glob("*.py"))
+    assert len(top) <= 8, top
 
 
 def _face_of(mod: str, faces: dict[str, set[str]]) -> str | None:
     return next((f for f in faces if mod.startswith(f + ".")), None)
 
 
-def test_outside_code_uses_the_faces():
-    """vctrain, benchmarks and tests take a vcprep subpackage's public names from its face, not from
-    the module behind it (private ``_names`` may be reached in the module, by tests)."""
-    faces = {f: n for f, n in _faces().items() if f.startswith("vcprep.")}
-    files = [p for d in ("vctrain", "benchmarks", "tests") for p in (ROOT / d).rglob("*.py")]
+@pytest.mark.parametrize("top, outside", [("vcprep", ("vctrain", "benchmarks", "tests")),
+                                          ("vctrain", ("benchmarks", "tests"))])
+def test_outside_code_uses_the_faces(top, outside):
+    """Code outside a package takes a subpackage's public names from its face, not from the module
+    behind it (private ``_names`` may be reached in the module, by tests)."""
+    faces = {f: n for f, n in _faces().items() if f.startswith(top + ".")}
+    files = [p for d in outside for p in (ROOT / d).rglob("*.py")]
     behind = []
     for path in files:
         for mod, names in _imports(path):
@@ -147,15 +157,17 @@ def test_outside_code_uses_the_faces():
     assert behind == []
 
 
-def test_vcprep_modules_import_by_module_path():
-    """Inside vcprep a module imports another subpackage's module, never its face (a face that
+@pytest.mark.parametrize("top", TOPS)
+def test_modules_import_by_module_path(top):
+    """Inside a package a module imports another subpackage's module, never its face (a face that
     loads while another is half-loaded would see missing names)."""
     faces = _faces()
     bad = []
-    for name, path in _modules(("vcprep",)).items():
+    for name, path in _modules((top,)).items():
         if path.name == "__init__.py":
             continue
-        bad += [f"{name}: from {mod}" for mod, _ in _imports(path) if mod in faces and not name.startswith(mod + ".")]
+        bad += [f"{name}: from {mod}" for mod, _ in _imports(path)
+                if mod in faces and mod.startswith(top + ".") and not name.startswith(mod + ".")]
     assert bad == []
 
 

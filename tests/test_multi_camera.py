@@ -1,4 +1,4 @@
-"""Training on several stores: per-dataset balance of an epoch's draws (vctrain.trainset.epoch_order,
+"""Training on several stores: per-dataset balance of an epoch's draws (vctrain.training.trainset.epoch_order,
 the trainer's epoch loader) and fine-tuning from a checkpoint (``vctrain fit --init``)."""
 from __future__ import annotations
 
@@ -17,12 +17,9 @@ from vcprep.errors import InputError
 from vcprep.io import write_png
 from vcprep.labels import get_label_format
 from vcprep.synthetic import RoadScene, render_road
-from vctrain.checkpoint import load_checkpoint
+from vctrain.training import RoadDataset, Sample, TrainConfig, epoch_order, fit, load_checkpoint, resolve_recipe
 from vctrain.cli import app
-from vctrain.config import TrainConfig
-from vctrain.data import RoadDataset, Sample
-from vctrain.trainset import epoch_order
-from vctrain.train import _epoch_loader, fit, resolve_recipe
+from vctrain.training.loop import _epoch_loader
 
 torch.set_num_threads(1)
 FMT = "values:road=1"  # the synthetic labels: 0 not road, 1 road
@@ -298,7 +295,7 @@ def test_condition_mixed_trains_one_network_on_both_views_and_averages_them(tmp_
 
     from conftest import run_cli
     from vcprep.store import Store
-    from vctrain.trainset import MixedViews, view_batches
+    from vctrain.training import MixedViews, view_batches
     from vctrain.predict import Predictor
     from vctrain.predict.predictor import refuse_mixed
 
@@ -346,7 +343,7 @@ def test_ray_channels_are_each_pixels_angles_from_the_vp_and_focal_length(tmp_pa
     flip mirrors the angle beside the VP."""
     import math
 
-    from vctrain.data import ray_angles
+    from vctrain.training import ray_angles
 
     img = (np.arange(40 * 80 * 3, dtype=np.uint32).reshape(40, 80, 3) % 251).astype(np.uint8)
     write_png(tmp_path / "a.png", img)

@@ -9,9 +9,7 @@ import yaml
 
 from vcprep.errors import InputError
 from vcprep.io import write_png
-from vctrain.config import TrainConfig
-from vctrain.data import RoadDataset, Sample
-from vctrain.train import resolve_recipe
+from vctrain.training import RoadDataset, Sample, TrainConfig, resolve_recipe
 
 def test_shading_aug_is_a_recipe_setting_checked_like_the_others():
     assert resolve_recipe(TrainConfig(recipe="paper")).shading_aug == 0.0

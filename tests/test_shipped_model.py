@@ -65,8 +65,8 @@ def test_the_multicamera_recipe_is_the_shipped_models():
     setting the recipe fills), so a user's own multi-camera model follows the measured recipe."""
     import torch
 
-    from vctrain.config import RECIPES, TrainConfig
-    from vctrain.train import resolve_recipe
+    from vctrain.training import RECIPES, TrainConfig
+    from vctrain.training import resolve_recipe
 
     shipped = torch.load(MODEL, map_location="cpu", weights_only=False)["config"]
     recipe = resolve_recipe(TrainConfig(recipe="multicamera")).to_dict()

@@ -163,7 +163,7 @@ def test_adapt_fuse_fuses_the_prior_with_the_within_models_own_prediction(geo_ru
 
     from vcprep.io import read_image
     from vcprep.prior import surrogate_labels
-    from vctrain.data import vp_in_store
+    from vctrain.training import vp_in_store
     from vctrain.predict import Predictor
 
     study, out, proc = geo_run

@@ -39,7 +39,7 @@ def frames(tmp_path_factory) -> Path:
 
 def test_warp_with_no_flags_builds_crossvals_one_camera_store(frames, tmp_path):
     from vctrain.study import load_study
-    from vctrain.study.resolve import Resolution
+    from vctrain.study import Resolution
 
     study = tmp_path / "study.yaml"
     kitti = Path(__file__).resolve().parent.parent / "examples" / "kitti"

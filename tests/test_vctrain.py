@@ -20,12 +20,11 @@ from vcprep.errors import InputError
 from vcprep.io import read_image, write_png
 from vcprep.labels import get_label_format
 from vcprep.synthetic import RoadScene, render_road
-from vctrain.checkpoint import load_checkpoint, model_from_checkpoint
+from vctrain.training import (RECIPES, RoadDataset, Sample, TrainConfig, evaluate, fit, get_lr, load_checkpoint,
+                              median_frequency_weights, model_from_checkpoint, resolve_recipe, to_input, vp_proximity)
 from vctrain.cli import app
-from vctrain.data import RoadDataset, Sample, median_frequency_weights, to_input, vp_proximity
 from vctrain.metrics import KittiMetrics, RoadMetrics, confusion, kitti_metrics, road_metrics
-from vctrain.model import ModelArgs, SegNet, model_args_for
-from vctrain.train import RECIPES, TrainConfig, evaluate, fit, get_lr, resolve_recipe
+from vctrain.networks import ModelArgs, SegNet, model_args_for
 
 torch.set_num_threads(1)
 FMT = "values:road=1"  # the synthetic labels: 0 not road, 1 road
@@ -277,7 +276,7 @@ def test_random_crop_is_an_exact_window_of_the_working_image(tmp_path, affine):
 
 
 def test_crop_size_from_shares_or_pixels():
-    from vctrain.train import crop_size
+    from vctrain.training import crop_size
 
     assert crop_size(None, (480, 360)) == (480, 360)
     assert crop_size(2 / 3, (480, 360)) == (320, 240)
@@ -332,7 +331,7 @@ def test_fit_learns_the_training_scenes(trained):
     root, store, summary = trained
     ck = load_checkpoint(root / "model.pt")
     model = model_from_checkpoint(ck)
-    from vctrain.data import store_samples
+    from vctrain.training import store_samples
 
     ds = RoadDataset(store_samples(store), store.store_size)
     m = evaluate(model, torch.utils.data.DataLoader(ds, batch_size=6), torch.device("cpu"))
@@ -636,6 +635,22 @@ def test_bad_inputs_give_one_error_line(tmp_path):
         assert len(lines) == 1 and lines[0].startswith("Error:"), (args, r.stderr)
         assert "Traceback" not in r.stderr
 
+
+
+def test_a_virtual_camera_model_without_a_camera_names_estimate(trained, tmp_path):
+    """A user with an uncalibrated camera is told the answer: the one error line's fix names
+    ``--camera`` 'estimate'."""
+    import cv2
+
+    from vcprep.synthetic import render_road
+
+    root, _, _ = trained
+    (tmp_path / "imgs").mkdir()
+    cv2.imwrite(str(tmp_path / "imgs" / "f0.png"), render_road(PRESETS["camvid"].resized(0.25))[0])
+    r = _cli("predict", root / "model.pt", tmp_path / "imgs", "--out", tmp_path / "pred")
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 1 and len(lines) == 1 and lines[0].startswith("Error:"), r.stderr
+    assert "needs the camera" in lines[0] and "--camera" in lines[0] and "'estimate'" in lines[0]
 
 def test_predict_with_given_vps_and_overlay(trained, tmp_path):
     """A re-mounted camera (pan 8, tilt -4): with its VP given, predict warps with that pose (the

@@ -26,7 +26,7 @@ from vcprep.vp import estimate_files
 from vctrain.cli import app
 from vctrain.predict import FramePredictor, StreamingVPs
 from vctrain.predict import Predictor, predict_images
-from vctrain.train import TrainConfig, fit
+from vctrain.training import TrainConfig, fit
 
 runner = CliRunner()
 torch.set_num_threads(1)

@@ -14,7 +14,7 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["ROAD", "NOT_ROAD", "IGNORE", "LabelFormat", "LABEL_FORMATS", "get_label_format", "decode_label",
+__all__ = ["ROAD", "NOT_ROAD", "IGNORE", "LabelFormat", "LABEL_FORMATS", "LABEL_FORMAT_HELP", "get_label_format", "decode_label",
            "label_stem_for", "RoadShare"]
 
 NOT_ROAD, ROAD, IGNORE = 0, 1, 255
@@ -66,6 +66,9 @@ LABEL_FORMATS: dict[str, LabelFormat] = {
                                 "<id>_image.jpg <-> <id>_label.png, item id <drive>_<id>"),
     ]
 }
+# --label-format's help, for every command that takes one: the named formats and the generic one, quoted
+# as it must be typed (a shell ends a command at an unquoted ;)
+LABEL_FORMAT_HELP = f"{', '.join(LABEL_FORMATS)} or 'values:road=3;ignore=11' (quoted)"
 
 
 def _parse_values(spec: str) -> LabelFormat:
@@ -83,7 +86,8 @@ def _parse_values(spec: str) -> LabelFormat:
             nums = None
         if not sep or key not in ("road", "ignore", "max") or not nums or any(n < 0 or n > 65535 for n in nums):
             raise InputError(f"cannot parse label format part '{part}'", spec,
-                             "write e.g. values:road=3;ignore=11 (comma-separated ids, optional ;max=N)")
+                             "write e.g. 'values:road=3;ignore=11' (comma-separated ids, optional ;max=N; quoted: "
+                             "a shell ends a command at ;)")
         if key == "road":
             road += nums
         elif key == "ignore":
@@ -91,7 +95,7 @@ def _parse_values(spec: str) -> LabelFormat:
         else:
             max_value = nums[0]
     if not road:
-        raise InputError("generic label format names no road value", spec, "write e.g. values:road=3;ignore=11")
+        raise InputError("generic label format names no road value", spec, "write e.g. 'values:road=3;ignore=11'")
     return LabelFormat(spec, "ids", road=tuple(road), ignore=tuple(ignore), max_value=max_value,
                        description="generic ids")
 

@@ -16,7 +16,7 @@ predictor (Table 5's "Geo-Prior").
    geometric prior with the network's confident predictions, not a reproduction of its code.
    Pixels no source pixel reaches are ignored when the model was trained without completion
    (its training labels were ignore there too);
-3. :func:`vctrain.train.fit` runs with ``init`` = the model (its network and weights, a fresh
+3. :func:`vctrain.training.fit` runs with ``init`` = the model (its network and weights, a fresh
    optimiser) and the model's own training settings, a short schedule (``epochs`` 5, ``lr`` a
    tenth of the model's), no validation (there are no target labels); the output checkpoint
    records ``adapted``: the source model, the prior (path, SHA-256 of its values, description),
@@ -45,8 +45,8 @@ from vcprep.prior import check_prior_fits, check_thresholds, meta_path, read_pri
 from vcprep.cliutil import err
 from vcprep.store import Store, store_lock
 
-from .checkpoint import load_checkpoint, save_checkpoint
-from .config import ADAPT_EPOCHS, ADAPT_LR_FACTOR, AdaptSettings, TrainConfig
+from .training.checkpoint import load_checkpoint, save_checkpoint
+from .training.config import ADAPT_EPOCHS, ADAPT_LR_FACTOR, AdaptSettings, TrainConfig
 
 __all__ = ["COMBINE", "AdaptSettings", "own_settings", "ADAPT_EPOCHS", "ADAPT_LR_FACTOR", "PriorPredictor", "fuse", "surrogate_for_item", "write_surrogate_labels", "adapt",
            "adapt_store_path"]
@@ -124,7 +124,7 @@ def write_surrogate_labels(store: Store | str | Path, prior: np.ndarray, lo: flo
 
 
 def _write_surrogates(store: Store, prior, lo, hi, combine, predictor, ids, ignore_uncovered) -> dict[str, float]:
-    from .data import vp_in_store
+    from .training.data import vp_in_store
 
     w, h = store.store_size
     if prior.shape != (h, w):
@@ -191,11 +191,11 @@ def adapt(model: str | Path, images: str | Path | Iterable[str | Path] | Sequenc
     labels from ``prior`` (a ``.npy``/``.png`` written by ``vcprep prior``, or the array of
     :func:`vcprep.prior.compute_prior`); ``camera`` may be per-frame calibration (every frame
     its exact pose, no VP estimated); writes ``out`` (and ``OUT-stem.last.pt``, the log).
-    Returns :func:`vctrain.train.fit`'s summary plus ``adapted`` (what the checkpoint records).
-    See the module docstring for the steps and :class:`vctrain.config.AdaptSettings` for the settings."""
+    Returns :func:`vctrain.training.fit`'s summary plus ``adapted`` (what the checkpoint records).
+    See the module docstring for the steps and :class:`vctrain.training.config.AdaptSettings` for the settings."""
     from .predict.predictor import Predictor, warp_like_training
     from vcprep.dataset import collect_images
-    from .train import fit, last_path
+    from .training.loop import fit, last_path
 
     model = Path(model)
     ck = load_checkpoint(model)

@@ -83,11 +83,11 @@ def exact_vp_scores(sd: Path, wd: Path, sets: list[str], threads: int) -> dict:
     perfect per-frame calibration gives) instead of its estimated road VP, into the same virtual
     camera and scale (stores under ``exact_vp/<set>``). Kept in runs/_all/within/exact_vp.json
     (keyed by the training and the VP files)."""
-    from vcprep.store import ItemPose, WarpSettings, warp_dataset
+    from vcprep.store import WarpSettings, warp_dataset
     from vcprep.dataset import list_dataset
     from vcprep.camera import camera_from_dict, load_camera
     from vcprep.labels import get_label_format
-    from vcprep.vp import vps_for_items
+    from vcprep.vp import ItemPose, vps_for_items
     from vctrain.study import evaluate_heldout
 
     run_dir = sd / "runs" / "_all" / "within"

@@ -17,8 +17,8 @@ def reference_images_per_s(ck: dict, threads: int, seconds: float, min_steps: in
     import torch
     from torch.nn import functional as F
 
-    from vctrain.model import build_model
-    from vctrain.train import resolve_device
+    from vctrain.networks import build_model
+    from vctrain.training import resolve_device
 
     torch.set_num_threads(threads)
     cfg, margs = ck["config"], ck["model_args"]

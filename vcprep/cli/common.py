@@ -19,7 +19,7 @@ from ..dataset import collect_images
 from ..errors import InputError, StoreError
 from ..io.images import write_png
 from ..io.video import frames_of, is_video
-from ..labels import LABEL_FORMATS
+from ..labels import LABEL_FORMAT_HELP, LABEL_FORMATS
 
 app = typer.Typer(rich_markup_mode=None, pretty_exceptions_enable=False, add_completion=False, no_args_is_help=True,
                   help="Reproject road images from any camera into one standard virtual camera (VCSeg).\n\n"
@@ -51,7 +51,6 @@ KEEP_GOING_HELP = ("skip bad items instead of stopping at the first: each is rep
                    "and the exit status is 1 at the end")
 SMOOTH_HELP = ("temporal smoothing of estimated VPs: median over N frames either side within a sequence "
                "(sequence = file name up to the first '_', frames in name order); 0 = off")
-LABEL_FORMAT_HELP = f"{', '.join(LABEL_FORMATS)} or values:road=3;ignore=11"
 
 
 def _version(value: bool):

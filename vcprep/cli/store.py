@@ -9,7 +9,8 @@ import typer
 from tqdm import tqdm
 
 from ..warp.backproject import backproject_folder
-from ..store.build import WarpSettings, frame_poses, say_on_stderr, warp_dataset
+from ..store.build import WarpSettings, say_on_stderr, warp_dataset
+from ..vp.poses import frame_poses
 from ..camera.pinhole import Camera
 from ..camera.sources import load_camera
 from ..camera.files import camera_from_dict

@@ -9,7 +9,7 @@ import typer
 
 from vcprep.cliutil import count, ensure_parent, err
 
-from ..config import AdaptSettings
+from ..training.config import AdaptSettings
 from .common import ADAPT, app, path_or_json
 
 
@@ -23,8 +23,8 @@ def adapt_cmd(
                                                            "'estimate' (from these images)"),
     prior: Path = typer.Option(..., "--prior", help="geometric prior written by 'vcprep prior' (.npy or .png) in the "
                                                     "model's virtual camera and scale"),
-    out: Path = typer.Option(..., "--out", "-o", help="adapted checkpoint; OUT-stem.last.pt and OUT-stem.log.jsonl "
-                                                      "beside it"),
+    out: Path = typer.Option(..., "--out", "-o", help="adapted checkpoint; the latest epoch and the log "
+                                                      "beside it (runs/ad.last.pt, runs/ad.log.jsonl)"),
     lo: float = typer.Option(ADAPT.lo, "--lo", help="surrogate 'not road' where the (fused) probability is below this"),
     hi: float = typer.Option(ADAPT.hi, "--hi", help="surrogate 'road' where the (fused) probability is above this"),
     combine: str = typer.Option(ADAPT.combine, "--combine", help="'prior': the prior's tri-mask alone (paper §4.5); 'fuse': "
@@ -36,7 +36,7 @@ def adapt_cmd(
     epochs: int = typer.Option(ADAPT.epochs, "--epochs", "-e", help="fine-tuning epochs"),
     lr: Optional[float] = typer.Option(None, "--lr", help="learning rate (default: a tenth of the model's own)"),
     store: Optional[Path] = typer.Option(None, "--store", help="store for the warped target images and their surrogate "
-                                                               "labels (default OUT-stem.store; reused)"),
+                                                               "labels (default: beside OUT, runs/ad.store; reused)"),
     within: str = typer.Option("auto", "--within", help="per-image VP correction: auto (as the model was trained), "
                                                          "estimate, a CSV id,u,v, or none"),
     seed: Optional[int] = typer.Option(None, "--seed", help="seed (default: the model's)"),

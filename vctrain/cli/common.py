@@ -9,10 +9,10 @@ from typing import Any, Optional
 import typer
 
 from vcprep.cliutil import emit_json
-from vcprep.labels import LABEL_FORMATS
+from vcprep.labels import LABEL_FORMAT_HELP
 
 from vctrain import __version__
-from ..config import AdaptSettings, TrainConfig
+from ..training.config import AdaptSettings, TrainConfig
 
 app = typer.Typer(rich_markup_mode=None, pretty_exceptions_enable=False, add_completion=False, no_args_is_help=True,
                   help="Train, predict and evaluate road segmentation in the virtual-camera domain.\n\n"
@@ -67,7 +67,6 @@ def pin_threads(threads: Optional[int]) -> int:
 
 TRAIN = TrainConfig()     # the defaults of fit's options, as TrainConfig declares them
 ADAPT = AdaptSettings()  # ... and of adapt's
-LABEL_FORMAT_HELP = f"{', '.join(LABEL_FORMATS)} or values:road=3;ignore=11"
 
 
 def path_or_json(out: Path, doc: Any, as_json: bool) -> None:

@@ -10,7 +10,7 @@ import typer
 from vcprep.cliutil import check_data_folders, count, ensure_parent, err
 from vcprep.errors import InputError
 
-from ..config import TrainConfig
+from ..training.config import TrainConfig
 from .common import LABEL_FORMAT_HELP, TRAIN, app, parse_size, path_or_json, pin_threads, threads_option
 
 RECIPE_HELP = ("defaults of every setting below: 'cpu' (resfpn, AdamW, cosine, augmentation, full-height windows of "
@@ -28,6 +28,24 @@ SIZE_HELP = ("working size WxH (default: the store size; --baseline resize: the 
 CROP_HELP = ("train on random windows of the working image: WxH pixels, a share of each side (0.67) or of width and "
              "height (0.44x1: full height); 1: the whole image; validation and prediction see the whole image "
              "(default: the recipe's: cpu 0.4444x1, the measured design of 'vctrain crossval'; paper: 1)")
+HELP = {  # the options whose help does not fit on their line
+    "out": "best checkpoint (by validation road IoU); the latest epoch goes beside it, for --resume: "
+           "runs/vc.pt -> runs/vc.last.pt",
+    "resume": "continue from the latest epoch's checkpoint (runs/vc.last.pt for --out runs/vc.pt) up to --epochs",
+    "baseline": "'resize': the paper's baseline, the same network on the original images simply resized (no virtual "
+                "camera); 'mixed': both views of every store frame, one network",
+    "schedule": "'poly' (lr*(1-it/total)^0.9; paper), 'cosine' (3 % warm-up; cpu) or 'constant'",
+    "hflip": "augment: random horizontal flip (p 0.5; cpu recipe: on)",
+    "scale_aug": "augment: random scale in [1/(1+A), 1+A] about the VP (cpu: 0.25, paper: 0)",
+    "shift_aug": "augment: random shift up to this share of the size (cpu: 0.05)",
+    "shading_aug": "augment: lens shading, a smooth per-channel gain field exp(+-A) on half the items",
+    "color_aug": "augment: brightness/contrast/gain jitter (cpu: 0.3)",
+    "ray_channels": "two extra input channels: each pixel's ray angles beside and below the road VP, from the camera's "
+                    "focal length",
+    "init": "fine-tune: start from this checkpoint's weights (same model, width, input channels and --baseline)",
+    "balance": "several stores: 'items' (each item once an epoch) or 'datasets' (each store equally often); default: "
+               "the recipe's (multicamera: datasets; cpu, paper: items)",
+}
 # fit's options named otherwise than the TrainConfig field they set; every other option is named as
 # its field, except FIT_NOT_CONFIG (how the command runs, not what it trains), and fit takes none
 # for FIT_NO_OPTION (tests/test_vctrain.py checks both ways)
@@ -72,14 +90,12 @@ def _parse_crop(text: Optional[str]) -> Optional[Any]:
 @app.command("fit")
 def fit_cmd(
     stores: Optional[List[Path]] = typer.Argument(None, help="training stores built by 'vcprep warp' (one virtual camera and scale)"),
-    out: Path = typer.Option(..., "--out", "-o", help="best checkpoint (by validation road IoU); OUT-stem.last.pt holds the latest epoch"),
+    out: Path = typer.Option(..., "--out", "-o", help=HELP["out"]),
     recipe: Optional[str] = typer.Option(None, "--recipe", help=RECIPE_HELP),
     model: Optional[str] = typer.Option(None, "--model", "-m", help=MODEL_HELP),
     width: Optional[int] = typer.Option(None, "--width", help="first-block width override (64 = segnet, 16 = narrow)"),
     pretrained: Optional[bool] = typer.Option(None, "--pretrained/--no-pretrained", help=PRETRAINED_HELP),
-    baseline: str = typer.Option(TRAIN.baseline, "--baseline", help="'resize': the paper's baseline, the same network on the "
-                                                            "original images simply resized (no virtual camera); "
-                                                            "'mixed': both views of every store frame, one network"),
+    baseline: str = typer.Option(TRAIN.baseline, "--baseline", help=HELP["baseline"]),
     images: Optional[Path] = typer.Option(None, "--images", help="baseline only: folder of original images"),
     labels: Optional[Path] = typer.Option(None, "--labels", help="baseline only: folder of their labels"),
     label_format: Optional[str] = typer.Option(None, "--label-format", help=f"baseline only: {LABEL_FORMAT_HELP}"),
@@ -90,35 +106,25 @@ def fit_cmd(
     optimizer: Optional[str] = typer.Option(None, "--optimizer", help="sgd (momentum 0.9; paper) or adamw (cpu)"),
     lr: Optional[float] = typer.Option(None, "--lr", help="peak learning rate (paper: 0.005, cpu: 0.002; with --init: a tenth of the checkpoint's)"),
     weight_decay: Optional[float] = typer.Option(None, "--weight-decay", help="weight decay (paper: 0.0005, cpu: 0.01)"),
-    schedule: Optional[str] = typer.Option(None, "--schedule", help="'poly' (lr*(1-it/total)^0.9; paper), 'cosine' "
-                                                                    "(3 % warm-up; cpu) or 'constant'"),
+    schedule: Optional[str] = typer.Option(None, "--schedule", help=HELP["schedule"]),
     seed: int = typer.Option(TRAIN.seed, "--seed", help="seeds init, validation split, order and augmentation"),
     device: str = typer.Option(TRAIN.device, "--device", help="auto (cuda if present), cpu, cuda, cuda:N"),
     val_fraction: float = typer.Option(TRAIN.val_fraction, "--val-fraction", help="share of the training items held out for validation"),
     val_store: Optional[List[Path]] = typer.Option(None, "--val-store", help="validation store (repeatable; replaces --val-fraction)"),
     class_weights: str = typer.Option(TRAIN.class_weights, "--class-weights", help="'none' or 'median-freq' (median frequency balancing)"),
-    hflip: Optional[bool] = typer.Option(None, "--hflip/--no-hflip", help="augment: random horizontal flip (p 0.5; "
-                                                                          "cpu recipe: on)"),
-    scale_aug: Optional[float] = typer.Option(None, "--scale-aug", help="augment: random scale in [1/(1+A), 1+A] "
-                                                                        "about the VP (cpu: 0.25, paper: 0)"),
-    shift_aug: Optional[float] = typer.Option(None, "--shift-aug", help="augment: random shift up to this share of "
-                                                                        "the size (cpu: 0.05)"),
-    shading_aug: Optional[float] = typer.Option(None, "--shading-aug", help="augment: lens shading, a smooth "
-                                                "per-channel gain field exp(+-A) on half the items"),
-    color_aug: Optional[float] = typer.Option(None, "--color-aug", help="augment: brightness/contrast/gain jitter "
-                                                                        "(cpu: 0.3)"),
+    hflip: Optional[bool] = typer.Option(None, "--hflip/--no-hflip", help=HELP["hflip"]),
+    scale_aug: Optional[float] = typer.Option(None, "--scale-aug", help=HELP["scale_aug"]),
+    shift_aug: Optional[float] = typer.Option(None, "--shift-aug", help=HELP["shift_aug"]),
+    shading_aug: Optional[float] = typer.Option(None, "--shading-aug", help=HELP["shading_aug"]),
+    color_aug: Optional[float] = typer.Option(None, "--color-aug", help=HELP["color_aug"]),
     greyscale: float = typer.Option(TRAIN.greyscale, "--greyscale", help="augment: probability of greyscale (1 = a greyscale model)"),
     vp_channel: bool = typer.Option(TRAIN.vp_channel, "--vp-channel", help="extra input channel: the VP proximity map"),
-    ray_channels: bool = typer.Option(TRAIN.ray_channels, "--ray-channels", help="two extra input channels: each "
-                                      "pixel's ray angles beside and below the road VP, from the camera's focal length"),
-    resume: Optional[Path] = typer.Option(None, "--resume", help="continue from a checkpoint (OUT-stem.last.pt) up to --epochs"),
-    init: Optional[Path] = typer.Option(None, "--init", help="fine-tune: start from this checkpoint's weights (same "
-                                                             "model, width, input channels and --baseline)"),
-    balance: Optional[str] = typer.Option(None, "--balance", help="several stores: 'items' (each item once an epoch) "
-                                          "or 'datasets' (each store equally often); default: the recipe's "
-                                          "(multicamera: datasets; cpu, paper: items)"),
+    ray_channels: bool = typer.Option(TRAIN.ray_channels, "--ray-channels", help=HELP["ray_channels"]),
+    resume: Optional[Path] = typer.Option(None, "--resume", help=HELP["resume"]),
+    init: Optional[Path] = typer.Option(None, "--init", help=HELP["init"]),
+    balance: Optional[str] = typer.Option(None, "--balance", help=HELP["balance"]),
     workers: int = typer.Option(TRAIN.workers, "--workers", help="data loader processes"),
-    log: Optional[Path] = typer.Option(None, "--log", help="JSON-lines log, one row per epoch (default OUT-stem.log.jsonl)"),
+    log: Optional[Path] = typer.Option(None, "--log", help="JSON-lines log, one row per epoch (default: beside OUT, runs/vc.log.jsonl)"),
     as_json: bool = typer.Option(False, "--json", help="print the run summary as one JSON object instead of the path"),
     threads: Optional[int] = threads_option(),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar or epoch lines on stderr"),
@@ -152,7 +158,7 @@ def fit_cmd(
       vctrain fit stores/cam_a stores/cam_b stores/cam_c --recipe multicamera --baseline resize --out runs/road.pt
     """
     cfg = _fit_config(locals())  # (first: locals() are the options, each named as its TrainConfig field)
-    from ..train import fit
+    from ..training.loop import fit
     pin_threads(threads)
     check_data_folders(images, labels)  # --baseline resize
     for path in filter(None, (out, log)):  # runs/vc.pt: runs/ is created, as warp and predict create theirs

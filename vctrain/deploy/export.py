@@ -5,7 +5,7 @@ holds everything ``vctrain predict`` does for that camera (:mod:`vctrain.predict
 
 - ``virtual`` models: the warp into the checkpoint's virtual camera at its scale, the rectangle
   extended for this camera as ``predict`` does (:func:`vctrain.predict.road.rectangle_views`), with the
-  training store's completion; the resize to the working size; :func:`vctrain.data.to_input`
+  training store's completion; the resize to the working size; :func:`vctrain.training.data.to_input`
   (and the VP channel); the network; softmax; the resize back and the back-projection
   (:func:`vcprep.warp.backproject.backproject_array` with ``kind="prob"``: bilinear, 0 outside).
   The camera's ``ego_rows`` are cut off before the warp and back-projected like any row.
@@ -178,7 +178,7 @@ def _geometry(predictor, camera: Camera, vp_input: bool, pose_range: tuple[float
     from vcprep.warp import apply_homography, vp_from_pose
     from vcprep.camera import extend_canvas
 
-    from ..data import vp_proximity
+    from ..training.data import vp_proximity
 
     assert (C.TABLE_ARC, C.FALLBACK_TOWARD) == (TABLE_ARC, FALLBACK_TOWARD)  # the in-graph completion's constants
     from ..predict.frames import refuse_mixed
@@ -321,7 +321,8 @@ def export_onnx(checkpoint: str | Path, camera: Camera | None, out: str | Path, 
     if camera is None:
         if predictor.mode != "resize" or predictor.vp_channel:
             raise InputError(f"a {'VP-channel ' if predictor.mode == 'resize' else 'virtual-camera '}model needs the "
-                             "camera of its frames", checkpoint, "add --camera (preset or calibration file)")
+                             "camera of its frames", checkpoint, "add --camera: a preset, a calibration file, or for an uncalibrated camera "
+                             "the one 'vcprep camera estimate FRAMES -o cam.yaml' writes")
         if size is None:
             raise InputError("the graph's frame size is not known", None, "give --frame A_FRAME or --size WxH")
         camera = frames_camera(size)

@@ -366,7 +366,7 @@ def _store_maps_from_vp(vp: torch.Tensor, cam: Camera, Gv: torch.Tensor, store_s
 
 
 def _vp_map(vp_src: torch.Tensor, work: tuple[int, int], src: tuple[int, int]) -> torch.Tensor:
-    """vctrain.data.vp_proximity at the working size for a source-pixel VP (float64)."""
+    """vctrain.training.data.vp_proximity at the working size for a source-pixel VP (float64)."""
     ww, wh = work
     vx, vy = vp_src[0] * (ww / src[0]), vp_src[1] * (wh / src[1])
     x = (torch.arange(ww, dtype=torch.float64)[None, :] - vx).abs() / ww

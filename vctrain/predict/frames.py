@@ -37,9 +37,12 @@ from vcprep.warp import apply_homography, pose_from_vp, vp_from_pose
 from vcprep.vp import VPConfig, VPResult, apply_reliability, estimate_vp, smooth_sequences
 from vcprep.camera import extend_canvas
 
-from ..data import vp_in_store
+from ..training.data import vp_in_store
 
 __all__ = ["StageTimes", "FramePredictor", "StreamingVPs", "warps_frames", "reads_road_vps"]
+
+# the fix of every "this model needs the camera of the frames" error: an uncalibrated camera is estimated
+NEEDS_CAMERA = "add --camera: a preset, a calibration file, or 'estimate' (from these frames, no calibration needed)"
 
 
 @dataclass
@@ -82,7 +85,7 @@ class FramePredictor:
             return  # a resize model needs no camera (only its VP channel does); a graph warps inside
         if self.camera is None:
             raise InputError("a virtual-camera model needs the camera of the frames", predictor.path,
-                             "add --camera (preset or calibration file)")
+                             NEEDS_CAMERA)
         sp = predictor.data.get("store_params")
         if not sp:
             raise InputError("model has no training store parameters", predictor.path,

@@ -219,7 +219,7 @@ def _predict_image_files(predictor, images: Sequence[Path], out: Path, camera_fo
     from vcprep.cliutil import err
     from vcprep.dataset import collect_images
 
-    from .frames import reads_road_vps, warps_frames
+    from .frames import NEEDS_CAMERA, reads_road_vps, warps_frames
     from .predictor import predict_frames
     from .road import folder_ego_camera
 
@@ -239,9 +239,9 @@ def _predict_image_files(predictor, images: Sequence[Path], out: Path, camera_fo
                              jobs[0].image, "write ego_rows in a camera file, or drop --ego")
     elif warps_frames(predictor):
         raise InputError("a virtual-camera model needs the camera of the images", predictor.path,
-                         "add --camera (preset or calibration file)")
+                         NEEDS_CAMERA)
     elif reads_road_vps(predictor):
         raise InputError("this model reads each frame's road vanishing point (VP channel): it needs the camera of "
-                         "the images", predictor.path, "add --camera (preset, calibration file, or estimate)")
+                         "the images", predictor.path, NEEDS_CAMERA)
     return predict_frames(predictor, images, out, cam, progress=progress, keep_store=keep_store, overlay=overlay,
                           within=within, vp_rule=vp_rule, say=say, ego_source=ego_source)

@@ -7,7 +7,7 @@ The preprocessing is the checkpoint's own (no repeated flags):
   (:func:`vcprep.warp.backproject_array`, bilinear; pixels outside the virtual image get 0).
 - ``resize`` baseline models: the image is resized to the working size, inferred, and the
   probability resized back (bilinear).
-- ``mixed`` models (trained on both views, :class:`vctrain.trainset.MixedViews`): on a store item, the
+- ``mixed`` models (trained on both views, :class:`vctrain.training.trainset.MixedViews`): on a store item, the
   mean of the two, each in the item's original camera (the resize view at the checkpoint's
   ``resize_size``). Scored by studies on stores; frames, video and export take the other two modes.
 
@@ -36,12 +36,13 @@ from vcprep.camera import Camera, FrameCameras, camera_from_dict, scale_matrix
 from vcprep.errors import InputError
 from vcprep.io import read_image
 from vcprep.store import Store
+from vcprep.vp import frame_poses
 
-from ..checkpoint import load_checkpoint, model_from_checkpoint
-from ..data import ray_angles, resize_pair, source_focal, to_input, vp_in_store, vp_proximity
-from ..model import fold_batchnorm
-from ..train import resolve_device
-from .frames import refuse_mixed, warps_frames
+from ..training.checkpoint import load_checkpoint, model_from_checkpoint
+from ..training.data import ray_angles, resize_pair, source_focal, to_input, vp_in_store, vp_proximity
+from ..networks.build import fold_batchnorm
+from ..training.loop import resolve_device
+from .frames import NEEDS_CAMERA, refuse_mixed, warps_frames
 from .road import (RoadRun, frames_canvas, geometry_line, model_vp_rule, out_dir, run_road, virtual_within,
                    write_prediction)
 
@@ -71,7 +72,7 @@ class Predictor:
         return self.data["mode"]
 
     def network_input(self, x: np.ndarray) -> torch.Tensor:
-        """One input array (C, H, W; :func:`vctrain.data.to_input` and any extra channels) as the
+        """One input array (C, H, W; :func:`vctrain.training.data.to_input` and any extra channels) as the
         network takes it: a batch of one on the device, channels-last like the model."""
         return torch.from_numpy(x)[None].to(self.device).contiguous(memory_format=torch.channels_last)
 
@@ -176,7 +177,7 @@ def predict_frames(predictor: Any, images: Iterable[str | Path], out: str | Path
                         vp_rule=vp_rule, say=say, ego_source=ego_source)
     if camera is None:
         raise InputError("a virtual-camera model needs the camera of the images", None,
-                         "add --camera (preset or calibration file)")
+                         NEEDS_CAMERA)
     jobs = collect_images(images)
     store = warp_like_training(predictor.data, predictor.path, jobs, camera, keep_store, within, progress,
                                extend=not getattr(predictor, "fixed_rectangle", False), vp_rule=vp_rule)
@@ -203,12 +204,10 @@ def warp_like_training(data: dict[str, Any], path: str | Path, jobs: list[Job], 
     a checkpoint (its ``data``; ``path`` names it in errors) was built: same code, virtual
     camera, scale and completion. ``within``: per-image pan/tilt from the road VP ('estimate',
     a CSV ``id,u,v``, 'none'; 'auto': :func:`vctrain.predict.road.virtual_within`), estimated
-    together (:func:`vcprep.store.build.frame_poses`) with ``vp_rule`` or the model's
+    together (:func:`vcprep.vp.frame_poses`) with ``vp_rule`` or the model's
     (:func:`vctrain.predict.road.model_vp_rule`). ``extend``: the virtual camera's rectangle extended
     to hold every frame (:func:`vctrain.predict.road.frames_canvas`); False keeps the training's
     rectangle (what a prior, an image of that rectangle, needs)."""
-    from vcprep.store.build import frame_poses
-
     sp = data.get("store_params")
     if data.get("mode") != "virtual" or not sp:
         raise InputError("model was not trained in a virtual camera (a resize baseline)", path,

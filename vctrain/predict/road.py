@@ -31,9 +31,10 @@ from vcprep.camera import Camera, FrameCameras, camera_of_image
 from vcprep.dataset import Job, collect_images
 from vcprep.errors import InputError, VCError
 from vcprep.io import image_size, read_image, write_png
+from vcprep.vp import frame_poses as poses_of
 from vcprep.warp import pose_from_vp
 
-from .frames import FramePredictor, warps_frames
+from .frames import NEEDS_CAMERA, FramePredictor, warps_frames
 
 __all__ = ["own_vehicle", "folder_ego_camera", "RoadRun", "skipped_lines", "within_rule", "virtual_within",
            "model_vp_rule", "frame_poses", "rectangle_views", "frames_canvas", "geometry_line", "run_road",
@@ -207,15 +208,13 @@ def model_vp_rule(data: dict[str, Any], override: Any = None) -> tuple[Any, str]
 
 def frame_poses(predictor: Any, jobs: list[Job], camera: Camera | FrameCameras | None, rule: str, vp_rule: Any = None,
                 on_error=None) -> dict:
-    """Each frame's pose (:class:`vcprep.store.ItemPose`: its road VP in source pixels, status, rule)
+    """Each frame's pose (:class:`vcprep.vp.ItemPose`: its road VP in source pixels, status, rule)
     by ``rule`` (:func:`within_rule`); {} for 'none'. Estimated VPs follow ``vp_rule`` or the model's
-    (:func:`model_vp_rule`) over the folder's sequences (:func:`vcprep.store.build.frame_poses`, the
+    (:func:`model_vp_rule`) over the folder's sequences (:func:`vcprep.vp.frame_poses`, the
     one rule of ``vcprep warp``, the store path and a study's stores); ``on_error(job, error)``
     takes a frame that cannot be read."""
     if rule == "none":
         return {}
-    from vcprep.store.build import frame_poses as poses_of
-
     poses, _ = poses_of(jobs, camera, rule, model_vp_rule(getattr(predictor, "data", {}), vp_rule)[0],
                         on_error=(lambda i, e: on_error(jobs[i], e)) if on_error else None)
     return poses or {}
@@ -318,7 +317,7 @@ def run_road(predictor: Any, images: Iterable[str | Path], out: str | Path,
     out = out_dir(out)
     if warps_frames(predictor) and camera is None:
         raise InputError("a virtual-camera model needs the camera of the images", None,
-                         "add --camera (preset or calibration file)")
+                         NEEDS_CAMERA)
     rule = within_rule(predictor, within, camera)
     run = RoadRun()
     poses = frame_poses(predictor, jobs, camera if camera is not None else getattr(predictor, "camera", None), rule,

@@ -44,7 +44,7 @@ from vcprep.errors import InputError
 from vcprep.io import VideoInfo, open_video, read_frames, sample_frames
 from vcprep.warp import ground_to_image, pose_from_vp, vp_from_pose
 
-from .frames import FramePredictor, StageTimes, StreamingVPs, reads_road_vps, warps_frames
+from .frames import NEEDS_CAMERA, FramePredictor, StageTimes, StreamingVPs, reads_road_vps, warps_frames
 from .road import model_vp_rule, own_vehicle, within_rule
 
 __all__ = ["check_video_stems", "ego_camera", "predict_video", "draw_overlay", "horizon_segment"]
@@ -198,10 +198,10 @@ def _video_camera(predictor, camera: Camera | None, video: Path, info: VideoInfo
     if camera is None:
         if warps_frames(predictor):
             raise InputError("a virtual-camera model needs the camera of the video", video,
-                             "add --camera (preset or calibration file)")
+                             NEEDS_CAMERA)
         if reads_road_vps(predictor):
             raise InputError("this model reads each frame's road vanishing point (VP channel): it needs the camera "
-                             "of the video", video, "add --camera (preset, calibration file, or estimate)")
+                             "of the video", video, NEEDS_CAMERA)
         camera = getattr(predictor, "camera", None)  # a graph's own (its VPs, the overlay's horizon)
         if camera is None:
             return None

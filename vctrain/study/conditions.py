@@ -1,7 +1,7 @@
 """How each kind of condition comes by the predictor it is scored with (:data:`KINDS`):
 
 * :class:`Fit` (resize, between, within, within-gt, zero, mixed): a model trained with
-  :func:`vctrain.train.fit` on the run's training stores of the condition's geometry;
+  :func:`vctrain.training.fit` on the run's training stores of the condition's geometry;
 * :class:`Prior` (prior): no model, P(road) = the training datasets' geometric prior p_g;
 * :class:`Adapt` (adapt, adapt-fuse, adapt-self): the within run's model (trained once, shared with
   condition within) adapted to each evaluated dataset's unlabelled images;
@@ -10,7 +10,7 @@
 
 Nothing is tuned on an evaluated camera: the checkpoint kept is the best on a validation share of
 the TRAINING datasets. Training settings not given in the study are
-:class:`vctrain.config.TrainConfig`'s defaults (the project's current recipe). A model is never
+:class:`vctrain.training.config.TrainConfig`'s defaults (the project's current recipe). A model is never
 trained twice: one trained earlier with the settings it depends on is found by its key.
 """
 from __future__ import annotations
@@ -26,7 +26,7 @@ from vcprep.camera import FrameCameras
 from vcprep.errors import InputError
 from vcprep.store import Store
 
-from ..config import AdaptSettings, TrainConfig
+from ..training.config import AdaptSettings, TrainConfig
 from ..report import write_json
 from .hashing import file_sha256, settings_sha
 from .keys import TEST_WARP, Keys
@@ -43,7 +43,7 @@ def train_config(study: Study, stores: list[Path], out: Path, baseline: str, siz
                  progress: bool, overrides: dict[str, Any]) -> TrainConfig:
     """The study's ``train:``, then ``overrides``, then for every setting left unset the recipe's
     default exactly as ``vctrain fit`` resolves it (so a study follows the project's recipe)."""
-    from ..train import resolve_recipe
+    from ..training.loop import resolve_recipe
 
     cfg = TrainConfig(stores=[str(s) for s in stores], out=str(out / "model.pt"), baseline=baseline, size=size,
                       progress=progress)
@@ -101,7 +101,7 @@ def trained(run: Run, ctx: Context, tag: str) -> tuple[TrainConfig, dict[str, An
     """``(config, train.json)`` of ``run``'s model: trained now, or found trained earlier with
     the settings it depends on (``keys.model(run)``; ``runs/<run>/<condition>/train.json``), so a
     model is never trained twice."""
-    from ..train import fit
+    from ..training.loop import fit
 
     say, c, keys = ctx.say, run.condition, ctx.keys
     run_dir = run.folder(ctx.out)

@@ -2,7 +2,7 @@
 (:func:`execute`) over the condition kinds of :mod:`vctrain.study.conditions`, and the scoring.
 
 Everything runs through the real tools: stores are built with :func:`vcprep.store.build.warp_dataset`
-(one per dataset, split and geometry, shared by all folds), models with :func:`vctrain.train.fit`,
+(one per dataset, split and geometry, shared by all folds), models with :func:`vctrain.training.fit`,
 and the held-out test images are predicted in the model's own domain (warped as ``vctrain predict``
 warps them for the model: the same masks) and scored in their ORIGINAL camera (back-projected
 probabilities, threshold 0.5) against their original labels: road IoU = ΣTP / Σ(TP+FP+FN) over the

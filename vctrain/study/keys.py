@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 
 from vcprep.camera import PRESET_PREFIX, Camera
 
-from ..config import ADAPT_EPOCHS, ADAPT_LR_FACTOR, AdaptSettings
+from ..training.config import ADAPT_EPOCHS, ADAPT_LR_FACTOR, AdaptSettings
 from .hashing import settings_sha
 from .spec import ADAPT_COMBINE, CONDITION_TRAIN, Dataset
 

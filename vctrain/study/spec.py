@@ -44,7 +44,7 @@ resize-rays resize plus two input channels, each pixel's signed ray angles besid
 
 A study's default conditions are the first five (:data:`DEFAULT_CONDITIONS`); ``prior``,
 ``adapt``, ``adapt-fuse``, ``adapt-self``, ``average``, ``resize-vp``, ``mixed`` and ``resize-rays`` run when asked for (study ``conditions:`` or ``--conditions``).
-Training settings the study's ``train:`` does not give are :class:`vctrain.train.TrainConfig`'s
+Training settings the study's ``train:`` does not give are :class:`vctrain.training.TrainConfig`'s
 defaults. How a study runs: :mod:`vctrain.study.execute`; its tables: :mod:`vctrain.report`.
 """
 from __future__ import annotations
@@ -62,7 +62,7 @@ from vcprep.errors import InputError
 from vcprep.io import read_text
 from vcprep.labels import get_label_format
 
-from ..config import TRAIN_WINDOW, TrainConfig
+from ..training.config import TRAIN_WINDOW, TrainConfig
 
 __all__ = ["CONDITIONS", "CONDITION_TRAIN", "DEFAULT_CONDITIONS", "DEFAULT_STORE_PIXELS", "DEFAULT_ABOVE", "DEFAULT_TRAIN", "CANVASES",
            "DEFAULT_CANVAS", "GEOMETRIES", "ROLES", "ADAPT_COMBINE", "RUN_KEYS", "TRAIN_KEYS", "Split", "Dataset",
@@ -102,7 +102,7 @@ DEFAULT_CONDITIONS = ("resize", "between", "within", "within-gt", "zero")  # a s
 # The measured best design (benchmarks/real_cameras.py --dev and issue 24's real cameras: 56.7 vs 55.7
 # road IoU on four real other cameras, 81.1 vs 75.5 on CamVid's unseen rig, against store_width 320,
 # no crop above the horizon and whole-image training): the defaults of a study that sets nothing.
-# (one source of truth with `vcprep warp`'s defaults: vcprep.camera.virtual, vctrain.config.TRAIN_WINDOW)
+# (one source of truth with `vcprep warp`'s defaults: vcprep.camera.virtual, vctrain.training.config.TRAIN_WINDOW)
 DEFAULT_STORE_PIXELS = STORE_PIXELS    # the pixels of 480x360 per virtual store image
 DEFAULT_ABOVE = DESIGN_ABOVE           # degrees of the designed virtual camera kept above the horizon
 # How the designed virtual camera's rectangle is sized per store (vctrain.study.resolve.Resolution.virtual_for):

@@ -14,12 +14,13 @@ import shutil
 from pathlib import Path
 from typing import Sequence
 
-from vcprep.store import ItemPose, WarpSettings, warp_dataset
+from vcprep.store import WarpSettings, warp_dataset
 from vcprep.camera import Camera, FrameCameras
 from vcprep.errors import InputError
 from vcprep.io import image_size
 from vcprep.labels import get_label_format
 from vcprep.store import Store
+from vcprep.vp import ItemPose, frame_poses
 
 from .resolve import Resolution
 from .spec import GEOMETRIES, Dataset
@@ -38,7 +39,7 @@ class Stores:
     def resize_size(self, datasets: Sequence[Dataset], store_size: tuple[int, int]) -> tuple[int, int]:
         """The resize baseline's working size: the virtual store's pixel count at the aspect of
         the first training dataset's images (same pixel budget, no squashing of the source)."""
-        from ..trainset import resize_working_size
+        from ..training.trainset import resize_working_size
 
         return resize_working_size(store_size, image_size(self.res.items(datasets[0], "train")[0].image))
 
@@ -46,12 +47,11 @@ class Stores:
         return self.res.split(ds, split).vps is not None
 
     def poses(self, ds: Dataset, split: str, source: str) -> dict[str, ItemPose] | None:
-        """The split's frames' poses (:func:`vcprep.store.build.frame_poses`, as ``vctrain predict``
+        """The split's frames' poses (:func:`vcprep.vp.frame_poses`, as ``vctrain predict``
         finds them): ``source`` 'none', 'estimate' (:meth:`Resolution.vp_rule`, over the split's frames
         together; written to ``vps/<dataset>-<split>.csv``) or 'given' (the split's ``vps`` file)."""
         if source == "none" or (source == "estimate" and isinstance(self.res.camera(ds), FrameCameras)):
             return None  # (per-frame calibration: every frame's exact pose, nothing to estimate)
-        from vcprep.store.build import frame_poses
         from vcprep.vp import write_vp_csv
 
         key = (ds.name, split, source)

@@ -2,7 +2,7 @@
 
 :class:`TrainConfig` is what ``vctrain fit`` builds from its options, what a study's ``train:``
 section may set (:data:`vctrain.study.TRAIN_KEYS` derives from its fields) and what a checkpoint
-records; :data:`RECIPES` fill the fields left at ``None`` (:func:`vctrain.train.resolve_recipe`).
+records; :data:`RECIPES` fill the fields left at ``None`` (:func:`vctrain.training.resolve_recipe`).
 :class:`AdaptSettings` are the settings of :func:`vctrain.adapt.adapt` (``vctrain adapt``).
 """
 from __future__ import annotations
@@ -17,7 +17,7 @@ __all__ = ["TrainConfig", "TRAIN_WINDOW", "RECIPES", "DEFAULT_RECIPE", "SCHEDULE
 # full-height training windows of 4/9 of the working width: the measured best design (a crossval study's
 # and the cpu recipe's default; 76800 px a step at 172800-px stores)
 TRAIN_WINDOW = (4 / 9, 1.0)
-# recipe -> the defaults it gives every TrainConfig field left at None (vctrain.train's docstring)
+# recipe -> the defaults it gives every TrainConfig field left at None (vctrain.training.loop's docstring)
 RECIPES: dict[str, dict[str, Any]] = {
     "paper": {"arch": "segnet", "epochs": 30, "batch_size": 8, "optimizer": "sgd", "lr": 0.005, "momentum": 0.9,
               "weight_decay": 0.0005, "schedule": "poly", "hflip": False, "scale_aug": 0.0, "shift_aug": 0.0,
@@ -37,7 +37,7 @@ RECIPES["multicamera"] = {**RECIPES["cpu"], "arch": "lite0fpn", "epochs": 30, "s
 DEFAULT_RECIPE = "cpu"
 SCHEDULES = ("poly", "cosine", "constant")
 OPTIMIZERS = ("sgd", "adamw")
-# how an epoch draws from several training stores (vctrain.trainset.epoch_order): 'items' every item
+# how an epoch draws from several training stores (vctrain.training.trainset.epoch_order): 'items' every item
 # once (a store's share is its size), 'datasets' every store equally often (small ones repeated)
 BALANCES = ("items", "datasets")
 
@@ -49,15 +49,15 @@ class TrainConfig:
     stores: list[str] = field(default_factory=list)  # training stores (one virtual camera and scale)
     out: str = "model.pt"              # best checkpoint; '<stem>.last.pt' beside it is the latest epoch
     baseline: str = "none"             # 'none': train on the stores; 'resize': original images resized;
-                                       # 'mixed': both views of every store frame (vctrain.trainset.MixedViews)
+                                       # 'mixed': both views of every store frame (vctrain.training.trainset.MixedViews)
     images: Optional[str] = None       # baseline from folders instead of stores: image folder
     labels: Optional[str] = None       #   ... label folder
     label_format: Optional[str] = None  #  ... label format (camvid, kitti, values:road=..)
-    recipe: Optional[str] = None       # 'cpu' | 'multicamera' | 'paper' (vctrain.train); None: DEFAULT_RECIPE
+    recipe: Optional[str] = None       # 'cpu' | 'multicamera' | 'paper' (vctrain.training.loop); None: DEFAULT_RECIPE
     arch: Optional[str] = None         # 'resfpn' | 'lite0fpn' | 'segnet' | 'segnet-narrow'; None: the recipe's
     base_width: Optional[int] = None   # override the architecture's first-block width
     pretrained: Optional[bool] = None  # start the encoder from ImageNet weights (lite0fpn); None: yes where the
-                                       # architecture has them (vctrain.model.PRETRAINED), no elsewhere
+                                       # architecture has them (vctrain.networks.PRETRAINED), no elsewhere
     size: Optional[tuple[int, int]] = None  # working size (w, h); None: the store size (first image for folders)
     crop: Optional[Any] = None         # training window: (w, h) pixels (ints), a share of each side (float) or
                                        # of width and height (two floats); 1.0: the whole image; None: the

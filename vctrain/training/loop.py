@@ -1,13 +1,13 @@
 """Training: one readable loop (nanoGPT style), with two recipes.
 
-``recipe`` chooses the defaults of every setting (:class:`vctrain.config.TrainConfig`) left unset
+``recipe`` chooses the defaults of every setting (:class:`vctrain.training.config.TrainConfig`) left unset
 (``None``); an explicit value wins:
 
 =========  ==============================================================================
 paper      VCSeg's own (Table 2): segnet, SGD momentum 0.9, lr 0.005, weight decay 0.0005,
            batch 8, "poly" decay lr·(1 − it/total)^0.9, no augmentation, whole images. On request.
 cpu        305 CamVid frames on a 2-core CPU in about 7 minutes at the default store's 638x271:
-           resfpn (residual encoder + FPN decoder, see model.py), AdamW lr 0.002, weight decay
+           resfpn (residual encoder + FPN decoder, see vctrain.networks.resnet), AdamW lr 0.002, weight decay
            0.01, batch 8, cosine decay after a linear warm-up over the first 3 % of the steps,
            augmentation: horizontal flip, random scale 1/1.25..1.25 about the VP (the image
            centre when the VP is unknown) with a shift of up to 5 % of the size, and photometric
@@ -30,7 +30,7 @@ Determinism: the item order and augmentations of epoch e depend only on (seed, e
 resumed run continues exactly where the interrupted one would have gone (on the CPU).
 
 Several stores (one virtual camera and scale, e.g. one per source camera): ``balance`` says how an
-epoch draws from them (:func:`vctrain.trainset.epoch_order`): ``items`` every item once, ``datasets``
+epoch draws from them (:func:`vctrain.training.trainset.epoch_order`): ``items`` every item once, ``datasets``
 every store an equal share of the epoch. Fine-tuning: ``init`` starts from a checkpoint's network
 and weights with a fresh optimiser; another architecture, width, input channels or mode (virtual
 camera vs resize) is refused, and the new checkpoint records the one it started from (``init``).
@@ -63,11 +63,11 @@ from .checkpoint import load_checkpoint, model_from_checkpoint, save_checkpoint
 from .config import ADAPT_LR_FACTOR, BALANCES, DEFAULT_RECIPE, OPTIMIZERS, RECIPES, SCHEDULES, TrainConfig
 from .data import RoadDataset, class_frequencies, median_frequency_weights
 from .trainset import MixedViews, crop_size, epoch_order, prepare_data, training_sets, view_batches
-from .metrics import RoadMetrics
-from .model import ARCHITECTURES, build_model, model_args_for, resolve_pretrained
+from ..metrics import RoadMetrics
+from ..networks.args import ARCHITECTURES, model_args_for
+from ..networks.build import build_model, resolve_pretrained
 
-__all__ = ["TrainConfig", "RECIPES", "fit", "evaluate", "get_lr", "resolve_device", "resolve_recipe", "last_path",
-           "crop_size"]
+__all__ = ["fit", "evaluate", "get_lr", "resolve_device", "resolve_recipe", "last_path"]
 
 WARMUP = 0.03  # share of the steps with a linear warm-up (cosine schedule)
 
@@ -195,7 +195,7 @@ def _network(cfg: TrainConfig, resume: dict[str, Any] | None, init: dict[str, An
         model_args = init["model_args"]
     model = build_model(model_args)
     if resume is None and init is None and cfg.pretrained:
-        model.load_pretrained()  # the encoder's ImageNet weights (vctrain.efficientnet)
+        model.load_pretrained()  # the encoder's ImageNet weights (vctrain.networks.efficientnet)
     if resume is not None:
         model = model_from_checkpoint(resume, cfg.resume)
     elif init is not None:
@@ -283,7 +283,7 @@ def _optimizer(cfg: TrainConfig, model: nn.Module) -> torch.optim.Optimizer:
 
 
 def _epoch_loader(train_ds: RoadDataset, cfg: TrainConfig, epoch: int, rank: int, world: int, batch: int):
-    """This rank's batches of ``epoch``: item order (:func:`vctrain.trainset.epoch_order`, ``cfg.balance``)
+    """This rank's batches of ``epoch``: item order (:func:`vctrain.training.trainset.epoch_order`, ``cfg.balance``)
     and augmentation depend on (seed, epoch, rank) only -> exact resume."""
     gen = torch.Generator().manual_seed(cfg.seed * 1000003 + epoch)
     order = epoch_order([x.source for x in train_ds.samples], cfg.balance, gen)

@@ -28,7 +28,8 @@ from vcprep.io import write_bytes_atomic
 from vctrain import __version__
 from torch import nn
 
-from .model import ARCHITECTURES, build_model
+from ..networks.args import ARCHITECTURES
+from ..networks.build import build_model
 
 __all__ = ["CKPT_FORMAT", "CKPT_VERSION", "save_checkpoint", "load_checkpoint", "model_from_checkpoint"]
 

@@ -2,7 +2,7 @@
 (:data:`BASELINES`), the validation share or stores, the working size, the training window
 (:func:`crop_size`), the datasets (:func:`training_sets`) and each epoch's batches
 (:func:`epoch_order`, :func:`view_batches`). The items themselves, their decoding and augmentation:
-:mod:`vctrain.data`.
+:mod:`vctrain.training.data`.
 
 Mixed views (``baseline: mixed``, issue 53's candidate): every frame twice, its virtual-camera store
 item and its original image resized, each view at its own working size and window

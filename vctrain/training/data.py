@@ -20,7 +20,7 @@ photometric jitter below, to the image only.
 Photometric: brightness, contrast and per-channel gain drawn in 1 ± ``color_aug`` (gain ±1/3 of it)
 and a gamma in [1/(1+c), 1+c] (dusk and over-exposed frames differ by more than a linear map).
 
-A training run's data (its stores, samples, working size, window and epochs): :mod:`vctrain.trainset`.
+A training run's data (its stores, samples, working size, window and epochs): :mod:`vctrain.training.trainset`.
 
 Random crops (``crop`` (cw, ch), training only): each item is a random window of the
 (augmented) working-size image, drawn uniformly over the positions that keep it inside; the

@@ -1,0 +1,55 @@
+"""Each frame's pose from its road vanishing point or its calibration: :class:`ItemPose` and
+:func:`frame_poses`, the one rule of ``vcprep warp`` (the store), ``vctrain predict`` (frames, videos,
+graphs) and a study's stores.
+
+Convention: a pose's ``vp`` is [u, v] in source pixels of the image as stored on disk (pixel-centre
+origin); the pan and tilt it implies are :func:`vcprep.warp.homography.pose_from_vp`'s.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable, Mapping
+
+from ..camera.pinhole import Camera
+from ..camera.sources import FrameCameras
+from ..dataset import Job
+from ..errors import VCError
+from .reliability import VPRule, vps_for_items
+
+__all__ = ["ItemPose", "frame_poses"]
+
+
+@dataclass(frozen=True)
+class ItemPose:
+    """A per-image pose from its road vanishing point (within-camera correction).
+
+    ``vp`` is [u, v] in source pixels of the image as stored on disk; ``status`` is
+    'accepted', 'fallback' or 'given' (see the vanishing-point module); ``rule``: the
+    :class:`~vcprep.vp.VPRule` an estimated VP was found with (its ``to_dict``,
+    recorded as the item's ``vp_rule``), None for a given one."""
+
+    vp: tuple[float, float]
+    status: str
+    rule: Mapping[str, Any] | None = None
+
+
+def frame_poses(jobs: list[Job], camera: Camera | FrameCameras, within: str, rule: Any = None,
+                id_prefix: str = "", on_image: Callable[[int], None] | None = None,
+                on_error: Callable[[int, VCError], None] | None = None
+                ) -> tuple[dict[str, ItemPose] | None, list[Any]]:
+    """(``poses`` of :class:`vcprep.store.WarpSettings`, the VP results) of ``jobs`` taken together: ``within``
+    'none' (None: the camera's average pose, or each frame's calibrated one), 'estimate' (each
+    frame's road VP found by ``rule``, a :class:`~vcprep.vp.VPRule`: None, the
+    detector's defaults; frames grouped into sequences by its ``frame_ids``, not by item ids;
+    recorded with each pose) or a CSV ``id,u,v`` of given VPs (looked up by item id). The one rule
+    of ``vcprep warp``, ``vctrain predict`` and a study's stores. ``on_error(i, error)`` (given): a
+    frame that cannot be read is told to it and has no pose (estimation only)."""
+    if within == "none":
+        return None, []
+    rule = rule or VPRule()
+    images = [j.image for j in jobs]
+    # estimated VPs: grouped into sequences by the rule (the same frames, the same groups, whatever their ids)
+    ids = rule.frame_ids(images) if within == "estimate" else [j.id for j in jobs]
+    results = vps_for_items(images, ids, camera, within, rule.smooth, rule.config(), id_prefix, on_image, on_error)
+    tag = rule.to_dict() if within == "estimate" else None
+    return {j.id: ItemPose((r.vp[0], r.vp[1]), r.status, tag) for j, r in zip(jobs, results) if r is not None}, results
