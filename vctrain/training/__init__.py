@@ -13,20 +13,34 @@ The networks it trains are :mod:`vctrain.networks`; ``vctrain fit`` is its comma
 """
 from __future__ import annotations
 
-from .checkpoint import CKPT_FORMAT, CKPT_VERSION, load_checkpoint, model_from_checkpoint, save_checkpoint
-from .config import (ADAPT_EPOCHS, ADAPT_LR_FACTOR, BALANCES, DEFAULT_RECIPE, OPTIMIZERS, RECIPES, SCHEDULES,
-                     TRAIN_WINDOW, AdaptSettings, TrainConfig)
-from .data import (RoadDataset, Sample, class_frequencies, median_frequency_weights, ray_angles, resize_pair,
-                   resize_samples, source_focal, store_samples, to_input, vp_in_store, vp_proximity)
-from .loop import evaluate, fit, get_lr, last_path, resolve_device, resolve_recipe
-from .trainset import (BASELINES, MIN_SIDE, MixedViews, crop_size, epoch_order, prepare_data, resize_working_size,
-                       training_sets, view_batches)
+import importlib
+from typing import Any
 
-__all__ = ["TrainConfig", "RECIPES", "DEFAULT_RECIPE", "SCHEDULES", "OPTIMIZERS", "BALANCES", "TRAIN_WINDOW",
-           "AdaptSettings", "ADAPT_EPOCHS", "ADAPT_LR_FACTOR",
-           "Sample", "RoadDataset", "store_samples", "resize_samples", "source_focal", "to_input", "vp_proximity",
-           "vp_in_store", "ray_angles", "resize_pair", "class_frequencies", "median_frequency_weights",
-           "BASELINES", "MIN_SIDE", "MixedViews", "view_batches", "prepare_data", "resize_working_size", "crop_size",
-           "epoch_order", "training_sets",
-           "fit", "evaluate", "get_lr", "resolve_device", "resolve_recipe", "last_path",
-           "CKPT_FORMAT", "CKPT_VERSION", "save_checkpoint", "load_checkpoint", "model_from_checkpoint"]
+# Each name's module. The face loads a module on first use of one of its names (PEP 562): the
+# commands' options take their defaults from TrainConfig (config.py, no torch), so `vctrain --help`
+# and `vctrain eval` start without importing torch (about 1.5 s a process).
+_HOME = {
+    "config": ("TrainConfig", "RECIPES", "DEFAULT_RECIPE", "SCHEDULES", "OPTIMIZERS", "BALANCES", "TRAIN_WINDOW",
+               "AdaptSettings", "ADAPT_EPOCHS", "ADAPT_LR_FACTOR"),
+    "data": ("Sample", "RoadDataset", "store_samples", "resize_samples", "source_focal", "to_input", "vp_proximity",
+             "vp_in_store", "ray_angles", "resize_pair", "class_frequencies", "median_frequency_weights"),
+    "trainset": ("BASELINES", "MIN_SIDE", "MixedViews", "view_batches", "prepare_data", "resize_working_size",
+                 "crop_size", "epoch_order", "training_sets"),
+    "loop": ("fit", "evaluate", "get_lr", "resolve_device", "resolve_recipe", "last_path"),
+    "checkpoint": ("CKPT_FORMAT", "CKPT_VERSION", "save_checkpoint", "load_checkpoint", "model_from_checkpoint"),
+}
+_MODULE_OF = {name: module for module, names in _HOME.items() for name in names}
+__all__ = [name for names in _HOME.values() for name in names]
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _MODULE_OF:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{_MODULE_OF[name]}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))
+
