@@ -644,13 +644,60 @@ def test_a_virtual_camera_model_without_a_camera_names_estimate(trained, tmp_pat
 
     from vcprep.synthetic import render_road
 
+    from conftest import run_cli
+
     root, _, _ = trained
     (tmp_path / "imgs").mkdir()
     cv2.imwrite(str(tmp_path / "imgs" / "f0.png"), render_road(PRESETS["camvid"].resized(0.25))[0])
-    r = _cli("predict", root / "model.pt", tmp_path / "imgs", "--out", tmp_path / "pred")
+    r = run_cli("predict", root / "model.pt", tmp_path / "imgs", "--out", tmp_path / "pred", prog="vctrain")
     lines = r.stderr.strip().splitlines()
     assert r.returncode == 1 and len(lines) == 1 and lines[0].startswith("Error:"), r.stderr
     assert "needs the camera" in lines[0] and "--camera" in lines[0] and "'estimate'" in lines[0]
+
+
+def test_eval_scores_the_frames_of_one_model_and_names_what_it_leaves_out(trained, tmp_path):
+    """Model A predicts six frames into a folder, model B (other weights) one of them into the same
+    folder: eval scores B's one frame and says that five masks of another model's run are left out;
+    B's second run into the folder adds its frame (two scored, nothing said)."""
+    import shutil
+
+    from conftest import run_cli
+    from vcprep.camera import camera_to_yaml
+    from vctrain.training import load_checkpoint, save_checkpoint
+
+    root, _, _ = trained
+    cam_file = tmp_path / "cam.yaml"
+    cam_file.write_text(camera_to_yaml(PRESETS["camvid"].resized(0.1)))
+    ck = load_checkpoint(root / "model.pt")
+    ck["model"] = {k: v + 0.01 if v.is_floating_point() else v for k, v in ck["model"].items()}
+    save_checkpoint(tmp_path / "b.pt", ck)
+    frames = sorted((root / "src" / "images").glob("*.png"))
+    for name, files in (("one", frames[:1]), ("two", frames[1:2])):
+        (tmp_path / name).mkdir()
+        for f in files:
+            shutil.copy(f, tmp_path / name / f.name)
+    out, labels = tmp_path / "preds", root / "src" / "labels"
+
+    def predict(model, images):
+        r = run_cli("predict", model, images, "--camera", cam_file, "--out", out, "-q", prog="vctrain")
+        assert r.returncode == 0, r.stderr
+
+    def scored():
+        r = run_cli("eval", out, "--labels", labels, "--label-format", FMT, "-q", prog="vctrain")
+        assert r.returncode == 0, r.stderr
+        return r.stdout.splitlines()[0], r.stderr.strip()
+
+    predict(root / "model.pt", root / "src" / "images")
+    assert scored() == (f"# {out}: 6 frames scored against {labels} ({FMT})", "")
+    predict(tmp_path / "b.pt", tmp_path / "one")
+    head, said = scored()
+    assert head == f"# {out}: 1 frame scored against {labels} ({FMT})"
+    assert "5 of its 6 masks were not written by the model of its last predict run" in said and "b.pt" in said
+    predict(tmp_path / "b.pt", tmp_path / "two")
+    head, said = scored()
+    assert head.startswith(f"# {out}: 2 frames scored") and "4 of its 6 masks" in said
+    record = json.loads((out / "predict.json").read_text())
+    assert record["frames"] == [frames[0].stem, frames[1].stem] and record["model"] == str(tmp_path / "b.pt")
 
 def test_predict_with_given_vps_and_overlay(trained, tmp_path):
     """A re-mounted camera (pan 8, tilt -4): with its VP given, predict warps with that pose (the

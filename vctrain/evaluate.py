@@ -5,21 +5,66 @@ Predictions are ``<stem>_mask.png`` (0 / nonzero = road) and optionally ``<stem>
 found in the label folder or its subfolders by the label format's naming rule (e.g. KITTI
 ``um_000000`` -> ``um_road_000000.png``; IDD ``<drive>_<id>`` -> ``<drive>/<id>_label.png``). A stem with only a probability map is thresholded at 128 (P >= 0.5).
 KITTI metrics are computed when every evaluated stem has a probability map.
+
+A folder knows which model wrote which masks: ``vctrain predict`` keeps ``predict.json`` in it
+(:func:`record_predictions`: the model file, its SHA-256 and the frames its runs wrote; a run of
+another model starts the list anew), and eval scores those frames alone, naming any other masks it
+leaves out (an earlier run of another model into the same folder).
 """
 from __future__ import annotations
 
+import hashlib
+import json
 from pathlib import Path
+
 import numpy as np
 from tqdm import tqdm
 
 from vcprep.dataset import find_images
 from vcprep.errors import InputError
-from vcprep.io import read_image
+from vcprep.io import read_image, write_bytes_atomic
 from vcprep.labels import LabelFormat, RoadShare, decode_label, label_stem_for
 
 from .metrics import KittiMetrics, RoadMetrics
 
-__all__ = ["prediction_stems", "evaluate_folder"]
+__all__ = ["RECORD", "record_predictions", "recorded_frames", "prediction_stems", "evaluate_folder"]
+
+RECORD = "predict.json"  # in a prediction folder: which model's runs wrote which frames
+
+
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def record_predictions(out: Path, model: Path, masks: list[Path]) -> None:
+    """Note in ``out/predict.json`` that ``model`` wrote ``masks`` (``<stem>_mask.png`` directly in
+    ``out``; other files are not frames to score): a run of the same model (the same file content)
+    adds its frames to the record, a run of another model replaces it."""
+    stems = [m.name[: -len("_mask.png")] for m in masks if m.parent == out and m.name.endswith("_mask.png")]
+    sha = _sha256(model)
+    old = recorded_frames(out)
+    if old is not None and old[1] == sha:
+        stems = old[2] + [s for s in stems if s not in set(old[2])]
+    doc = {"model": str(model), "model_sha256": sha, "frames": stems}
+    write_bytes_atomic(out / RECORD, (json.dumps(doc, indent=1) + "\n").encode())
+
+
+def recorded_frames(pred_dir: Path) -> tuple[str, str, list[str]] | None:
+    """(model, its SHA-256, the frames its runs wrote) from ``pred_dir/predict.json``; None where the
+    folder has none (predictions of an older vctrain or of another tool)."""
+    path = pred_dir / RECORD
+    if not path.is_file():
+        return None
+    try:
+        doc = json.loads(path.read_text())
+        return str(doc["model"]), str(doc["model_sha256"]), [str(s) for s in doc["frames"]]
+    except (ValueError, KeyError, TypeError):
+        raise InputError("not a prediction record of 'vctrain predict'", path,
+                         "delete it (eval then scores every mask in the folder)") from None
 
 
 def prediction_stems(pred_dir: Path) -> dict[str, dict[str, Path]]:
@@ -32,8 +77,24 @@ def prediction_stems(pred_dir: Path) -> dict[str, dict[str, Path]]:
     return out
 
 
+def _recorded_stems(pred_dir: Path, stems: dict[str, dict[str, Path]],
+                    notes: list[str] | None) -> dict[str, dict[str, Path]]:
+    """``stems`` less the frames ``predict.json`` does not list (all of them without a record)."""
+    record = recorded_frames(pred_dir)
+    if record is None:
+        return stems
+    model, _, frames = record
+    kept = {s: f for s, f in stems.items() if s in set(frames)}
+    if len(kept) < len(stems) and notes is not None:
+        n = len(stems) - len(kept)
+        notes.append(f"{pred_dir}: {n} of its {len(stems)} masks were not written by the model of its last "
+                     f"predict run ({model}), left out (predict into a fresh --out to keep runs apart)")
+    return kept
+
+
 def evaluate_folder(pred_dir: str | Path, labels: str | Path, fmt: LabelFormat,
-                    progress: bool = True, road_share: RoadShare | None = None) -> tuple[dict[str, float], int]:
+                    progress: bool = True, road_share: RoadShare | None = None,
+                    notes: list[str] | None = None) -> tuple[dict[str, float], int]:
     """Road metrics (and KITTI metrics from probability maps) of ``pred_dir`` against ``labels``,
     and the number of images. Keys: iou, mean_image_iou, precision, recall, f1; with probability
     maps also maxf, ap, kitti_precision, kitti_recall, kitti_fpr, kitti_fnr, kitti_threshold (the
@@ -42,13 +103,14 @@ def evaluate_folder(pred_dir: str | Path, labels: str | Path, fmt: LabelFormat,
     Every prediction must have its label (the reverse is not required: evaluate a subset by
     predicting a subset). Raises :class:`InputError` on a missing label or a size mismatch.
     ``road_share`` (given) gets every decoded label (:class:`vcprep.labels.RoadShare`: where road
-    lies, and whether that makes sense)."""
+    lies, and whether that makes sense). Where the folder records its predictions (``predict.json``)
+    only the recorded frames are scored; ``notes`` (given) gets a line naming those left out."""
     pred_dir, labels = Path(pred_dir), Path(labels)
     if not pred_dir.is_dir():
         raise InputError("prediction folder not found", pred_dir, "give the --out folder of 'vctrain predict'")
     if not labels.is_dir():
         raise InputError("label folder not found", labels, "check --labels")
-    stems = prediction_stems(pred_dir)
+    stems = _recorded_stems(pred_dir, prediction_stems(pred_dir), notes)
     if not stems:
         raise InputError("no <stem>_mask.png or <stem>_prob.png in folder", pred_dir,
                          "give the --out folder of 'vctrain predict'")

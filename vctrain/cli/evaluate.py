@@ -30,7 +30,8 @@ def eval_cmd(
     '#' note: IoU and F1 score the masks (P >= 0.5), MaxF the best threshold of P. --json prints
     the metrics alone. Labels in which road covers none or nearly all of the labelled pixels, or
     lies mostly in the frames' upper half, are a warning on stderr (the label format probably does
-    not fit them).
+    not fit them). It scores the frames the folder's last model wrote (predict.json, kept by
+    'vctrain predict'), and says how many masks of another model's run it left out.
 
     \b
     Example:
@@ -41,11 +42,11 @@ def eval_cmd(
 
     from ..evaluate import evaluate_folder
 
-    fmt, share = get_label_format(label_format), RoadShare()
-    result, n = evaluate_folder(pred_dir, labels, fmt, progress=not quiet, road_share=share)
+    fmt, share, notes = get_label_format(label_format), RoadShare(), []
+    result, n = evaluate_folder(pred_dir, labels, fmt, progress=not quiet, road_share=share, notes=notes)
     warning = share.warning(fmt, labels)
-    if warning:  # a parseable but wrong label format scores nonsense: said even under --quiet
-        err(warning)
+    for line in notes + ([warning] if warning else []):  # a wrong label format or mixed runs: said under --quiet too
+        err(line)
     if as_json:
         emit_json(result)
     else:

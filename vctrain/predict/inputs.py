@@ -100,6 +100,10 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
         raise
     if not existed and not result.written:
         _remove_empty(Path(out))
+    elif result.written:
+        from ..evaluate import record_predictions
+
+        record_predictions(Path(out), prior if prior is not None else checkpoint, result.written)
     return result
 
 
