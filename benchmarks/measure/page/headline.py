@@ -67,31 +67,44 @@ def shipped_twins(data: dict[str, dict]) -> tuple[str, dict] | None:
     return None
 
 
+def one_camera(a: dict) -> Row:
+    """Trained on CamVid, tested on the real other cameras (benchmarks/other_cameras/as_shipped.py)."""
+    fig = _mean_std(_real_mean(a["cells"], AS_SHIPPED_REAL), signed=True)
+    return Row("one training camera", "one training camera (CamVid)", _winner(fig),
+               f"within − resize **{fig}** ({_seeds(a['seeds'])})",
+               f"{len(AS_SHIPPED_REAL)} real other cameras: " + ", ".join(NAMES[t] for t in AS_SHIPPED_REAL),
+               fig, "as_shipped")
+
+
+def several_merged(m: dict, stem: str = "multi_camera_median") -> Row:
+    """Each real dataset held out in turn, trained on the others (benchmarks/other_cameras/multi_camera.py)."""
+    h, n = m["headline"], len(m["held_out"])
+    fig = f"{h['loo_within_minus_resize']:+.1f} ± {h['loo_within_minus_resize_std']:.1f}"
+    worst = ", ".join(f"{name} {f}" for name, f in worst_merged(m)[:2])
+    return Row("several cameras merged", f"several cameras merged ({n} real datasets)", _winner(fig),
+               f"within − resize **{fig}** ({_seeds(m['seeds'])})",
+               f"each dataset held out in turn, trained on the other {n - 1}; worst {worst}", fig, stem)
+
+
+def shipped(data: dict[str, dict]) -> Row | None:
+    """The shipped model's condition, and why: its twins' held-out means (benchmarks/what_a_user_gets/
+    shipped_model.py); None without a run of both twins."""
+    ship, twins = data["shipped_model"]["headline"]["shipped_condition"], shipped_twins(data)
+    if twins is None:
+        return None
+    stem, d = twins
+    other = "within" if ship == "resize" else "resize"
+    fig = f"{d['headline'][f'mean_{ship}']:.1f} against {d['headline'][f'mean_{other}']:.1f}"
+    return Row("the shipped model", f"the shipped model, {SHIPPED}", WINNER[ship],
+               f"mean **{fig}**: its {TWIN[ship]} against its {TWIN[other]}, same frames "
+               f"({_seeds([d['seed']])}, {d['epochs']} epochs)",
+               f"{len(d['sets'])} held-out splits: " + ", ".join(NAMES.get(s, s) for s in d["sets"]), fig, stem)
+
+
 def rows(data: dict[str, dict]) -> list[Row]:
     """The three regimes, as measured."""
-    a, m = data["as_shipped"], data["multi_camera_median"]
-    one = _mean_std(_real_mean(a["cells"], AS_SHIPPED_REAL), signed=True)
-    several = m["headline"]
-    several = f"{several['loo_within_minus_resize']:+.1f} ± {several['loo_within_minus_resize_std']:.1f}"
-    n = len(m["held_out"])
-    out = [Row("one training camera", "one training camera (CamVid)", _winner(one),
-               f"within − resize **{one}** ({_seeds(a['seeds'])})", f"{len(AS_SHIPPED_REAL)} real other cameras: "
-               + ", ".join(NAMES[t] for t in AS_SHIPPED_REAL), one, "as_shipped"),
-           Row("several cameras merged", f"several cameras merged ({n} real datasets)", _winner(several),
-               f"within − resize **{several}** ({_seeds(m['seeds'])})", f"each dataset held out in turn, trained on the other "
-               f"{n - 1}; worst " + ", ".join(f"{name} {fig}" for name, fig in worst_merged(m)[:2]), several,
-               "multi_camera_median")]
-    ship = data["shipped_model"]["headline"]["shipped_condition"]
-    twins = shipped_twins(data)
-    if twins:
-        stem, d = twins
-        other = "within" if ship == "resize" else "resize"
-        fig = f"{d['headline'][f'mean_{ship}']:.1f} against {d['headline'][f'mean_{other}']:.1f}"
-        out.append(Row("the shipped model", f"the shipped model, {SHIPPED}", WINNER[ship],
-                       f"mean **{fig}**: its {TWIN[ship]} against its {TWIN[other]}, same frames "
-                       f"({_seeds([d['seed']])}, {d['epochs']} epochs)", f"{len(d['sets'])} held-out splits: "
-                       + ", ".join(NAMES.get(s, s) for s in d["sets"]), fig, stem))
-    return out
+    out = [one_camera(data["as_shipped"]), several_merged(data["multi_camera_median"])]
+    return out + [r for r in [shipped(data)] if r]
 
 
 def render(data: dict[str, dict]) -> str:
