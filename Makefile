@@ -40,9 +40,9 @@ demo: $(STAMP)
 	@echo "demo: the shipped road model on the examples: $(OUT)/road-kitti/um_000000_overlay.png, $(OUT)/road-camvid/*_overlay.png (road in green)"
 
 bench: $(STAMP)
-	$(PY) benchmarks/warp.py
+	$(PY) benchmarks/speed/warp.py
 
-# docs/results.md and the README's headline, generated from benchmarks/results/*.json (tests/test_docs.py checks them)
+# docs/results.md and the README's headline, generated from benchmarks/*/results/*.json (tests/test_docs.py checks them)
 docs: $(STAMP)
 	$(PY) benchmarks/results_page.py
 

@@ -1,7 +1,7 @@
 """Docs that cannot rot (issue 26): README.md and docs/*.md against the code and the results.
 
 * docs/results.md and the README's headline block are exactly what benchmarks/results_page.py makes
-  of benchmarks/results/*.json;
+  of benchmarks/*/results/*.json; the headline is a table of at most 12 lines whose figures are the JSON's;
 * every command line shown in a fenced code block (and every ``vcprep``/``vctrain`` command in an
   inline code span) names a real command whose flags appear in that command's ``--help``; fenced
   commands also take the number of arguments the command takes; ``make`` targets and benchmark
@@ -55,56 +55,122 @@ def _results_page():
 def test_results_page_matches_the_json():
     rp = _results_page()
     assert (ROOT / "docs" / "results.md").read_text() == rp.render_page(), \
-        "docs/results.md differs from benchmarks/results/*.json: run `make docs`"
+        "docs/results.md differs from benchmarks/*/results/*.json: run `make docs`"
 
 
 def test_readme_headline_matches_the_json():
     rp = _results_page()
     readme = (ROOT / "README.md").read_text()
     assert rp.with_headline(readme, rp.render_headline()) == readme, \
-        "README.md's headline differs from benchmarks/results/real_cameras.json: run `make docs`"
+        "README.md's headline differs from benchmarks/*/results/*.json: run `make docs`"
 
 
-def test_headline_leads_with_both_regimes_and_check_fails_without_the_multi_camera_figure(tmp_path, capsys):
-    """The headline's first sentences give one training camera and several merged, as measured
-    (from the JSON), and the shipped model; --check fails on a headline that leaves out the
-    multi-camera figure."""
+def _result(folder: str, stem: str) -> dict:
+    return json.loads((ROOT / "benchmarks" / folder / "results" / f"{stem}.json").read_text())
+
+
+def _headline_table(readme: str) -> tuple[list[str], dict[str, list[str]]]:
+    """(the lines between the headline markers, the table's body rows by their regime cell)."""
+    block = readme.split("<!-- headline:", 1)[1].split("-->", 1)[1].split("<!-- end of headline -->")[0]
+    lines = block.strip("\n").splitlines()
+    rows = [[c.strip() for c in ln.strip().strip("|").split("|")] for ln in lines if ln.startswith("|")][2:]
+    return lines, {r[0]: r for r in rows}
+
+
+def test_headline_is_a_short_table_of_both_regimes_and_the_shipped_model():
+    """At most 12 lines; a table whose rows give, as the JSON has them, one training camera (as_shipped),
+    several cameras merged (multi_camera_median, worst held-out cameras named) and the shipped model
+    (its twin run); which model to use and when the virtual camera pays; a link to the full figures."""
+    lines, rows = _headline_table((ROOT / "README.md").read_text())
+    assert len(lines) <= 12, lines
+    assert [r[:9] for r in rows] == ["one train", "several c", "the shipp"], list(rows)
+    one, several, shipped = rows.values()
+    a = _result("other_cameras", "as_shipped")["headline"]
+    assert f"**{a['real_within_minus_resize']:+.1f} ± {a['real_within_minus_resize_std']:.1f}**" in one[2]
+    assert one[1].startswith("the virtual camera") and "3 seeds" in one[2]
+    assert all(name in one[3] for name in ("Cityscapes", "IDD-Lite", "KITTI", "BDD100K", "LUMS"))
+    m = _result("other_cameras", "multi_camera_median")["headline"]
+    assert f"**{m['loo_within_minus_resize']:+.1f} ± {m['loo_within_minus_resize_std']:.1f}**" in several[2]
+    assert several[1] == "resize" and f"{len(m['seeds'])} seeds" in several[2]
+    assert f"worst IDD-Lite {m['loo_within_minus_resize_idd']:+.1f} ± " in several[3]
+    assert f"BDD100K {m['loo_within_minus_resize_bdd']:+.1f} ± " in several[3]
+    ship, twins = _result("what_a_user_gets", "shipped_model"), _result("what_a_user_gets", "shipped_model_e60")
+    h = twins["headline"]
+    assert "models/road-multicamera" in shipped[0] and shipped[1] == ship["headline"]["shipped_condition"] == "resize"
+    assert f"**{h['mean_resize']:.1f} against {h['mean_within']:.1f}**" in shipped[2]
+    assert f"{twins['epochs']} epochs" in shipped[2] and f"{len(twins['sets'])} held-out splits" in shipped[3]
+    text = " ".join(lines)
+    assert f"a {ship['model']} trained on several cameras merged, the resize twin" in text
+    assert f"used on others ({a['real_within_minus_resize']:+.1f} ± " in text
+    assert "[docs/results.md](docs/results.md)" in text
+
+
+def test_check_fails_on_a_headline_without_a_regime_figure_or_over_12_lines(tmp_path, capsys):
     rp = _results_page()
-    results = ROOT / "benchmarks" / "results"
-    h = json.loads((results / "multi_camera_median.json").read_text())["headline"]
-    several = f"{h['loo_within_minus_resize']:+.1f} ± {h['loo_within_minus_resize_std']:.1f}"
-    lead = " ".join(rp.sentences(rp.render_headline())[:3])
-    assert several in lead and "models/road-multicamera" in lead and "resize twin" in lead, lead
-    assert "IDD-Lite" in lead and "BDD100K" in lead  # the worst held-out cameras
-    one = json.loads((results / "as_shipped.json").read_text())["headline"]
-    assert f"{one['real_within_minus_resize']:+.1f} ± {one['real_within_minus_resize_std']:.1f}" in lead
     assert rp.main(["--check"]) == 0, capsys.readouterr().err
     readme = (ROOT / "README.md").read_text()
-    cut = " ".join(s for s in rp.sentences(rp.render_headline()) if several not in s)
+    m = _result("other_cameras", "multi_camera_median")["headline"]
+    several = f"{m['loo_within_minus_resize']:+.1f} ± {m['loo_within_minus_resize_std']:.1f}"
+    cut = "\n".join(ln.replace(several, "-") if ln.startswith("| several") else ln
+                    for ln in rp.render_headline().splitlines())
     (tmp_path / "README.md").write_text(rp.with_headline(readme, cut))
     assert rp.main(["--check", "--readme", str(tmp_path / "README.md")]) == 1
     err = capsys.readouterr().err
-    assert f"leave out the several cameras merged figure ({several}" in err, err
+    assert f"leaves out the 'several cameras merged' figure ({several}" in err, err
+    (tmp_path / "README.md").write_text(rp.with_headline(readme, rp.render_headline() + "\n\nOne more.\n"))
+    assert rp.main(["--check", "--readme", str(tmp_path / "README.md")]) == 1
+    assert "the headline has 13 lines, at most 12" in capsys.readouterr().err
+
+
+def test_results_page_says_where_each_readme_figure_comes_from():
+    """The page's first section names, per figure the README states, its results file and script;
+    the README states each as that table does (whitespace aside)."""
+    rp = _results_page()
+    page = (ROOT / "docs" / "results.md").read_text()
+    section = page.split("## Where the README's figures come from\n", 1)[1].split("\n## ", 1)[0]
+    readme = " ".join((ROOT / "README.md").read_text().split())
+    files = rp.result_files()
+    data = rp.load_all()
+    for what, parts, name in rp.headline.readme_figures(data):
+        path = files[name.rsplit(".", 1)[0]].with_name(name)
+        assert path.is_file(), name
+        assert f"[`{rp.rel(path)}`]" in section and ", ".join(parts) in section, what
+        for part in parts:
+            assert part in readme, (what, part)
+    assert "benchmarks/what_a_user_gets/shipped_model.py" in section and "benchmarks/other_cameras/as_shipped.py" in section
 
 
 def test_results_page_lists_every_json_with_its_facts():
     page = (ROOT / "docs" / "results.md").read_text()
-    for p in sorted((ROOT / "benchmarks" / "results").glob("*.json")):
+    for p in sorted((ROOT / "benchmarks").glob("*/results/*.json")):
         assert f"\n## {p.stem}\n" in page
         section = page.split(f"\n## {p.stem}\n", 1)[1].split("\n## ", 1)[0]
         for fact in ("| command |", "| date |", "| machine |"):
             assert fact in section, (p.name, fact)
+        assert f"| file | [`{p.relative_to(ROOT)}`]" in section  # beside the question it answers
+
+
+def test_results_sit_beside_the_script_that_writes_them_and_name_it():
+    """Every results JSON has its script in the same question folder, and a recorded command runs
+    that script by its path."""
+    rp = _results_page()
+    for p in sorted((ROOT / "benchmarks").glob("*/results/*.json")):
+        script = rp.script_for(p)
+        assert script is not None and script.parent == p.parent.parent, p
+        argv = json.loads(p.read_text()).get("command", "").split()
+        if argv:
+            assert argv[argv[0] == "python"] == rp.rel(script), (p.name, argv)  # (after a leading "python")
 
 
 def test_results_page_generator_is_deterministic_and_generic(tmp_path):
     """A JSON the generator has no table for gets one from its headline, with its recorded facts."""
     rp = _results_page()
     (tmp_path / "newbench.json").write_text('{"headline": {"ratio": 1.25, "n": 3}, "date": "2026-01-02", '
-                                            '"command": "benchmarks/newbench.py --x 1", "machine": "x86_64, 2 cores"}')
-    page = rp.render_page(tmp_path)
-    assert page == rp.render_page(tmp_path)
+                                            '"command": "benchmarks/speed/newbench.py --x 1", "machine": "x86_64, 2 cores"}')
+    page = rp.render_page([tmp_path])
+    assert page == rp.render_page([tmp_path])
     assert "| ratio | 1.25 |" in page and "| n | 3 |" in page
-    assert "| date | 2026-01-02 |" in page and "`benchmarks/newbench.py --x 1`" in page and "x86_64, 2 cores" in page
+    assert "| date | 2026-01-02 |" in page and "`benchmarks/speed/newbench.py --x 1`" in page and "x86_64, 2 cores" in page
 
 
 # ---------------------------------------------------------------- command lines in the docs

@@ -142,8 +142,8 @@ def test_a_file_in_the_way_of_the_output_folder_is_one_error_line(store, tmp_pat
 
 def test_fit_time_is_stated_next_to_the_command():
     """The time claim holds as written: README and fit --help state the measured minutes of a model of
-    the default design (benchmarks/results/as_shipped.json: crossval's models, 305 CamVid frames, 2 cores)."""
-    minutes = round(json.loads((ROOT / "benchmarks/results/as_shipped.json").read_text())["headline"]["minutes_per_model"])
+    the default design (benchmarks/other_cameras/results/as_shipped.json: crossval's models, 305 CamVid frames, 2 cores)."""
+    minutes = round(json.loads((ROOT / "benchmarks/other_cameras/results/as_shipped.json").read_text())["headline"]["minutes_per_model"])
     help_text = " ".join(CliRunner().invoke(_apps()["vctrain"], ["fit", "--help"]).stdout.split())
     assert "in minutes" not in help_text
     assert f"305 CamVid frames in about {minutes} min on 2 cores at the default store's 638x271" in help_text

@@ -50,12 +50,12 @@ def test_the_card_states_the_measured_figures_and_the_checkpoint_is_small():
             assert f"{v:.1f}" in card, key  # every held-out figure is in the card as measured (None: not run)
     assert any(v is not None for k, v in res.items() if k.startswith(res["shipped_condition"] + "_"))
     assert MODEL.stat().st_size <= 20e6
-    assert "benchmarks/shipped_model.py" in card  # the command that reproduces it
+    assert "benchmarks/what_a_user_gets/shipped_model.py" in card  # the command that reproduces it
 
 
 def test_the_card_states_the_measured_fine_tuning_figures():
     card = (FOLDER / "README.md").read_text()
-    ft = json.loads((ROOT / "benchmarks" / "results" / "finetune.json").read_text())["headline"]
+    ft = json.loads((ROOT / "benchmarks" / "what_a_user_gets" / "results" / "finetune.json").read_text())["headline"]
     for key in ("as-is", "fine-tuned", "scratch", "fine-tuned_minus_as-is", "fine-tuned_minus_scratch"):
         assert f"{ft[key]:.1f}" in card, key  # the card's fine-tuning figures are the benchmark's
 

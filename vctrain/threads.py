@@ -65,7 +65,7 @@ def default_threads() -> int:
     process is running on now (:func:`available_cpus` less :func:`busy_cpus`), at least 1, at most
     torch's own default.
 
-    Measured by ``benchmarks/predict_threads.py`` (the shipped model on the example frames, a
+    Measured by ``benchmarks/speed/predict_threads.py`` (the shipped model on the example frames, a
     2-core machine other jobs were using; benchmarks/results/predict_threads.json): beside 0, 1
     and 2 busy processes 2 threads took several times as long a frame as 1; the default chose 1
     and took the time of 1 (the target: at most 1.5x with 2 busy processes). On an idle machine

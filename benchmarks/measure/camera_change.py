@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from measure.data import SIM
-from measure.stats import UNTRAINED, seed_stats
+from .data import SIM
+from .stats import UNTRAINED, seed_stats
 
 
 def no_shift_reference(sd: Path, wd: Path, source: dict, conditions: list[str], sets: list[str]) -> dict:

@@ -1,5 +1,5 @@
-"""What a result JSON records about its run (:func:`machine`, :func:`today`) and writing it
-(:func:`write_json`)."""
+"""What a result JSON records about its run (:func:`machine`, :func:`today`), writing it (:func:`write_json`)
+and where it goes (:func:`results_dir`)."""
 from __future__ import annotations
 
 import json
@@ -24,3 +24,9 @@ def write_json(path: Path, data, indent: int = 1) -> Path:
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(data, indent=indent) + "\n")
     return path
+
+
+def results_dir(script: str | Path) -> Path:
+    """A benchmark's results folder: ``results/`` beside the script (``benchmarks/<question>/results/``),
+    where benchmarks/results_page.py reads its JSON."""
+    return Path(script).resolve().parent / "results"

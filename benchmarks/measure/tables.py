@@ -6,7 +6,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from measure.stats import UNTRAINED, format_stat
+from .stats import UNTRAINED, format_stat
 
 
 def shift_table(shift: dict, conditions: list[str]) -> list[str]:

@@ -1,6 +1,6 @@
 """Road vanishing points without our detector: the plain LSD + RANSAC baseline
 (:func:`baseline_vp`) and the reference VP from a road label (:func:`reference_vp`,
-:func:`kitti_reference_vp`; the rule is in benchmarks/vp.py's docstring).
+:func:`kitti_reference_vp`; the rule is in benchmarks/camera_from_frames/vp.py's docstring).
 """
 from __future__ import annotations
 
@@ -81,7 +81,7 @@ def _fit_side(ys: np.ndarray, xs: np.ndarray, band: float = 2.0, gate: bool = Tr
 
 
 def reference_vp(label: np.ndarray, cam, band: float = 2.0, gate: bool = True) -> tuple[float, float] | None:
-    """Reference road VP of a CamVid label image (the rule in benchmarks/vp.py's docstring), or None.
+    """Reference road VP of a CamVid label image (the rule in benchmarks/camera_from_frames/vp.py's docstring), or None.
     ``band`` (rule 3's inlier band, 2 px) and ``gate`` (rule 3's goodness tests) are changed
     only to measure the reference's spread on frames the rule accepted."""
     return reference_from_masks(label == 3, np.isin(label, STATIC), cam, band, gate)

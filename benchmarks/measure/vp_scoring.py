@@ -14,8 +14,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from measure.data import DATA
-from measure.vp_reference import baseline_vp
+from .data import DATA
+from .vp_reference import baseline_vp
 from vcprep.vp import VPConfig, apply_reliability, estimate_vp, score_vps, sequence_key
 
 TAIL_PCT = 1.0  # the tail: errors above this (% width), split into search misses and lines-elsewhere

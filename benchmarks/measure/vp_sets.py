@@ -11,8 +11,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from measure.data import BIN, DATA, KITTI, SIMULATED, native_camera, run
-from measure.vp_reference import kitti_reference_vp, reference_vp
+from .data import BIN, DATA, KITTI, SIMULATED, native_camera, run
+from .vp_reference import kitti_reference_vp, reference_vp
 from vcprep.warp import vp_from_pose
 from vcprep.synthetic import RoadScene, render_road
 

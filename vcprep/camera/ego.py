@@ -27,7 +27,7 @@ From the frames alone (:func:`ego_rows_from_frames`, no labels): the vehicle's t
 edge with the same position and direction in every frame, while road texture, markings and traffic
 move; per-pixel temporal spread does not separate a reflecting bonnet from road (Cityscapes bonnet
 21 grey levels, CamVid 0016E5's road 21), but gradient persistence |mean g| / mean |g| does where the
-edge keeps its contrast. Measured (benchmarks/ego_frames.py; constants chosen on synthetic drives,
+edge keeps its contrast. Measured (benchmarks/camera_from_frames/ego_frames.py; constants chosen on synthetic drives,
 CamVid 0016E5/0006R0 and one BDD100K dashcam, all sets reported): CamVid 0001TP 35 (labels 36; 35 on
 each 30-frame window), 0 on CamVid val 0016E5, 0006R0, 0016E5, IDD-Lite and LUMS (and every window;
 windows of near-video frames with < 20 distinct frames are refused), BDD100K dashcam 0a0c3694 104 of

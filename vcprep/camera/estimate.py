@@ -18,7 +18,7 @@ Conventions are :mod:`vcprep.warp.homography`'s (tilt > 0 looks down; pixel cent
   self-calibration (road VP . vertical VP = -f^2) is ill-conditioned at road-camera tilts of a few
   degrees: the verticals converge by under a degree across the frame, not at all for a level
   camera, and it gives fy, not fx (the pixel aspect is a second unknown: CamVid's is 1.32).
-  ``benchmarks/focal_from_verticals.py`` pools every frame's near-vertical segments against the
+  ``benchmarks/camera_from_frames/focal_from_verticals.py`` pools every frame's near-vertical segments against the
   nadir each candidate fy implies: on 10 exact simulated cameras cut from CamVid val (tilt -8..+8
   deg) and on CamVid val and Cityscapes, |fy error| has a median of 41 % with detected road VPs
   (32 % with the horizon given), 0 of 12 within 10 %; a level camera gives a flat cost (no
@@ -65,7 +65,7 @@ MIN_ACCEPTED = 3        # fewer accepted road VPs: the pose is not estimated
 ROLL_MIN_SPREAD = 0.1   # VPs must spread over this share of the width to fix the horizon's slope
 DIAG_35MM = math.hypot(36.0, 24.0)  # mm: the 35 mm film frame's diagonal (EXIF FocalLengthIn35mmFilm)
 # metres: the median visible road width of CamVid train's labels under its calibration, 7.19 m over 306 of
-# its 367 frames (Cityscapes pix2pix under its own: 6.10 m); benchmarks/camera_estimate.py measures both
+# its 367 frames (Cityscapes pix2pix under its own: 6.10 m); benchmarks/camera_from_frames/camera_estimate.py measures both
 ROAD_WIDTH = 7.2
 HORIZON_SKIP = 0.15  # road_widths: the rows nearest the horizon (this share of those below it) are left out
 

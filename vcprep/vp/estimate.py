@@ -23,7 +23,7 @@ STATUSES = ("accepted", "fallback", "given")
 
 @dataclass(frozen=True)
 class VPConfig:
-    """Detector parameters (defaults measured on synthetic and CamVid frames, benchmarks/vp.py)."""
+    """Detector parameters (defaults measured on synthetic and CamVid frames, benchmarks/camera_from_frames/vp.py)."""
 
     work_width: int = 480          # images wider than this are downscaled before line detection (px)
     lsd_scale: float = 0.5         # LSD's own internal scale (OpenCV default 0.8; 0.5 is ~2.5x faster;

@@ -12,7 +12,7 @@ Every name of the two modules is importable from here.
 Conventions: a VP is (u, v) in pixels of the image as stored on disk, origin at the CENTRE of
 the top-left pixel (method.md). Pan/tilt in degrees from :func:`vcprep.warp.homography.pose_from_vp`.
 
-The detector (measured in ``benchmarks/vp.py``):
+The detector (measured in ``benchmarks/camera_from_frames/vp.py``):
 
 1. grey image, downscaled (INTER_AREA) to at most ``work_width`` px wide; OpenCV LSD segments
    (internal scale ``lsd_scale``, standard refinement), mapped back to source pixels with the

@@ -145,7 +145,7 @@ def fit_cmd(
     --nproc-per-node N' for data-parallel training.
 
     Time, measured with the cpu recipe on 2 cores: about 7 minutes for 305 CamVid frames at the
-    default store's 638x271 (benchmarks/as_shipped.py).
+    default store's 638x271 (benchmarks/other_cameras/as_shipped.py).
 
     \b
     Example:

@@ -114,7 +114,7 @@ def _sample_f(src: torch.Tensor, w: int, idx: torch.Tensor, ax: torch.Tensor, ay
     return (torch.index_select(quads, 0, idx.to(torch.int32)) * wts).sum(-1)
 
 
-GRID_BAND = 128  # rows per GridSample of the back-projection (benchmarks/deploy.py)
+GRID_BAND = 128  # rows per GridSample of the back-projection (benchmarks/speed/deploy.py)
 FRACTION = 65536  # fixed-mount fractions are stored as int16: round(a * FRACTION) - 32768
 
 

@@ -59,7 +59,7 @@ class Predictor:
         self.data: dict[str, Any] = self.ckpt["data"]
         self.device = resolve_device(device)
         # BN folded into the convs and the channels last: the same function, faster on a CPU (the
-        # depthwise convs of lite0fpn most: benchmarks/networks.py)
+        # depthwise convs of lite0fpn most: benchmarks/speed/networks.py)
         self.model = fold_batchnorm(model_from_checkpoint(self.ckpt, self.path).to(self.device).eval())
         self.model = self.model.to(memory_format=torch.channels_last)
         self.size = tuple(self.data["input_size"])

@@ -99,7 +99,7 @@ CONDITION_TRAIN: dict[str, dict[str, Any]] = {"resize-vp": {"vp_channel": True},
 # tri-mask alone (paper §4.5), or the prior fused with the within model's own prediction (GeoSeg-like)
 ADAPT_COMBINE = {"adapt": "prior", "adapt-fuse": "fuse", "adapt-self": "self"}
 DEFAULT_CONDITIONS = ("resize", "between", "within", "within-gt", "zero")  # a study without 'conditions:'
-# The measured best design (benchmarks/real_cameras.py --dev and issue 24's real cameras: 56.7 vs 55.7
+# The measured best design (benchmarks/other_cameras/real_cameras.py --dev and issue 24's real cameras: 56.7 vs 55.7
 # road IoU on four real other cameras, 81.1 vs 75.5 on CamVid's unseen rig, against store_width 320,
 # no crop above the horizon and whole-image training): the defaults of a study that sets nothing.
 # (one source of truth with `vcprep warp`'s defaults: vcprep.camera.virtual, vctrain.training.config.TRAIN_WINDOW)
@@ -112,7 +112,7 @@ DEFAULT_ABOVE = DESIGN_ABOVE           # degrees of the designed virtual camera 
 # stores; the pixel budget sizes the training rectangle, so a wide or steep test camera no longer
 # shrinks the training images (the network, fully convolutional, runs on the larger test rectangle at
 # the training's pixels per degree).
-# Measured (benchmarks/as_shipped.py, CamVid -> five real other cameras, 3 seeds): 'footprint' gives the
+# Measured (benchmarks/other_cameras/as_shipped.py, CamVid -> five real other cameras, 3 seeds): 'footprint' gives the
 # CamVid content 1.75x the linear resolution of 'shared' at the same budget (the shared rectangle is
 # sized by the widest and steepest test cameras, KITTI and LUMS) -- see docs/studies.md for the numbers.
 CANVASES = ("shared", "footprint")

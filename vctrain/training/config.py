@@ -26,7 +26,7 @@ RECIPES: dict[str, dict[str, Any]] = {
             "weight_decay": 0.01, "schedule": "cosine", "hflip": True, "scale_aug": 0.25, "shift_aug": 0.05,
             "color_aug": 0.3, "shading_aug": 0.0, "crop": TRAIN_WINDOW, "balance": "items"},
 }
-# several cameras merged (the shipped model's recipe, benchmarks/shipped_model.py): the cpu recipe with the
+# several cameras merged (the shipped model's recipe, benchmarks/what_a_user_gets/shipped_model.py): the cpu recipe with the
 # ImageNet-pretrained lite0fpn (on the shipped model's six held-out splits 81.3 against resfpn's 78.3 at
 # four times the steps, every split higher), every store an equal share of each epoch, lens-shading colour
 # fields (issue 44: LUMS's near field), 30 epochs (issue 53)

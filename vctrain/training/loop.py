@@ -227,7 +227,7 @@ def _check_init(cfg: TrainConfig, init: dict[str, Any], info: dict[str, Any]) ->
 def _init_network(cfg: TrainConfig, init: dict[str, Any]) -> None:
     """Fill the settings a fine-tuning run left unset from the ``init`` checkpoint (in place): the
     network (``--model``, ``--width``), so :func:`_check_init` only refuses what was asked otherwise,
-    and the learning rate, ``ADAPT_LR_FACTOR`` (a tenth) of the checkpoint's own (benchmarks/finetune.py
+    and the learning rate, ``ADAPT_LR_FACTOR`` (a tenth) of the checkpoint's own (benchmarks/what_a_user_gets/finetune.py
     measured that rule: 20 frames of an unseen camera, +4.2 over training on them from scratch)."""
     if cfg.lr is None and (init.get("config") or {}).get("lr"):
         cfg.lr = ADAPT_LR_FACTOR * float(init["config"]["lr"])

@@ -1,0 +1,168 @@
+"""The README's headline, made from the results JSON (benchmarks/results_page.py writes it between the
+README's markers): one small table, a row a regime (one training camera, several cameras merged, the
+shipped model) with what wins, by how much and on which held-out cameras; then which model to use and
+when the virtual camera pays. And where each figure the README states comes from (:func:`readme_figures`).
+
+Every function takes ``data``: a results JSON's stem -> its content (the stems are unique over the
+question folders).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .format import _mean_std, table
+from .sections import AS_SHIPPED_REAL, _real_mean
+
+MAX_LINES = 12  # the headline block, the lines between the README's markers
+NAMES = {"camvid": "CamVid", "cityscapes": "Cityscapes", "idd": "IDD-Lite", "bdd": "BDD100K", "lums": "LUMS",
+         "kitti": "KITTI"}
+HEADER = ["regime", "what wins", "by how much (road IoU points; mean ± std over seeds)",
+          "on which cameras (held out of training)"]
+TWIN = {"within": "virtual-camera twin", "resize": "resize twin"}
+SHIPPED = "[`models/road-multicamera`](models/road-multicamera/README.md)"
+
+
+@dataclass(frozen=True)
+class Row:
+    """One regime of the headline's table; ``figure`` is what ``--check`` looks for in its third cell."""
+    key: str        # the regime cell starts with it
+    regime: str
+    wins: str
+    by: str
+    cameras: str
+    figure: str
+    source: str     # the stem of the JSON the figure comes from
+
+
+def _seeds(v: list) -> str:
+    return f"{len(v)} seed{'s' if len(v) != 1 else ''}"
+
+
+WINNER = {"within": "the virtual camera (`within`)", "resize": "resize"}
+
+
+def _winner(within_minus_resize: str) -> str:
+    """What a within − resize figure ('+4.3 ± 1.2') says wins."""
+    return WINNER["within" if within_minus_resize.startswith("+") else "resize"]
+
+
+def worst_merged(m: dict) -> list[tuple[str, str]]:
+    """The held-out cameras of a leave-one-camera-out result (benchmarks/other_cameras/multi_camera.py),
+    worst first, as (name, 'mean ± std' of within − resize paired per seed)."""
+    c, per = m["cells"], []
+    for t in m.get("held_out", []):
+        pair = [w - r for w, r in zip(c.get(f"{t}|within") or [], c.get(f"{t}|resize") or [])
+                if w is not None and r is not None]
+        if pair:
+            per.append((sum(pair) / len(pair), NAMES.get(t, t), _mean_std(pair, signed=True)))
+    return [(name, fig) for _, name, fig in sorted(per)]
+
+
+def shipped_twins(data: dict[str, dict]) -> tuple[str, dict] | None:
+    """(stem, JSON) of the first shipped_model* run that trained both twins (within and resize)."""
+    for stem in sorted(s for s in data if s.startswith("shipped_model")):
+        h = data[stem]["headline"]
+        if h.get("mean_within") is not None and h.get("mean_resize") is not None:
+            return stem, data[stem]
+    return None
+
+
+def one_camera(a: dict) -> Row:
+    """Trained on CamVid, tested on the real other cameras (benchmarks/other_cameras/as_shipped.py)."""
+    fig = _mean_std(_real_mean(a["cells"], AS_SHIPPED_REAL), signed=True)
+    return Row("one training camera", "one training camera (CamVid)", _winner(fig),
+               f"within − resize **{fig}** ({_seeds(a['seeds'])})",
+               f"{len(AS_SHIPPED_REAL)} real other cameras: " + ", ".join(NAMES[t] for t in AS_SHIPPED_REAL),
+               fig, "as_shipped")
+
+
+def several_merged(m: dict, stem: str = "multi_camera_median") -> Row:
+    """Each real dataset held out in turn, trained on the others (benchmarks/other_cameras/multi_camera.py)."""
+    h, n = m["headline"], len(m["held_out"])
+    fig = f"{h['loo_within_minus_resize']:+.1f} ± {h['loo_within_minus_resize_std']:.1f}"
+    worst = ", ".join(f"{name} {f}" for name, f in worst_merged(m)[:2])
+    return Row("several cameras merged", f"several cameras merged ({n} real datasets)", _winner(fig),
+               f"within − resize **{fig}** ({_seeds(m['seeds'])})",
+               f"each dataset held out in turn, trained on the other {n - 1}; worst {worst}", fig, stem)
+
+
+def shipped(data: dict[str, dict]) -> Row | None:
+    """The shipped model's condition, and why: its twins' held-out means (benchmarks/what_a_user_gets/
+    shipped_model.py); None without a run of both twins."""
+    ship, twins = data["shipped_model"]["headline"]["shipped_condition"], shipped_twins(data)
+    if twins is None:
+        return None
+    stem, d = twins
+    other = "within" if ship == "resize" else "resize"
+    fig = f"{d['headline'][f'mean_{ship}']:.1f} against {d['headline'][f'mean_{other}']:.1f}"
+    return Row("the shipped model", f"the shipped model, {SHIPPED}", WINNER[ship],
+               f"mean **{fig}**: its {TWIN[ship]} against its {TWIN[other]}, same frames "
+               f"({_seeds([d['seed']])}, {d['epochs']} epochs)",
+               f"{len(d['sets'])} held-out splits: " + ", ".join(NAMES.get(s, s) for s in d["sets"]), fig, stem)
+
+
+def rows(data: dict[str, dict]) -> list[Row]:
+    """The three regimes, as measured."""
+    out = [one_camera(data["as_shipped"]), several_merged(data["multi_camera_median"])]
+    return out + [r for r in [shipped(data)] if r]
+
+
+def render(data: dict[str, dict]) -> str:
+    """The headline block: a sentence, the table, which model to use and when the virtual camera pays."""
+    rs = rows(data)
+    one, several = rs[0], rs[1]
+    ship = data["shipped_model"]
+    cond = ship["headline"]["shipped_condition"]
+    because = (f"because {cond} wins when cameras are merged" if WINNER[cond] == several.wins
+               else "the twin that scored higher on the held-out splits")
+    network = f"a {ship['model']}" if ship.get("model") else "a model"
+    lines = ["On real cameras held out of training, the virtual camera (`within`: per-image correction) against "
+             "the same network on resized images (`resize`):", ""]
+    lines += table(HEADER, [[r.regime, r.wins, r.by, r.cameras] for r in rs])
+    lines += [f"- **Which model to use**: the shipped one, {SHIPPED}, {network} trained on "
+              f"several cameras merged, the {TWIN[cond]}, {because}.",
+              f"- **When the virtual camera pays**: a model trained on one camera and used on others "
+              f"({one.figure} IoU points over resize).",
+              "- **Every figure**, with the script and the results file it comes from: [docs/results.md](docs/results.md)."]
+    return "\n".join(lines)
+
+
+def _table_rows(block: str) -> list[list[str]]:
+    """The body rows of the first Markdown table in ``block``, as cells."""
+    body = [ln for ln in block.splitlines() if ln.startswith("|")][2:]
+    return [[c.strip() for c in ln.strip().strip("|").split("|")] for ln in body]
+
+
+def problems(block: str, data: dict[str, dict]) -> list[str]:
+    """What a headline block gets wrong: too long, a regime's figure missing from its row, no shipped model."""
+    lines = block.strip("\n").splitlines()
+    out = [f"the headline has {len(lines)} lines, at most {MAX_LINES}"] if len(lines) > MAX_LINES else []
+    cells = _table_rows(block)
+    for r in rows(data):
+        row = next((c for c in cells if c and c[0].startswith(r.key)), None)
+        if row is None or len(row) < 3 or r.figure not in row[2]:
+            out.append(f"the headline's table leaves out the '{r.key}' figure ({r.figure}, from {r.source}.json)")
+    if "models/road-multicamera" not in block:
+        out.append("the headline does not name the shipped model (models/road-multicamera)")
+    return out
+
+
+def readme_figures(data: dict[str, dict]) -> list[tuple[str, list[str], str]]:
+    """Each figure the README states: (where and what, the figure as the README writes it (in parts),
+    the results file it comes from). The headline's are generated; the others are written by hand."""
+    rs = rows(data)
+    s = data["shipped_model"]
+    cells = s["cells"][s["headline"]["shipped_condition"]]
+    out = [(f"headline, {r.key}", [r.figure], f"{r.source}.json") for r in rs]
+    out.insert(2, ("headline, several cameras merged: the worst held-out cameras",
+                   [f"{n} {f}" for n, f in worst_merged(data["multi_camera_median"])[:2]], "multi_camera_median.json"))
+    out += [("headline: the shipped model's network and twin",
+             [x for x in (s.get("model"), f"the {TWIN[s['headline']['shipped_condition']]}") if x], "shipped_model.json"),
+            ("Your first hour, 2: the shipped model's held-out road IoU", [
+                f"{'CamVid val' if t == 'camvid' else NAMES[t]} {cells[t]:.1f}" for t in cells if t != "kitti"]
+             + [f"KITTI frame it never saw {cells['kitti']:.1f}"], "shipped_model.json"),
+            ("Your first hour, 2: the shipped model on held-out frames (the figure)", ["shipped_model.png"],
+             "shipped_model.png"),
+            ("Your first hour, 5 and Concepts: minutes a model, 305 CamVid frames on 2 cores",
+             [f"{round(data['as_shipped']['headline']['minutes_per_model'])} min"], "as_shipped.json")]
+    return out

@@ -1,0 +1,97 @@
+"""The results page's sections of the multi-camera benchmarks (issue 34): leave one camera out, the
+shipped model, fine-tuning, the LOO diagnosis and adaptation without labels."""
+from __future__ import annotations
+
+from .format import _mean_std, num, pct, r_generic, table
+
+
+def r_multi_camera(d: dict) -> list[str]:
+    """Leave one real camera out (benchmarks/other_cameras/multi_camera.py): cells are IoU points per seed (None: not run yet)."""
+    c, seeds = d["cells"], d.get("seeds", [])
+    have = lambda v: [x for x in (v or []) if x is not None]  # noqa: E731
+    pair = lambda t: [w - r for w, r in zip(c.get(f"{t}|within") or [], c.get(f"{t}|resize") or [])  # noqa: E731
+                      if w is not None and r is not None]
+    out = [f"Road IoU (%), mean ± std over the seeds finished of {seeds}; each fold trained on the other four real "
+           f"datasets merged into one virtual camera (`balance: datasets`, {d.get('steps_per_epoch')} steps an "
+           "epoch), tested on all frames of the held-out camera in that camera; "
+           + ", ".join(d.get("test_only", [])) + " by the model trained on all five. within − resize paired per seed.",
+           ""]
+    out += table(["held out", "within", "resize", "within − resize", "seeds done (within, resize)"],
+                 [[t, _mean_std(have(c.get(f"{t}|within"))), _mean_std(have(c.get(f"{t}|resize"))),
+                   _mean_std(pair(t), signed=True),
+                   f"{len(have(c.get(f'{t}|within')))}, {len(have(c.get(f'{t}|resize')))}"]
+                  for t in d.get("held_out", []) + d.get("test_only", [])])
+    h = d["headline"]
+    if h.get("loo_within_minus_resize") is not None:
+        out += [f"Mean over the five held-out cameras (per seed, seeds {h.get('loo_complete_seeds')}): "
+                f"**{h['loo_within_minus_resize']:+.1f} ± {h['loo_within_minus_resize_std']:.1f}**.", ""]
+    if h.get("folds_missing"):
+        out += [f"Not finished yet: {', '.join(h['folds_missing'])}.", ""]
+    if d.get("targets"):
+        out += table(["target (issue 34)", "met"], [[k, "not measured" if v is None else num(v)]
+                                                   for k, v in d["targets"].items()])
+    return out + r_generic({"headline": {k: v for k, v in h.items() if k != "folds_missing"}})
+
+
+def r_shipped_model(d: dict) -> list[str]:
+    """The shipped model (benchmarks/what_a_user_gets/shipped_model.py): one model, each development set's held-out split."""
+    h, t = d["headline"], d.get("targets", {})
+    out = [f"One model trained on the five development sets' training splits (`balance: datasets`, "
+           f"{d.get('epochs')} epochs of {d.get('steps_per_epoch')} steps, seed {d.get('seed')}), road IoU (%) on each "
+           "set's held-out split in its own camera; KITTI never trained on. The resize twin: the same network, "
+           "frames, steps and sampling, the images resized.", ""]
+    sh = h.get("shipped_condition", "within")
+    out += table(["held-out split", "within" + (" (shipped)" if sh == "within" else ""),
+                  "resize twin" + (" (shipped)" if sh == "resize" else ""), "within − resize"],
+                 [[k, num(h.get(f"within_{k}")), num(h.get(f"resize_{k}")), num(h.get(f"within_minus_resize_{k}"))]
+                  for k in d.get("sets", [])])
+    out += [f"Mean over the splits: within {num(h.get('mean_within'))}, resize {num(h.get('mean_resize'))}; shipped "
+            f"(the higher mean): **{sh}**. Checkpoint {num(h.get('checkpoint_mb'))} MB; predict per 1280×720 frame "
+            f"(1 / 2 threads): within (warp, network, back-projection) {num(h.get('predict_ms_1280x720_within_t1'))} / "
+            f"{num(h.get('predict_ms_1280x720_within_t2'))} ms, resize {num(h.get('predict_ms_1280x720_resize_t1'))} / "
+            f"{num(h.get('predict_ms_1280x720_resize_t2'))} ms.", ""]
+    return out + table(["target (issue 34)", "met"], [[k, "not measured" if v is None else num(v)] for k, v in t.items()])
+
+
+def r_finetune(d: dict) -> list[str]:
+    """Fine-tuning on 20 labelled frames of a camera the model has not seen (benchmarks/what_a_user_gets/finetune.py)."""
+    c, seeds, h = d["cells"], d.get("seeds", []), d["headline"]
+    split = d.get("split", "LUMS: captures 400–466; scored on the 118 frames of the other captures")
+    out = [f"{d.get('n_train')} labelled frames, {split}; model `{d.get('model')}`; recipe {str(d.get('epochs')).split(',')[0]} "
+           f"epochs, fine-tuned at lr ×{str(d.get('lr_factors', '0.1')).split(',')[0]}; road IoU (%) per seed {seeds}.", ""]
+    out += table(["condition"] + [f"seed {s}" for s in seeds] + ["mean"],
+                 [[k] + [num(x) for x in v] + [num(h.get(k, sum(v) / len(v)))] for k, v in c.items()])
+    if d.get("base_heldout"):
+        out += ["The model as it is, on the shipped model's held-out splits (road IoU %): "
+                + ", ".join(f"{k} {v:.1f}" for k, v in d["base_heldout"].items()) + ".", ""]
+    return out + table(["target (issue 34)", "met"], [[k, num(v)] for k, v in d.get("targets", {}).items()])
+
+
+def r_loo_diagnose(d: dict) -> list[str]:
+    h = d["headline"]
+    out = [f"Held out {d['heldout']}, seed {d['seed']}, {h['frames']} frames: road IoU within {pct(h['iou']['within'])} "
+           f"(precision {pct(h['precision']['within'])}, recall {pct(h['recall']['within'])}), resize "
+           f"{pct(h['iou']['resize'])} ({pct(h['precision']['resize'])}, {pct(h['recall']['resize'])}). Road pixels no "
+           f"store pixel reaches: {pct(h['road_uncovered_share'])} %; road within misses inside the covered part: "
+           f"{pct(h['road_missed_inside_coverage_share'])} %. Within at a multiple of its working size: "
+           + ", ".join(f"{s}x {pct(v)}" for s, v in h["within_iou_by_scale"].items()) + ".", ""]
+    n = len(h["fn_share_by_band"]["within"])
+    rows = [[f"{what}, {k} (%)"] + [pct(v) for v in h[key][k]]
+            for what, key in (("missed road", "fn_share_by_band"), ("false road", "fp_share_by_band"))
+            for k in ("within", "resize")]
+    return out + table(["band, top to bottom"] + [str(i + 1) for i in range(n)], rows)
+
+
+def r_adapt_loo(d: dict) -> list[str]:
+    """Adapting without labels on LOO folds (benchmarks/other_cameras/adapt_loo.py): per seed, and the mean."""
+    conds = ["resize", "resize-self", "resize-fuse", "within", "adapt", "adapt-fuse", "adapt-self"]
+    seeds = d.get("seeds", [d.get("seed")])
+    per = d.get("per_seed") or {str(seeds[0]): d["cells"]}
+    out = [f"Leave-one-camera-out folds, seeds {seeds}; every adaptation on the held-out frames it is scored on, "
+           f"without their labels (tri-mask {d['lo']:g}/{d['hi']:g}); road IoU (%).", ""]
+    rows = []
+    for f in d["folds"]:
+        rows += [[f, str(s)] + [num(per[str(s)][f].get(k)) for k in conds] for s in seeds]
+        if len(seeds) > 1:
+            rows.append([f, "mean"] + [num(d["cells"][f].get(k)) for k in conds])
+    return out + table(["held out", "seed"] + conds, rows)

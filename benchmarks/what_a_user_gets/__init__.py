@@ -1,0 +1,30 @@
+"""What does a user get? The model the project ships, the README's own route (warp, fit, predict with
+no flag set by hand), fine-tuning the shipped model on a few frames of one's own camera, and a
+model trained and tested in one camera.
+
+Run one from the repository: ``.venv/bin/python benchmarks/what_a_user_gets/<script>.py`` (``--help``
+lists its options); it writes ``benchmarks/what_a_user_gets/results/`` and ``make docs`` puts that on
+docs/results.md (the README's headline and its first hour take ``shipped_model.json``,
+``shipped_model_e60.json`` and ``shipped_model.png``). Models and stores go to
+``benchmarks/out/<script>/`` (not in git). Time: the wall time of a default run where a docstring,
+docs/development.md or the results JSON records it, else "unknown".
+
+* ``shipped_model.py`` -- the shipped road model (``models/road-multicamera``): one model trained on
+  every development set's training split, scored on each held-out split and the KITTI frame, against
+  its twin (issue 34; ``--ship`` writes the model folder and ``shipped_model.png``). Results:
+  ``shipped_model.{md,json,png}`` and ``shipped_model_<variant>.{md,json}`` (``_e60``: both twins at
+  60 epochs). Time: about 33 min a model (shipped_model.json: 33.28, lite0fpn, 30 epochs).
+* ``user_route.py`` -- the route a user follows, as the README writes it: does ``vcprep warp`` +
+  ``vctrain fit`` with no flag set by hand deliver what ``vctrain crossval`` measured for the same
+  frames (issue 52)? Results: ``user_route.{md,json}``. Time: unknown.
+* ``finetune.py`` -- fine-tuning on a camera the model has not seen: 20 labelled frames of it
+  (issue 34). Results: ``finetune.{md,json}`` (LUMS), ``finetune_<set>.{md,json}``. Time: unknown.
+* ``train.py`` -- CamVid train -> val in its own camera: the virtual-camera model against the resize
+  baseline at the same budget (the pipeline and the budget, not the cross-camera gain). Results:
+  ``train.json``. Time: about 8 min a model, two models (its docstring; train.json: fits of 301 and
+  309 s).
+
+``shipped_model.py`` and ``finetune.py`` build their studies with
+``benchmarks/other_cameras/as_shipped.py``'s, and ``user_route.py`` compares with its
+``as_shipped.json``.
+"""
