@@ -622,3 +622,44 @@ def test_a_missed_own_vehicle_is_a_warning_even_under_quiet(tiny_model, drive, t
     proc = run_cli("predict", tiny_model, "--camera", tmp_path / "cam.yaml", tmp_path / "mirror", "--out",
                    tmp_path / "o3", "--within", "none", "--quiet", "--ego", "0", prog="vctrain")
     assert proc.returncode == 0 and proc.stderr.strip() == "", proc.stderr
+
+
+# -- the own vehicle cut by a model that reads frames as they are (issue 60: the shipped model) ------------
+
+@pytest.fixture(scope="module")
+def resize_model(tiny_model, tmp_path_factory):
+    """The tiny model's resize twin (width 4, 2 epochs), trained from its training store."""
+    from vctrain.training import TrainConfig, fit
+
+    root = tmp_path_factory.mktemp("ego_resize")
+    fit(TrainConfig(stores=[str(tiny_model.parent / "store")], out=str(root / "rs.pt"), baseline="resize",
+                    size=(64, 48), base_width=4, epochs=2, batch_size=2, val_fraction=0, progress=False, device="cpu"))
+    return root / "rs.pt"
+
+
+def test_a_resize_model_cuts_the_own_vehicle_only_when_asked(resize_model, drive, tmp_path):
+    """A dashcam drive whose bonnet top is 25 rows up: by default (and --ego none) a resize model
+    predicts every row as before; --ego auto finds the bonnet from the frames (said on stderr) and
+    predicts 'not road' below its top, the rows above unchanged; --ego 30 cuts 30 rows."""
+    frames = tmp_path / "dashcam"
+    frames.mkdir()
+    for i, f in enumerate(drive):
+        cv2.imwrite(str(frames / f"d{i:02d}.png"), _paint_bonnet(f, 25))
+    outs = {}
+    for ego in (None, "none", "auto", "30"):
+        out = tmp_path / f"pred_{ego}"
+        proc = run_cli("predict", resize_model, frames, "--out", out, *(["--ego", ego] if ego else []), prog="vctrain")
+        assert proc.returncode == 0, proc.stderr
+        outs[ego] = (proc.stderr, [(_png(out / f"d{i:02d}_prob.png"), _png(out / f"d{i:02d}_mask.png"))
+                                   for i in (0, 17, 35)])
+    base = outs[None][1]
+    assert all(np.array_equal(a, b) for pa, pb in zip(base, outs["none"][1]) for a, b in zip(pa, pb))
+    assert "own vehicle" not in outs[None][0]
+    assert any(prob[-25:].any() for prob, _ in base)  # there was road predicted on the bonnet to cut
+    said = outs["auto"][0]
+    rows = int(said.split("own vehicle: ")[1].split(" rows")[0])
+    assert abs(rows - 25) <= 2 and "found from the frames" in said
+    for cut, n in ((outs["auto"][1], rows), (outs["30"][1], 30)):
+        for (prob0, mask0), (prob, mask) in zip(base, cut):
+            assert not prob[-n:].any() and not mask[-n:].any()
+            assert np.array_equal(prob[:-n], prob0[:-n]) and np.array_equal(mask[:-n], mask0[:-n])

@@ -13,6 +13,13 @@ from vcprep.cliutil import ensure_parent, err
 from .common import app, path_or_json, pin_threads, threads_option
 
 
+EGO_HELP = ("the own vehicle (bonnet, dashboard) in a video or a folder of one camera's frames, predicted "
+            "'not road': auto (the camera's ego_rows, else found from up to 48 frames spread over them, said on "
+            "stderr), none (no search: the camera as given) or N bottom rows; default: auto for a virtual-camera "
+            "model, none for a model that reads frames as they are (the shipped model: give --ego auto or N "
+            "for a dashcam)")
+
+
 @app.command("predict")
 def predict_cmd(
     checkpoint: Optional[Path] = typer.Argument(None, help="model written by 'vctrain fit' (left out with --prior)"),
@@ -46,10 +53,7 @@ def predict_cmd(
     vp_sequences: Optional[str] = typer.Option(None, "--vp-sequences", help="estimated VPs: a frame's sequence (its "
                                                "fallback and smoothing) is its file name up to the first '_' (name) "
                                                "or its folder (folder: IDD's drives); default: the model's rule"),
-    ego: str = typer.Option("auto", "--ego", help="the own vehicle in a video or a folder of one camera's frames "
-                                                  "(a virtual-camera model): auto (the camera's ego_rows, else found "
-                                                  "from up to 48 frames spread over them, said on stderr), none (no "
-                                                  "search: the camera as given) or N bottom rows"),
+    ego: Optional[str] = typer.Option(None, "--ego", help=EGO_HELP),
     threads: Optional[int] = threads_option(),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar"),
 ):
@@ -71,6 +75,7 @@ def predict_cmd(
     \b
     Example:
       vctrain predict models/road-multicamera/road.pt my/frames --out preds --overlay   # the shipped model
+      vctrain predict models/road-multicamera/road.pt dashcam/ --ego auto --out preds/dashcam   # bonnet cut off
       vctrain predict runs/vc.pt --camera kitti data/kitti/image_2 --out preds/kitti
       vctrain predict runs/vc.pt --store stores/camvid_val --out preds/camvid_val
       vctrain predict --prior prior.npy --camera kitti data/kitti/image_2 --out preds/geoprior

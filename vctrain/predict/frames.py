@@ -70,14 +70,17 @@ class FramePredictor:
     size; rescaled to ``frame_size`` (w, h)); ``poses``: (pan, tilt) of frames to come, which the
     virtual rectangle is extended for in advance (the camera's average pose always is); ``views``
     instead: exactly the (camera, pan, tilt) views the rectangle is extended for (a folder's, of
-    every camera in it, so that all its frames share one rectangle)."""
+    every camera in it, so that all its frames share one rectangle). ``ego_rows``: a model that
+    reads frames as they are (resize) predicts 'not road' on these bottom rows of the frame, the own
+    vehicle (a virtual-camera model never warps the camera's ``ego_rows``)."""
 
     def __init__(self, predictor: Any, camera: Camera | None, frame_size: tuple[int, int],
                  poses: Iterable[tuple[float, float]] = (),
-                 views: list[tuple[Camera, float, float]] | None = None):
+                 views: list[tuple[Camera, float, float]] | None = None, ego_rows: int = 0):
         refuse_mixed(predictor)
         self.predictor = predictor
         self.size = (int(frame_size[0]), int(frame_size[1]))
+        self.ego_rows = int(ego_rows)
         self.camera = camera.for_image_size(self.size) if camera is not None else None
         self.times = StageTimes()
         self.virtual: Camera | None = None
@@ -159,6 +162,8 @@ class FramePredictor:
             if vp is None and getattr(p, "vp_channel", False) and self.camera is not None:
                 vp = vp_from_pose(self.camera)
             prob = p.road_probability(frame, vp)
+            if self.ego_rows:
+                prob[prob.shape[0] - self.ego_rows:] = 0.0
             self.times.network += time.perf_counter() - t0
             self.times.frames += 1
             return prob

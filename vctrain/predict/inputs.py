@@ -52,7 +52,7 @@ class Predicted:
 def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]], out: Path,
                    camera_for: Optional[CameraFor] = None, prior: Optional[Path] = None, store: Optional[Path] = None,
                    device: str = "auto", keep_store: Optional[Path] = None, within: str = "auto",
-                   overlay: bool = False, mask_video: bool = False, ego: str = "auto",
+                   overlay: bool = False, mask_video: bool = False, ego: Optional[str] = None,
                    progress: bool = True, vp_range: Optional[tuple[float, float]] = None,
                    vp_smooth: Optional[int] = None, vp_sequences: Optional[str] = None,
                    say: Optional[Callable[[str], None]] = None) -> Predicted:
@@ -213,39 +213,53 @@ def _needs_no_camera(predictor) -> bool:
 
 
 def _predict_image_files(predictor, images: Sequence[Path], out: Path, camera_for: Optional[CameraFor],
-                         keep_store: Optional[Path], within: str, overlay: bool, progress: bool, ego: str = "auto",
-                         vp_rule: Any = None, say: Optional[Callable[[str], None]] = None):
+                         keep_store: Optional[Path], within: str, overlay: bool, progress: bool,
+                         ego: Optional[str] = None, vp_rule: Any = None, say: Optional[Callable[[str], None]] = None):
     """Image files and folders: their camera from ``camera_for`` (a virtual-camera model needs
     one; with one camera, its own vehicle found from the frames unless the camera states it: ``ego``
-    as for a video), then :func:`vctrain.predict.predictor.predict_frames` (the one road for a
-    frame) with ``vp_rule`` (None: the model's); ``say`` hears what the frames were warped with."""
+    as for a video; a resize model cuts it only when ``ego`` asks), then
+    :func:`vctrain.predict.predictor.predict_frames` (the one road for a frame) with ``vp_rule``
+    (None: the model's); ``say`` hears what the frames were warped with."""
     from vcprep.camera import Camera
     from vcprep.cliutil import err
     from vcprep.dataset import collect_images
 
     from .frames import NEEDS_CAMERA, reads_road_vps, warps_frames
     from .predictor import predict_frames
-    from .road import folder_ego_camera
+    from .road import folder_ego_camera, frames_ego_rows
 
-    cam, ego_source = None, ""
+    cam, ego_source, rows = None, "", None
     if camera_for is not None:  # checked even where the model needs none: a typo is never silent
         jobs = collect_images(images)
         cam = camera_for(jobs[0].image, frames=[j.image for j in jobs], needed=not _needs_no_camera(predictor))
-        if reads_road_vps(predictor) and isinstance(cam, Camera):  # one camera's frames: its own vehicle, as a video's
-            stated = cam.ego_rows
-            tell = (lambda msg: err(f"{jobs[0].image.parent}: {msg}")) if progress else None
-            cam = folder_ego_camera(cam, [j.image for j in jobs], ego, tell,
-                                    lambda msg: err(f"{jobs[0].image.parent}: warning: {msg}"))
-            ego_source = (f"--ego {ego}" if ego not in ("auto", "none") else "the camera's ego_rows" if stated
-                          else "found from the frames" if cam.ego_rows else "")
-        elif reads_road_vps(predictor) and ego not in ("auto", "none"):
-            raise InputError("--ego N needs one camera; per-frame calibration files give the frames' cameras",
-                             jobs[0].image, "write ego_rows in a camera file, or drop --ego")
-    elif warps_frames(predictor):
-        raise InputError("a virtual-camera model needs the camera of the images", predictor.path,
-                         NEEDS_CAMERA)
-    elif reads_road_vps(predictor):
+    if camera_for is None and warps_frames(predictor):
+        raise InputError("a virtual-camera model needs the camera of the images", predictor.path, NEEDS_CAMERA)
+    if camera_for is None and reads_road_vps(predictor):
         raise InputError("this model reads each frame's road vanishing point (VP channel): it needs the camera of "
                          "the images", predictor.path, NEEDS_CAMERA)
+    files = [j.image for j in collect_images(images)]
+    tell = (lambda msg: err(f"{files[0].parent}: {msg}")) if progress else None
+    warn = lambda msg: err(f"{files[0].parent}: warning: {msg}")  # noqa: E731
+    one = cam if isinstance(cam, Camera) else None
+    if ego not in (None, "none", "auto") and cam is not None and one is None:
+        raise InputError("--ego N needs one camera; per-frame calibration files give the frames' cameras",
+                         files[0], "write ego_rows in a camera file, or drop --ego")
+    if _reads_frames_as_they_are(predictor) and ego not in (None, "none"):  # asked for: its own vehicle cut
+        rows = frames_ego_rows(one, files, ego, tell, warn)
+        ego_source = f"--ego {ego}" if ego != "auto" else "the camera's ego_rows" if cam and cam.ego_rows else ""
+    elif reads_road_vps(predictor) and isinstance(cam, Camera):  # one camera's frames: its own vehicle, as a video's
+        ego = ego or "auto"
+        stated = cam.ego_rows
+        cam = folder_ego_camera(cam, files, ego, tell, warn)
+        ego_source = (f"--ego {ego}" if ego not in ("auto", "none") else "the camera's ego_rows" if stated
+                      else "found from the frames" if cam.ego_rows else "")
     return predict_frames(predictor, images, out, cam, progress=progress, keep_store=keep_store, overlay=overlay,
-                          within=within, vp_rule=vp_rule, say=say, ego_source=ego_source)
+                          within=within, vp_rule=vp_rule, say=say, ego_source=ego_source, ego=rows)
+
+
+def _reads_frames_as_they_are(predictor) -> bool:
+    """A model (not a graph) that neither warps frames nor reads their road VPs: a resize model."""
+    from .frames import reads_road_vps, warps_frames
+
+    return not getattr(predictor, "takes_frames", False) and not warps_frames(predictor) \
+        and not reads_road_vps(predictor)

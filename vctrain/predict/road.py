@@ -36,7 +36,7 @@ from vcprep.warp import pose_from_vp
 
 from .frames import NEEDS_CAMERA, FramePredictor, warps_frames
 
-__all__ = ["own_vehicle", "folder_ego_camera", "RoadRun", "skipped_lines", "within_rule", "virtual_within",
+__all__ = ["own_vehicle", "ego_rows", "frames_ego_rows", "rows_at", "folder_ego_camera", "RoadRun", "skipped_lines", "within_rule", "virtual_within",
            "model_vp_rule", "frame_poses", "rectangle_views", "frames_canvas", "geometry_line", "run_road",
            "write_prediction", "out_dir"]
 
@@ -139,31 +139,72 @@ def own_vehicle(cam: Camera, source: str | Path, ego: str, say: Callable[[str], 
     (``warn``, given: the caller's even under --quiet; else ``say``) with :data:`MISSED_VEHICLE`."""
     from dataclasses import replace
 
+    return replace(cam, ego_rows=ego_rows(cam.size[1], cam.ego_rows, source, ego, say, estimate, warn))
+
+
+def ego_rows(height: int, stated: int, source: str | Path, ego: str, say: Callable[[str], None] | None,
+             estimate: Callable[[], Any], warn: Callable[[str], None] | None = None) -> int:
+    """The own vehicle's bottom rows of frames ``height`` rows high by :func:`own_vehicle`'s rule
+    (``stated``: the camera's ``ego_rows``, 0 where none is stated)."""
     from vcprep.camera import rows_at_height
 
-    if ego == "none" or (ego == "auto" and cam.ego_rows):
-        return cam
+    if ego == "none" or (ego == "auto" and stated):
+        return int(stated)
     if ego != "auto":
         try:
             rows = int(ego)
         except ValueError:
             rows = -1
-        if not 0 <= rows < cam.size[1]:
+        if not 0 <= rows < height:
             raise InputError(f"--ego '{ego}' is not auto, none or a number of rows below the frames' "
-                             f"{cam.size[1]}", source, "give e.g. --ego 40, --ego 0 or --ego none")
-        return replace(cam, ego_rows=rows)
+                             f"{height}", source, "give e.g. --ego 40, --ego 0 or --ego none")
+        return rows
     say = say or (lambda _msg: None)
     try:
         est = estimate()
     except InputError as e:
         say(f"own vehicle: not looked for ({e.problem}); set ego_rows in the camera file, or --ego N")
-        return cam
+        return int(stated)
     if est.rows:
         say(f"own vehicle: {est.rows} rows found from the frames ({est.describe()}); set ego_rows in the "
             f"camera file to override")
     else:
         (warn or say)(f"own vehicle: none found from the frames ({est.describe()}); {MISSED_VEHICLE}")
-    return replace(cam, ego_rows=rows_at_height(est, cam.size[1]))
+    return rows_at_height(est, height)
+
+
+def frames_ego_rows(camera: Camera | None, files: list[Path], ego: str, say: Callable[[str], None] | None = None,
+                    warn: Callable[[str], None] | None = None) -> tuple[int, int]:
+    """(rows, frame height) of the own vehicle in a folder of one camera's frames, for a model that
+    reads frames as they are: with a camera, :func:`folder_ego_camera`'s; without, by the same rule
+    at the first frame's size (``ego`` 'auto' looks in up to :data:`vcprep.io.EGO_SAMPLES` frames
+    spread over the folder)."""
+    if camera is not None:
+        cam = folder_ego_camera(camera, files, ego, say, warn)
+        return cam.ego_rows, cam.size[1]
+    from vcprep.camera import ego_rows_from_frame_files
+
+    files = [Path(f) for f in files]
+    height = image_size(files[0])[1]
+    rows = ego_rows(height, 0, files[0].parent, ego, say,
+                    lambda: ego_rows_from_frame_files(_spread(files), files[0].parent), warn)
+    return rows, height
+
+
+def _spread(files: list[Path]) -> list[Path]:
+    """Up to :data:`vcprep.io.EGO_SAMPLES` of ``files``, spread evenly over them (first and last included)."""
+    from vcprep.io import EGO_SAMPLES
+
+    return [files[k] for k in sorted({int(round(k)) for k in np.linspace(0, len(files) - 1,
+                                                                          min(EGO_SAMPLES, len(files)))})]
+
+
+def rows_at(ego: tuple[int, int] | None, height: int) -> int:
+    """The own vehicle's rows ``ego`` = (rows, at height) in a frame ``height`` rows high (rounded up)."""
+    if not ego or not ego[0]:
+        return 0
+    rows, at = ego
+    return min(height, int(np.ceil(height * rows / at - 1e-9)))
 
 
 def folder_ego_camera(camera: Camera, files: list[Path], ego: str = "auto",
@@ -176,22 +217,20 @@ def folder_ego_camera(camera: Camera, files: list[Path], ego: str = "auto",
     from collections import Counter
 
     from vcprep.camera import ego_rows_from_frame_files
-    from vcprep.io import EGO_SAMPLES
 
-    files = [Path(f) for f in files]
-    picks = sorted({int(round(k)) for k in np.linspace(0, len(files) - 1, min(EGO_SAMPLES, len(files)))})
-    sizes: dict[int, tuple[int, int]] = {}
-    for k in picks:
+    picks = _spread([Path(f) for f in files])
+    sizes: dict[Path, tuple[int, int]] = {}
+    for f in picks:
         try:
-            sizes[k] = camera.for_image_size(image_size(files[k]), files[k]).size
+            sizes[f] = camera.for_image_size(image_size(f), f).size
         except VCError:
             continue
     if not sizes:
-        return camera.for_image_size(image_size(files[0]), files[0])  # raises: no frame of this camera
+        return camera.for_image_size(image_size(picks[0]), picks[0])  # raises: no frame of this camera
     size = Counter(sizes.values()).most_common(1)[0][0]
     cam = camera.for_image_size(size)
-    same = [files[k] for k in picks if sizes.get(k) == size]
-    return own_vehicle(cam, files[0].parent, ego, say, lambda: ego_rows_from_frame_files(same, files[0].parent), warn)
+    same = [f for f in picks if sizes.get(f) == size]
+    return own_vehicle(cam, picks[0].parent, ego, say, lambda: ego_rows_from_frame_files(same, picks[0].parent), warn)
 
 
 def model_vp_rule(data: dict[str, Any], override: Any = None) -> tuple[Any, str]:
@@ -287,7 +326,8 @@ def _remove_outputs(out: Path, stem: str) -> None:
         (out / f"{stem}_{suffix}.png").unlink(missing_ok=True)
 
 
-def _predict_one(fps: dict, predictor: Any, job: Job, camera, views, vp, out: Path, overlay: bool) -> Path:
+def _predict_one(fps: dict, predictor: Any, job: Job, camera, views, vp, out: Path, overlay: bool,
+                 ego: tuple[int, int] | None = None) -> Path:
     img = read_image(job.image).array
     size = (img.shape[1], img.shape[0])
     if hasattr(predictor, "check_frame_size"):  # a graph takes its camera at any uniform rescale, nothing else
@@ -295,14 +335,14 @@ def _predict_one(fps: dict, predictor: Any, job: Job, camera, views, vp, out: Pa
     cam = camera_of_image(camera, job.image, size) if camera is not None else None
     fp = fps.get((cam, size))
     if fp is None:
-        fp = fps[(cam, size)] = FramePredictor(predictor, cam, size, views=views)
+        fp = fps[(cam, size)] = FramePredictor(predictor, cam, size, views=views, ego_rows=rows_at(ego, size[1]))
     return write_prediction(out, job.id, fp.predict(img, vp), job.image if overlay else None)[0]
 
 
 def run_road(predictor: Any, images: Iterable[str | Path], out: str | Path,
              camera: Camera | FrameCameras | None, progress: bool = True, overlay: bool = False,
              within: str = "auto", vp_rule: Any = None, say: Callable[[str], None] | None = None,
-             ego_source: str = "") -> RoadRun:
+             ego_source: str = "", ego: tuple[int, int] | None = None) -> RoadRun:
     """Predict image files/folders taken with ``camera`` (needed for virtual-camera models; a
     :class:`~vcprep.camera.FrameCameras` gives every image its own calibrated camera and pose);
     writes ``<stem>_mask.png``, ``<stem>_prob.png`` (and ``_overlay.png``) in ``out``. A frame that
@@ -311,7 +351,9 @@ def run_road(predictor: Any, images: Iterable[str | Path], out: str | Path,
     ``within``: per-image pan/tilt from the road VP ('estimate', a CSV ``id,u,v``, 'none', or
     'auto': :func:`within_rule`); estimated VPs follow ``vp_rule`` or the model's
     (:func:`model_vp_rule`). ``say`` (given) hears one line: which VPs, own vehicle (``ego_source``:
-    where its rows come from) and rectangle a virtual-camera model's frames were warped with."""
+    where its rows come from) and rectangle a virtual-camera model's frames were warped with. ``ego``
+    (rows, at frame height; :func:`frames_ego_rows`): a model that reads frames as they are predicts
+    'not road' on the own vehicle's rows."""
     t0 = time.perf_counter()
     jobs = collect_images(images)
     out = out_dir(out)
@@ -331,7 +373,7 @@ def run_road(predictor: Any, images: Iterable[str | Path], out: str | Path,
                     disable=None if progress else True, leave=False):
         vp = poses[job.id].vp if job.id in poses else None
         try:
-            run.written.append(_predict_one(fps, predictor, job, camera, views, vp, out, overlay))
+            run.written.append(_predict_one(fps, predictor, job, camera, views, vp, out, overlay, ego))
             run.ids.append(job.id)
         except VCError as e:
             _remove_outputs(out, job.id)

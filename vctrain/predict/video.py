@@ -45,7 +45,7 @@ from vcprep.io import VideoInfo, open_video, read_frames, sample_frames
 from vcprep.warp import ground_to_image, pose_from_vp, vp_from_pose
 
 from .frames import NEEDS_CAMERA, FramePredictor, StageTimes, StreamingVPs, reads_road_vps, warps_frames
-from .road import model_vp_rule, own_vehicle, within_rule
+from .road import ego_rows, model_vp_rule, own_vehicle, within_rule
 
 __all__ = ["check_video_stems", "ego_camera", "predict_video", "draw_overlay", "horizon_segment"]
 
@@ -144,15 +144,15 @@ def _now(fn, *args) -> Future:
 
 def predict_video(predictor, video: str | Path, out: str | Path, camera: Camera | None, within: str = "auto",
                   mask_video: bool = False, overlay: bool = False, progress: bool = True, vp_window: int = 2,
-                  times: StageTimes | None = None, ego: str = "auto", vp_ahead: int = VP_AHEAD,
+                  times: StageTimes | None = None, ego: str | None = None, vp_ahead: int = VP_AHEAD,
                   vp_rule=None) -> list[Path]:
     """Predict every frame of ``video`` (module docstring); returns the paths written (the mask
     PNGs, or the mask video; the overlay video). ``within``: 'auto' (as the model was trained,
     :func:`vctrain.predict.road.within_rule`), 'estimate', 'none' or a CSV ``id,u,v`` whose ids are
     ``<stem>_<frame:06d>``; estimated VPs are searched and accepted within the pose ranges of
     ``vp_rule`` or the model's (:func:`vctrain.predict.road.model_vp_rule`) and smoothed over
-    ``vp_window`` frames either side. ``ego``: the own vehicle, as
-    :func:`ego_camera` takes it (a virtual-camera model). ``times`` (given) gets the stage timings;
+    ``vp_window`` frames either side. ``ego``: the own vehicle, as :func:`ego_camera` takes it (a
+    virtual-camera model: None is 'auto'; a resize model cuts it only when asked). ``times`` (given) gets the stage timings;
     ``progress`` False also silences the own-vehicle remark. ``vp_ahead``: frames whose VP is
     estimated in a worker thread ahead of the one predicted (0: in this thread, in turn)."""
     from vcprep.vp import read_vp_csv
@@ -165,7 +165,7 @@ def predict_video(predictor, video: str | Path, out: str | Path, camera: Camera 
         given = None
         if mode not in ("estimate", "none"):
             given = read_vp_csv(mode)
-        fp = FramePredictor(predictor, cam, info.size)
+        fp = FramePredictor(predictor, cam, info.size, ego_rows=_resize_ego_rows(predictor, cam, info, ego, progress))
         if times is not None:
             fp.times = times
         if mode == "estimate" and fp.camera is None:
@@ -208,8 +208,23 @@ def _video_camera(predictor, camera: Camera | None, video: Path, info: VideoInfo
     cam = camera.for_image_size(info.size, video)
     if reads_road_vps(predictor):
         say = (lambda msg: tqdm.write(f"{video}: {msg}", file=sys.stderr)) if progress else None
-        cam = ego_camera(cam, info, ego, say, lambda msg: tqdm.write(f"{video}: warning: {msg}", file=sys.stderr))
+        cam = ego_camera(cam, info, ego or "auto", say,
+                         lambda msg: tqdm.write(f"{video}: warning: {msg}", file=sys.stderr))
     return cam
+
+
+def _resize_ego_rows(predictor, camera: Camera | None, info: VideoInfo, ego: str | None, progress: bool) -> int:
+    """The own vehicle's rows a model that reads frames as they are cuts from the video's frames,
+    where ``ego`` asks (:func:`vctrain.predict.road.ego_rows`'s rule); 0 otherwise."""
+    if ego in (None, "none") or warps_frames(predictor) or reads_road_vps(predictor) \
+            or getattr(predictor, "takes_frames", False):
+        return 0
+    from vcprep.camera import ego_rows_from_frames
+
+    say = (lambda msg: tqdm.write(f"{info.path}: {msg}", file=sys.stderr)) if progress else None
+    return ego_rows(info.size[1], camera.ego_rows if camera is not None else 0, info.path, ego, say,
+                    lambda: ego_rows_from_frames(sample_frames(info), info.path),
+                    lambda msg: tqdm.write(f"{info.path}: warning: {msg}", file=sys.stderr))
 
 
 def _out_folder(out: str | Path, stem: str, mask_video: bool) -> Path:
