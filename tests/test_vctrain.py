@@ -699,6 +699,58 @@ def test_eval_scores_the_frames_of_one_model_and_names_what_it_leaves_out(traine
     record = json.loads((out / "predict.json").read_text())
     assert record["frames"] == [frames[0].stem, frames[1].stem] and record["model"] == str(tmp_path / "b.pt")
 
+
+def test_a_tree_whose_frames_repeat_names_is_predicted_as_a_tree_and_scored(trained, tmp_path):
+    """IDD's layout, ``<drive>/<frame>.png`` with frame names repeated from drive to drive: predict
+    writes each frame's outputs in its drive's folder of --out (nothing overwritten: a drive's masks
+    equal those of that drive predicted alone), and eval scores every frame against the label of the
+    same name in the same folder (the IoU of the masks and labels read back by hand)."""
+    import shutil
+
+    from conftest import run_cli
+    from vcprep.camera import camera_to_yaml
+    from vcprep.labels import decode_label
+
+    def _png(path):
+        return read_image(path, label=True).array
+
+    root, _, _ = trained
+    cam_file = tmp_path / "cam.yaml"
+    cam_file.write_text(camera_to_yaml(PRESETS["camvid"].resized(0.1)))
+    frames = sorted((root / "src" / "images").glob("*.png"))
+    labels = sorted((root / "src" / "labels").glob("*.png"))
+    tree = {"d1": (0, 1, 2), "d2": (3, 4)}  # d2's frames take d1's first names
+    for drive, picks in tree.items():
+        for k, i in enumerate(picks):
+            for kind, files in (("images", frames), ("labels", labels)):
+                (tmp_path / kind / drive).mkdir(parents=True, exist_ok=True)
+                shutil.copy(files[i], tmp_path / kind / drive / f"f{k}.png")
+    common = ("--camera", cam_file, "--within", "none", "-q")
+    r = run_cli("predict", root / "model.pt", tmp_path / "images", "--out", tmp_path / "out", *common, prog="vctrain")
+    assert r.returncode == 0, r.stderr
+    alone = run_cli("predict", root / "model.pt", tmp_path / "images" / "d2", "--out", tmp_path / "d2", *common,
+                    prog="vctrain")
+    assert alone.returncode == 0, alone.stderr
+    for k in range(2):
+        for kind in ("mask", "prob"):
+            assert np.array_equal(_png(tmp_path / "out" / "d2" / f"f{k}_{kind}.png"),
+                                  _png(tmp_path / "d2" / f"f{k}_{kind}.png"))
+    assert not (tmp_path / "out" / "f0_mask.png").exists()
+    tp = fp = fn = 0
+    fmt = get_label_format(FMT)
+    for drive, picks in tree.items():
+        for k in range(len(picks)):
+            pred = _png(tmp_path / "out" / drive / f"f{k}_mask.png") > 0
+            lab = decode_label(_png(tmp_path / "labels" / drive / f"f{k}.png"), fmt)
+            tp += int((pred & (lab == 1)).sum())
+            fp += int((pred & (lab == 0)).sum())
+            fn += int((~pred & (lab == 1)).sum())
+    ev = run_cli("eval", tmp_path / "out", "--labels", tmp_path / "labels", "-f", FMT, "--json", "-q", prog="vctrain")
+    assert ev.returncode == 0, ev.stderr
+    assert json.loads(ev.stdout)["iou"] == pytest.approx(tp / (tp + fp + fn), abs=1e-9)
+    head = run_cli("eval", tmp_path / "out", "--labels", tmp_path / "labels", "-f", FMT, "-q", prog="vctrain")
+    assert head.stdout.startswith(f"# {tmp_path / 'out'}: 5 frames scored")
+
 def test_predict_with_given_vps_and_overlay(trained, tmp_path):
     """A re-mounted camera (pan 8, tilt -4): with its VP given, predict warps with that pose (the
     kept store's record says so and its VP maps to the virtual principal point) and draws an overlay."""

@@ -121,13 +121,15 @@ OUTPUTS_BY_STEM = ("two images named", "outputs are named by stem; predict them 
 
 
 def collect_images(paths: Iterable[str | Path], unique: tuple[str, str] | None = OUTPUTS_BY_STEM,
-                   missing: str = "image not found") -> list[Job]:
+                   missing: str = "image not found", trees: bool = False) -> list[Job]:
     """Jobs (id = file stem) for image files as given and every image inside given folders (and
     their subfolders, :func:`find_images`), in argument order.
 
-    ``unique``: two images with one stem are an error, said as ``(problem, fix)``
-    ("<problem> '<stem>' (also <path>)"); None allows them. ``missing``: the problem of a path
-    that does not exist."""
+    ``unique``: two images with one id are an error, said as ``(problem, fix)``
+    ("<problem> '<id>' (also <path>)"); None allows them. ``missing``: the problem of a path
+    that does not exist. ``trees``: a folder whose subfolders repeat file names (IDD's drives,
+    ``<drive>/<frame>.png``) gives each of its images its path below the folder as its id
+    (``drive1/000123``, '/' separated, no suffix): outputs named by id mirror the tree."""
     jobs: list[Job] = []
     seen: dict[str, Path] = {}
     for p in map(Path, paths):
@@ -139,11 +141,13 @@ def collect_images(paths: Iterable[str | Path], unique: tuple[str, str] | None =
             files = [p]
         else:
             raise InputError(missing, p, "check the path")
+        tree = trees and p.is_dir() and len({f.stem for f in files}) < len(files)
         for f in files:
-            if unique is not None and f.stem in seen:
-                raise InputError(f"{unique[0]} '{f.stem}' (also {seen[f.stem]})", f, unique[1])
-            seen.setdefault(f.stem, f)
-            jobs.append(Job(f.stem, f))
+            iid = f.relative_to(p).with_suffix("").as_posix() if tree else f.stem
+            if unique is not None and iid in seen:
+                raise InputError(f"{unique[0]} '{iid}' (also {seen[iid]})", f, unique[1])
+            seen.setdefault(iid, f)
+            jobs.append(Job(iid, f))
     if not jobs:
         raise InputError("no images given", None, "give image files or folders")
     return jobs

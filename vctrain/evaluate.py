@@ -1,7 +1,8 @@
 """Evaluating a folder of predictions against a folder of labels (file layer over metrics.py).
 
 Predictions are ``<stem>_mask.png`` (0 / nonzero = road) and optionally ``<stem>_prob.png``
-(0-255), as written by ``vctrain predict``; ``<stem>`` is the image's file stem, and its label is
+(0-255), as written by ``vctrain predict``; ``<stem>`` is the image's file stem (a tree whose frames
+repeat names: its path, ``drive1/000123``, and the label of that name in the same folders), and its label is
 found in the label folder or its subfolders by the label format's naming rule (e.g. KITTI
 ``um_000000`` -> ``um_road_000000.png``; IDD ``<drive>_<id>`` -> ``<drive>/<id>_label.png``). A stem with only a probability map is thresholded at 128 (P >= 0.5).
 KITTI metrics are computed when every evaluated stem has a probability map.
@@ -41,10 +42,10 @@ def _sha256(path: Path) -> str:
 
 
 def record_predictions(out: Path, model: Path, masks: list[Path]) -> None:
-    """Note in ``out/predict.json`` that ``model`` wrote ``masks`` (``<stem>_mask.png`` directly in
-    ``out``; other files are not frames to score): a run of the same model (the same file content)
-    adds its frames to the record, a run of another model replaces it."""
-    stems = [m.name[: -len("_mask.png")] for m in masks if m.parent == out and m.name.endswith("_mask.png")]
+    """Note in ``out/predict.json`` that ``model`` wrote ``masks`` (``<id>_mask.png`` in ``out``, an id
+    with folders for a tree's frames: ``drive1/000123``): a run of the same model (the same file
+    content) adds its frames to the record, a run of another model replaces it."""
+    stems = [m.relative_to(out).as_posix()[: -len("_mask.png")] for m in masks if m.name.endswith("_mask.png")]
     sha = _sha256(model)
     old = recorded_frames(out)
     if old is not None and old[1] == sha:
@@ -85,6 +86,11 @@ def _recorded_stems(pred_dir: Path, stems: dict[str, dict[str, Path]],
         return stems
     model, _, frames = record
     kept = {s: f for s, f in stems.items() if s in set(frames)}
+    for frame in (f for f in frames if "/" in f):  # a tree's frames, in its folders
+        files = {kind: pred_dir / f"{frame}_{kind}.png" for kind in ("mask", "prob")}
+        files = {kind: f for kind, f in files.items() if f.is_file()}
+        if files:
+            kept[frame] = files
     if len(kept) < len(stems) and notes is not None:
         n = len(stems) - len(kept)
         notes.append(f"{pred_dir}: {n} of its {len(stems)} masks were not written by the model of its last "
@@ -123,8 +129,12 @@ def evaluate_folder(pred_dir: str | Path, labels: str | Path, fmt: LabelFormat,
     road, kitti = RoadMetrics(), KittiMetrics()
     with_prob = all("prob" in v for v in stems.values())
     for stem, files in tqdm(stems.items(), desc="eval", unit="img", disable=None if progress else True, leave=False):
-        lstem = label_stem_for(Path(stem + ".png"), fmt)
+        folders, _, base = stem.rpartition("/")  # a tree's frame: its label in the same folders of the label tree
+        lstem = label_stem_for(Path(base + ".png"), fmt)
         found = label_files.get(lstem, [])
+        if folders and len(found) > 1:
+            parts = tuple(folders.split("/"))
+            found = [f for f in found if f.parent.relative_to(labels).parts[-len(parts):] == parts]
         if not found:
             raise InputError(f"no label '{lstem}.png' in {labels}", files.get("mask") or files.get("prob"),
                              "check --labels and --label-format")

@@ -33,7 +33,7 @@ class Predicted:
     failed: list = field(default_factory=list)  # (file, VCError) of the frames that were skipped
     frames: int = 0       # frames predicted: images, and every video's frames
     seconds: float = 0.0  # wall-clock time of the whole run
-    seconds: float = 0.0  # wall-clock time of the whole run
+    masks: list = field(default_factory=list)  # the masks of image files and store items (what eval scores)
 
     def said(self) -> list[str]:
         """One line per skipped frame: 'skipped: <file>: <problem> (<fix>)'."""
@@ -103,7 +103,7 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
     elif result.written:
         from ..evaluate import record_predictions
 
-        record_predictions(Path(out), prior if prior is not None else checkpoint, result.written)
+        record_predictions(Path(out), prior if prior is not None else checkpoint, result.masks)
     return result
 
 
@@ -141,15 +141,16 @@ def _predict_all(predictor, prior, images, videos, out, camera_for, store, keep_
 
         written = predict_store(predictor, Store.open(store), out, progress=progress, overlay=overlay)
         n_images = len(written)
-    failed = []
+    failed, masks = [], list(written) if store is not None else []
     if images:
         run = _predict_image_files(predictor, images, out, camera_for, keep_store, within, overlay, progress,
                                    ego, rule, say)
         written += run.written
+        masks += run.written
         failed = run.failed
         n_images = len(run.written) + len(failed)
     return Predicted(written, n_images if images or store else None, len(videos), _source(predictor, prior), failed,
-                     times.frames + n_images - len(failed), time.perf_counter() - t0)
+                     times.frames + n_images - len(failed), time.perf_counter() - t0, masks)
 
 
 def _source(predictor, prior: Optional[Path]) -> str:
@@ -230,14 +231,14 @@ def _predict_image_files(predictor, images: Sequence[Path], out: Path, camera_fo
 
     cam, ego_source, rows = None, "", None
     if camera_for is not None:  # checked even where the model needs none: a typo is never silent
-        jobs = collect_images(images)
+        jobs = collect_images(images, trees=True)
         cam = camera_for(jobs[0].image, frames=[j.image for j in jobs], needed=not _needs_no_camera(predictor))
     if camera_for is None and warps_frames(predictor):
         raise InputError("a virtual-camera model needs the camera of the images", predictor.path, NEEDS_CAMERA)
     if camera_for is None and reads_road_vps(predictor):
         raise InputError("this model reads each frame's road vanishing point (VP channel): it needs the camera of "
                          "the images", predictor.path, NEEDS_CAMERA)
-    files = [j.image for j in collect_images(images)]
+    files = [j.image for j in collect_images(images, trees=True)]
     tell = (lambda msg: err(f"{files[0].parent}: {msg}")) if progress else None
     warn = lambda msg: err(f"{files[0].parent}: warning: {msg}")  # noqa: E731
     one = cam if isinstance(cam, Camera) else None

@@ -66,7 +66,10 @@ def skipped_lines(failed: list[tuple[Path, VCError]]) -> list[str]:
 
 def write_prediction(out: Path, stem: str, prob: np.ndarray, overlay_on: str | Path | None = None) -> tuple[Path, Path]:
     """Write ``<stem>_prob.png`` (0-255) and ``<stem>_mask.png`` (0/255); with ``overlay_on``
-    (the original image) also ``<stem>_overlay.png``: predicted road in green over the image."""
+    (the original image) also ``<stem>_overlay.png``: predicted road in green over the image. A
+    ``stem`` with folders (a tree's frame, ``drive1/000123``) is written in those folders of ``out``."""
+    if "/" in stem:
+        (out / stem).parent.mkdir(parents=True, exist_ok=True)
     p8 = np.clip(np.rint(prob * 255.0), 0, 255).astype(np.uint8)
     mask = np.where(prob >= 0.5, 255, 0).astype(np.uint8)
     pp, mp = out / f"{stem}_prob.png", out / f"{stem}_mask.png"
@@ -355,7 +358,7 @@ def run_road(predictor: Any, images: Iterable[str | Path], out: str | Path,
     (rows, at frame height; :func:`frames_ego_rows`): a model that reads frames as they are predicts
     'not road' on the own vehicle's rows."""
     t0 = time.perf_counter()
-    jobs = collect_images(images)
+    jobs = collect_images(images, trees=True)  # a tree whose frames repeat names: outputs mirror it
     out = out_dir(out)
     if warps_frames(predictor) and camera is None:
         raise InputError("a virtual-camera model needs the camera of the images", None,
