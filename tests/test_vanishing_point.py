@@ -544,3 +544,73 @@ def test_help_has_example(cmd):
     proc = run_cli(*cmd, "--help")
     assert proc.returncode == 0
     assert "Example:" in proc.stdout
+
+
+# -- the detector's VPs kept on disk (vcprep.vp.cache; issue 60: an interrupted warp resumes) -------------
+
+def test_a_vp_cache_gives_back_exactly_what_the_detector_found_and_is_read_not_recomputed(camvid_half, tmp_path):
+    """estimate_files through a cache equals it without one, field for field; a new cache over the
+    same file gives the same results without the detector (a tampered line comes back as written),
+    and a torn last line is skipped."""
+    from conftest import write_synthetic_dataset
+    from vcprep.vp import VPCache, estimate_files
+
+    images, _ = write_synthetic_dataset(tmp_path / "d", camvid_half, n=4, poses=[(0, 0), (2, -1), (-3, 1), (1, 2)])
+    files = sorted(images.glob("*.png"))
+    fields = lambda r: (r.vp, r.confidence, r.n_support, r.pan_deg, r.tilt_deg, r.status, r.reason, r.detected)  # noqa
+    plain = estimate_files(files, camvid_half)
+    path = tmp_path / "vps.jsonl"
+    first = estimate_files(files, camvid_half, cache=VPCache(path))
+    assert [fields(r) for r in first] == [fields(r) for r in plain]
+    assert len(path.read_text().splitlines()) == 4 and len(VPCache(path)) == 4
+    # tamper with frame 2's line: a cache that is read gives the tampered VP back
+    rows = [json.loads(line) for line in path.read_text().splitlines()]
+    rows[2]["result"]["detected"] = [1.5, 2.5]
+    path.write_text("".join(json.dumps(r) + "\n" for r in rows) + '{"key": "torn')
+    again = estimate_files(files, camvid_half, cache=VPCache(path))
+    assert again[2].detected == (1.5, 2.5)
+    assert [fields(r) for k, r in enumerate(again) if k != 2] == [fields(r) for k, r in enumerate(plain) if k != 2]
+    other = estimate_files(files, camvid_half, VPConfig(min_support=VPConfig().min_support + 1), cache=VPCache(path))
+    assert len(VPCache(path)) == 8 and other[2].detected != (1.5, 2.5)  # other settings: other keys;
+    assert path.read_text().count("\n") == 9  # (the torn line kept, closed before the first new one)
+
+
+def test_warp_stopped_while_finding_vps_says_so_and_the_rerun_finds_only_the_rest(camvid_half, tmp_path):
+    """Ctrl-C while `vcprep warp` finds the road VPs: exit 130, the one line says that nothing is
+    warped yet and where the VPs found so far are kept (no 'finished items are saved'); the rerun
+    takes those from the cache (the file only grows by the others) and writes the store an
+    uninterrupted warp writes."""
+    import os
+    import signal
+    import subprocess
+    import time
+
+    from conftest import BIN, write_synthetic_dataset
+
+    n = 40
+    images, labels = write_synthetic_dataset(tmp_path / "d", camvid_half, n=n,
+                                             poses=[((k % 7) - 3.0, (k % 5) - 2.0) for k in range(n)])
+    args = ["warp", "--camera", "camvid", "--images", images, "--labels", labels, "--label-format", "camvid"]
+    ref = run_cli(*args, "--out", tmp_path / "ref", "-q")
+    assert ref.returncode == 0, ref.stderr
+    out = tmp_path / "store"
+    cache = out / ".vp-cache.jsonl"
+    proc = subprocess.Popen([str(BIN / "vcprep"), *map(str, args), "--out", str(out)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+    t = time.monotonic() + 60
+    while proc.poll() is None and time.monotonic() < t and not (cache.exists() and cache.read_text().count("\n") >= 2):
+        time.sleep(0.002)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, stderr = proc.communicate(timeout=60)
+    assert proc.returncode == 130, stderr
+    kept = cache.read_text().count("\n")
+    assert 2 <= kept < n, "the stop should land while the VPs are found"
+    assert "Traceback" not in stderr and "finished items are saved" not in stderr
+    assert f"while finding road VPs, before warping; the {kept} found so far are kept in {cache}" in stderr
+    assert not (out / "manifest.jsonl").exists()
+    again = run_cli(*args, "--out", out, "-q")
+    assert again.returncode == 0, again.stderr
+    assert cache.read_text().count("\n") == n  # only the others were found
+    files = lambda root: {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*"))  # noqa: E731
+                          if p.is_file() and p.name != ".vp-cache.jsonl"}
+    assert files(out) == files(tmp_path / "ref")

@@ -145,17 +145,27 @@ def _run(app, prog_name: str) -> None:
         where = f"{e.filename}: " if getattr(e, "filename", None) else ""
         err(f"Error: {where}{e.strerror or e} (check the path, permissions and free disk space)")
         sys.exit(1)
-    except KeyboardInterrupt:
-        _interrupted()
+    except KeyboardInterrupt as e:
+        _interrupted(e)
     except SystemExit as e:
         # Typer turns Ctrl-C into a silent exit 130 (SystemExit <- Exit(130) <- KeyboardInterrupt)
-        if e.code == 130 and isinstance(getattr(e.__context__, "__cause__", None), KeyboardInterrupt):
-            _interrupted()
+        cause = getattr(e.__context__, "__cause__", None)
+        if e.code == 130 and isinstance(cause, KeyboardInterrupt):
+            _interrupted(cause)
         raise
 
 
-def _interrupted() -> None:
-    err("Interrupted: finished items are saved; run the same command again to resume.")
+class Interrupted(KeyboardInterrupt):
+    """Ctrl-C at a step whose kept work is not 'finished items' (``kept`` says what is)."""
+
+    def __init__(self, kept: str):
+        super().__init__(kept)
+        self.kept = kept
+
+
+def _interrupted(e: BaseException | None = None) -> None:
+    kept = getattr(e, "kept", None) or "finished items are saved"
+    err(f"Interrupted: {kept}; run the same command again to resume.")
     sys.exit(130)
 
 

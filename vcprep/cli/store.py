@@ -10,7 +10,9 @@ from tqdm import tqdm
 
 from ..warp.backproject import backproject_folder
 from ..store.build import WarpSettings, say_on_stderr, warp_dataset
+from ..vp.cache import VP_CACHE, VPCache
 from ..vp.poses import frame_poses
+from ..store.layout import prepare_store_dir
 from ..camera.pinhole import Camera
 from ..camera.sources import load_camera
 from ..camera.files import camera_from_dict
@@ -18,7 +20,7 @@ from ..camera.virtual import (DESIGN_ABOVE, DESIGN_PAN_RANGE, DESIGN_TILT_RANGE,
                               scale_for_pixels)
 from ..io.images import image_size
 from ..camera.estimate import estimate_camera, estimate_to_yaml
-from ..cliutil import check_data_folders, count, emit_json, ensure_parent, err
+from ..cliutil import Interrupted, check_data_folders, count, emit_json, ensure_parent, err
 from ..dataset import list_dataset
 from ..errors import InputError, StoreError
 from ..io.images import write_bytes_atomic
@@ -118,7 +120,7 @@ def warp_cmd(
     if fmt is not None:
         _check_labels(items, fmt, labels)
     # VPs over all frames even for one shard: the fallback VP and smoothing depend on the whole run
-    poses, vps = _within_poses(items, cam, within, vp_smooth, id_prefix, quiet, fmt, bool(design))
+    poses, vps = _within_poses(items, cam, within, vp_smooth, id_prefix, quiet, fmt, bool(design), out)
     settings = WarpSettings(camera=cam, virtual=virt, scale=scale, label_format=fmt, completion=complete, poses=poses,
                             workers=jobs or default_jobs(), shard=part, keep_going=keep_going, progress=not quiet)
     store, summary = warp_dataset(items, out, settings)
@@ -204,10 +206,11 @@ def _warp_virtual(virtual: Optional[str], scale: Optional[float], cam, items: li
 
 
 def _within_poses(jobs, cam: Camera, within: str, smooth: int, id_prefix: str, quiet: bool, fmt=None,
-                  designed: bool = False) -> tuple[Any, str]:
+                  designed: bool = False, out: Path | None = None) -> tuple[Any, str]:
     """(the ``poses`` mapping of :class:`vcprep.store.build.WarpSettings` from ``--within``, None for
     'none'; the summary's words on the VPs); ``designed``: VPs accepted within the design's pose
-    ranges (as a crossval study's)."""
+    ranges (as a crossval study's). Estimated VPs are kept in the store's folder ``out`` as they
+    are found (:class:`vcprep.vp.cache.VPCache`): a run stopped part way does not find them again."""
     if within == "none":
         if smooth:
             raise InputError("--vp-smooth needs --within estimate", None, "add --within estimate or drop --vp-smooth")
@@ -216,12 +219,21 @@ def _within_poses(jobs, cam: Camera, within: str, smooth: int, id_prefix: str, q
     if within != "estimate" and smooth:
         raise InputError("--vp-smooth applies to estimated VPs only", within, "use --within estimate")
     bar = tqdm(total=len(jobs), desc="vp", unit="img", disable=True if quiet or within != "estimate" else None, leave=False)
+    cache = None
     try:
         # IDD's file names repeat from drive to drive: its frames' sequences are their folders, as its item ids say
         seqs = "folder" if fmt is not None and fmt.drive_in_id else "name"
         rule = (VPRule(DESIGN_PAN_RANGE, DESIGN_TILT_RANGE, smooth=smooth, sequences=seqs) if designed
                 else VPRule(smooth=smooth, sequences=seqs))
-        poses, results = frame_poses(jobs, cam, within, rule, id_prefix, lambda i: bar.update())
+        if within == "estimate" and out is not None:
+            prepare_store_dir(out)  # (a new folder, a store or a build's: never a foreign folder)
+            cache = VPCache(out / VP_CACHE)
+        poses, results = frame_poses(jobs, cam, within, rule, id_prefix, lambda i: bar.update(), cache=cache)
+    except KeyboardInterrupt:
+        if cache is None:
+            raise
+        raise Interrupted(f"while finding road VPs, before warping; the {len(cache)} found so far are kept in "
+                          f"{out / VP_CACHE}") from None
     finally:
         bar.close()
     return poses, f"; road VPs: {vp_counts(results)}"

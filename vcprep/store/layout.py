@@ -77,7 +77,7 @@ from ..errors import StoreError
 from ..io.images import write_bytes_atomic
 
 __all__ = ["Store", "Shard", "STORE_FORMAT", "STORE_VERSION", "LAYOUT_DIRS", "VALID_PREFIX", "LOCK", "STAMP",
-           "temp_files", "store_lock", "content_digest"]
+           "temp_files", "store_lock", "content_digest", "prepare_store_dir"]
 
 VALID_PREFIX = "H-"  # shared valid masks: valid/H-<hash of H and sizes>.png
 STORE_FORMAT = "vcseg-store"
@@ -141,7 +141,7 @@ def _our_name(p: Path) -> bool:
             or p.name in (LOCK, STAMP))
 
 
-def _lock_dir(root: Path) -> None:
+def prepare_store_dir(root: Path) -> None:
     """Make ``root`` ready to hold the lock file: an existing store, an empty directory (created
     if missing), or a directory only a store build has written to; anything else is refused
     before a lock file is put into it."""
@@ -177,7 +177,7 @@ def store_lock(root: str | Path, shared: bool = False, on_wait: Callable[[str], 
     killed writer never leaves a stale lock. On a file system without ``flock`` support the
     writers are not serialised (``on_wait`` is told)."""
     root = Path(root)
-    _lock_dir(root)
+    prepare_store_dir(root)
     path = root / LOCK
     try:
         import fcntl

@@ -35,7 +35,7 @@ class ItemPose:
 
 def frame_poses(jobs: list[Job], camera: Camera | FrameCameras, within: str, rule: Any = None,
                 id_prefix: str = "", on_image: Callable[[int], None] | None = None,
-                on_error: Callable[[int, VCError], None] | None = None
+                on_error: Callable[[int, VCError], None] | None = None, cache: Any = None
                 ) -> tuple[dict[str, ItemPose] | None, list[Any]]:
     """(``poses`` of :class:`vcprep.store.WarpSettings`, the VP results) of ``jobs`` taken together: ``within``
     'none' (None: the camera's average pose, or each frame's calibrated one), 'estimate' (each
@@ -43,13 +43,16 @@ def frame_poses(jobs: list[Job], camera: Camera | FrameCameras, within: str, rul
     detector's defaults; frames grouped into sequences by its ``frame_ids``, not by item ids;
     recorded with each pose) or a CSV ``id,u,v`` of given VPs (looked up by item id). The one rule
     of ``vcprep warp``, ``vctrain predict`` and a study's stores. ``on_error(i, error)`` (given): a
-    frame that cannot be read is told to it and has no pose (estimation only)."""
+    frame that cannot be read is told to it and has no pose (estimation only). ``cache`` (a
+    :class:`vcprep.vp.cache.VPCache`, given): the detector's results found there are not computed
+    again, and those computed are kept there."""
     if within == "none":
         return None, []
     rule = rule or VPRule()
     images = [j.image for j in jobs]
     # estimated VPs: grouped into sequences by the rule (the same frames, the same groups, whatever their ids)
     ids = rule.frame_ids(images) if within == "estimate" else [j.id for j in jobs]
-    results = vps_for_items(images, ids, camera, within, rule.smooth, rule.config(), id_prefix, on_image, on_error)
+    results = vps_for_items(images, ids, camera, within, rule.smooth, rule.config(), id_prefix, on_image, on_error,
+                            cache)
     tag = rule.to_dict() if within == "estimate" else None
     return {j.id: ItemPose((r.vp[0], r.vp[1]), r.status, tag) for j, r in zip(jobs, results) if r is not None}, results

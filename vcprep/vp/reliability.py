@@ -235,28 +235,27 @@ def smooth_sequences(ids: Sequence[str], results: Sequence[VPResult], cams: Sequ
 def estimate_files(images: Sequence[str | Path], camera: Camera, cfg: VPConfig = VPConfig(), smooth: int = 0,
                    ids: Sequence[str] | None = None,
                    on_image: Callable[[int], None] | None = None,
-                   on_error: Callable[[int, VCError], None] | None = None) -> list[VPResult | None]:
+                   on_error: Callable[[int, VCError], None] | None = None, cache=None) -> list[VPResult | None]:
     """Detect the VP of every image file, then apply the reliability rule (and ``smooth``).
 
     ``camera`` is rescaled to each image's size (uniform rescales only, else InputError).
     ``ids`` (default: file stems) define sequences for smoothing. ``on_image(i)`` is called after
     each image (progress). ``on_error(i, error)`` (given): an image that cannot be read is told to
-    it and left out of the rules (its result is None) instead of raising.
+    it and left out of the rules (its result is None) instead of raising. ``cache`` (a
+    :class:`vcprep.vp.cache.VPCache`, given): the detector's results are taken from it where it has
+    them and kept in it where it has not (the rules run over all the frames either way).
     """
-    from ..io.images import read_image
-
     ids = list(ids) if ids is not None else [Path(p).stem for p in images]
     results, cams, kept = [], [], []
     for i, p in enumerate(images):
         try:
-            img = read_image(p).array
-            cam = camera.for_image_size((img.shape[1], img.shape[0]), p)
+            result, cam = _detect(p, camera, cfg, cache)
         except VCError as e:
             if on_error is None:
                 raise
             on_error(i, e)
             continue
-        results.append(estimate_vp(img, cam, cfg))
+        results.append(result)
         cams.append(cam)
         kept.append(i)
         if on_image is not None:
@@ -269,6 +268,33 @@ def estimate_files(images: Sequence[str | Path], camera: Camera, cfg: VPConfig =
     for i, r in zip(kept, results):
         out[i] = r
     return out
+
+
+def _detect(path: str | Path, camera: Camera, cfg: VPConfig, cache=None) -> tuple[VPResult, Camera]:
+    """(the detector's VP of one image file, the camera at its size), through ``cache`` when given
+    (a frame found there is not decoded)."""
+    from ..io.images import image_size_from_header, read_image
+
+    if cache is None:
+        img = read_image(path).array
+        cam = camera.for_image_size((img.shape[1], img.shape[0]), path)
+        return estimate_vp(img, cam, cfg), cam
+    try:
+        data = Path(path).read_bytes()
+    except OSError:
+        data = b""
+    img = None if data else read_image(path).array  # (raises the reader's own error)
+    size = image_size_from_header(data)
+    if size is None:
+        img = read_image(path, data=data).array
+        size = (img.shape[1], img.shape[0])
+    cam = camera.for_image_size(size, path)
+    key = cache.key(data, cam, cfg)
+    found = cache.get(key)
+    if found is None:
+        found = estimate_vp(read_image(path, data=data).array if img is None else img, cam, cfg)
+        cache.put(key, found)
+    return found, cam
 
 
 def read_vp_csv(path: str | Path) -> dict[str, tuple[float, float]]:
@@ -349,18 +375,18 @@ def given_results(vps: Mapping[str, tuple[float, float]], ids: Sequence[str], ca
 def vps_for_items(images: Sequence[str | Path], ids: Sequence[str], camera: Camera, within: str,
                   smooth: int = 0, cfg: VPConfig = VPConfig(), id_prefix: str = "",
                   on_image: Callable[[int], None] | None = None,
-                  on_error: Callable[[int, VCError], None] | None = None) -> list[VPResult | None]:
+                  on_error: Callable[[int, VCError], None] | None = None, cache=None) -> list[VPResult | None]:
     """Per-image VPs for within-camera correction: ``within`` is 'estimate' (detector + reliability
     rule + optional smoothing) or the path of a CSV ``id,u,v`` (status 'given'; every id must
-    have a row; an id is looked up as given, then without ``id_prefix``). ``on_error``: as in
-    :func:`estimate_files` (estimation only)."""
+    have a row; an id is looked up as given, then without ``id_prefix``). ``on_error`` and
+    ``cache``: as in :func:`estimate_files` (estimation only)."""
     from ..camera.sources import camera_of_image
 
     if within == "estimate":
         if not isinstance(camera, Camera):
             raise InputError("VP estimation needs one camera; a per-frame calibration folder already gives every "
                              "frame its exact pose", camera.folder, "use the calibrated poses (no --within)")
-        return estimate_files(images, camera, cfg, smooth, ids, on_image, on_error)
+        return estimate_files(images, camera, cfg, smooth, ids, on_image, on_error, cache)
     path = Path(within)
     table = read_vp_csv(path)
     keys = [i if i in table or not (id_prefix and i.startswith(id_prefix)) else i[len(id_prefix):] for i in ids]
