@@ -255,7 +255,7 @@ def _predict_image_files(predictor, images: Sequence[Path], out: Path, camera_fo
         ego_source = (f"--ego {ego}" if ego not in ("auto", "none") else "the camera's ego_rows" if stated
                       else "found from the frames" if cam.ego_rows else "")
     return predict_frames(predictor, images, out, cam, progress=progress, keep_store=keep_store, overlay=overlay,
-                          within=within, vp_rule=vp_rule, say=say, ego_source=ego_source, ego=rows)
+                          within=within, vp_rule=vp_rule, say=say, ego_source=ego_source, vehicle=rows)
 
 
 def _reads_frames_as_they_are(predictor) -> bool:

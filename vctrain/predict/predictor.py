@@ -167,15 +167,15 @@ def predict_frames(predictor: Any, images: Iterable[str | Path], out: str | Path
                    camera: Camera | FrameCameras | None, progress: bool = True, keep_store: str | Path | None = None,
                    overlay: bool = False, within: str = "auto", vp_rule: Any = None,
                    say: Callable[[str], None] | None = None, ego_source: str = "",
-                   ego: tuple[int, int] | None = None) -> RoadRun:
+                   vehicle: tuple[int, int] | None = None) -> RoadRun:
     """Image files/folders through the one road for a frame (:func:`vctrain.predict.road.run_road`:
     a frame that fails is named and skipped); with ``keep_store`` (a model that warps frames) the
     warped frames are also kept as a store there, and predicted from it (the same masks). ``vp_rule``,
-    ``say``, ``ego_source`` and ``ego`` as :func:`~vctrain.predict.road.run_road` takes them."""
+    ``say``, ``ego_source`` and ``vehicle`` as :func:`~vctrain.predict.road.run_road` takes them."""
     refuse_mixed(predictor)
     if keep_store is None or not warps_frames(predictor):
         return run_road(predictor, images, out, camera, progress=progress, overlay=overlay, within=within,
-                        vp_rule=vp_rule, say=say, ego_source=ego_source, ego=ego)
+                        vp_rule=vp_rule, say=say, ego_source=ego_source, vehicle=vehicle)
     if camera is None:
         raise InputError("a virtual-camera model needs the camera of the images", None,
                          NEEDS_CAMERA)

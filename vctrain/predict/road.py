@@ -202,11 +202,11 @@ def _spread(files: list[Path]) -> list[Path]:
                                                                           min(EGO_SAMPLES, len(files)))})]
 
 
-def rows_at(ego: tuple[int, int] | None, height: int) -> int:
-    """The own vehicle's rows ``ego`` = (rows, at height) in a frame ``height`` rows high (rounded up)."""
-    if not ego or not ego[0]:
+def rows_at(vehicle: tuple[int, int] | None, height: int) -> int:
+    """The own vehicle's rows ``vehicle`` = (rows, at height) in a frame ``height`` rows high (rounded up)."""
+    if not vehicle or not vehicle[0]:
         return 0
-    rows, at = ego
+    rows, at = vehicle
     return min(height, int(np.ceil(height * rows / at - 1e-9)))
 
 
@@ -330,7 +330,7 @@ def _remove_outputs(out: Path, stem: str) -> None:
 
 
 def _predict_one(fps: dict, predictor: Any, job: Job, camera, views, vp, out: Path, overlay: bool,
-                 ego: tuple[int, int] | None = None) -> Path:
+                 vehicle: tuple[int, int] | None = None) -> Path:
     img = read_image(job.image).array
     size = (img.shape[1], img.shape[0])
     if hasattr(predictor, "check_frame_size"):  # a graph takes its camera at any uniform rescale, nothing else
@@ -338,14 +338,14 @@ def _predict_one(fps: dict, predictor: Any, job: Job, camera, views, vp, out: Pa
     cam = camera_of_image(camera, job.image, size) if camera is not None else None
     fp = fps.get((cam, size))
     if fp is None:
-        fp = fps[(cam, size)] = FramePredictor(predictor, cam, size, views=views, ego_rows=rows_at(ego, size[1]))
+        fp = fps[(cam, size)] = FramePredictor(predictor, cam, size, views=views, ego_rows=rows_at(vehicle, size[1]))
     return write_prediction(out, job.id, fp.predict(img, vp), job.image if overlay else None)[0]
 
 
 def run_road(predictor: Any, images: Iterable[str | Path], out: str | Path,
              camera: Camera | FrameCameras | None, progress: bool = True, overlay: bool = False,
              within: str = "auto", vp_rule: Any = None, say: Callable[[str], None] | None = None,
-             ego_source: str = "", ego: tuple[int, int] | None = None) -> RoadRun:
+             ego_source: str = "", vehicle: tuple[int, int] | None = None) -> RoadRun:
     """Predict image files/folders taken with ``camera`` (needed for virtual-camera models; a
     :class:`~vcprep.camera.FrameCameras` gives every image its own calibrated camera and pose);
     writes ``<stem>_mask.png``, ``<stem>_prob.png`` (and ``_overlay.png``) in ``out``. A frame that
@@ -354,7 +354,7 @@ def run_road(predictor: Any, images: Iterable[str | Path], out: str | Path,
     ``within``: per-image pan/tilt from the road VP ('estimate', a CSV ``id,u,v``, 'none', or
     'auto': :func:`within_rule`); estimated VPs follow ``vp_rule`` or the model's
     (:func:`model_vp_rule`). ``say`` (given) hears one line: which VPs, own vehicle (``ego_source``:
-    where its rows come from) and rectangle a virtual-camera model's frames were warped with. ``ego``
+    where its rows come from) and rectangle a virtual-camera model's frames were warped with. ``vehicle``
     (rows, at frame height; :func:`frames_ego_rows`): a model that reads frames as they are predicts
     'not road' on the own vehicle's rows."""
     t0 = time.perf_counter()
@@ -376,7 +376,7 @@ def run_road(predictor: Any, images: Iterable[str | Path], out: str | Path,
                     disable=None if progress else True, leave=False):
         vp = poses[job.id].vp if job.id in poses else None
         try:
-            run.written.append(_predict_one(fps, predictor, job, camera, views, vp, out, overlay, ego))
+            run.written.append(_predict_one(fps, predictor, job, camera, views, vp, out, overlay, vehicle))
             run.ids.append(job.id)
         except VCError as e:
             _remove_outputs(out, job.id)
