@@ -41,28 +41,31 @@ def _manifest_ids(store: Path) -> list[str]:
 
 
 def test_two_warps_started_together_keep_every_record(two_datasets, tmp_path):
-    """What `make -j` does with two datasets sharing a store through --id-prefix. Each round
-    must keep all 2N records; rounds repeat until the two builds did overlap (one waited)."""
-    waited = False
-    for rnd in range(4):
-        out = tmp_path / f"shared{rnd}"
-        procs = [subprocess.Popen(_warp_cmd(ds, out, "--id-prefix", p), stdout=subprocess.PIPE,
-                                  stderr=subprocess.PIPE, text=True) for ds, p in zip(two_datasets, ("a_", "b_"))]
-        results = [p.communicate(timeout=300) for p in procs]
-        for p, (so, se) in zip(procs, results):
-            assert p.returncode == 0, se
-            assert so.strip() == str(out)
-        ids = _manifest_ids(out)
-        assert sorted(ids) == sorted([f"a_seq_{i:04d}" for i in range(N)] + [f"b_seq_{i:04d}" for i in range(N)])
-        assert not list(out.glob("manifest.*.jsonl"))  # every part folded
-        proc = run_cli("store", "verify", out, "--quiet")
-        assert proc.returncode == 0, proc.stdout + proc.stderr
-        assert proc.stdout == ""  # no orphan, no missing file
-        assert (out / "store.lock").read_bytes() == b""  # released: the holder's note is gone
-        if any("waiting for the store lock" in se for _, se in results):
-            waited = True
-            break
-    assert waited, "the two builds never overlapped; the race was not exercised"
+    """What `make -j` does with two datasets sharing a store through --id-prefix: both must keep
+    all 2N records. The two builds are made to overlap, not left to the scheduler (on a loaded
+    machine one often finished before the other reached the lock): both are started while another
+    process holds the lock, and released together, so one builds while the other waits for it."""
+    out = tmp_path / "shared"
+    holder = Holder(out)
+    procs = [subprocess.Popen(_warp_cmd(ds, out, "--id-prefix", p), stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE, text=True) for ds, p in zip(two_datasets, ("a_", "b_"))]
+    try:
+        said = [_stderr_until(p, "waiting for the store lock") for p in procs]
+    finally:
+        holder.release()
+    results = [p.communicate(timeout=300) for p in procs]
+    for p, (so, se) in zip(procs, results):
+        assert p.returncode == 0, se
+        assert so.strip() == str(out)
+        assert "got the store lock after" in se
+    assert all(f"held by pid {holder.proc.pid} (" in x for x in said)
+    ids = _manifest_ids(out)
+    assert sorted(ids) == sorted([f"a_seq_{i:04d}" for i in range(N)] + [f"b_seq_{i:04d}" for i in range(N)])
+    assert not list(out.glob("manifest.*.jsonl"))  # every part folded
+    proc = run_cli("store", "verify", out, "--quiet")
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert proc.stdout == ""  # no orphan, no missing file
+    assert (out / "store.lock").read_bytes() == b""  # released: the holder's note is gone
 
 
 # -- a lock held by another real process -------------------------------------------------------------

@@ -161,13 +161,12 @@ def _naming(e: OSError, path: Path) -> OSError:
 
 
 # PNG settings per kind of content, (row filter, deflate level), chosen by measurement (CamVid
-# frames and their 1/8 virtual-camera images, one thread; encoder: vcprep.io.png, ISA-L deflate):
-# - 'photo': 'sub' filter - camera frames, 1.7 ms and 267 KB at 480x360 (OpenCV's encoder:
-#   5.5 ms, 264 KB);
+# frames and their 1/8 virtual-camera images, one thread; encoder: vcprep.io.png, zlib level 2,
+# deterministic; ISA-L was 3-6x faster but not, see vcprep.io.png):
+# - 'photo': 'sub' filter - camera frames, 8.6 ms and 275 KB at 480x360 ('none': 314 KB, slower);
 # - 'store': no filter - virtual-camera images are mostly completion, pixels repeated along rays,
-#   which LZ77 matching finds unfiltered: 1.5 ms and 238 KB at 688x350 (OpenCV, zlib level 1:
-#   5.7 ms, 232 KB);
-# - 'mask': no filter - labels, valid masks and predictions (few values): 0.08 ms, 3.4 KB.
+#   which LZ77 matching finds unfiltered: 6.8 ms and 220 KB at 688x350 ('sub': 233 KB, slower);
+# - 'mask': no filter - labels, valid masks and predictions (few values): 0.3 ms, 4 KB.
 PNG_KINDS = {"photo": ("sub", 2), "store": ("none", 2), "mask": ("none", 2)}
 
 

@@ -1,16 +1,24 @@
-"""PNG encoding with a fast deflate.
+"""PNG encoding, deterministic: the same pixels give the same bytes in every process.
 
-Building a store spends most of its time compressing PNGs. OpenCV's encoder deflates with zlib,
-which manages ~130 MB/s at level 1 on our 2-core machine (5.4 ms for one 688x350 virtual-camera
-image). Here the PNG container is written directly (signature, IHDR, one IDAT, IEND; PNG
-specification, ISO/IEC 15948) and deflated with ISA-L (``python-isal``), which is 3-4x faster
-at the same size: 1.4 ms and 238 KB for that image (zlib level 1: 232 KB). Without ``isal`` the
-standard library's zlib is used: the same format, slower. Any PNG reader (OpenCV, Pillow, browsers)
-reads the files; they are deterministic for a given deflate library and version.
+Building a store spends much of its time compressing PNGs, and a store is byte-identical however it
+is built (one process, ``--jobs N``, shards, a killed build resumed): ``files_sha256``, ``store
+verify`` and ``content.stamp`` rest on it. The PNG container is written directly (signature,
+IHDR, one IDAT, IEND; PNG specification, ISO/IEC 15948) and deflated with the standard library's
+zlib, whose stream is a function of the bytes, the level and the zlib version alone.
 
-Supported: uint8 and uint16, grey (H, W) or (H, W, 1), BGR and BGRA (OpenCV order, stored as RGB
-and RGBA), per-row filter 'none' or 'sub' (the same filter on every row). ``level`` is the
-deflate level: 0-3 for ISA-L (higher levels are clamped to 3), 0-9 for zlib.
+Not ISA-L (``python-isal``), although it deflates 3-6x faster at about the same size: its stream
+depends on the process, not only on the bytes. The same 704 bytes compressed at level 2 in fresh
+processes gave another stream (another LZ77 parse, the same pixels) in 6 of 3000 processes, never
+with address-space randomisation off (``setarch -R``: 0 of 1300, stack offsets varied); its
+streaming ``compressobj`` as well (1 in 3000); a 688x350 store image 2 in 3000 at level 1. Two
+builds of one store then differ in a file about once in 100 (tests/test_camera_estimate.py,
+tests/test_store_scale.py; issue 61). zlib level 2 on our 2-core machine, CamVid: a 688x350 store
+image 6.8 ms and 220 KB (ISA-L 2.3 ms, 241 KB), a label 0.3 ms (0.05 ms), a 480x360 frame 8.6 ms
+(2.6 ms).
+
+Any PNG reader (OpenCV, Pillow, browsers) reads the files. Supported: uint8 and uint16, grey
+(H, W) or (H, W, 1), BGR and BGRA (OpenCV order, stored as RGB and RGBA), per-row filter 'none' or
+'sub' (the same filter on every row). ``level`` is the zlib deflate level, 0-9.
 """
 from __future__ import annotations
 
@@ -20,15 +28,9 @@ import zlib
 import cv2
 import numpy as np
 
-try:  # ISA-L: same zlib stream format, 3-4x faster
-    from isal import isal_zlib as _deflate
-
-    DEFLATE = "isal"
-    MAX_LEVEL = 3
-except ImportError:  # pragma: no cover - isal is a dependency; kept for platforms without its wheel
-    _deflate = zlib
-    DEFLATE = "zlib"
-    MAX_LEVEL = 9
+_deflate = zlib  # deterministic (the module docstring says why not ISA-L)
+DEFLATE = "zlib"
+MAX_LEVEL = 9
 
 __all__ = ["encode_png", "DEFLATE", "FILTERS"]
 
