@@ -105,9 +105,18 @@ def _stderr_until(proc: subprocess.Popen, needle: str, timeout: float = 60.0) ->
     return text
 
 
-def _built_store(ds, out):
-    proc = subprocess.run(_warp_cmd(ds, out, "--quiet"), capture_output=True, text=True, timeout=300)
+@pytest.fixture(scope="module")
+def built_a(two_datasets, tmp_path_factory):
+    """Dataset a warped into a store once; each test writes to its own copy (:func:`_built_store`)."""
+    out = tmp_path_factory.mktemp("built") / "store"
+    proc = subprocess.run(_warp_cmd(two_datasets[0], out, "--quiet"), capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr
+    return out
+
+
+def _built_store(built: Path, out: Path) -> Path:
+    """A copy of the built store: the same records, files and sources (absolute), at ``out``."""
+    shutil.copytree(built, out)
     return out
 
 
@@ -118,9 +127,9 @@ def _make_orphan(store: Path) -> Path:
 
 
 @pytest.mark.parametrize("command", ["warp", "complete", "merge", "repair"])
-def test_each_writer_waits_for_the_lock_and_says_so(command, two_datasets, tmp_path):
+def test_each_writer_waits_for_the_lock_and_says_so(command, two_datasets, built_a, tmp_path):
     a, b = two_datasets
-    out = _built_store(a, tmp_path / "store")
+    out = _built_store(built_a, tmp_path / "store")
     before = (out / "manifest.jsonl").read_bytes()
     if command == "warp":  # a second dataset into the same store
         cmd = _warp_cmd(b, out, "--id-prefix", "b_")
@@ -156,9 +165,9 @@ def test_each_writer_waits_for_the_lock_and_says_so(command, two_datasets, tmp_p
     assert check.returncode == 0, check.stdout + check.stderr
 
 
-def test_shards_share_the_lock_and_wait_for_an_exclusive_writer(two_datasets, tmp_path):
+def test_shards_share_the_lock_and_wait_for_an_exclusive_writer(two_datasets, built_a, tmp_path):
     a, _ = two_datasets
-    out = _built_store(a, tmp_path / "store")
+    out = _built_store(built_a, tmp_path / "store")
     # another shard holds the lock shared: this shard runs at once, without waiting
     holder = Holder(out, shared=True)
     try:

@@ -53,7 +53,9 @@ def reference(ds, tmp_path_factory):
 
 
 def _verify(store, *extra):
-    proc = run_cli("store", "verify", store, "--json", "--quiet", *extra)
+    """``store verify --json``, one process (a 40-item store: a pool's start costs more than it
+    saves); the pool's verify is test_verify_finds_each_kind_of_problem's."""
+    proc = run_cli("store", "verify", store, "--json", "--quiet", "-j", "1", *extra)
     return proc, [json.loads(x) for x in proc.stdout.splitlines()]
 
 
@@ -119,7 +121,7 @@ def test_verify_finds_each_kind_of_problem(ds, reference, tmp_path):
     (out / "labels" / ".seq_0009.png.abc.tmp").write_bytes(b"x")                          # temp file
     a = cv2.imread(str(imgs / "seq_0006.png"))
     cv2.imwrite(str(imgs / "seq_0006.png"), 255 - a)                                      # source changed
-    proc, problems = _verify(out)
+    proc, problems = _verify(out, "-j", "2")  # (the last -j counts)
     kinds = {(p["id"], p["kind"]) for p in problems}
     assert {("seq_0001", "missing"), ("seq_0002", "corrupt"), ("seq_0003", "values"), ("seq_0003", "checksum"),
             ("seq_0004", "size"), (None, "orphan"), (None, "temp"), ("seq_0006", "source changed")} <= kinds, kinds
