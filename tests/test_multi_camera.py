@@ -159,6 +159,95 @@ def test_fit_init_without_lr_fine_tunes_at_a_tenth_of_the_checkpoints_rate(two_s
     assert resumed["epoch"] == 2 and resumed["config"]["lr"] == pytest.approx(0.0002)
 
 
+def test_block_validation_holds_out_each_sources_last_items_in_name_order():
+    from vctrain.training.trainset import validation_items
+
+    # two drives, named out of order: the held-out items are each drive's last 20 % by name
+    ids = [f"a_{i:03d}" for i in (4, 0, 9, 2, 7, 1, 8, 3, 6, 5)] + [f"b_{i:03d}" for i in (3, 0, 4, 1, 2)]
+    sources = ["a"] * 10 + ["b"] * 5
+    held = validation_items(ids, sources, 0.2, "block", seed=0)
+    assert sorted(ids[i] for i in held) == ["a_008", "a_009", "b_004"]
+    assert validation_items(ids, sources, 0.2, "block", seed=7) == held  # no draw: the seed does not move it
+    rand = validation_items(ids, sources, 0.2, "random", seed=0)
+    assert len(rand) == 3 and rand != validation_items(ids, sources, 0.2, "random", seed=1)
+    # a share too small for every source: the last item of the largest
+    assert [ids[i] for i in validation_items(ids[:3], ["a"] * 3, 0.1, "block", 0)] == ["a_009"]
+    with pytest.raises(InputError, match="too few"):
+        validation_items(["x"], ["a"], 0.5, "block", 0)
+
+
+def test_fit_init_keeps_the_starting_weights_unless_an_epoch_beats_them(two_stores, tmp_path):
+    """With validation, a fine-tuning run scores its starting weights as epoch 0, and only an epoch
+    with a higher validation IoU replaces them: training that cannot change the network (a rate too
+    small to move a float32 weight, BatchNorm's statistics frozen) leaves the init's weights."""
+    root, stores = two_stores
+    a = load_checkpoint(root / "a.pt")
+    args = ["fit", *stores, "--init", str(root / "a.pt"), "--schedule", "constant", "--weight-decay", "0",
+            "--epochs", "2", "--val-fraction", "0.25", "--quiet"]
+    r = CliRunner().invoke(app, [*args, "--lr", "1e-30", "--freeze-bn", "--out", str(tmp_path / "b.pt")])
+    assert r.exit_code == 0, r.output
+    b = load_checkpoint(tmp_path / "b.pt")
+    assert b["epoch"] == 0 and b["best_epoch"] == 0 and b["history"][0]["init"] is True
+    assert all(torch.equal(a["model"][k], b["model"][k]) for k in a["model"])  # running statistics included
+    last = load_checkpoint(tmp_path / "b.last.pt")
+    assert [row["val_iou"] for row in last["history"]] == [b["best_iou"]] * 3  # nothing moved: ties keep epoch 0
+    assert b["config"]["val_split"] == "auto" and last["data"]["train_items_per_source"] == {stores[0]: 4, stores[1]: 2}  # 0.25 of 6 and of 2: 2 and 0
+    # a real rate: the checkpoint is the first epoch of the highest validation IoU, epoch 0 among them
+    r = CliRunner().invoke(app, [*args, "--lr", "0.05", "--out", str(tmp_path / "c.pt")])
+    assert r.exit_code == 0, r.output
+    c, c_last = load_checkpoint(tmp_path / "c.pt"), load_checkpoint(tmp_path / "c.last.pt")
+    ious = [row["val_iou"] for row in c_last["history"]]
+    assert c["best_epoch"] == int(np.argmax(ious)) and c["best_iou"] == max(ious)
+
+
+def test_fit_init_average_holds_the_mean_of_the_start_and_the_trained_weights(two_stores, tmp_path):
+    """--average-init A: OUT holds A x the init's weights + (1 - A) x the trained ones (every float
+    tensor, BatchNorm statistics included); OUT.last.pt the trained ones, and a resumed run averages
+    with the same start. Without validation (--init's default) OUT is the last epoch."""
+    root, stores = two_stores
+    a = load_checkpoint(root / "a.pt")
+    args = ["fit", stores[0], "--init", str(root / "a.pt"), "--lr", "0.05", "--epochs", "1", "--quiet",
+            "--average-init", "0.25", "--out", str(tmp_path / "b.pt")]
+    r = CliRunner().invoke(app, args)
+    assert r.exit_code == 0, r.output
+    b, last = load_checkpoint(tmp_path / "b.pt"), load_checkpoint(tmp_path / "b.last.pt")
+    assert b["config"]["val_fraction"] == 0 and b["epoch"] == 1 and b["average_init"] == 0.25
+    floats = [k for k, v in a["model"].items() if v.is_floating_point()]
+    assert any(not torch.equal(a["model"][k], last["model"][k]) for k in floats)  # training moved the weights
+    for k in floats:
+        torch.testing.assert_close(b["model"][k], 0.25 * a["model"][k] + 0.75 * last["model"][k])
+    r = CliRunner().invoke(app, ["fit", stores[0], "--resume", str(tmp_path / "b.last.pt"), "--epochs", "2", "--quiet",
+                                 "--out", str(tmp_path / "b.pt")])
+    assert r.exit_code == 0, r.output
+    b, last = load_checkpoint(tmp_path / "b.pt"), load_checkpoint(tmp_path / "b.last.pt")
+    assert b["epoch"] == 2
+    for k in floats:
+        torch.testing.assert_close(b["model"][k], 0.25 * a["model"][k] + 0.75 * last["model"][k])
+    r = CliRunner().invoke(app, [*args[:-4], "--average-init", "1", "--out", str(tmp_path / "c.pt")])
+    assert r.exit_code != 0 and "average-init must be in [0, 1)" in str(r.exception)
+
+
+def test_fit_init_of_a_resize_model_trains_at_its_working_size(tmp_path, camvid_half):
+    """Fine-tuning a resize model on frames of another size keeps the model's working size (the
+    frames' own would show it another scale); --size still wins."""
+    from conftest import write_synthetic_dataset
+
+    big = PRESETS["camvid"].for_image_size((160, 120))
+    small = [str(p) for p in write_synthetic_dataset(tmp_path / "small", PRESETS["camvid"].for_image_size((96, 72)), n=2)]
+    frames = [str(p) for p in write_synthetic_dataset(tmp_path / "big", big, n=2)]
+    fit(TrainConfig(baseline="resize", images=small[0], labels=small[1], label_format="camvid", out=str(tmp_path / "a.pt"),
+                    base_width=4, epochs=1, batch_size=2, val_fraction=0, progress=False, device="cpu"))
+    assert load_checkpoint(tmp_path / "a.pt")["data"]["input_size"] == [96, 72]
+    base = ["fit", "--baseline", "resize", "--images", frames[0], "--labels", frames[1], "--label-format", "camvid",
+            "--init", str(tmp_path / "a.pt"), "--epochs", "1", "--val-fraction", "0", "--quiet"]
+    r = CliRunner().invoke(app, [*base, "--out", str(tmp_path / "b.pt")])
+    assert r.exit_code == 0, r.output
+    assert load_checkpoint(tmp_path / "b.pt")["data"]["input_size"] == [96, 72]
+    r = CliRunner().invoke(app, [*base, "--size", "128x96", "--out", str(tmp_path / "c.pt")])
+    assert r.exit_code == 0, r.output
+    assert load_checkpoint(tmp_path / "c.pt")["data"]["input_size"] == [128, 96]
+
+
 @pytest.mark.parametrize("extra, needle", [(["--model", "segnet-narrow"], "checkpoint is a 'resfpn'"),
                                            (["--width", "8"], "checkpoint has width 4"),
                                            (["--vp-channel"], "input channels"),

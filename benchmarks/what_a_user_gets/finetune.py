@@ -141,16 +141,16 @@ def training_data(name: str, data: dict, train: Path, vps: Path, wd: Path, threa
     return [store], True
 
 
-def shipped_without(name: str, wd: Path, epochs: int, threads: int) -> Path:
-    """The shipped recipe (benchmarks/what_a_user_gets/shipped_model.py: its study, ``resize``, seed 0) trained on every
-    development set's training split but set ``name``'s: WORKDIR/base/seed0/runs/_all/resize/model.pt
-    (resumed where it stopped)."""
+def shipped_without(name: str, wd: Path, epochs: int, threads: int, arch: str = "lite0fpn") -> Path:
+    """The shipped recipe (benchmarks/what_a_user_gets/shipped_model.py: its study, ``resize``, seed 0,
+    network ``arch``: the shipped model's) trained on every development set's training split but set
+    ``name``'s: WORKDIR/base/seed0/runs/_all/resize/model.pt (resumed where it stopped)."""
     from benchmarks.other_cameras.as_shipped import run_study
     from benchmarks.what_a_user_gets.shipped_model import study_file
 
     base = (wd / "base").resolve()
     base.mkdir(parents=True, exist_ok=True)
-    path = study_file(base, False, epochs)
+    path = study_file(base, False, epochs, arch)
     study = yaml.safe_load(path.read_text())
     study["datasets"] = [d for d in study["datasets"] if d["name"] != f"{name}-train"]
     path.write_text(yaml.safe_dump(study, sort_keys=False))

@@ -42,7 +42,16 @@ HELP = {  # the options whose help does not fit on their line
     "color_aug": "augment: brightness/contrast/gain jitter (cpu: 0.3)",
     "ray_channels": "two extra input channels: each pixel's ray angles beside and below the road VP, from the camera's "
                     "focal length",
-    "init": "fine-tune: start from this checkpoint's weights (same model, width, input channels and --baseline)",
+    "init": "fine-tune: start from this checkpoint's weights (same model, width, input channels and --baseline; "
+            "a resize model's working size unless --size); with validation the starting weights are epoch 0, kept "
+            "unless an epoch scores higher",
+    "val_fraction": "share of the training items held out for validation (default: 0.1; with --init 0: every frame "
+                    "trains and the last epoch is kept)",
+    "val_split": "which items --val-fraction holds out: 'random', 'block' (the last share of each folder or store in "
+                 "name order: whole drives, or a stretch of one) or 'auto' (block with --init, else random)",
+    "freeze_bn": "keep BatchNorm's running statistics fixed while training (default: off)",
+    "average_init": "with --init: OUT holds A x the starting weights + (1 - A) x the trained ones (WiSE-FT; "
+                    "validation scores that average; OUT.last.pt keeps the trained ones for --resume); default: 0",
     "balance": "several stores: 'items' (each item once an epoch) or 'datasets' (each store equally often); default: "
                "the recipe's (multicamera: datasets; cpu, paper: items)",
 }
@@ -109,7 +118,8 @@ def fit_cmd(
     schedule: Optional[str] = typer.Option(None, "--schedule", help=HELP["schedule"]),
     seed: int = typer.Option(TRAIN.seed, "--seed", help="seeds init, validation split, order and augmentation"),
     device: str = typer.Option(TRAIN.device, "--device", help="auto (cuda if present), cpu, cuda, cuda:N"),
-    val_fraction: float = typer.Option(TRAIN.val_fraction, "--val-fraction", help="share of the training items held out for validation"),
+    val_fraction: Optional[float] = typer.Option(None, "--val-fraction", help=HELP["val_fraction"]),
+    val_split: str = typer.Option(TRAIN.val_split, "--val-split", help=HELP["val_split"]),
     val_store: Optional[List[Path]] = typer.Option(None, "--val-store", help="validation store (repeatable; replaces --val-fraction)"),
     class_weights: str = typer.Option(TRAIN.class_weights, "--class-weights", help="'none' or 'median-freq' (median frequency balancing)"),
     hflip: Optional[bool] = typer.Option(None, "--hflip/--no-hflip", help=HELP["hflip"]),
@@ -122,6 +132,8 @@ def fit_cmd(
     ray_channels: bool = typer.Option(TRAIN.ray_channels, "--ray-channels", help=HELP["ray_channels"]),
     resume: Optional[Path] = typer.Option(None, "--resume", help=HELP["resume"]),
     init: Optional[Path] = typer.Option(None, "--init", help=HELP["init"]),
+    freeze_bn: Optional[bool] = typer.Option(None, "--freeze-bn/--no-freeze-bn", help=HELP["freeze_bn"]),
+    average_init: Optional[float] = typer.Option(None, "--average-init", help=HELP["average_init"]),
     balance: Optional[str] = typer.Option(None, "--balance", help=HELP["balance"]),
     workers: int = typer.Option(TRAIN.workers, "--workers", help="data loader processes"),
     log: Optional[Path] = typer.Option(None, "--log", help="JSON-lines log, one row per epoch (default: beside OUT, runs/vc.log.jsonl)"),
@@ -139,23 +151,21 @@ def fit_cmd(
     pretrained lite0fpn, 30 epochs, every store an equal share of each epoch, lens-shading colour
     augmentation; add --baseline resize, which wins when cameras are merged) and 'paper' (on
     request: segnet, SGD 0.005 momentum 0.9, weight decay 0.0005, batch 8, poly decay); any option
-    given wins. The checkpoint describes itself (model, training
-    config, virtual camera, scale, completion, metrics), so predict and eval need no repeated
-    flags. Prints the checkpoint path; OUT's folder is created. Launch with 'torchrun
-    --nproc-per-node N' for data-parallel training.
-
-    Time, measured with the cpu recipe on 2 cores: about 7 minutes for 305 CamVid frames at the
-    default store's 638x271 (benchmarks/other_cameras/as_shipped.py).
+    given wins. The checkpoint describes itself (model, config, virtual camera, scale, completion,
+    metrics), so predict and eval need no repeated flags. Prints the checkpoint path; OUT's folder
+    is created. 'torchrun --nproc-per-node N vctrain fit ...' trains data-parallel. Time (cpu
+    recipe, 2 cores): about 7 minutes for 305 CamVid frames at the default store's 638x271.
 
     \b
     Example:
       vctrain fit stores/camvid_train --out runs/vc.pt    # about 7 min on 2 cores
-      vctrain fit stores/camvid_train --val-store stores/camvid_val --epochs 20 --out runs/vc.pt
       vctrain fit stores/camvid_train --baseline resize --out runs/resize.pt   # store's pixels, frames' aspect
       vctrain fit stores/camvid_train --out runs/vc.pt --resume runs/vc.last.pt --epochs 40
       vctrain fit stores/camvid_train_fine --crop 0.67 --out runs/vc_fine.pt
       vctrain fit stores/camvid_train --model lite0fpn --out runs/vc_lite0.pt   # ImageNet encoder
       vctrain fit stores/cam_a stores/cam_b stores/cam_c --recipe multicamera --baseline resize --out runs/road.pt
+      vctrain fit --baseline resize --images my/images --labels my/labels --label-format camvid \
+          --init models/road-multicamera/road.pt --out runs/mine_ft.pt   # fine-tune the shipped model
     """
     cfg = _fit_config(locals())  # (first: locals() are the options, each named as its TrainConfig field)
     from ..training.loop import fit

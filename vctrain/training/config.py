@@ -12,7 +12,8 @@ from pathlib import Path
 from typing import Any, Optional
 
 __all__ = ["TrainConfig", "TRAIN_WINDOW", "RECIPES", "DEFAULT_RECIPE", "SCHEDULES", "OPTIMIZERS", "BALANCES", "AdaptSettings", "ADAPT_EPOCHS",
-           "ADAPT_LR_FACTOR"]
+           "ADAPT_LR_FACTOR", "VAL_SPLITS", "FINETUNE_FREEZE_BN",
+           "FINETUNE_AVERAGE_INIT", "VAL_FRACTION", "FINETUNE_VAL_FRACTION"]
 
 # full-height training windows of 4/9 of the working width: the measured best design (a crossval study's
 # and the cpu recipe's default; 76800 px a step at 172800-px stores)
@@ -76,7 +77,11 @@ class TrainConfig:
     shading_aug: Optional[float] = None  # colour shading: smooth per-channel log-gain field up to +-this (0: off)
     seed: int = 0                      # seeds init, split, order and augmentation
     device: str = "auto"               # 'auto' (cuda if present), 'cpu', 'cuda', 'cuda:1'
-    val_fraction: float = 0.1          # held-out share of the training items (0: none)
+    val_fraction: Optional[float] = None  # held-out share of the training items (0: none); None: VAL_FRACTION,
+                                       # with init FINETUNE_VAL_FRACTION
+    val_split: str = "auto"            # which items: 'random' (seeded), 'block' (the last share of each source's
+                                       # items in name order: whole drives or a stretch of one, not neighbours
+                                       # of training frames) or 'auto' (block with init, random without)
     val_stores: list[str] = field(default_factory=list)  # validation stores (replace val_fraction)
     class_weights: str = "none"        # 'none' or 'median-freq' (median frequency balancing)
     hflip: Optional[bool] = None       # random horizontal flip, p = 0.5
@@ -85,6 +90,10 @@ class TrainConfig:
     ray_channels: bool = False         # 2 more input channels: each pixel's ray angles beside/below the road VP
     resume: Optional[str] = None       # continue from this checkpoint ('.last.pt') up to `epochs`
     init: Optional[str] = None         # start from this checkpoint's network and weights (fine-tuning, vctrain adapt)
+    freeze_bn: Optional[bool] = None   # keep BatchNorm's running statistics fixed (layers in eval mode while
+                                       # training); None: FINETUNE_FREEZE_BN with init, no without
+    average_init: Optional[float] = None  # with init: the checkpoint holds A x the init's weights + (1 - A) x the
+                                       # trained ones (WiSE-FT); None: FINETUNE_AVERAGE_INIT with init, 0 without
     workers: int = 0                   # DataLoader worker processes
     log: Optional[str] = None          # JSON-lines log; None: '<out stem>.log.jsonl'
     progress: bool = True              # tqdm bar on stderr
@@ -103,6 +112,13 @@ class TrainConfig:
         d["size"] = list(self.size) if self.size else None
         return d
 
+
+VAL_SPLITS = ("auto", "random", "block")
+VAL_FRACTION = 0.1  # a run's validation share unless set
+FINETUNE_VAL_FRACTION = 0.0  # fit --init's: every frame trains, the last epoch is kept (own_frames.py: picking an
+                             # epoch on a few held-out frames chose worse models than the last)
+FINETUNE_FREEZE_BN = False  # fit --init's default for freeze_bn (benchmarks/what_a_user_gets/own_frames.py)
+FINETUNE_AVERAGE_INIT = 0.0  # fit --init's default for average_init (benchmarks/what_a_user_gets/own_frames.py)
 
 ADAPT_EPOCHS = 5       # a short fine-tune
 ADAPT_LR_FACTOR = 0.1  # of the model's own training learning rate (vctrain adapt; vctrain fit --init without --lr)

@@ -41,6 +41,7 @@ across processes; rank 0 alone writes checkpoints and logs.
 """
 from __future__ import annotations
 
+import copy
 import gc
 import hashlib
 import json
@@ -60,7 +61,8 @@ from tqdm import tqdm
 from vcprep.errors import InputError
 
 from .checkpoint import load_checkpoint, model_from_checkpoint, save_checkpoint
-from .config import ADAPT_LR_FACTOR, BALANCES, DEFAULT_RECIPE, OPTIMIZERS, RECIPES, SCHEDULES, TrainConfig
+from .config import (ADAPT_LR_FACTOR, BALANCES, FINETUNE_AVERAGE_INIT, FINETUNE_FREEZE_BN, FINETUNE_VAL_FRACTION,
+                     VAL_FRACTION, DEFAULT_RECIPE, OPTIMIZERS, RECIPES, SCHEDULES, TrainConfig)
 from .data import RoadDataset, class_frequencies, median_frequency_weights
 from .trainset import MixedViews, crop_size, epoch_order, prepare_data, training_sets, view_batches
 from ..metrics import RoadMetrics
@@ -82,6 +84,8 @@ def resolve_recipe(cfg: TrainConfig, device: torch.device | None = None) -> Trai
     recipe: :data:`DEFAULT_RECIPE` whatever the device (``device`` is no longer consulted)."""
     if cfg.recipe is None:  # every device: the recipe behind every measured number (DEFAULT_RECIPE)
         cfg.recipe = DEFAULT_RECIPE
+    if cfg.val_fraction is None:
+        cfg.val_fraction = FINETUNE_VAL_FRACTION if cfg.init else VAL_FRACTION
     if cfg.recipe not in RECIPES:
         raise InputError(f"unknown recipe '{cfg.recipe}'", None, f"use one of {', '.join(RECIPES)}")
     for k, v in RECIPES[cfg.recipe].items():
@@ -226,11 +230,20 @@ def _check_init(cfg: TrainConfig, init: dict[str, Any], info: dict[str, Any]) ->
 
 def _init_network(cfg: TrainConfig, init: dict[str, Any]) -> None:
     """Fill the settings a fine-tuning run left unset from the ``init`` checkpoint (in place): the
-    network (``--model``, ``--width``), so :func:`_check_init` only refuses what was asked otherwise,
-    and the learning rate, ``ADAPT_LR_FACTOR`` (a tenth) of the checkpoint's own (benchmarks/what_a_user_gets/finetune.py
+    network (``--model``, ``--width``), so :func:`_check_init` only refuses what was asked otherwise;
+    a resize model's working size (the frames' own would show the network another scale than it
+    learnt, and CamVid's 960x720 costs four times the steps); BatchNorm frozen or not
+    (:data:`FINETUNE_FREEZE_BN`); and the learning rate, ``ADAPT_LR_FACTOR`` (a tenth) of the checkpoint's own (benchmarks/what_a_user_gets/finetune.py
     measured that rule: 20 frames of an unseen camera, +4.2 over training on them from scratch)."""
     if cfg.lr is None and (init.get("config") or {}).get("lr"):
         cfg.lr = ADAPT_LR_FACTOR * float(init["config"]["lr"])
+    data = init.get("data") or {}
+    if cfg.size is None and cfg.baseline == "resize" and data.get("mode") == "resize" and data.get("input_size"):
+        cfg.size = tuple(int(v) for v in data["input_size"])  # the scale the model learnt, not the frames' own
+    if cfg.freeze_bn is None:
+        cfg.freeze_bn = FINETUNE_FREEZE_BN
+    if cfg.average_init is None:
+        cfg.average_init = FINETUNE_AVERAGE_INIT
     if cfg.arch is None:
         cfg.arch = init["model_args"]["arch"]
     if cfg.base_width is None and cfg.arch == init["model_args"]["arch"]:
@@ -245,6 +258,9 @@ def _unset_from_checkpoints(cfg: TrainConfig, resume: dict[str, Any] | None, ini
         cfg.lr = (resume.get("config") or {}).get("lr")
     if resume is not None and cfg.arch is None:  # the checkpoint's network, not the recipe's
         cfg.arch = resume["model_args"]["arch"]
+    for k in ("freeze_bn", "average_init", "val_fraction"):  # a resumed fine-tuning run goes on as it began
+        if resume is not None and getattr(cfg, k) is None:
+            setattr(cfg, k, (resume.get("config") or {}).get(k))
     if init is not None:
         _init_network(cfg, init)
 
@@ -318,6 +334,10 @@ def _train_epoch(loop: _Loop, loader, epoch: int, step: int, t0: float) -> tuple
     """One epoch's steps from global step ``step``; returns (loss sum, items seen, next step)."""
     cfg, opt = loop.cfg, loop.opt
     loop.net.train()
+    if cfg.freeze_bn:  # the running statistics stay the ones the weights were learnt with
+        for m in loop.net.modules():
+            if isinstance(m, nn.modules.batchnorm._BatchNorm):
+                m.eval()
     loss_sum, n_seen = 0.0, 0
     bar = tqdm(loader, total=loop.steps_per_epoch, desc=f"epoch {epoch + 1}/{cfg.epochs}", unit="batch",
                disable=None if loop.show else True, leave=False, dynamic_ncols=True)
@@ -414,6 +434,44 @@ def _steps_per_epoch(cfg: TrainConfig, train_ds: Any, world: int) -> tuple[int, 
     return per_rank_batch, (min(steps, cfg.max_steps) if cfg.max_steps else steps)
 
 
+def _anchor(cfg: TrainConfig, model: nn.Module, resume: dict[str, Any] | None,
+            init: dict[str, Any] | None) -> dict[str, torch.Tensor] | None:
+    """The starting weights a fine-tuning run averages its checkpoint with (``cfg.average_init`` > 0):
+    the ``init`` checkpoint's (the model holds them now), or, resuming, those of the checkpoint its
+    first run started from; None when nothing is averaged."""
+    share = float(cfg.average_init or 0.0)
+    if not 0 <= share < 1:
+        raise InputError(f"average-init must be in [0, 1), got {share}", None, "use e.g. 0.5, or 0 for none")
+    if share == 0 or (init is None and resume is None):
+        return None
+    if init is not None:
+        return {k: v.detach().clone() for k, v in model.state_dict().items()}
+    record = resume.get("init") or {}
+    if not record.get("path"):
+        return None
+    return load_checkpoint(record["path"])["model"]
+
+
+def _averaged(model: nn.Module, anchor: dict[str, torch.Tensor] | None, share: float) -> dict[str, torch.Tensor]:
+    """The weights a checkpoint holds: ``share`` x the starting weights + (1 - share) x the trained
+    ones (WiSE-FT, Wortsman et al. 2022: the fine-tuned model keeps what the start knew of other
+    drives and cameras), BatchNorm statistics included; the trained ones when nothing is averaged."""
+    state = model.state_dict()
+    if anchor is None:
+        return state
+    return {k: (share * anchor[k].to(v.dtype) + (1 - share) * v) if v.is_floating_point() else v
+            for k, v in state.items()}
+
+
+def _as_saved(model: nn.Module, weights: dict[str, torch.Tensor], anchor: dict[str, torch.Tensor] | None) -> nn.Module:
+    """The network validation scores: the model itself, or a copy holding the averaged weights."""
+    if anchor is None:
+        return model
+    net = copy.deepcopy(model)
+    net.load_state_dict(weights)
+    return net
+
+
 def fit(cfg: TrainConfig) -> dict[str, Any]:
     """Train according to ``cfg``; returns a summary (best val IoU, timings, paths)."""
     rank, world, local_rank = _dist()
@@ -456,11 +514,28 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
     loop = _Loop(net, opt, cfg, device, fmt, weight, world, steps_per_epoch, total_steps, cfg.progress and master)
     del net  # the loop holds it (and _leave_group drops it)
 
-    def checkpoint(epoch: int, metrics: dict[str, Any]) -> dict[str, Any]:
-        return {"model": model.state_dict(), "model_args": model_args, "config": cfg.to_dict(), "data": info,
+    anchor = _anchor(cfg, model, resume, init)
+    share = float(cfg.average_init or 0.0)
+
+    def checkpoint(epoch: int, metrics: dict[str, Any], weights: dict[str, torch.Tensor] | None = None) -> dict[str, Any]:
+        return {"model": model.state_dict() if weights is None else weights, "model_args": model_args, "config": cfg.to_dict(), "data": info,
                 "epoch": epoch, "step": step, "metrics": metrics, "best_iou": best_iou, "best_epoch": best_epoch,
                 "history": history, "optimizer": opt.state_dict(), **({"init": init_from} if init_from else {})}
 
+    if init is not None and start_epoch == 0 and len(val_ds):
+        # the weights fine-tuning starts from are a candidate too: an epoch replaces them only if it
+        # scores higher on validation, so a few frames cannot leave a model worse than it began
+        row0: dict[str, Any] = {"epoch": 0, "step": 0, "init": True}
+        _validate(row0, model, val_loader, device, weight, best_iou)
+        best_iou, best_epoch = row0["val_iou"], 0
+        history.append(row0)
+        if master:
+            _write_log(log_path, row0)
+            save_checkpoint(out, checkpoint(0, row0))
+            if cfg.progress:
+                from vcprep.cliutil import err
+
+                err(f"epoch 0 (the --init weights): val IoU {row0['val_iou']:.4f}")
     seconds, images = 0.0, 0
     for epoch in range(start_epoch, cfg.epochs):
         loader = _epoch_loader(train_ds, cfg, epoch, rank, world, per_rank_batch)
@@ -474,16 +549,18 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
         row: dict[str, Any] = {"epoch": epoch + 1, "step": step, "lr": get_lr(step, total_steps, cfg),
                                "train_loss": loss_sum / max(n_seen, 1), "seconds": dt,
                                "images_per_s": n_seen * world / max(dt, 1e-9)}
-        improved = _validate(row, model, val_loader, device, weight, best_iou) if len(val_ds) else True
+        saved = _averaged(model, anchor, share)  # what --out holds: the trained weights, or their average with the start
+        improved = _validate(row, _as_saved(model, saved, anchor), val_loader, device, weight, best_iou) \
+            if len(val_ds) else True
         if improved:
             best_iou, best_epoch = row.get("val_iou", -1.0), epoch + 1
         history.append(row)
         if master:
             _write_log(log_path, row)
             ck = checkpoint(epoch + 1, row)
-            save_checkpoint(last_path(out), ck)
+            save_checkpoint(last_path(out), ck)  # the trained weights themselves: --resume goes on from them
             if improved:
-                save_checkpoint(out, ck)
+                save_checkpoint(out, ck if anchor is None else {**ck, "model": saved, "average_init": share})
             if cfg.progress:
                 _say_epoch(row, cfg.epochs, improved)
     replicas_identical = _leave_group(loop, model, world) if distributed else None

@@ -25,7 +25,7 @@ from vcprep.io import image_size
 from vcprep.labels import get_label_format
 from vcprep.store import Store
 
-from .config import BALANCES, TrainConfig
+from .config import BALANCES, VAL_SPLITS, TrainConfig
 from .data import RoadDataset, Sample, resize_samples, store_samples
 
 __all__ = ["BASELINES", "MIN_SIDE", "MixedViews", "view_batches", "prepare_data", "resize_working_size", "crop_size",
@@ -114,6 +114,43 @@ def _completion(stores: list[Store]) -> str:
     return kinds.pop() if kinds else "none"
 
 
+def val_split(cfg: TrainConfig) -> str:
+    """The validation split a run uses: ``cfg.val_split``, 'auto' resolved (block when fine-tuning)."""
+    if cfg.val_split not in VAL_SPLITS:
+        raise InputError(f"unknown validation split '{cfg.val_split}'", None, f"use one of {', '.join(VAL_SPLITS)}")
+    if cfg.val_split == "auto":
+        return "block" if cfg.init else "random"
+    return cfg.val_split
+
+
+def validation_items(ids: list[str], sources: list[str], fraction: float, split: str, seed: int) -> set[int]:
+    """The indices held out for validation: ``fraction`` of the items (at least one, never all).
+    'random': a seeded draw; 'block': of each source (store or folder) the last share of its items in
+    name order -- frames named by drive and time give whole drives or one stretch of a drive, not
+    the neighbours of training frames, so the score says what another drive would see."""
+    n = len(ids)
+    n_val = max(1, int(round(fraction * n)))
+    if n_val >= n:
+        raise InputError(f"{n} items are too few to hold out {fraction:g}", None,
+                         "add items, or use --val-fraction 0 / --val-store")
+    if split == "random":
+        return {int(i) for i in np.random.default_rng(seed).permutation(n)[:n_val]}
+    groups: dict[str, list[int]] = {}
+    for i, s in enumerate(sources):
+        groups.setdefault(s, []).append(i)
+    held: set[int] = set()
+    for members in groups.values():
+        k = int(round(fraction * len(members)))
+        held.update(sorted(members, key=lambda i: ids[i])[len(members) - k:] if k else [])
+    if not held:  # every source too small for its share: the last item in name order of the largest
+        largest = max(groups.values(), key=len)
+        held.add(max(largest, key=lambda i: ids[i]))
+    if len(held) >= n:
+        raise InputError(f"{n} items are too few to hold out {fraction:g} of each source", None,
+                         "add items, or use --val-split random / --val-fraction 0 / --val-store")
+    return held
+
+
 def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str, Any]]:
     """Training and validation samples plus the checkpoint's ``data`` description."""
     if cfg.baseline not in BASELINES:
@@ -152,13 +189,10 @@ def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str
     elif cfg.val_fraction > 0:
         if not 0 < cfg.val_fraction < 1:
             raise InputError(f"validation fraction {cfg.val_fraction} is not in [0, 1)", None, "use e.g. 0.1")
-        perm = np.random.default_rng(cfg.seed).permutation(len(train))
-        n_val = max(1, int(round(cfg.val_fraction * len(train))))
-        if n_val >= len(train):
-            raise InputError(f"{len(train)} items are too few to hold out {cfg.val_fraction:g}", None,
-                             "add items, or use --val-fraction 0 / --val-store")
-        val = [train[i] for i in sorted(perm[:n_val])]
-        train = [train[i] for i in sorted(perm[n_val:])]
+        held = validation_items([s.id for s in train], [s.source for s in train], cfg.val_fraction,
+                                val_split(cfg), cfg.seed)
+        val = [s for i, s in enumerate(train) if i in held]
+        train = [s for i, s in enumerate(train) if i not in held]
     else:
         val = []
     if cfg.size is not None:
