@@ -17,8 +17,15 @@ docs/development.md or the results JSON records it, else "unknown".
 * ``user_route.py`` -- the route a user follows, as the README writes it: does ``vcprep warp`` +
   ``vctrain fit`` with no flag set by hand deliver what ``vctrain crossval`` measured for the same
   frames (issue 52)? Results: ``user_route.{md,json}``. Time: unknown.
+* ``own_frames.py`` -- a user's own labelled frames (issue 60): the shipped model as it is, fine-tuned
+  with ``vctrain fit --init``'s defaults, with the command the card gave before, or trained on them from
+  ImageNet, for 20, 60 and 200 frames of IDD-Lite, with the shipped model (a camera it knows) and with
+  the shipped recipe trained without IDD-Lite (one it never saw). Results:
+  ``own_frames_idd_{shipped,unseen}.{md,json}``. Time: about 2-3 min a fit of 60 frames, 8 of 200, plus
+  the base model (about 30 min).
 * ``finetune.py`` -- fine-tuning on a camera the model has not seen: 20 labelled frames of it
-  (issue 34). Results: ``finetune.{md,json}`` (LUMS), ``finetune_<set>.{md,json}``. Time: unknown.
+  (issue 34: the learning-rate rule; before fit --init's issue-60 defaults). Results:
+  ``finetune.{md,json}`` (LUMS), ``finetune_<set>.{md,json}``. Time: unknown.
 * ``train.py`` -- CamVid train -> val in its own camera: the virtual-camera model against the resize
   baseline at the same budget (the pipeline and the budget, not the cross-camera gain). Results:
   ``train.json``. Time: about 8 min a model, two models (its docstring; train.json: fits of 301 and

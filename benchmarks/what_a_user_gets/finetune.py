@@ -195,7 +195,8 @@ def measure(a: argparse.Namespace, wd: Path, seeds: list[int]) -> tuple[dict[str
             tag = "scratch" if f is None else "fine-tuned" if f == 0.1 else f"fine-tuned-x{f:g}"
             tag += f"-n{n}" if n != N_TRAIN else ""
             out = wd / f"seed{seed}" / (tag if e == 40 else f"{tag}-e{e}")  # the first runs' folder names kept
-            extra = ["--lr", ck["lr"]] if f is None else ["--init", a.model, "--lr", ck["lr"] * f]
+            # --average-init 0: the recipe as recorded (before issue 60 made WiSE-FT averaging --init's default)
+            extra = ["--lr", ck["lr"]] if f is None else ["--init", a.model, "--lr", ck["lr"] * f, "--average-init", 0]
             if not (out / "model.pt").is_file():
                 run(BIN / "vctrain", "fit", *data_args, "--out", out / "model.pt", "--epochs", e,
                     "--val-fraction", 0, "--seed", seed, "--balance", "items", *extra, "-q", env=env)

@@ -51,7 +51,7 @@ HELP = {  # the options whose help does not fit on their line
                  "name order: whole drives, or a stretch of one) or 'auto' (block with --init, else random)",
     "freeze_bn": "keep BatchNorm's running statistics fixed while training (default: off)",
     "average_init": "with --init: OUT holds A x the starting weights + (1 - A) x the trained ones (WiSE-FT; "
-                    "validation scores that average; OUT.last.pt keeps the trained ones for --resume); default: 0",
+                    "validation scores that average; OUT.last.pt keeps the trained ones for --resume); default: 0.5, 0 without --init",
     "balance": "several stores: 'items' (each item once an epoch) or 'datasets' (each store equally often); default: "
                "the recipe's (multicamera: datasets; cpu, paper: items)",
 }

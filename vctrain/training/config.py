@@ -118,7 +118,7 @@ VAL_FRACTION = 0.1  # a run's validation share unless set
 FINETUNE_VAL_FRACTION = 0.0  # fit --init's: every frame trains, the last epoch is kept (own_frames.py: picking an
                              # epoch on a few held-out frames chose worse models than the last)
 FINETUNE_FREEZE_BN = False  # fit --init's default for freeze_bn (benchmarks/what_a_user_gets/own_frames.py)
-FINETUNE_AVERAGE_INIT = 0.0  # fit --init's default for average_init (benchmarks/what_a_user_gets/own_frames.py)
+FINETUNE_AVERAGE_INIT = 0.5  # fit --init's default for average_init: WiSE-FT's (benchmarks/what_a_user_gets/own_frames.py)
 
 ADAPT_EPOCHS = 5       # a short fine-tune
 ADAPT_LR_FACTOR = 0.1  # of the model's own training learning rate (vctrain adapt; vctrain fit --init without --lr)

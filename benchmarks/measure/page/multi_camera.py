@@ -67,6 +67,30 @@ def r_finetune(d: dict) -> list[str]:
     return out + table(["target (issue 34)", "met"], [[k, num(v)] for k, v in d.get("targets", {}).items()])
 
 
+def r_own_frames(d: dict) -> list[str]:
+    """A user's own labelled frames: zero-shot, fine-tuned, the card's old command, from ImageNet
+    (benchmarks/what_a_user_gets/own_frames.py)."""
+    h, frames = d["headline"], d["frames"].split(",")
+    out = [f"{d['split']}; model `{d['model']}` ({'a camera it never saw' if d.get('unseen') else 'a camera it knows'}); "
+           f"seeds {d['seeds']}; road IoU % (precision / recall) as the mean over seeds, and the minutes a fit took on 2 cores."
+           + (f" Fine-tuned with `{d['fit_args']}`." if d.get("fit_args") else ""), ""]
+    rows = []
+    for cond, by_n in d["cells"].items():
+        row = [cond]
+        for n in frames:
+            row.append("-" if n not in by_n else
+                       f"**{num(h[f'{cond}_n{n}_iou'])}** ({h[f'{cond}_n{n}_precision']:.0f} / {h[f'{cond}_n{n}_recall']:.0f}; "
+                       f"{h[f'{cond}_n{n}_minutes']:.1f} min)")
+        rows.append(row)
+    out += table(["condition"] + [f"{n} frames" for n in frames], rows)
+    gains = [f"{n} frames {h[f'fine-tuned_minus_zero-shot_n{n}']:+.1f} ± {h[f'fine-tuned_minus_zero-shot_n{n}_std']:.1f} "
+             f"(worst seed {h[f'fine-tuned_minus_zero-shot_n{n}_min']:+.1f})" for n in frames
+             if f"fine-tuned_minus_zero-shot_n{n}" in h]
+    if gains:
+        out += ["Fine-tuned − zero-shot, paired per seed: " + "; ".join(gains) + ".", ""]
+    return out + table(["target (issue 60)", "met"], [[k, num(v)] for k, v in d.get("targets", {}).items()])
+
+
 def r_loo_diagnose(d: dict) -> list[str]:
     h = d["headline"]
     out = [f"Held out {d['heldout']}, seed {d['seed']}, {h['frames']} frames: road IoU within {pct(h['iou']['within'])} "
