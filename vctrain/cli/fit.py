@@ -29,7 +29,8 @@ CROP_HELP = ("train on random windows of the working image: WxH pixels, a share 
              "height (0.44x1: full height); 1: the whole image; validation and prediction see the whole image "
              "(default: the recipe's: cpu 0.4444x1, the measured design of 'vctrain crossval'; paper: 1)")
 HELP = {  # the options whose help does not fit on their line
-    "out": "best checkpoint (by validation road IoU); the latest epoch goes beside it, for --resume: "
+    "out": "the checkpoint: the best epoch by validation road IoU (the last without validation, --init's default; "
+           "--average-init: averaged with the start); the latest epoch goes beside it, for --resume: "
            "runs/vc.pt -> runs/vc.last.pt",
     "resume": "continue from the latest epoch's checkpoint (runs/vc.last.pt for --out runs/vc.pt) up to --epochs",
     "baseline": "'resize': the paper's baseline, the same network on the original images simply resized (no virtual "
@@ -164,8 +165,7 @@ def fit_cmd(
       vctrain fit stores/camvid_train_fine --crop 0.67 --out runs/vc_fine.pt
       vctrain fit stores/camvid_train --model lite0fpn --out runs/vc_lite0.pt   # ImageNet encoder
       vctrain fit stores/cam_a stores/cam_b stores/cam_c --recipe multicamera --baseline resize --out runs/road.pt
-      vctrain fit --baseline resize --images my/images --labels my/labels --label-format camvid \
-          --init models/road-multicamera/road.pt --out runs/mine_ft.pt   # fine-tune the shipped model
+      vctrain fit --baseline resize --images my/images --labels my/labels --label-format camvid --init models/road-multicamera/road.pt --out runs/mine_ft.pt
     """
     cfg = _fit_config(locals())  # (first: locals() are the options, each named as its TrainConfig field)
     from ..training.loop import fit
