@@ -225,6 +225,9 @@ def test_fit_init_average_holds_the_mean_of_the_start_and_the_trained_weights(tw
         torch.testing.assert_close(b["model"][k], 0.25 * a["model"][k] + 0.75 * last["model"][k])
     r = CliRunner().invoke(app, [*args[:-4], "--average-init", "1", "--out", str(tmp_path / "c.pt")])
     assert r.exit_code != 0 and "average-init must be in [0, 1)" in str(r.exception)
+    r = CliRunner().invoke(app, ["fit", stores[0], "--average-init", "0.5", "--epochs", "1", "--quiet", "--out",
+                                 str(tmp_path / "d.pt")])  # nothing to average with: refused, not ignored
+    assert r.exit_code != 0 and "starts from none" in str(r.exception)
 
 
 def test_fit_init_of_a_resize_model_trains_at_its_working_size(tmp_path, camvid_half):

@@ -442,13 +442,17 @@ def _anchor(cfg: TrainConfig, model: nn.Module, resume: dict[str, Any] | None,
     share = float(cfg.average_init or 0.0)
     if not 0 <= share < 1:
         raise InputError(f"average-init must be in [0, 1), got {share}", None, "use e.g. 0.5, or 0 for none")
-    if share == 0 or (init is None and resume is None):
+    if share == 0:
         return None
     if init is not None:
         return {k: v.detach().clone() for k, v in model.state_dict().items()}
-    record = resume.get("init") or {}
+    record = (resume or {}).get("init") or {}
     if not record.get("path"):
-        return None
+        raise InputError("--average-init averages with the weights a run started from, and this run starts from none",
+                         cfg.resume, "add --init MODEL.pt, or leave --average-init out")
+    if not Path(record["path"]).is_file():
+        raise InputError("the run averages with the checkpoint it started from, which is gone", record["path"],
+                         "put it back, or resume with --average-init 0")
     return load_checkpoint(record["path"])["model"]
 
 
@@ -472,19 +476,37 @@ def _as_saved(model: nn.Module, weights: dict[str, torch.Tensor], anchor: dict[s
     return net
 
 
-def fit(cfg: TrainConfig) -> dict[str, Any]:
-    """Train according to ``cfg``; returns a summary (best val IoU, timings, paths)."""
+def _start(cfg: TrainConfig) -> tuple[int, int, torch.device, Path, Path]:
+    """(rank, world size, device, checkpoint path, log path) of a run; the process group joined
+    when launched by torchrun; a missing output folder refused."""
     rank, world, local_rank = _dist()
-    distributed = world > 1
     device = resolve_device(cfg.device, local_rank)
-    if distributed and not torch.distributed.is_initialized():
+    if world > 1 and not torch.distributed.is_initialized():
         _import_before_group()
         torch.distributed.init_process_group("nccl" if device.type == "cuda" else "gloo")
-    master = rank == 0
     out = Path(cfg.out)
-    if master and not out.parent.is_dir():
+    if rank == 0 and not out.parent.is_dir():
         raise InputError("output folder does not exist", out.parent, "create it first")
-    log_path = Path(cfg.log) if cfg.log else out.with_name(out.stem + ".log.jsonl")
+    return rank, world, device, out, Path(cfg.log) if cfg.log else out.with_name(out.stem + ".log.jsonl")
+
+
+def _score_start(model: nn.Module, loader, device: torch.device, weight: torch.Tensor | None,
+                 say: bool) -> dict[str, Any]:
+    """Epoch 0 of a fine-tuning run with validation: the starting weights' validation metrics (on
+    stderr when ``say``)."""
+    row: dict[str, Any] = {"epoch": 0, "step": 0, "init": True}
+    _validate(row, model, loader, device, weight, -1.0)
+    if say:
+        from vcprep.cliutil import err
+
+        err(f"epoch 0 (the --init weights): val IoU {row['val_iou']:.4f}")
+    return row
+
+
+def fit(cfg: TrainConfig) -> dict[str, Any]:
+    """Train according to ``cfg``; returns a summary (best val IoU, timings, paths)."""
+    rank, world, device, out, log_path = _start(cfg)
+    distributed, master = world > 1, rank == 0
 
     resume = load_checkpoint(cfg.resume) if cfg.resume else None
     init = load_checkpoint(cfg.init) if cfg.init and resume is None else None
@@ -504,8 +526,7 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
     per_rank_batch, steps_per_epoch = _steps_per_epoch(cfg, train_ds, world)
     total_steps = steps_per_epoch * cfg.epochs
     opt = _optimizer(cfg, model)
-    val_loader = torch.utils.data.DataLoader(val_ds, batch_sampler=view_batches(val_ds, range(len(val_ds)),
-                                                                                per_rank_batch),
+    val_loader = torch.utils.data.DataLoader(val_ds, batch_sampler=view_batches(val_ds, range(len(val_ds)), per_rank_batch),
                                              num_workers=cfg.workers)
 
     start_epoch, step, best_iou, best_epoch, history = _resumed(resume, opt)
@@ -514,28 +535,22 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
     loop = _Loop(net, opt, cfg, device, fmt, weight, world, steps_per_epoch, total_steps, cfg.progress and master)
     del net  # the loop holds it (and _leave_group drops it)
 
-    anchor = _anchor(cfg, model, resume, init)
-    share = float(cfg.average_init or 0.0)
+    anchor, share = _anchor(cfg, model, resume, init), float(cfg.average_init or 0.0)
 
-    def checkpoint(epoch: int, metrics: dict[str, Any], weights: dict[str, torch.Tensor] | None = None) -> dict[str, Any]:
-        return {"model": model.state_dict() if weights is None else weights, "model_args": model_args, "config": cfg.to_dict(), "data": info,
+    def checkpoint(epoch: int, metrics: dict[str, Any]) -> dict[str, Any]:
+        return {"model": model.state_dict(), "model_args": model_args, "config": cfg.to_dict(), "data": info,
                 "epoch": epoch, "step": step, "metrics": metrics, "best_iou": best_iou, "best_epoch": best_epoch,
                 "history": history, "optimizer": opt.state_dict(), **({"init": init_from} if init_from else {})}
 
     if init is not None and start_epoch == 0 and len(val_ds):
         # the weights fine-tuning starts from are a candidate too: an epoch replaces them only if it
-        # scores higher on validation, so a few frames cannot leave a model worse than it began
-        row0: dict[str, Any] = {"epoch": 0, "step": 0, "init": True}
-        _validate(row0, model, val_loader, device, weight, best_iou)
+        # scores higher on validation
+        row0 = _score_start(model, val_loader, device, weight, master and cfg.progress)
         best_iou, best_epoch = row0["val_iou"], 0
         history.append(row0)
         if master:
             _write_log(log_path, row0)
             save_checkpoint(out, checkpoint(0, row0))
-            if cfg.progress:
-                from vcprep.cliutil import err
-
-                err(f"epoch 0 (the --init weights): val IoU {row0['val_iou']:.4f}")
     seconds, images = 0.0, 0
     for epoch in range(start_epoch, cfg.epochs):
         loader = _epoch_loader(train_ds, cfg, epoch, rank, world, per_rank_batch)
@@ -544,11 +559,9 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
         if distributed:
             _average_buffers(model, world)
         dt = time.perf_counter() - t0
-        seconds += dt
-        images += n_seen * world
+        seconds, images = seconds + dt, images + n_seen * world
         row: dict[str, Any] = {"epoch": epoch + 1, "step": step, "lr": get_lr(step, total_steps, cfg),
-                               "train_loss": loss_sum / max(n_seen, 1), "seconds": dt,
-                               "images_per_s": n_seen * world / max(dt, 1e-9)}
+                               "train_loss": loss_sum / max(n_seen, 1), "seconds": dt, "images_per_s": n_seen * world / max(dt, 1e-9)}
         saved = _averaged(model, anchor, share)  # what --out holds: the trained weights, or their average with the start
         improved = _validate(row, _as_saved(model, saved, anchor), val_loader, device, weight, best_iou) \
             if len(val_ds) else True
