@@ -165,4 +165,13 @@ def readme_figures(data: dict[str, dict]) -> list[tuple[str, list[str], str]]:
              "shipped_model.png"),
             ("Your first hour, 5 and Concepts: minutes a model, 305 CamVid frames on 2 cores",
              [f"{round(data['as_shipped']['headline']['minutes_per_model'])} min"], "as_shipped.json")]
+    if "own_frames_idd_unseen" in data:  # the route's fine-tuning line
+        d = data["own_frames_idd_unseen"]
+        h, frames = d["headline"], d["frames"].split(",")
+        out += [("Your first hour, 5: fine-tuning the shipped model on a camera it never saw, over it as it is",
+                 [f"{h[f'fine-tuned_minus_zero-shot_n{n}']:+.1f} with {n} frames" for n in frames], "own_frames_idd_unseen.json"),
+                ("Your first hour, 5: the same 60 frames from ImageNet alone, against fine-tuned",
+                 [f"{h['imagenet_n60_iou']:.1f} against {h['fine-tuned_n60_iou']:.1f}"], "own_frames_idd_unseen.json"),
+                ("Your first hour, 5: minutes a fine-tuning on 2 cores",
+                 [f"{h[f'fine-tuned_n{n}_minutes']:.0f} min for {n} frames" for n in frames], "own_frames_idd_unseen.json")]
     return out

@@ -72,7 +72,9 @@ def r_own_frames(d: dict) -> list[str]:
     (benchmarks/what_a_user_gets/own_frames.py)."""
     h, frames = d["headline"], d["frames"].split(",")
     out = [f"{d['split']}; model `{d['model']}` ({'a camera it never saw' if d.get('unseen') else 'a camera it knows'}); "
-           f"seeds {d['seeds']}; road IoU % (precision / recall) as the mean over seeds, and the minutes a fit took on 2 cores."
+           f"seeds {d['seeds']}" + (f" ({d['large_seeds']} for the frame counts beyond the controls')"
+                                     if d.get("large_seeds") not in (None, d["seeds"]) else "")
+           + f"; road IoU % (precision / recall) as the mean over seeds, and the minutes a fit took on 2 cores."
            + (f" Fine-tuned with `{d['fit_args']}`." if d.get("fit_args") else ""), ""]
     rows = []
     for cond, by_n in d["cells"].items():
