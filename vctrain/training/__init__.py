@@ -6,6 +6,7 @@ config      :class:`TrainConfig` (every setting declared once, ``None`` = the re
 data        the training items: reading a store item or a resized frame, decoding, augmenting
 trainset    a run's data: its stores, samples, validation split, working size, window, epoch order
 loop        :func:`fit`: the loop (nanoGPT style), validation, resume, fine-tuning, torchrun
+finetune    starting from a checkpoint: what --init and --resume take from it, the average with the start
 checkpoint  self-describing checkpoints: everything predict and eval need to rebuild the model
 ==========  ==========================================================================================
 

@@ -41,9 +41,7 @@ across processes; rank 0 alone writes checkpoints and logs.
 """
 from __future__ import annotations
 
-import copy
 import gc
-import hashlib
 import json
 import math
 import os
@@ -61,9 +59,10 @@ from tqdm import tqdm
 from vcprep.errors import InputError
 
 from .checkpoint import load_checkpoint, model_from_checkpoint, save_checkpoint
-from .config import (ADAPT_LR_FACTOR, BALANCES, FINETUNE_AVERAGE_INIT, FINETUNE_FREEZE_BN, FINETUNE_VAL_FRACTION,
-                     VAL_FRACTION, DEFAULT_RECIPE, OPTIMIZERS, RECIPES, SCHEDULES, TrainConfig)
+from .config import (BALANCES, FINETUNE_VAL_FRACTION, VAL_FRACTION, DEFAULT_RECIPE, OPTIMIZERS, RECIPES, SCHEDULES,
+                     TrainConfig)
 from .data import RoadDataset, class_frequencies, median_frequency_weights
+from .finetune import anchor_weights, as_saved, averaged, check_init, init_record, unset_from_checkpoints
 from .trainset import MixedViews, crop_size, epoch_order, prepare_data, training_sets, view_batches
 from ..metrics import RoadMetrics
 from ..networks.args import ARCHITECTURES, model_args_for
@@ -195,7 +194,7 @@ def _network(cfg: TrainConfig, resume: dict[str, Any] | None, init: dict[str, An
 
     torch.manual_seed(cfg.seed)
     if init is not None:  # fine-tuning: the checkpoint's network (weights loaded below), a fresh optimiser
-        _check_init(cfg, init, info)
+        check_init(cfg, init, info)
         model_args = init["model_args"]
     model = build_model(model_args)
     if resume is None and init is None and cfg.pretrained:
@@ -205,70 +204,6 @@ def _network(cfg: TrainConfig, resume: dict[str, Any] | None, init: dict[str, An
     elif init is not None:
         model = model_from_checkpoint(init, cfg.init)
     return model, model_args
-
-
-def _check_init(cfg: TrainConfig, init: dict[str, Any], info: dict[str, Any]) -> None:
-    """Refuse an ``init`` checkpoint whose network or domain differs from the run's: architecture,
-    first-block width, input channels, or mode (virtual camera vs resize baseline)."""
-    args = init["model_args"]
-    if cfg.arch != args["arch"]:
-        raise InputError(f"checkpoint is a '{args['arch']}' but --model {cfg.arch} was asked", cfg.init,
-                         f"use --model {args['arch']} or leave --model out")
-    width = int(cfg.base_width or ARCHITECTURES[cfg.arch])
-    if width != int(args["base_width"]):
-        raise InputError(f"checkpoint has width {args['base_width']} but --width {width} was asked", cfg.init,
-                         f"use --width {args['base_width']} or leave --width out")
-    if args["in_channels"] != cfg.in_channels:
-        raise InputError(f"checkpoint takes {args['in_channels']} input channels, the data "
-                         f"{cfg.in_channels}", cfg.init,
-                         "fine-tune with the model's own --vp-channel and --ray-channels settings")
-    mode = (init.get("data") or {}).get("mode", "virtual")
-    if mode != info["mode"]:
-        raise InputError(f"checkpoint was trained in mode '{mode}' but this run is '{info['mode']}'", cfg.init,
-                         "fine-tune a resize model with --baseline resize, a virtual-camera model on stores")
-
-
-def _init_network(cfg: TrainConfig, init: dict[str, Any]) -> None:
-    """Fill the settings a fine-tuning run left unset from the ``init`` checkpoint (in place): the
-    network (``--model``, ``--width``), so :func:`_check_init` only refuses what was asked otherwise;
-    a resize model's working size (the frames' own would show the network another scale than it
-    learnt, and CamVid's 960x720 costs four times the steps); BatchNorm frozen or not
-    (:data:`FINETUNE_FREEZE_BN`); and the learning rate, ``ADAPT_LR_FACTOR`` (a tenth) of the checkpoint's own (benchmarks/what_a_user_gets/finetune.py
-    measured that rule: 20 frames of an unseen camera, +4.2 over training on them from scratch)."""
-    if cfg.lr is None and (init.get("config") or {}).get("lr"):
-        cfg.lr = ADAPT_LR_FACTOR * float(init["config"]["lr"])
-    data = init.get("data") or {}
-    if cfg.size is None and cfg.baseline == "resize" and data.get("mode") == "resize" and data.get("input_size"):
-        cfg.size = tuple(int(v) for v in data["input_size"])  # the scale the model learnt, not the frames' own
-    if cfg.freeze_bn is None:
-        cfg.freeze_bn = FINETUNE_FREEZE_BN
-    if cfg.average_init is None:
-        cfg.average_init = FINETUNE_AVERAGE_INIT
-    if cfg.arch is None:
-        cfg.arch = init["model_args"]["arch"]
-    if cfg.base_width is None and cfg.arch == init["model_args"]["arch"]:
-        cfg.base_width = int(init["model_args"]["base_width"])
-
-
-def _unset_from_checkpoints(cfg: TrainConfig, resume: dict[str, Any] | None, init: dict[str, Any] | None) -> None:
-    """Fill what a run left unset from the checkpoints it starts from (in place), before the recipe
-    fills the rest: a resumed run keeps its own peak rate (a fine-tuning run's too); a fine-tuning run
-    takes its network and rate from ``init`` (:func:`_init_network`)."""
-    if resume is not None and cfg.lr is None:
-        cfg.lr = (resume.get("config") or {}).get("lr")
-    if resume is not None and cfg.arch is None:  # the checkpoint's network, not the recipe's
-        cfg.arch = resume["model_args"]["arch"]
-    for k in ("freeze_bn", "average_init", "val_fraction"):  # a resumed fine-tuning run goes on as it began
-        if resume is not None and getattr(cfg, k) is None:
-            setattr(cfg, k, (resume.get("config") or {}).get(k))
-    if init is not None:
-        _init_network(cfg, init)
-
-
-def _init_record(path: str, init: dict[str, Any]) -> dict[str, Any]:
-    """What a fine-tuned checkpoint records of the one it started from."""
-    return {"path": str(path), "sha256": hashlib.sha256(Path(path).read_bytes()).hexdigest(),
-            "epoch": init.get("epoch"), "best_iou": init.get("best_iou"), "model_args": init["model_args"]}
 
 
 def _validate(row: dict[str, Any], model: nn.Module, loader, device: torch.device, weight: torch.Tensor | None,
@@ -434,48 +369,6 @@ def _steps_per_epoch(cfg: TrainConfig, train_ds: Any, world: int) -> tuple[int, 
     return per_rank_batch, (min(steps, cfg.max_steps) if cfg.max_steps else steps)
 
 
-def _anchor(cfg: TrainConfig, model: nn.Module, resume: dict[str, Any] | None,
-            init: dict[str, Any] | None) -> dict[str, torch.Tensor] | None:
-    """The starting weights a fine-tuning run averages its checkpoint with (``cfg.average_init`` > 0):
-    the ``init`` checkpoint's (the model holds them now), or, resuming, those of the checkpoint its
-    first run started from; None when nothing is averaged."""
-    share = float(cfg.average_init or 0.0)
-    if not 0 <= share < 1:
-        raise InputError(f"average-init must be in [0, 1), got {share}", None, "use e.g. 0.5, or 0 for none")
-    if share == 0:
-        return None
-    if init is not None:
-        return {k: v.detach().clone() for k, v in model.state_dict().items()}
-    record = (resume or {}).get("init") or {}
-    if not record.get("path"):
-        raise InputError("--average-init averages with the weights a run started from, and this run starts from none",
-                         cfg.resume, "add --init MODEL.pt, or leave --average-init out")
-    if not Path(record["path"]).is_file():
-        raise InputError("the run averages with the checkpoint it started from, which is gone", record["path"],
-                         "put it back, or resume with --average-init 0")
-    return load_checkpoint(record["path"])["model"]
-
-
-def _averaged(model: nn.Module, anchor: dict[str, torch.Tensor] | None, share: float) -> dict[str, torch.Tensor]:
-    """The weights a checkpoint holds: ``share`` x the starting weights + (1 - share) x the trained
-    ones (WiSE-FT, Wortsman et al. 2022: the fine-tuned model keeps what the start knew of other
-    drives and cameras), BatchNorm statistics included; the trained ones when nothing is averaged."""
-    state = model.state_dict()
-    if anchor is None:
-        return state
-    return {k: (share * anchor[k].to(v.dtype) + (1 - share) * v) if v.is_floating_point() else v
-            for k, v in state.items()}
-
-
-def _as_saved(model: nn.Module, weights: dict[str, torch.Tensor], anchor: dict[str, torch.Tensor] | None) -> nn.Module:
-    """The network validation scores: the model itself, or a copy holding the averaged weights."""
-    if anchor is None:
-        return model
-    net = copy.deepcopy(model)
-    net.load_state_dict(weights)
-    return net
-
-
 def _start(cfg: TrainConfig) -> tuple[int, int, torch.device, Path, Path]:
     """(rank, world size, device, checkpoint path, log path) of a run; the process group joined
     when launched by torchrun; a missing output folder refused."""
@@ -510,7 +403,7 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
 
     resume = load_checkpoint(cfg.resume) if cfg.resume else None
     init = load_checkpoint(cfg.init) if cfg.init and resume is None else None
-    _unset_from_checkpoints(cfg, resume, init)
+    unset_from_checkpoints(cfg, resume, init)
     resolve_recipe(cfg, device)
     train_s, val_s, info = prepare_data(cfg)
     model, model_args = _network(cfg, resume, init, info)
@@ -531,11 +424,11 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
 
     start_epoch, step, best_iou, best_epoch, history = _resumed(resume, opt)
     # the weights a fine-tuning run started from (a resumed one keeps its first run's record)
-    init_from = (resume or {}).get("init") or (_init_record(cfg.init, init) if init is not None else None)
+    init_from = (resume or {}).get("init") or (init_record(cfg.init, init) if init is not None else None)
     loop = _Loop(net, opt, cfg, device, fmt, weight, world, steps_per_epoch, total_steps, cfg.progress and master)
     del net  # the loop holds it (and _leave_group drops it)
 
-    anchor, share = _anchor(cfg, model, resume, init), float(cfg.average_init or 0.0)
+    anchor, share = anchor_weights(cfg, model, resume, init), float(cfg.average_init or 0.0)
 
     def checkpoint(epoch: int, metrics: dict[str, Any]) -> dict[str, Any]:
         return {"model": model.state_dict(), "model_args": model_args, "config": cfg.to_dict(), "data": info,
@@ -562,8 +455,8 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
         seconds, images = seconds + dt, images + n_seen * world
         row: dict[str, Any] = {"epoch": epoch + 1, "step": step, "lr": get_lr(step, total_steps, cfg),
                                "train_loss": loss_sum / max(n_seen, 1), "seconds": dt, "images_per_s": n_seen * world / max(dt, 1e-9)}
-        saved = _averaged(model, anchor, share)  # what --out holds: the trained weights, or their average with the start
-        improved = _validate(row, _as_saved(model, saved, anchor), val_loader, device, weight, best_iou) \
+        saved = averaged(model, anchor, share)  # what --out holds: the trained weights, or their average with the start
+        improved = _validate(row, as_saved(model, saved, anchor), val_loader, device, weight, best_iou) \
             if len(val_ds) else True
         if improved:
             best_iou, best_epoch = row.get("val_iou", -1.0), epoch + 1
