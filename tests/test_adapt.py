@@ -337,8 +337,8 @@ def test_help_has_an_example(cmd):
 
 def test_the_prior_keeps_its_rectangle_for_a_wider_camera(world, tmp_path):
     """A prior is an image of the training rectangle: `predict --prior` and `adapt` warp a camera
-    wider and steeper than that rectangle into it as it is, while the model's own `predict`
-    extends the rectangle for the same frames."""
+    wider and steeper than that rectangle into it as it is, while the model's own `predict
+    --beyond extend` extends the rectangle for the same frames."""
     from vcprep.camera import Camera
 
     wide = Camera("wide", (160, 120), 56.0, 56.0, 79.5, 59.5, 1.3, tilt=12.0)  # 110 x 94 deg, 12 deg down
@@ -351,7 +351,7 @@ def test_the_prior_keeps_its_rectangle_for_a_wider_camera(world, tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert tuple(Store.open(tmp_path / "kp").store_size) == (prior.shape[1], prior.shape[0])
     proc = run_cli("predict", world / "model.pt", *common, "--out", tmp_path / "pm", "--keep-store", tmp_path / "km",
-                   prog="vctrain")
+                   "--beyond", "extend", prog="vctrain")
     assert proc.returncode == 0, proc.stderr
     km = Store.open(tmp_path / "km").store_size
     assert km[0] > prior.shape[1] and km[1] > prior.shape[0]

@@ -392,16 +392,22 @@ def test_predict_other_camera_lands_on_road(trained, tmp_path):
     assert res["iou"] > 0.6
 
 
-def test_predict_a_wider_steeper_camera_predicts_its_whole_frame(trained, tmp_path):
-    """A camera wider and steeper than the virtual camera the model was trained in: the kept store's virtual camera is the training's extended (same focal
-    length and height), so every pixel of the frame's lower half is inside it: none is scored
-    'not road' for falling outside. (How well a model does there is the benchmarks' question.)"""
-
-    from vcprep.warp import backproject_array
+@pytest.mark.parametrize("beyond", ["hybrid", "rays", "extend"])
+def test_predict_a_wider_steeper_camera_predicts_its_whole_frame(trained, tmp_path, beyond):
+    """A camera wider and steeper than the virtual camera the model was trained in: a third of its
+    frames' lower half lands outside the training rectangle, and none of it is scored 'not road'
+    for that. With --beyond extend the kept store's virtual camera is the training's extended (same
+    focal length and height) to hold them and the network predicts them; with rays the frames are
+    warped into the training rectangle and those pixels take the value where the ray from the road
+    VP leaves it; hybrid (the default) does both: the extended rectangle, rays beyond the training
+    one. (How
+    well a model does there is the benchmarks' question: benchmarks/other_cameras/low_camera.py.)"""
+    from vcprep.warp import backproject_array, backproject_rays
     from vcprep.camera import Camera, camera_to_yaml
     from vcprep.warp import virt_H_src
     from vcprep.store import Store
     from vcprep.camera import same_camera_other_canvas
+    from vctrain.training import vp_in_store
 
     root, store, _ = trained
     # 110 x 94 deg, tilted 12 deg down: beyond the paper's virtual camera (101 x 64 deg) on every side
@@ -410,19 +416,24 @@ def test_predict_a_wider_steeper_camera_predicts_its_whole_frame(trained, tmp_pa
     (tmp_path / "cam.yaml").write_text(camera_to_yaml(cam))
     r = runner.invoke(app, ["predict", str(root / "model.pt"), "--camera", str(tmp_path / "cam.yaml"), "--within",
                             "none", str(tmp_path / "new/images"), "--out", str(tmp_path / "pred"), "--keep-store",
-                            str(tmp_path / "kept"), "--quiet"])
+                            str(tmp_path / "kept"), "--quiet", *(["--beyond", beyond] if beyond != "hybrid" else [])])
     assert r.exit_code == 0, r.output
     kept = Store.open(tmp_path / "kept")
     assert same_camera_other_canvas(kept.params["virtual"], store.params["virtual"])
-    assert kept.store_size[0] > store.store_size[0] and kept.store_size[1] > store.store_size[1]
-    # (in the training's rectangle a third of the lower half would fall outside)
+    if beyond in ("extend", "hybrid"):
+        assert kept.store_size[0] > store.store_size[0] and kept.store_size[1] > store.store_size[1]
+    else:
+        assert kept.params["virtual"] == store.params["virtual"]
+    # (in the training's rectangle a third of the lower half falls outside)
     ys, xs = np.mgrid[60:120, 0:160]
     p = virt_H_src(cam, PRESETS["virtual"].resized(0.02)) @ np.stack([xs.ravel(), ys.ravel(), np.ones(xs.size)])
     u, v = p[0] / p[2], p[1] / p[2]
     assert ((u < -0.5) | (u > store.store_size[0] - 0.5) | (v > store.store_size[1] - 0.5)).mean() > 0.3
     for rec in kept:
         w, h = rec["size"]
-        cover = backproject_array(np.full(tuple(reversed(kept.store_size)), 255, np.uint8), rec, "mask") > 0
+        full = np.ones(tuple(reversed(kept.store_size)), np.float32)
+        cover = (backproject_array(full, rec, "prob") if beyond == "extend" else
+                 backproject_rays(full, rec, vp_in_store(rec))) > 0.999
         assert cover[(h - 1) // 2 + 1:].all()
         assert read_image(tmp_path / "pred" / f"{rec['id']}_mask.png", label=True).array.shape == (h, w)
 

@@ -104,3 +104,44 @@ def test_greyscale_and_16bit_are_kept(dtype, channels):
     # same height and focal: a pure shift by 16 px
     assert np.array_equal(out[:, 16:80], img)
     assert not out[:, :16].any()
+
+
+@pytest.mark.parametrize("offset", [0.0, 1.5])
+def test_rays_give_a_low_cameras_near_road_exactly(offset):
+    """A camera far lower and steeper than the virtual one (0.8 m, 8 deg down, into a 1.21 m level
+    virtual camera's training rectangle): its near road lands below the rectangle. Back-projected
+    with the rays from the road VP (backproject_rays), the exact road mask warped into the
+    rectangle gives the road of the whole frame (a straight road's edges are lines through the VP);
+    plain back-projection loses it, and rays stopped at a smaller rectangle inside (the hybrid rule's
+    training rectangle in a grown one) still give it."""
+    from vcprep.camera import design_virtual_camera
+    from vcprep.store import item_geometry, store_params, warp_arrays
+    from vcprep.warp import apply_homography, backproject_rays, vp_from_pose
+
+    low = Camera("low", (160, 160), 154.0, 206.0, 79.5, 79.5, 0.8, tilt=8.0)
+    scene = RoadScene(offset=offset, width=6.0)
+    img, lab = render_road(low, scene, supersample=1)
+    trained = design_virtual_camera([PRESETS["camvid"]], 5, 3, above=6).camera
+    grown = trained.to_dict()
+    grown.update(image_size=[trained.size[0] + 400, trained.size[1] + 800], cx=trained.cx + 200)
+    from vcprep.camera import camera_from_dict
+
+    for virt, inner in ((trained, None), (camera_from_dict(grown), True)):
+        p = store_params(virt, 0.25)
+        vs = camera_from_dict(p["virtual_scaled"])
+        cam, H = item_geometry(low, low.size, vs, None, 0.0, 8.0)
+        vp = tuple(apply_homography(H, [vp_from_pose(cam, 0.0, 8.0)])[0])
+        rect = None
+        if inner:
+            t = store_params(trained, 0.25)
+            ox = vs.cx - t["virtual_scaled"]["cx"]
+            rect = (ox, 0.0, ox + t["store_size"][0] - 1.0, t["store_size"][1] - 1.0)
+        item = warp_arrays(img, lab, tuple(p["store_size"]), H, "projective", vp, 0)
+        rec = {"H": H.ravel().tolist(), "size": list(low.size), "store_size": p["store_size"]}
+        prob = (item.label == 1).astype(np.float32)
+        got = backproject_rays(prob, rec, vp, rect=rect) >= 0.5
+        truth = lab == 1
+        assert (got & truth).sum() / (got | truth).sum() > 0.99
+        if inner is None:  # the near road outside the training rectangle: plain back-projection says 'not road'
+            plain = backproject_array(prob, rec, "prob") >= 0.5
+            assert (plain & truth)[120:].sum() < 0.5 * truth[120:].sum()

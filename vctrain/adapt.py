@@ -59,7 +59,7 @@ class PriorPredictor:
     (``mode``, ``data``, ``path``, ``store_item``). Its description (``<prior>.json``, written by
     ``vcprep prior``) gives the virtual camera, scale and VP mode that images are warped with."""
 
-    fixed_rectangle = True  # p_g is an image of one rectangle: images are warped into it, never an extension
+    beyond_rule = None  # p_g is an image of one rectangle: images are warped into it, 0 outside it
 
     mode = "virtual"
     vp_channel = False

@@ -8,7 +8,7 @@ Modules, in the order the data flows: :mod:`.homography` (``virt_H_src``, poses 
 """
 from __future__ import annotations
 
-from .backproject import backproject_array, backproject_folder
+from .backproject import backproject_array, backproject_folder, backproject_rays, ray_clamped
 from .completion import (COMPLETION_VERSION, CompletionMaps, METHODS, border_ignore, check_method, complete_maps,
                          completion_maps, store_vp)
 from .completion_rays import LABEL_RIM, exit_points_rectangle, label_exit_points
@@ -17,7 +17,7 @@ from .homography import (apply_homography, check_not_folded, ground_to_image, po
                          virtual_at_scale, vp_from_pose)
 from .remap import OUTSIDE, build_maps, maps_for, source_coordinates, warp_image, warp_label
 
-__all__ = ["backproject_array", "backproject_folder", "COMPLETION_VERSION", "CompletionMaps", "METHODS",
+__all__ = ["backproject_array", "backproject_rays", "ray_clamped", "backproject_folder", "COMPLETION_VERSION", "CompletionMaps", "METHODS",
            "border_ignore", "check_method", "complete_maps", "completion_maps", "store_vp", "LABEL_RIM",
            "exit_points_rectangle", "label_exit_points", "TABLE_ARC", "TABLE_COLS", "apply_homography",
            "check_not_folded", "ground_to_image", "pose_axes", "pose_from_vp", "virt_H_src", "virtual_at_scale",

@@ -28,7 +28,7 @@ from ..errors import InputError
 from ..io.images import read_image, write_png
 from ..store.layout import Store
 
-__all__ = ["src_H_virt", "backproject_array", "backproject_folder"]
+__all__ = ["src_H_virt", "backproject_array", "ray_clamped", "backproject_rays", "backproject_folder"]
 
 
 def src_H_virt(record: dict) -> np.ndarray:
@@ -52,6 +52,52 @@ def backproject_array(arr: np.ndarray, record: dict, kind: str = "mask", fill: i
     interp = cv2.INTER_NEAREST if kind == "mask" else cv2.INTER_LINEAR
     return cv2.warpPerspective(arr, H, (int(w), int(h)), flags=interp | cv2.WARP_INVERSE_MAP,
                                borderMode=cv2.BORDER_CONSTANT, borderValue=fill)
+
+
+def ray_clamped(x: np.ndarray, y: np.ndarray, centre: tuple[float, float],
+                rect: tuple[float, float, float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """Store coordinates ``x``, ``y`` (float64 arrays) moved onto ``rect`` = (x0, y0, x1, y1) along
+    the ray from ``centre`` (inside it): a point outside goes to where that ray leaves the rectangle,
+    a point inside stays. Non-finite points stay non-finite."""
+    cx, cy = float(centre[0]), float(centre[1])
+    dx, dy = x - cx, y - cy
+    s = np.ones_like(dx)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for d, lo, hi, c in ((dx, rect[0], rect[2], cx), (dy, rect[1], rect[3], cy)):
+            s = np.minimum(s, np.where(d > 0, (hi - c) / np.where(d > 0, d, 1.0), np.inf))
+            s = np.minimum(s, np.where(d < 0, (lo - c) / np.where(d < 0, d, 1.0), np.inf))
+    s = np.clip(s, 0.0, 1.0)
+    return cx + s * dx, cy + s * dy
+
+
+def backproject_rays(arr: np.ndarray, record: dict, vp: tuple[float, float], fill: float = 0.0,
+                     rect: tuple[float, float, float, float] | None = None) -> np.ndarray:
+    """A store-sized probability map in the source image of ``record``, bilinear as
+    ``backproject_array(..., kind='prob')``, except that a source pixel whose store position lies
+    outside the store image takes the value where the ray from ``vp`` (the road VP in store pixels)
+    through that position leaves the image (its outermost pixel centres, :func:`ray_clamped`): the
+    projective completion's rule (method.md, section 4.3) run backwards. Road edges are lines
+    through the VP, so the road a low camera sees below the rectangle, or a wide one beside it,
+    continues the road at the rectangle's edge. ``rect`` (x0, y0, x1, y1 pixel centres; default the
+    whole store image): a smaller rectangle inside the store whose edge the rays stop at. A pixel
+    whose position is undefined (the line H sends to infinity) gets ``fill``."""
+    sw, sh = record["store_size"]
+    if arr.shape[:2] != (sh, sw):
+        raise InputError(f"map is {arr.shape[1]}x{arr.shape[0]} but the store is {sw}x{sh}", record.get("id"),
+                         "back-project maps predicted on this store")
+    w, h = (int(v) for v in record["size"])
+    H = np.asarray(record["H"], dtype=np.float64).reshape(3, 3)
+    u = np.arange(w, dtype=np.float64)[None, :]
+    v = np.arange(h, dtype=np.float64)[:, None]
+    d = H[2, 0] * u + H[2, 1] * v + H[2, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x = (H[0, 0] * u + H[0, 1] * v + H[0, 2]) / d
+        y = (H[1, 0] * u + H[1, 1] * v + H[1, 2]) / d
+    mx, my = ray_clamped(x, y, vp, rect if rect is not None else (0.0, 0.0, sw - 1.0, sh - 1.0))
+    bad = ~(np.isfinite(mx) & np.isfinite(my))
+    mx[bad], my[bad] = -8.0, -8.0  # outside: fill
+    return cv2.remap(np.ascontiguousarray(arr, dtype=np.float32), mx.astype(np.float32), my.astype(np.float32),
+                     cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=fill)
 
 
 def backproject_folder(store: str | Path, masks: str | Path, out: str | Path, kind: str = "mask",

@@ -54,6 +54,11 @@ def predict_cmd(
                                                "fallback and smoothing) is its file name up to the first '_' (name) "
                                                "or its folder (folder: IDD's drives); default: the model's rule"),
     ego: Optional[str] = typer.Option(None, "--ego", help=EGO_HELP),
+    beyond: Optional[str] = typer.Option(None, "--beyond", help="a virtual-camera model, frame pixels outside its "
+                                         "training rectangle (a camera lower, steeper or wider than the training "
+                                         "one): extend (default: the rectangle grown, the network run on it), rays "
+                                         "(P(road) where the ray from the road VP leaves the training rectangle) or "
+                                         "hybrid (the network on the grown rectangle, rays beyond the training one)"),
     threads: Optional[int] = threads_option(),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar"),
 ):
@@ -70,7 +75,8 @@ def predict_cmd(
     --mask-video, OUT/<stem>_mask.mkv; per-frame VPs are smoothed over time. Images are warped
     as a 'vctrain crossval' study tests them (the same masks): per-frame VPs estimated together
     with the model's rule, the own vehicle's rows cut off, the rectangle extended to hold every
-    frame; stderr says which VPs, own vehicle and rectangle were used.
+    frame (--beyond extend; rays and hybrid: see docs/predict-eval.md); stderr says which VPs, own
+    vehicle and rectangle were used.
 
     \b
     Example:
@@ -92,7 +98,7 @@ def predict_cmd(
     result = predict_inputs(checkpoint, images, out, frames_camera, prior=prior, store=store, device=device,
                             keep_store=keep_store, within=within, overlay=overlay, mask_video=mask_video, ego=ego,
                             progress=not quiet, vp_range=vp_range, vp_smooth=vp_smooth, vp_sequences=vp_sequences,
-                            say=None if quiet else (lambda msg: err(f"{out}: {msg}")))
+                            say=None if quiet else (lambda msg: err(f"{out}: {msg}")), beyond=beyond)
     _report(result, out, quiet)
 
 

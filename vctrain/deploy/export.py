@@ -7,7 +7,9 @@ holds everything ``vctrain predict`` does for that camera (:mod:`vctrain.predict
   extended for this camera as ``predict`` does (:func:`vctrain.predict.road.rectangle_views`), with the
   training store's completion; the resize to the working size; :func:`vctrain.training.data.to_input`
   (and the VP channel); the network; softmax; the resize back and the back-projection
-  (:func:`vcprep.warp.backproject.backproject_array` with ``kind="prob"``: bilinear, 0 outside).
+  (bilinear; a frame pixel beyond the training rectangle takes the value where the ray from the
+  road VP leaves it, :func:`vcprep.warp.backproject.ray_clamped`: ``vctrain predict``'s default
+  ``--beyond hybrid``).
   The camera's ``ego_rows`` are cut off before the warp and back-projected like any row.
 - ``resize`` baseline models: resize in, network, softmax, resize back.
 
@@ -21,9 +23,9 @@ table's quantised angle, leaves the source rectangle (:func:`vcprep.warp.complet
 -- once per angle of the table), and a VP outside the image starts the rays from the nearest
 covered pixel moved 10 % toward the centroid, as the library does. Its rectangle is fixed: the
 training's, extended to hold the camera at every pose within ``pose_range`` (pan, tilt degrees)
-of its mount, and so is the box of frame pixels it back-projects to (every pixel that sees the
-store at one of 5 x 5 poses spanning the range, grown by ``BOX_MARGIN``): a frame whose VP lies
-beyond the range gets P(road) cut to both, where ``vctrain predict`` would extend them.
+of its mount; every frame pixel is back-projected (beyond the training rectangle by the rays). A
+frame whose VP lies beyond the range sees less context around the training rectangle than
+``vctrain predict`` would give it (which extends the rectangle for it).
 
 Sampling convention and the layout of the taps: :mod:`vctrain.deploy.graph_ops`. P(road) of a
 two-class network is ``sigmoid(l1 - l0)`` (softmax's value; onnxruntime's channel softmax is
@@ -47,6 +49,7 @@ from torch.nn import functional as F
 
 from vcprep.camera import Camera, camera_from_dict, scale_matrix
 from vcprep.errors import InputError
+from vcprep.warp import ray_clamped
 
 from .graph_ops import (FALLBACK_TOWARD, TABLE_ARC, _backproject_coords, _backproject_grid, _fixed_point,
                         _load_fraction, _padded, _pair_rows, _resize_u8, _sample_f, _sample_u8, _seen_box, _store_fraction,
@@ -57,7 +60,6 @@ from .runtime import (GRAPH_FORMAT, OnnxPredictor, _session,  # noqa: F401
 __all__ = ["OPSET", "RoadGraph", "export_onnx", "OnnxPredictor", "require"]
 
 OPSET = 17
-BOX_MARGIN = 4  # px around the --vp-input graph's back-projection box (poses between the sampled ones)
 
 
 def _sees_store(idx: torch.Tensor, ax: torch.Tensor, ay: torch.Tensor) -> torch.Tensor:
@@ -166,7 +168,7 @@ class RoadGraph(nn.Module):
             out = _sample_f(_padded(prob), Ws, *self._taps_of("back")).reshape(r1 - r0, c1 - c0)
         else:  # only the frame pixels that can see the store at some pose in the range
             r0, r1, c0, c1 = g["back_box"]
-            out = _backproject_grid(prob, H, (r0, r1, c0, c1))
+            out = _backproject_grid(prob, H, (r0, r1, c0, c1), tuple(g["centre"]), tuple(g["rect"]))
         out = F.pad(out, (c0, w - c1, r0, h - r1))
         return out.clamp(0, 1)
 
@@ -221,14 +223,18 @@ def _geometry(predictor, camera: Camera, vp_input: bool, pose_range: tuple[float
     vis = cam.visible_size
     vp_store = tuple(apply_homography(H, [vp_src])[0])
     work = predictor.working_size(store_size)
+    trained = store_params(virtual, float(sp["scale"]))  # the training rectangle inside the grown one: rays beyond it
+    ox = float(vs.cx) - float(trained["virtual_scaled"]["cx"])
+    rect = (ox, 0.0, ox + trained["store_size"][0] - 1.0, trained["store_size"][1] - 1.0)
     g.update(work=list(work), store_size=list(store_size), visible=list(vis), completion=completion,
-             virtual=canvas.to_dict(), scale=float(sp["scale"]), ego_rows=int(cam.ego_rows))
+             virtual=canvas.to_dict(), scale=float(sp["scale"]), ego_rows=int(cam.ego_rows),
+             centre=[float(vs.cx), float(vs.cy)], rect=list(rect))  # every road VP lands on the principal point
     if predictor.vp_channel:
         S = scale_matrix(work[0] / store_size[0], work[1] / store_size[1])
         p = S @ np.array([vp_store[0], vp_store[1], 1.0])
         g["vp_map"] = vp_proximity(work, (p[0], p[1])).astype(np.float32)
     if vp_input:
-        return _vp_geometry(g, cam, vs, H, vp_store, pose_range)
+        return _vp_geometry(g, cam, vs, H, vp_store)
     maps = item_maps(H, vis, store_size, completion, vp_store)
     covered = torch.from_numpy(maps.valid.astype(bool))
     mx, my = torch.from_numpy(maps.exact_maps.map_x), torch.from_numpy(maps.exact_maps.map_y)
@@ -236,7 +242,8 @@ def _geometry(predictor, camera: Camera, vp_input: bool, pose_range: tuple[float
     g["warp_qx"] = torch.where(covered, _fixed_point(mx), mx).numpy()
     g["warp_qy"] = torch.where(covered, _fixed_point(my), my).numpy()
     bx, by = _backproject_coords(torch.tensor(np.asarray(H, dtype=np.float64)), w, h)
-    g["back_qx"], g["back_qy"] = bx.numpy(), by.numpy()
+    bx, by = ray_clamped(bx.double().numpy(), by.double().numpy(), vp_store, rect)
+    g["back_qx"], g["back_qy"] = bx.astype(np.float32), by.astype(np.float32)
     return g
 
 
@@ -266,27 +273,20 @@ def trace_onnx(module: nn.Module, args: tuple, inputs: list[str], outputs: list[
     return buf.getvalue()
 
 
-def _vp_geometry(g: dict[str, Any], cam: Camera, vs: Camera, H: np.ndarray, vp_store: tuple[float, float],
-                 pose_range: tuple[float, float]) -> dict[str, Any]:
+def _vp_geometry(g: dict[str, Any], cam: Camera, vs: Camera, H: np.ndarray,
+                 vp_store: tuple[float, float]) -> dict[str, Any]:
     """What a ``--vp-input`` graph holds besides :func:`_geometry`'s sizes: the camera and the
-    virtual camera's ground homography, the back-projection's box over the pose range and (projective
-    completion) the fill table's angle index seen from the mount pose's ray centre."""
+    virtual camera's ground homography, the back-projection's box (the whole frame: beyond the
+    training rectangle every pixel takes the rays' value) and (projective completion) the fill
+    table's angle index seen from the mount pose's ray centre."""
     from vcprep.warp import completion as C
-    from vcprep.store import item_geometry
     from vcprep.warp import ground_to_image
 
     w, h = g["size"]
     vis, store_size, completion = tuple(g["visible"]), tuple(g["store_size"]), g["completion"]
     g["camera"] = cam
     g["Gv"] = ground_to_image(vs)
-    # the back-projection's box: every frame pixel that sees the store at a pose of the range
-    seen = np.zeros((h, w), bool)
-    for a in np.linspace(-1, 1, 5):
-        for b in np.linspace(-1, 1, 5):
-            _, Hp = item_geometry(cam, (w, h), vs, None, cam.pan + a * pose_range[0], cam.tilt + b * pose_range[1])
-            bx, by = _backproject_coords(torch.tensor(np.asarray(Hp, dtype=np.float64)), w, h)
-            seen |= _sees_store(*_taps(bx.reshape(-1), by.reshape(-1), *store_size)).reshape(h, w).numpy()
-    g["back_box"] = list(_seen_box(seen, BOX_MARGIN))
+    g["back_box"] = [0, h, 0, w]
     if completion == "projective":  # the fill table's angles seen from the mount pose's centre (module doc)
         from vcprep.warp import TABLE_COLS
         from vcprep.warp.completion_tables import _all_angles
@@ -346,7 +346,8 @@ def export_onnx(checkpoint: str | Path, camera: Camera | None, out: str | Path, 
             "inputs": {"frame": ["uint8", [h, w, 3], "BGR"], **({"vp": ["float32", [2], "u, v source px"]}
                                                                  if vp_input else {})},
             "output": {"road_prob": ["float32", [h, w]]},
-            **{k: geom[k] for k in ("work", "store_size", "completion", "ego_rows", "vp_input") if k in geom}}
+            **{k: geom[k] for k in ("work", "store_size", "completion", "ego_rows", "vp_input") if k in geom},
+            **({"beyond": "hybrid"} if geom["mode"] == "virtual" else {})}  # vctrain predict's default rule
     if vp_input and geom["mode"] == "virtual":
         info["pose_range"] = list(pose_range)
     if check:

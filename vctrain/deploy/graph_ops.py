@@ -184,28 +184,46 @@ def _backproject_coords(H: torch.Tensor, w: int, h: int) -> tuple[torch.Tensor, 
     return X.float(), Y.float()
 
 
-def _backproject_grid(prob: torch.Tensor, H: torch.Tensor, box: tuple[int, int, int, int]) -> torch.Tensor:
+def _ray_clamped(X: torch.Tensor, Y: torch.Tensor, centre: tuple[float, float],
+                 rect: tuple[float, float, float, float]) -> tuple[torch.Tensor, torch.Tensor]:
+    """:func:`vcprep.warp.backproject.ray_clamped` as tensor ops: store coordinates outside ``rect``
+    (x0, y0, x1, y1) moved along the ray from ``centre`` to where it leaves the rectangle."""
+    cx, cy = float(centre[0]), float(centre[1])
+    dx, dy = X - cx, Y - cy
+    s = torch.ones_like(dx)
+    big = torch.full_like(dx, 2.0)
+    for d, lo, hi, c in ((dx, rect[0], rect[2], cx), (dy, rect[1], rect[3], cy)):
+        pos, neg = d > 0, d < 0
+        s = torch.minimum(s, torch.where(pos, (hi - c) / torch.where(pos, d, torch.ones_like(d)), big))
+        s = torch.minimum(s, torch.where(neg, (lo - c) / torch.where(neg, d, torch.ones_like(d)), big))
+    s = s.clamp(0, 1)
+    return cx + s * dx, cy + s * dy
+
+
+def _backproject_grid(prob: torch.Tensor, H: torch.Tensor, box: tuple[int, int, int, int], centre: tuple[float, float],
+                      rect: tuple[float, float, float, float]) -> torch.Tensor:
     """P(road) (float32, rows r0:r1, cols c0:c1 of the frame; ``box`` = (r0, r1, c0, c1)) of the
     store map ``prob`` (Hs, Ws) back-projected through ``H`` = virt_H_src: every frame pixel centre
-    sampled bilinearly at ``H @ (u, v, 1)``, 0 outside the store (``kind="prob"``), as
-    :func:`_backproject_coords` with :func:`_sample_f` does, by GridSample (float32 coordinates:
-    ~1e-4 px from float64's, far below the 1e-3 agreement on smooth P maps). A pixel on the line
-    that maps to infinity (W = 0 exactly) divides by 1 instead. Built and sampled in bands of
-    :data:`GRID_BAND` rows: onnxruntime's GridSample takes ~3x longer per pixel on a 1280x712
+    sampled bilinearly at ``H @ (u, v, 1)``, a position outside ``rect`` (the training rectangle in
+    store pixel centres) moved along the ray from ``centre`` (the road VP in store pixels) to its
+    edge (:func:`_ray_clamped`: ``vctrain predict --beyond hybrid``), by GridSample (float32
+    coordinates: ~1e-4 px from float64's, far below the 1e-3 agreement on smooth P maps). A pixel on
+    the line that maps to infinity (W = 0 exactly) divides by 1 instead. Built and sampled in bands
+    of :data:`GRID_BAND` rows: onnxruntime's GridSample takes ~3x longer per pixel on a 1280x712
     grid than on bands, and a band's grid needs no copy into a large one."""
     r0, r1, c0, c1 = box
     Hs, Ws = prob.shape
-    # the store's pixel coordinates to GridSample's normalised ones (align_corners=False) folded into H
-    N = torch.tensor([[2 / Ws, 0, 1 / Ws - 1], [0, 2 / Hs, 1 / Hs - 1], [0, 0, 1]], dtype=torch.float64)
-    G = (N @ H).float()
+    G = H.float()
     u = torch.arange(c0, c1, dtype=torch.float32)[None, :]
     bands = []
     for i in range(r0, r1, GRID_BAND):
         v = torch.arange(i, min(i + GRID_BAND, r1), dtype=torch.float32)[:, None]
         W = G[2, 0] * u + (G[2, 1] * v + G[2, 2])
         inv = 1 / (W + (W == 0).to(torch.float32))
-        gx = ((G[0, 0] * u + (G[0, 1] * v + G[0, 2])) * inv).clamp(-1e4, 1e4)
-        gy = ((G[1, 0] * u + (G[1, 1] * v + G[1, 2])) * inv).clamp(-1e4, 1e4)
+        X = ((G[0, 0] * u + (G[0, 1] * v + G[0, 2])) * inv).clamp(-1e6, 1e6)
+        Y = ((G[1, 0] * u + (G[1, 1] * v + G[1, 2])) * inv).clamp(-1e6, 1e6)
+        X, Y = _ray_clamped(X, Y, centre, rect)
+        gx, gy = (2 * X + 1) / Ws - 1, (2 * Y + 1) / Hs - 1  # GridSample's coordinates (align_corners=False)
         bands.append(F.grid_sample(prob[None, None], torch.stack([gx, gy], -1)[None], mode="bilinear",
                                    padding_mode="zeros", align_corners=False)[0, 0])
     return torch.cat(bands, 0)

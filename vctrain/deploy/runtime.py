@@ -72,7 +72,8 @@ class OnnxPredictor:
 
     def beyond_range(self, vp: tuple[float, float] | None) -> bool:
         """Whether a ``--vp-input`` graph's pose range (``vctrain export --pose-range``) does not
-        hold the pose of ``vp``: the graph's rectangle and back-projection box then cut P(road)."""
+        hold the pose of ``vp``: the graph's rectangle then holds less of the frame than ``vctrain
+        predict``'s (the network sees less context; the rays give every pixel a value)."""
         pose_range = self.info.get("pose_range")
         if vp is None or not pose_range:
             return False

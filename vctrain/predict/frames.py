@@ -6,11 +6,22 @@ same code and the same numbers: the frame's pose (the camera's average pose, or 
 ``virt_H_src`` and its fold check (:func:`vcprep.store.build.item_geometry`), the warp + the checkpoint's
 completion in one remap (:func:`vcprep.store.build.warp_arrays`, the body of the store build; maps are
 cached, so a fixed pose builds them once), the network on the warped uint8 image (what the store's
-PNG holds, bit for bit) and the back-projection (:func:`vcprep.warp.backproject.backproject_array`).
-The virtual camera's rectangle is the training's, extended to hold the frame's lower half at its
-pose (:func:`vcprep.camera.virtual.extend_canvas`; a folder's frames share the rectangle
-of :func:`vctrain.predict.road.rectangle_views`): poses known in advance are given at construction; a later frame whose pose does
-not fit grows the rectangle, so after a whole video it is the one the folder path would use.
+PNG holds, bit for bit) and the back-projection (:func:`back_to_frame`).
+
+What a frame pixel that lands outside the training rectangle gets is the model's ``beyond`` rule
+(:data:`BEYOND`; ``vctrain predict --beyond``; measured by benchmarks/other_cameras/low_camera.py):
+
+* ``extend`` (the default; what a study scores and an exported graph holds): the rectangle grown
+  to hold the frame's lower half at its pose (:func:`vcprep.camera.virtual.extend_canvas`; a
+  folder's frames share the rectangle of :func:`vctrain.predict.road.rectangle_views`; a later
+  video frame whose pose does not fit grows it), the network run on rows no training image filled;
+* ``rays``: the network runs on the training rectangle only; such a pixel takes P(road) where the
+  ray from the road VP through it leaves the rectangle (:func:`vcprep.warp.backproject.backproject_rays`:
+  the projective completion's rule run backwards; road edges are lines through the VP);
+* ``hybrid``: the network on the grown rectangle (its context), such a pixel by the rays from the
+  training rectangle's edge within it.
+
+The geometric prior (an image of the training rectangle) gives such pixels 0.
 
 :class:`StreamingVPs` gives a video's frames their road VPs with the sequence rules of
 :mod:`vcprep.vp` (:func:`~vcprep.vp.estimate_vp`,
@@ -29,7 +40,7 @@ from typing import Any, Iterable
 
 import numpy as np
 
-from vcprep.warp import backproject_array
+from vcprep.warp import backproject_array, backproject_rays
 from vcprep.store import item_geometry, store_params, warp_arrays
 from vcprep.camera import Camera, camera_from_dict
 from vcprep.errors import InputError
@@ -39,7 +50,12 @@ from vcprep.camera import extend_canvas
 
 from ..training.data import vp_in_store
 
-__all__ = ["StageTimes", "FramePredictor", "StreamingVPs", "warps_frames", "reads_road_vps"]
+__all__ = ["StageTimes", "FramePredictor", "StreamingVPs", "warps_frames", "reads_road_vps", "BEYOND",
+           "DEFAULT_BEYOND", "extends", "back_to_frame"]
+
+# what a virtual-camera model predicts for frame pixels outside its training rectangle (module docstring)
+BEYOND = ("extend", "rays", "hybrid")
+DEFAULT_BEYOND = "hybrid"
 
 # the fix of every "this model needs the camera of the frames" error: an uncalibrated camera is estimated
 NEEDS_CAMERA = "add --camera: a preset, a calibration file, or 'estimate' (from these frames, no calibration needed)"
@@ -96,8 +112,8 @@ class FramePredictor:
         self._trained = camera_from_dict(sp["virtual"], predictor.path)
         self._scale = float(sp["scale"])
         self._completion = predictor.data.get("completion", "none")
-        # a prior is an image of the training rectangle: frames are warped into it as it is
-        self._extend = not getattr(predictor, "fixed_rectangle", False)
+        self._beyond = getattr(predictor, "beyond_rule", None)  # None: the prior (0 outside its rectangle)
+        self._extend = self._beyond in ("extend", "hybrid")
         if views is not None:
             self._views = list(views)
         else:
@@ -111,6 +127,15 @@ class FramePredictor:
         # the scaled camera exactly as a store holds it (Store.virtual reads this dict)
         self._virtual_scaled = camera_from_dict(params["virtual_scaled"])
         self.store_size = (int(params["store_size"][0]), int(params["store_size"][1]))
+
+    def _training_rect(self) -> tuple[float, float, float, float] | None:
+        """The training rectangle inside the (grown) store image, in store pixel centres: where the
+        ``hybrid`` rule's rays stop (None for the other rules: the store image's own edge)."""
+        if self._beyond != "hybrid":
+            return None
+        trained = store_params(self._trained, self._scale)
+        ox = self._virtual_scaled.cx - float(trained["virtual_scaled"]["cx"])  # the rectangle grows left, right, down
+        return (ox, 0.0, ox + trained["store_size"][0] - 1.0, trained["store_size"][1] - 1.0)
 
     def _fit_canvas(self, pan: float, tilt: float) -> None:
         """Grow the rectangle when the frame at (pan, tilt) does not fit: the training's rectangle
@@ -174,13 +199,33 @@ class FramePredictor:
         else:  # the geometric prior: P(road) is p_g itself
             prob = p.prior
         t2 = time.perf_counter()
-        out = np.clip(backproject_array(prob, rec, kind="prob"), 0.0, 1.0)
+        out = back_to_frame(prob, rec, self._beyond, rect=self._training_rect())
         t3 = time.perf_counter()
         self.times.warp += t1 - t0
         self.times.network += t2 - t1
         self.times.backproject += t3 - t2
         self.times.frames += 1
         return out
+
+
+def extends(predictor: Any) -> bool:
+    """Whether frames are warped into a rectangle grown to hold them (``extend``, ``hybrid``) rather
+    than the training's (``rays``; the prior's one image)."""
+    return warps_frames(predictor) and getattr(predictor, "beyond_rule", None) in ("extend", "hybrid")
+
+
+def back_to_frame(prob: np.ndarray, rec: dict[str, Any], beyond: str | None,
+                  vp_store: tuple[float, float] | None = None,
+                  rect: tuple[float, float, float, float] | None = None) -> np.ndarray:
+    """P(road) of a store-sized map in the frame of the store record ``rec`` (float32 in [0, 1]):
+    bilinear, and outside the store by the ``beyond`` rule (module docstring: ``rays``/``hybrid``
+    from the road VP in store pixels, ``vp_store``, else the record's, to the store's edge or
+    ``rect``'s; otherwise 0)."""
+    if beyond in ("rays", "hybrid"):
+        out = backproject_rays(prob, rec, vp_in_store(rec) if vp_store is None else vp_store, rect=rect)
+    else:
+        out = backproject_array(prob, rec, kind="prob")
+    return np.clip(out, 0.0, 1.0)
 
 
 def refuse_mixed(predictor: Any) -> None:

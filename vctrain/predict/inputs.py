@@ -55,14 +55,15 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
                    overlay: bool = False, mask_video: bool = False, ego: Optional[str] = None,
                    progress: bool = True, vp_range: Optional[tuple[float, float]] = None,
                    vp_smooth: Optional[int] = None, vp_sequences: Optional[str] = None,
-                   say: Optional[Callable[[str], None]] = None) -> Predicted:
+                   say: Optional[Callable[[str], None]] = None, beyond: Optional[str] = None) -> Predicted:
     """``vctrain predict``: ``checkpoint`` (a ``.pt`` model or an ``.onnx`` graph; with ``prior``
     it is the first image) on ``images`` (files, folders, videos) or every item of ``store``.
     ``camera_for`` (None: no --camera) gives the frames' camera. ``vp_range`` (pan, tilt degrees),
     ``vp_smooth`` (frames either side) and ``vp_sequences`` ('name', 'folder') change the rule
     estimated VPs follow (default: the model's, :func:`vctrain.predict.road.model_vp_rule`); ``say``
-    (given) hears which VPs, own vehicle and rectangle image files were warped with. Bad
-    combinations raise :class:`InputError` before anything is predicted."""
+    (given) hears which VPs, own vehicle and rectangle image files were warped with. ``beyond``
+    (a virtual-camera model only): the rule for frame pixels outside its training rectangle
+    (:data:`vctrain.predict.frames.BEYOND`; None: the default, extend). Bad combinations raise :class:`InputError` before anything is predicted."""
     if prior is not None:
         if checkpoint is not None and checkpoint.suffix.lower() == ".pt":
             raise InputError("give either a model or --prior, not both", checkpoint, "drop one of them")
@@ -86,6 +87,8 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
     videos = check_video_stems([p for p in images or [] if is_video(p)])
     images = [p for p in images or [] if not is_video(p)]
     predictor = _predictor(checkpoint, prior, device)
+    if beyond is not None:
+        _set_beyond(predictor, beyond, checkpoint if prior is None else prior)
     if store is None:  # (frames: a study's candidate model takes stores only, said before any frame is read)
         from .frames import refuse_mixed
 
@@ -105,6 +108,19 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
 
         record_predictions(Path(out), prior if prior is not None else checkpoint, result.masks)
     return result
+
+
+def _set_beyond(predictor: Any, beyond: str, path: Path) -> None:
+    """``--beyond``: checked, and given to a virtual-camera model (the only kind it concerns)."""
+    from .frames import BEYOND
+
+    if beyond not in BEYOND:
+        raise InputError(f"unknown --beyond '{beyond}'", None, f"use one of {', '.join(BEYOND)}")
+    if getattr(predictor, "beyond_rule", None) is None or getattr(predictor, "mode", None) != "virtual" \
+            or getattr(predictor, "takes_frames", False):
+        raise InputError("--beyond is for a virtual-camera model (.pt); a resize model, the prior and an "
+                         "exported graph (rays, inside it) have no choice to make", path, "drop --beyond")
+    predictor.beyond_rule = beyond
 
 
 def _remove_empty(out: Path) -> None:
@@ -164,7 +180,7 @@ def _source(predictor, prior: Optional[Path]) -> str:
     if predictor.beyond:
         pan, tilt = predictor.info["pose_range"]
         source += (f"; {count(predictor.beyond, 'frame')} with a VP beyond the graph's pose range ({pan:g}, {tilt:g} deg):"
-                   " P(road) cut to its rectangle, export with a larger --pose-range")
+                   " its rectangle holds less of them than vctrain predict's, export with a larger --pose-range")
     return source
 
 

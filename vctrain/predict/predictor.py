@@ -4,7 +4,8 @@ The preprocessing is the checkpoint's own (no repeated flags):
 
 - ``virtual`` models run on images of their virtual camera, resized to the working size if it
   differs; the road probability is back-projected to every source pixel
-  (:func:`vcprep.warp.backproject_array`, bilinear; pixels outside the virtual image get 0).
+  (bilinear; pixels outside the training rectangle by the model's ``beyond`` rule, rays from the
+  road VP by default: :func:`vctrain.predict.frames.back_to_frame`).
 - ``resize`` baseline models: the image is resized to the working size, inferred, and the
   probability resized back (bilinear).
 - ``mixed`` models (trained on both views, :class:`vctrain.training.trainset.MixedViews`): on a store item, the
@@ -29,7 +30,6 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from vcprep.warp import backproject_array
 from vcprep.dataset import Job, collect_images
 from vcprep.store import WarpSettings, warp_dataset
 from vcprep.camera import Camera, FrameCameras, camera_from_dict, scale_matrix
@@ -42,7 +42,7 @@ from ..training.checkpoint import load_checkpoint, model_from_checkpoint
 from ..training.data import ray_angles, resize_pair, source_focal, to_input, vp_in_store, vp_proximity
 from ..networks.build import fold_batchnorm
 from ..training.loop import resolve_device
-from .frames import NEEDS_CAMERA, refuse_mixed, warps_frames
+from .frames import DEFAULT_BEYOND, NEEDS_CAMERA, back_to_frame, extends, refuse_mixed, warps_frames
 from .road import (RoadRun, frames_canvas, geometry_line, model_vp_rule, out_dir, run_road, virtual_within,
                    write_prediction)
 
@@ -51,7 +51,7 @@ from .road import (RoadRun, frames_canvas, geometry_line, model_vp_rule, out_dir
 class Predictor:
     """A checkpoint's model plus its input conventions."""
 
-    fixed_rectangle = False  # a model runs on any rectangle of its virtual camera (a prior: True, one image)
+    beyond_rule = DEFAULT_BEYOND  # frame pixels outside the training rectangle (vctrain.predict.frames: BEYOND)
 
     def __init__(self, checkpoint: str | Path, device: str = "auto"):
         self.path = Path(checkpoint)
@@ -133,9 +133,19 @@ class Predictor:
         img = read_image(store.path(rec["image"])).array
         vs = store.params.get("virtual_scaled") or {}
         focal = (vs["fx"], vs["fy"]) if vs.get("fx") else None
-        prob = self.road_probability(img, vp_in_store(rec, store), self.working_size((img.shape[1], img.shape[0])),
-                                     focal)
-        return np.clip(backproject_array(prob, rec, kind="prob"), 0.0, 1.0)
+        vp = vp_in_store(rec, store)
+        prob = self.road_probability(img, vp, self.working_size((img.shape[1], img.shape[0])), focal)
+        return back_to_frame(prob, rec, self.beyond_rule, vp, self._training_rect(store))
+
+    def _training_rect(self, store: Store) -> tuple[float, float, float, float] | None:
+        """The ``hybrid`` rule's training rectangle inside ``store``'s (grown) image, in store pixel
+        centres (:meth:`vctrain.predict.frames.FramePredictor._training_rect`); None otherwise."""
+        trained = (self.data.get("store_params") or {}).get("virtual_scaled")
+        if self.beyond_rule != "hybrid" or not trained:
+            return None
+        ox = float(store.params["virtual_scaled"]["cx"]) - float(trained["cx"])
+        w, h = self.data["store_params"]["store_size"]
+        return (ox, 0.0, ox + w - 1.0, h - 1.0)
 
 
 def predict_store(predictor: Predictor, store: Store, out: str | Path, progress: bool = True,
@@ -150,7 +160,7 @@ def predict_store(predictor: Predictor, store: Store, out: str | Path, progress:
         if store.params.get("scale") != sp.get("scale"):
             raise InputError("store has another scale than the model's training store", store.root,
                              "predict from the images with --camera (they are warped as the model expects)")
-        other_rectangle = (not predictor.fixed_rectangle
+        other_rectangle = (getattr(predictor, "beyond_rule", None) is not None
                            and same_camera_other_canvas(store.params.get("virtual"), sp.get("virtual")))
         if store.params.get("virtual") != sp.get("virtual") and not other_rectangle:
             raise InputError("store has another virtual camera than the model's training store", store.root,
@@ -181,7 +191,7 @@ def predict_frames(predictor: Any, images: Iterable[str | Path], out: str | Path
                          NEEDS_CAMERA)
     jobs = collect_images(images)
     store = warp_like_training(predictor.data, predictor.path, jobs, camera, keep_store, within, progress,
-                               extend=not getattr(predictor, "fixed_rectangle", False), vp_rule=vp_rule)
+                               extend=extends(predictor), vp_rule=vp_rule)
     if say is not None:
         say(geometry_line(warp_geometry(store), model_vp_rule(predictor.data, vp_rule)[1], ego_source))
     return RoadRun(predict_store(predictor, store, out, progress, ids=[j.id for j in jobs], overlay=overlay))

@@ -6,8 +6,10 @@ the network, back-projection to the frame's own pixels, write. One set of checks
 all of them:
 
 * which VPs the frames get (:func:`within_rule`): the model's own rule for ``--within auto``;
-* the virtual camera's rectangle: the training's, extended once for every frame of the folder at
-  the pose it is warped with (:func:`rectangle_views`), so all frames share one rectangle;
+* the virtual camera's rectangle: the training's, and beyond it the model's rule
+  (:mod:`vctrain.predict.frames`; ``extend``, the default: the rectangle extended once for every
+  frame of the folder at the pose it is warped with, :func:`rectangle_views`, so all frames share
+  one rectangle);
 * a frame that cannot be read or predicted is skipped: its outputs are removed, the other frames
   are still predicted, and :class:`RoadRun` names it (``vctrain predict`` says it on stderr and
   exits 1).
@@ -34,7 +36,7 @@ from vcprep.io import image_size, read_image, write_png
 from vcprep.vp import frame_poses as poses_of
 from vcprep.warp import pose_from_vp
 
-from .frames import NEEDS_CAMERA, FramePredictor, warps_frames
+from .frames import NEEDS_CAMERA, FramePredictor, extends, warps_frames
 
 __all__ = ["own_vehicle", "ego_rows", "frames_ego_rows", "rows_at", "folder_ego_camera", "RoadRun", "skipped_lines", "within_rule", "virtual_within",
            "model_vp_rule", "frame_poses", "rectangle_views", "frames_canvas", "geometry_line", "run_road",
@@ -368,7 +370,7 @@ def run_road(predictor: Any, images: Iterable[str | Path], out: str | Path,
     poses = frame_poses(predictor, jobs, camera if camera is not None else getattr(predictor, "camera", None), rule,
                         vp_rule, run.fail)
     views = None
-    if warps_frames(predictor) and not getattr(predictor, "fixed_rectangle", False):
+    if extends(predictor):
         views = rectangle_views([j for j in jobs if rule == "none" or j.id in poses], camera, poses, run.fail)
     bad = {str(f) for f, _ in run.failed}
     fps: dict = {}

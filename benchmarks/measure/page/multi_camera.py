@@ -93,6 +93,31 @@ def r_own_frames(d: dict) -> list[str]:
     return out + table(["target (issue 60)", "met"], [[k, num(v)] for k, v in d.get("targets", {}).items()])
 
 
+def r_low_camera(d: dict) -> list[str]:
+    """A camera lower than the training one: each ``--beyond`` rule on LUMS and on CamVid val declared
+    lower (benchmarks/other_cameras/low_camera.py)."""
+    iou, seeds = d["iou"], d["seeds"]
+    names = list(dict.fromkeys(k.split("|")[0] for k in iou))
+    rules = list(dict.fromkeys(k.split("|")[1] for k in iou))
+    out = [f"The README route's models (CamVid train minus 0001TP, the camvid camera at 1.21 m), seeds {seeds}; "
+           "road IoU % as the mean over seeds (per seed in brackets). `sim-<h>`: CamVid val with the camera "
+           "declared at h metres (exact: the same frames from a camera at h in a world scaled by h / 1.21); the "
+           "resize twin sees the same pixels at every h.", ""]
+    out += table(["`--beyond`"] + names, [[r] + [f"{num(sum(iou[f'{n}|{r}']) / len(iou[f'{n}|{r}']))} ("
+                                                  + " / ".join(f"{x:.1f}" for x in iou[f"{n}|{r}"]) + ")"
+                                                  for n in names] for r in rules])
+    rows = []
+    for r in rules:
+        per_seed = d["bands"].get(f"lums|{r}")
+        if per_seed:
+            acc = [[sum(s[b][k] for s in per_seed) for k in (0, 1)] for b in range(len(per_seed[0]))]
+            rows.append([r] + [num(100 * i / max(u, 1)) for i, u in acc])
+    if rows:
+        out += ["LUMS, road IoU % in the bands of the lower half of the frame (top to bottom):", ""]
+        out += table(["`--beyond`"] + [f"rows {4 + b}/8" for b in range(len(rows[0]) - 1)], rows)
+    return out
+
+
 def r_loo_diagnose(d: dict) -> list[str]:
     h = d["headline"]
     out = [f"Held out {d['heldout']}, seed {d['seed']}, {h['frames']} frames: road IoU within {pct(h['iou']['within'])} "
