@@ -438,6 +438,19 @@ def test_predict_a_wider_steeper_camera_predicts_its_whole_frame(trained, tmp_pa
         assert read_image(tmp_path / "pred" / f"{rec['id']}_mask.png", label=True).array.shape == (h, w)
 
 
+def test_predict_beyond_is_checked(trained, tmp_path):
+    """--beyond: an unknown rule, and a model that has no rectangle to go beyond (the prior), are
+    refused with one line naming the fix, before anything is written."""
+    from conftest import assert_one_error_line, run_cli
+
+    root, store, _ = trained
+    image = next(iter(store))["source"]
+    proc = run_cli("predict", root / "model.pt", "--camera", "camvid", image, "--out", tmp_path / "p", "--beyond",
+                   "sideways", prog="vctrain")
+    assert_one_error_line(proc, "unknown --beyond 'sideways'", "extend, rays, hybrid")
+    assert not (tmp_path / "p").exists()
+
+
 def test_predict_store_and_resize_baseline(trained, tmp_path):
     root, store, _ = trained
     r = runner.invoke(app, ["predict", str(root / "model.pt"), "--store", str(root / "store"),
