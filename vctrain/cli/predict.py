@@ -56,9 +56,10 @@ def predict_cmd(
     ego: Optional[str] = typer.Option(None, "--ego", help=EGO_HELP),
     beyond: Optional[str] = typer.Option(None, "--beyond", help="a virtual-camera model, frame pixels outside its "
                                          "training rectangle (a camera lower, steeper or wider than the training "
-                                         "one): extend (default: the rectangle grown, the network run on it), rays "
-                                         "(P(road) where the ray from the road VP leaves the training rectangle) or "
-                                         "hybrid (the network on the grown rectangle, rays beyond the training one)"),
+                                         "one): hybrid (default: the network on the grown rectangle, P(road) where "
+                                         "the ray from the road VP leaves the training rectangle beyond it), extend "
+                                         "(the network's own values there) or rays (the network on the training "
+                                         "rectangle alone, rays beyond it)"),
     threads: Optional[int] = threads_option(),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar"),
 ):
@@ -75,14 +76,16 @@ def predict_cmd(
     --mask-video, OUT/<stem>_mask.mkv; per-frame VPs are smoothed over time. Images are warped
     as a 'vctrain crossval' study tests them (the same masks): per-frame VPs estimated together
     with the model's rule, the own vehicle's rows cut off, the rectangle extended to hold every
-    frame (--beyond extend; rays and hybrid: see docs/predict-eval.md); stderr says which VPs, own
-    vehicle and rectangle were used.
+    frame; a frame pixel beyond the training rectangle takes P(road) where the ray from the road VP
+    through it leaves that rectangle (--beyond hybrid; extend and rays: docs/predict-eval.md);
+    stderr says which VPs, own vehicle and rectangle were used.
 
     \b
     Example:
       vctrain predict models/road-multicamera/road.pt my/frames --out preds --overlay   # the shipped model
       vctrain predict models/road-multicamera/road.pt dashcam/ --ego auto --out preds/dashcam   # bonnet cut off
       vctrain predict runs/vc.pt --camera kitti data/kitti/image_2 --out preds/kitti
+      vctrain predict runs/vc.pt --camera low.yaml frames/ --beyond rays --out preds/low   # far below the training camera
       vctrain predict runs/vc.pt --store stores/camvid_val --out preds/camvid_val
       vctrain predict --prior prior.npy --camera kitti data/kitti/image_2 --out preds/geoprior
       vctrain predict runs/vc.pt --camera camvid drive.mp4 --overlay --out preds/drive
