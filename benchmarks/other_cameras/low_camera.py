@@ -118,7 +118,7 @@ def main() -> None:
     tests = sets(wd, a.quick)
     cells: dict[str, dict[str, list]] = {}
     for seed in seeds:
-        sd = a.workdir / (f"seed{seed}-e1" if a.quick else f"seed{seed}")
+        sd = a.workdir / ("quick" if a.quick else "") / (f"seed{seed}-e1" if a.quick else f"seed{seed}")
         for m in ("vc.pt", "resize.pt"):
             if not (sd / m).exists():
                 sys.exit(f"{sd / m}: missing: run benchmarks/what_a_user_gets/user_route.py --seeds {a.seeds} first")
