@@ -14,7 +14,7 @@ from ..training.config import TrainConfig
 from .common import LABEL_FORMAT_HELP, TRAIN, app, parse_size, path_or_json, pin_threads, threads_option
 
 RECIPE_HELP = ("defaults of every setting below: 'cpu' (resfpn, AdamW, cosine, augmentation, full-height windows of "
-               "4/9 of the width; 305 CamVid frames in about 7 min on 2 cores at the default store's 638x271), "
+               "4/9 of the width; 305 CamVid frames in about 3 min on 2 cores at the default store's 638x271), "
                "'multicamera' (several cameras merged, the shipped model's recipe: cpu with the ImageNet-pretrained "
                "lite0fpn, 30 epochs, --balance datasets, --shading-aug 0.4) or 'paper' (segnet, SGD 0.005, poly, "
                "whole images); default: cpu on every device, a GPU included")
@@ -155,11 +155,11 @@ def fit_cmd(
     given wins. The checkpoint describes itself (model, config, virtual camera, scale, completion,
     metrics), so predict and eval need no repeated flags. Prints the checkpoint path; OUT's folder
     is created. 'torchrun --nproc-per-node N vctrain fit ...' trains data-parallel. Time (cpu
-    recipe, 2 cores): about 7 minutes for 305 CamVid frames at the default store's 638x271.
+    recipe, 2 cores): about 3 minutes for 305 CamVid frames at the default store's 638x271.
 
     \b
     Example:
-      vctrain fit stores/camvid_train --out runs/vc.pt    # about 7 min on 2 cores
+      vctrain fit stores/camvid_train --out runs/vc.pt    # about 3 min on 2 cores
       vctrain fit stores/camvid_train --baseline resize --out runs/resize.pt   # store's pixels, frames' aspect
       vctrain fit stores/camvid_train --out runs/vc.pt --resume runs/vc.last.pt --epochs 40
       vctrain fit stores/camvid_train_fine --crop 0.67 --out runs/vc_fine.pt

@@ -6,7 +6,7 @@
 =========  ==============================================================================
 paper      VCSeg's own (Table 2): segnet, SGD momentum 0.9, lr 0.005, weight decay 0.0005,
            batch 8, "poly" decay lr·(1 − it/total)^0.9, no augmentation, whole images. On request.
-cpu        305 CamVid frames on a 2-core CPU in about 7 minutes at the default store's 638x271:
+cpu        305 CamVid frames on a 2-core CPU in about 3 minutes at the default store's 638x271:
            resfpn (residual encoder + FPN decoder, see vctrain.networks.resnet), AdamW lr 0.002, weight decay
            0.01, batch 8, cosine decay after a linear warm-up over the first 3 % of the steps,
            augmentation: horizontal flip, random scale 1/1.25..1.25 about the VP (the image
