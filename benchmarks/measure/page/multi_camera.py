@@ -13,8 +13,9 @@ def r_multi_camera(d: dict) -> list[str]:
                       if w is not None and r is not None]
     out = [f"Road IoU (%), mean ± std over the seeds finished of {seeds}; each fold trained on the other four real "
            f"datasets merged into one virtual camera (`balance: datasets`, {d.get('steps_per_epoch')} steps an "
-           "epoch), tested on all frames of the held-out camera in that camera; "
-           + ", ".join(d.get("test_only", [])) + " by the model trained on all five. within − resize paired per seed.",
+           "epoch), tested on all frames of the held-out camera in that camera"
+           + (f"; {', '.join(d['test_only'])} by the model trained on all five" if d.get("test_only") else "")
+           + ". within − resize paired per seed.",
            ""]
     out += table(["held out", "within", "resize", "within − resize", "seeds done (within, resize)"],
                  [[t, _mean_std(have(c.get(f"{t}|within"))), _mean_std(have(c.get(f"{t}|resize"))),
@@ -23,14 +24,25 @@ def r_multi_camera(d: dict) -> list[str]:
                   for t in d.get("held_out", []) + d.get("test_only", [])])
     h = d["headline"]
     if h.get("loo_within_minus_resize") is not None:
-        out += [f"Mean over the five held-out cameras (per seed, seeds {h.get('loo_complete_seeds')}): "
+        out += [f"Mean over the {len(d.get('held_out') or [])} held-out cameras (per seed, seeds {h.get('loo_complete_seeds')}): "
                 f"**{h['loo_within_minus_resize']:+.1f} ± {h['loo_within_minus_resize_std']:.1f}**.", ""]
     if h.get("folds_missing"):
         out += [f"Not finished yet: {', '.join(h['folds_missing'])}.", ""]
     if d.get("targets"):
-        out += table(["target (issue 34)", "met"], [[k, "not measured" if v is None else num(v)]
+        out += table([f"target (issue {d.get('issue', 34)})", "met"], [[k, "not measured" if v is None else num(v)]
                                                    for k, v in d["targets"].items()])
     return out + r_generic({"headline": {k: v for k, v in h.items() if k != "folds_missing"}})
+
+
+def r_merged_estimated(d: dict) -> list[str]:
+    """Leave one camera out with the guessed cameras estimated (benchmarks/other_cameras/merged_estimated.py)."""
+    cams = [[k, num(v["fx"], 1), num(v["height"], 2), num(v["tilt"], 1), num(v["pan"], 1), num(v["ego_rows"]),
+             "x".join(map(str, v["size"]))] for k, v in d.get("cameras", {}).items()]
+    return (["The guessed camera files (" + ", ".join(d.get("guessed", [])) + ") replaced by estimates: a training "
+             "set's from its frames and labels, the held-out set's from its frames only (as `vctrain predict --camera "
+             f"estimate`); network {d.get('model')}, rectangle rule {d.get('extent')}.", ""]
+            + r_multi_camera(d) + table(["estimated camera", "fx px", "height m", "tilt deg", "pan deg",
+                                         "own-vehicle rows", "size"], cams))
 
 
 def r_shipped_model(d: dict) -> list[str]:

@@ -8,7 +8,8 @@ import statistics
 from typing import Callable
 
 from .format import _mean_std, median3, ms, num, pct, r_generic, table
-from .multi_camera import r_adapt_loo, r_finetune, r_multi_camera, r_low_camera, r_own_frames, r_shipped_model
+from .multi_camera import (r_adapt_loo, r_finetune, r_merged_estimated, r_multi_camera, r_low_camera, r_own_frames,
+                           r_shipped_model)
 
 
 # ---------------------------------------------------------------- one renderer per benchmark
@@ -366,5 +367,5 @@ RENDER: dict[str, Callable[[dict], list[str]]] = {
     "real_cameras_within_seq_fallback": r_real_cameras, "multi_camera": r_multi_camera, "multi_camera_median": r_multi_camera,
     "shipped_model": r_shipped_model, "shipped_model_e60": r_shipped_model, "finetune": r_finetune, "finetune_cityscapes": r_finetune, "adapt_loo": r_adapt_loo,
     "predict_threads": r_predict_threads, "own_frames_idd_unseen": r_own_frames, "own_frames_idd_shipped": r_own_frames,
-    "own_frames_camvid_shipped": r_own_frames, "low_camera": r_low_camera,
+    "own_frames_camvid_shipped": r_own_frames, "low_camera": r_low_camera, "merged_estimated": r_merged_estimated,
 }
