@@ -50,7 +50,8 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.other_cameras.as_shipped import BDD, CITYSCAPES, IDD, LUMS, camvid_steps_per_epoch, link_stores, run_study
-from benchmarks.other_cameras.multi_camera import LOO, SHADING_AUG, render, result_files, study_file, summarise
+from benchmarks.other_cameras.multi_camera import LOO, SHADING_AUG, render, study_file, summarise
+from benchmarks.other_cameras.multi_camera import collect as loo_collect
 from benchmarks.measure.data import DATA, KITTI, ROOT, require_data
 from benchmarks.measure.report import machine, results_dir, today, write_json
 
@@ -114,19 +115,13 @@ def run_fold(wd: Path, fold: str, seeds: list[int], a: argparse.Namespace) -> No
 
 
 def collect(wd: Path, seeds: list[int], folds: list[str]) -> tuple[dict, list[str], list[float]]:
-    """(cells {'<fold>|<cond>': IoU points per seed}, the missing '<fold>|<cond>|seed<k>', training minutes)."""
+    """multi_camera's :func:`collect` over the folds' own studies: (cells, missing, training minutes)."""
     cells, missing, minutes = {}, [], []
     for fold in folds:
-        for i, seed in enumerate(seeds):
-            for cond in CONDS:
-                f = result_files(wd / fold / f"seed{seed}", cond, [fold])[fold]
-                cell = cells.setdefault(f"{fold}|{cond}", [None] * len(seeds))
-                if not f.is_file():
-                    missing.append(f"{fold}|{cond}|seed{seed}")
-                    continue
-                row = json.loads(f.read_text())
-                cell[i] = 100 * row["iou"]
-                minutes.append(row["train_seconds"] / 60)
+        c, m, t = loo_collect(wd / fold, seeds, CONDS, None, [fold])
+        cells.update(c)
+        missing += m
+        minutes += t
     return cells, missing, minutes
 
 
