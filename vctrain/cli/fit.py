@@ -20,9 +20,9 @@ RECIPE_HELP = ("defaults of every setting below: 'cpu' (resfpn, AdamW, cosine, a
                "whole images); default: cpu on every device, a GPU included")
 MODEL_HELP = ("resfpn (residual encoder + FPN decoder, 1.3 M parameters, from scratch), lite0fpn (EfficientNet-Lite0 "
               "encoder from ImageNet weights + the same decoder, 3.0 M; lite0fpn-std: each image given ImageNet's colour "
-              "statistics first), segnet (VGG16 SegNet, 29 M) or "
-              "segnet-narrow (same topology, 1/4 width, 1.8 M); default: the recipe's")
-PRETRAINED_HELP = "start the encoder from its ImageNet weights (lite0fpn; default: yes where the model has them)"
+              "statistics first), lite1fpn / lite2fpn (the larger Lite1 / Lite2 encoders, 3.8 / 4.4 M), segnet (VGG16 "
+              "SegNet, 29 M) or segnet-narrow (same topology, 1/4 width, 1.8 M); default: the recipe's")
+PRETRAINED_HELP = "start the encoder from its ImageNet weights (lite<k>fpn; default: yes where the model has them)"
 SIZE_HELP = ("working size WxH (default: the store size; --baseline resize: the store's pixel count at the frames' "
              "own aspect)")
 CROP_HELP = ("train on random windows of the working image: WxH pixels, a share of each side (0.67) or of width and "

@@ -9,15 +9,17 @@ from dataclasses import asdict, dataclass
 
 __all__ = ["ModelArgs", "ARCHITECTURES", "PRETRAINED", "model_args_for"]
 
-ARCHITECTURES = {"segnet": 64, "segnet-narrow": 16, "resfpn": 16, "lite0fpn": 16, "lite0fpn-std": 16}  # -> base width
-PRETRAINED = ("lite0fpn", "lite0fpn-std")  # architectures whose encoder starts from ImageNet weights (unless --no-pretrained)
+ARCHITECTURES = {"segnet": 64, "segnet-narrow": 16, "resfpn": 16, "lite0fpn": 16, "lite0fpn-std": 16,
+                 "lite1fpn": 16, "lite2fpn": 16}  # -> base width
+# architectures whose encoder starts from ImageNet weights (unless --no-pretrained): the EfficientNet-Lite family
+PRETRAINED = ("lite0fpn", "lite0fpn-std", "lite1fpn", "lite2fpn")
 
 
 @dataclass(frozen=True)
 class ModelArgs:
     """Everything needed to rebuild the network (stored in every checkpoint)."""
 
-    arch: str = "segnet-narrow"  # 'segnet', 'segnet-narrow' (same topology, other widths), 'resfpn' or 'lite0fpn'
+    arch: str = "segnet-narrow"  # 'segnet', 'segnet-narrow' (same topology, other widths), 'resfpn', 'lite<k>fpn'
     base_width: int = 16         # channels of the first block (lite0fpn: half the decoder's); 64 = the paper's SegNet
     in_channels: int = 3         # 3 (colour) or 4 (colour + VP proximity map)
     num_classes: int = 2         # 0 = not road, 1 = road

