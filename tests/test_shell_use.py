@@ -151,6 +151,9 @@ def test_fit_time_is_stated_next_to_the_command():
     assert "in minutes" not in help_text
     assert f"305 CamVid frames in about {minutes} min on 2 cores at the default store's 638x271" in help_text
     assert f"vctrain fit stores/camvid_train --out runs/vc.pt # about {minutes} min on 2 cores" in help_text
+    assert f"from scratch; 305 CamVid frames in about {minutes} min on 2 cores)" in help_text  # --model's help
+    lite = json.loads((ROOT / "benchmarks/what_a_user_gets/results/user_route_lite0fpn.json").read_text())["fit_seconds"]
+    assert f"3.0 M; about {round(statistics.median(lite['vc']) / 60)} min, level with resfpn" in help_text
     readme = (ROOT / "README.md").read_text()
     hour = " ".join(readme[readme.index("## Your first hour"):readme.index("What each command writes")].split())
     assert "`vctrain fit stores/mine --out runs/mine.pt`" in hour

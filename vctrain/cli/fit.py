@@ -18,8 +18,9 @@ RECIPE_HELP = ("defaults of every setting below: 'cpu' (resfpn, AdamW, cosine, a
                "'multicamera' (several cameras merged, the shipped model's recipe: cpu with the ImageNet-pretrained "
                "lite0fpn, 30 epochs, --balance datasets, --shading-aug 0.4) or 'paper' (segnet, SGD 0.005, poly, "
                "whole images); default: cpu on every device, a GPU included")
-MODEL_HELP = ("resfpn (residual encoder + FPN decoder, 1.3 M parameters, from scratch), lite0fpn (EfficientNet-Lite0 "
-              "encoder from ImageNet weights + the same decoder, 3.0 M; lite0fpn-std: each image given ImageNet's colour "
+MODEL_HELP = ("resfpn (residual encoder + FPN decoder, 1.3 M parameters, from scratch; 305 CamVid frames in about 3 min "
+              "on 2 cores), lite0fpn (EfficientNet-Lite0 encoder from ImageNet weights + the same decoder, 3.0 M; about "
+              "17 min, level with resfpn on other cameras: docs/training.md; lite0fpn-std: each image given ImageNet's colour "
               "statistics first), lite1fpn / lite2fpn (the larger Lite1 / Lite2 encoders, 3.8 / 4.4 M), segnet (VGG16 "
               "SegNet, 29 M) or segnet-narrow (same topology, 1/4 width, 1.8 M); default: the recipe's")
 PRETRAINED_HELP = "start the encoder from its ImageNet weights (lite<k>fpn; default: yes where the model has them)"

@@ -166,7 +166,10 @@ def readme_figures(data: dict[str, dict]) -> list[tuple[str, list[str], str]]:
              "shipped_model.png"),
             ("Your first hour, 5 and Concepts: minutes a model, 305 CamVid frames on 2 cores (the route's fits, median)",
              [f"{round(statistics.median(sum(data['user_route']['fit_seconds'].values(), [])) / 60)} min"],
-             "user_route.json")]
+             "user_route.json"),
+            ("Your first hour, 5: minutes a `--model lite0fpn` model, the same frames (the route's fits, median)",
+             [f"takes {round(statistics.median(data['user_route_lite0fpn']['fit_seconds']['vc']) / 60)}"],
+             "user_route_lite0fpn.json")]
     if "own_frames_idd_unseen" in data:  # the route's fine-tuning line
         d = data["own_frames_idd_unseen"]
         h, frames = d["headline"], d["frames"].split(",")
