@@ -496,3 +496,44 @@ def test_condition_resize_rays_trains_on_each_frames_camera_and_vp(tmp_path):
                   tmp_path / "data" / "kitti.yaml", "--out", tmp_path / "p", "--device", "cpu", prog="vctrain")
     assert bad.returncode != 0
     assert_one_error_line(bad, "ray-channel", "--store")
+
+
+def test_warp_into_a_models_virtual_camera_to_fine_tune_it(two_stores, tmp_path):
+    """`vcprep warp --virtual MODEL.pt` (or --virtual STORE) warps new frames into the virtual camera
+    and scale the model was trained in, so `vctrain fit NEW --init MODEL.pt` trains in its domain;
+    a resize model, or a file that is no vctrain checkpoint, is refused in one line."""
+    from conftest import run_cli
+    from vcprep.store import Store
+
+    root, stores = two_stores
+    trained = load_checkpoint(root / "a.pt")["data"]["store_params"]
+    cam = PRESETS["camvid"].resized(0.1)
+    cam_file = tmp_path / "cam.yaml"
+    cam_file.write_text(__import__("yaml").safe_dump(cam.to_dict(), sort_keys=False))
+    src = root / "src1"
+    for source in (root / "a.pt", stores[0]):
+        out = tmp_path / f"new-{Path(source).stem}"
+        proc = run_cli("warp", "--camera", cam_file, "--images", src / "images", "--labels", src / "labels",
+                       "--label-format", FMT, "--virtual", source, "--within", "none", "--out", out, "-q")
+        assert proc.returncode == 0, proc.stderr
+        new = Store.open(out).params
+        assert {k: new[k] for k in ("virtual", "scale", "store_size")} == \
+            {k: trained[k] for k in ("virtual", "scale", "store_size")}
+    # without --virtual the design from the camera: another virtual camera than the model's
+    proc = run_cli("warp", "--camera", cam_file, "--images", src / "images", "--out", tmp_path / "design", "-q",
+                   "--within", "none")
+    assert proc.returncode == 0 and Store.open(tmp_path / "design").params["virtual"] != trained["virtual"]
+    r = CliRunner().invoke(app, ["fit", str(tmp_path / "new-a"), "--init", str(root / "a.pt"), "--epochs", "1",
+                                 "--out", str(tmp_path / "b.pt"), "--quiet"])
+    assert r.exit_code == 0, r.output
+    assert load_checkpoint(tmp_path / "b.pt")["data"]["store_params"]["virtual"] == trained["virtual"]
+    resize = load_checkpoint(root / "a.pt")
+    resize["data"] = {**resize["data"], "mode": "resize", "store_params": None}
+    torch.save(resize, tmp_path / "resize.pt")
+    torch.save({"weights": 1}, tmp_path / "other.pt")
+    for bad, says in (("resize.pt", "a resize model has no virtual camera"), ("other.pt", "not a vctrain checkpoint"),
+                      ("gone.pt", "no such model file")):
+        proc = run_cli("warp", "--camera", cam_file, "--images", src / "images", "--virtual", tmp_path / bad,
+                       "--out", tmp_path / "x", "-q")
+        assert proc.returncode == 1 and says in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+        assert not (tmp_path / "x" / "store.json").exists()

@@ -28,6 +28,7 @@ from ..labels import get_label_format
 from ..store.parallel import default_jobs
 from ..prior import compute_prior, open_stores, prior_meta, write_prior
 from ..store.layout import Shard, Store
+from ..store.trained import is_trained_source, trained_virtual
 from ..store.check import merge_store, store_info, verify_and_repair, verify_store
 from ..store.complete import CompleteSettings, complete_store
 from ..vp.reliability import VPRule
@@ -40,8 +41,9 @@ DESIGN_NAME = "design"  # the name of the virtual camera `vcprep warp` designs (
 DESIGN = (f"pan +/-{DESIGN_PAN_RANGE:g} deg, tilt +/-{DESIGN_TILT_RANGE:g} deg, {DESIGN_ABOVE:g} deg above the horizon, "
           f"{STORE_PIXELS:,} px")
 VIRTUAL_HELP = ("virtual camera: 'design' (designed from --camera: the measured design), a preset or a YAML file "
-                "(e.g. from 'vcprep camera design CAM1 CAM2 ...' for several cameras in one store); default: the "
-                "store's own when OUT is a store, else 'design'")
+                "(e.g. from 'vcprep camera design CAM1 CAM2 ...' for several cameras in one store), or a model "
+                "(.pt) or store: the virtual camera and scale it was trained in (frames to fine-tune it on); "
+                "default: the store's own when OUT is a store, else 'design'")
 SCALE_HELP = (f"store scale of the full virtual camera (0.125: the 'virtual' preset at 688x350); default: the store's "
               f"own, else the scale giving {STORE_PIXELS:,} pixels (480x360's)")
 
@@ -104,6 +106,8 @@ def warp_cmd(
       vcprep warp --camera camvid --images data/camvid/val --out stores/paper \\
           --virtual virtual --scale 0.125 --within none   # the paper's 688x350 store
       vcprep warp --camera camvid --images data/camvid/val --out stores/val --within vps.csv
+      vcprep warp --camera estimate --images mine/images --labels mine/labels --label-format camvid \\
+          --virtual models/vc.pt --out stores/tune   # a model's virtual camera: frames to fine-tune it on
       vcprep warp --camera kitti/training/calib --images kitti/training/image_2 \\
           --labels kitti/training/gt_image_2 --label-format kitti --out stores/kitti   # per-frame calibration
       vcprep warp --camera cityscapes/camera/train --images cityscapes/leftImg8bit/train \\
@@ -188,8 +192,9 @@ def _warp_virtual(virtual: Optional[str], scale: Optional[float], cam, items: li
                   out: Path) -> tuple[Camera, float, str]:
     """(virtual camera, store scale, what the summary says of a designed one, else '') of ``vcprep
     warp``: --virtual (a preset or file; 'design': designed from the frames' camera as :data:`DESIGN`
-    says); none given, the store's own when OUT is one, else the design. --scale, else the store's,
-    else the scale of :data:`STORE_PIXELS` pixels."""
+    says; a model checkpoint or a store: the one it was trained in, at its scale); none given, the
+    store's own when OUT is one, else the design. --scale, else the store's (the model's), else the
+    scale of :data:`STORE_PIXELS` pixels."""
     if virtual is None and (out / "store.json").is_file():
         store = Store.open(out)
         virt = camera_from_dict(store.params["virtual"], out / "store.json")
@@ -201,6 +206,11 @@ def _warp_virtual(virtual: Optional[str], scale: Optional[float], cam, items: li
                                      above=DESIGN_ABOVE).camera
         return (virt, scale_for_pixels(virt) if scale is None else float(scale),
                 f", virtual camera designed from {one.name}: {DESIGN}")
+    if is_trained_source(virtual):  # a model's (or a store's) own virtual camera and scale: fine-tuning's data
+        virt, own_scale, _ = trained_virtual(virtual)
+        designed = f", designed from its training camera: {DESIGN}" if virt.name == DESIGN_NAME else ""
+        return (virt, own_scale if scale is None else float(scale),
+                f", the virtual camera of {Path(virtual).name}{designed}" if designed else "")
     virt = load_camera(virtual)
     return virt, scale_for_pixels(virt) if scale is None else float(scale), ""
 
