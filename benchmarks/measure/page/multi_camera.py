@@ -105,6 +105,23 @@ def r_own_frames(d: dict) -> list[str]:
     return out + table(["target (issue 60)", "met"], [[k, num(v)] for k, v in d.get("targets", {}).items()])
 
 
+def r_route_finetune(d: dict) -> list[str]:
+    """Fine-tuning the README route's own model: in its virtual camera or the new camera's design,
+    against the model as it is and the route on the new frames alone (route_finetune.py)."""
+    h, frames = d["headline"], [str(n) for n in d["frames"]]
+    out = [f"{d['split']}; the README route's model (CamVid train minus 0001TP) of each seed {d['seeds']}; road IoU % "
+           "(precision / recall; per seed; minutes a fit on 2 cores; the gain over zero-shot paired per seed).", ""]
+    rows = []
+    for cond, by_n in d["cells"].items():
+        rows.append([cond] + [
+            f"**{num(h[f'{cond}_n{n}_iou'])}** ({h[f'{cond}_n{n}_precision']:.0f} / {h[f'{cond}_n{n}_recall']:.0f}; "
+            + " / ".join(f"{r['iou']:.1f}" for r in by_n[n]) + f"; {h[f'{cond}_n{n}_minutes']:.1f} min"
+            + (f"; {h[f'{cond}_minus_zero_n{n}']:+.1f}" if f"{cond}_minus_zero_n{n}" in h else "") + ")"
+            for n in frames])
+    out += table(["condition"] + [f"{n} frames" for n in frames], rows)
+    return out + table(["target (issue 60)", "met"], [[k, num(v)] for k, v in d.get("targets", {}).items()])
+
+
 def r_low_camera(d: dict) -> list[str]:
     """A camera lower than the training one: each ``--beyond`` rule on LUMS and on CamVid val declared
     lower (benchmarks/other_cameras/low_camera.py)."""
