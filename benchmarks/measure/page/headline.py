@@ -179,4 +179,9 @@ def readme_figures(data: dict[str, dict]) -> list[tuple[str, list[str], str]]:
                  [f"{h['imagenet_n60_iou']:.1f} against {h['fine-tuned_n60_iou']:.1f}"], "own_frames_idd_unseen.json"),
                 ("Your first hour, 5: minutes a fine-tuning on 2 cores",
                  [f"{h[f'fine-tuned_n{n}_minutes']:.0f} min for {n} frames" for n in frames], "own_frames_idd_unseen.json")]
+    if "route_finetune_idd" in data:  # your own model fine-tuned on a new camera's store
+        h = data["route_finetune_idd"]["headline"]
+        out.append(("Your first hour, 5: your own model fine-tuned on a new camera's store, over it as it is",
+                    [f"{h[f'own virtual camera_minus_zero_n{n}']:+.1f} with {n} frames"
+                     for n in data["route_finetune_idd"]["frames"]], "route_finetune_idd.json"))
     return out

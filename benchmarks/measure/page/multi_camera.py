@@ -119,6 +119,9 @@ def r_route_finetune(d: dict) -> list[str]:
             + (f"; {h[f'{cond}_minus_zero_n{n}']:+.1f}" if f"{cond}_minus_zero_n{n}" in h else "") + ")"
             for n in frames])
     out += table(["condition"] + [f"{n} frames" for n in frames], rows)
+    if d["set"] == "camvid":  # the model's virtual camera is the design from this very camera
+        out += ["On the camera the model was trained on both warps build the same store: the model's virtual "
+                "camera is the design from that camera.", ""]
     return out + table(["target (issue 60)", "met"], [[k, num(v)] for k, v in d.get("targets", {}).items()])
 
 
