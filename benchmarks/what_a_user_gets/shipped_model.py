@@ -116,10 +116,12 @@ def study_file(wd: Path, quick: bool, epochs: int, model: str | None = None, pre
     return path
 
 
-def collect(sd: Path, conds: list[str]) -> tuple[dict[str, dict[str, float | None]], list[str], dict[str, float]]:
-    """({condition: {set: road IoU %}}, the missing '<set>|<condition>', {condition: training minutes})."""
+def collect(sd: Path, conds: list[str]) -> tuple[dict[str, dict[str, float | None]], list[str], dict[str, float],
+                                                 dict[str, float]]:
+    """({condition: {set: road IoU %}}, the missing '<set>|<condition>', {condition: training minutes},
+    {'precision_<condition>_<set>' and 'recall_...': %}: where the errors lie, beside the IoU)."""
     cells: dict[str, dict[str, float | None]] = {}
-    missing, minutes = [], {}
+    missing, minutes, pr = [], {}, {}
     for cond in conds:
         cells[cond] = {}
         for t in SETS:
@@ -130,8 +132,9 @@ def collect(sd: Path, conds: list[str]) -> tuple[dict[str, dict[str, float | Non
                 continue
             row = json.loads(f.read_text())
             cells[cond][t] = round(100 * row["iou"], 2)
+            pr.update({f"{k}_{cond}_{t}": round(100 * row[k], 1) for k in ("precision", "recall") if k in row})
             minutes[cond] = round(row["train_seconds"] / 60, 2)
-    return cells, missing, minutes
+    return cells, missing, minutes, pr
 
 
 def predict_ms(model: Path, threads: int, frames: int = 8) -> float:
@@ -221,11 +224,13 @@ def render(cells: dict, minutes: dict, head: dict, missing: list[str]) -> str:
              "road IoU (%) on each held-out split in its own camera; KITTI never trained on.", "",
              "| held-out split | within" + (" (shipped)" if head.get("shipped_condition") == "within" else "")
              + " | resize twin" + (" (shipped)" if head.get("shipped_condition") == "resize" else "")
-             + " | within − resize | target |", "|---|---|---|---|---|"]
+             + " | within − resize | target | precision / recall (shipped) |", "|---|---|---|---|---|---|"]
+    ship = head.get("shipped_condition")
     for t in SETS:
         w, r = cells.get("within", {}).get(t), cells.get("resize", {}).get(t)
         d = "-" if w is None or r is None else f"{w - r:+.1f}"
-        lines.append(f"| {t} | {f(w)} | {f(r)} | {d} | ≥ {TARGETS[t]:g} |")
+        p, rc = head.get(f"precision_{ship}_{t}"), head.get(f"recall_{ship}_{t}")
+        lines.append(f"| {t} | {f(w)} | {f(r)} | {d} | ≥ {TARGETS[t]:g} | {f(p)} / {f(rc)} |")
     ran = [c for c in ("within", "resize") if f"predict_ms_1280x720_{c}_t1" in head]  # the conditions run
     lines += ["", "Mean over the six splits: " + ", ".join(f"{c} {head.get(f'mean_{c}', '-')}" for c in ran)
               + f"; shipped: {head.get('shipped_condition')}. Checkpoint {head.get('checkpoint_mb')} MB; predict per "
@@ -261,7 +266,7 @@ def main() -> None:
     sd = wd / f"seed{a.seed}"
     if not a.collect:
         run_study(study_file(wd, a.quick, a.epochs, a.model, not a.no_pretrained), sd, conds, a.seed, a.threads)
-    cells, missing, minutes = collect(sd, conds)
+    cells, missing, minutes, pr = collect(sd, conds)
     head: dict = {}
     for t in SETS:
         w, r = cells.get("within", {}).get(t), cells.get("resize", {}).get(t)
@@ -283,6 +288,7 @@ def main() -> None:
         head[f"predict_ms_1280x720_t{th}"] = head.get(f"predict_ms_1280x720_{ship}_t{th}")
     head["minutes_per_model"] = minutes
     head["missing"] = missing
+    head.update(pr)
     # the IoU targets are the shipped model's (the condition shipped), not always within's
     targets = {f"{t} >= {TARGETS[t]:g}": None if head[f"{ship}_{t}"] is None else head[f"{ship}_{t}"] >= TARGETS[t]
                for t in SETS}

@@ -53,9 +53,12 @@ def r_shipped_model(d: dict) -> list[str]:
            "set's held-out split in its own camera; KITTI never trained on. The resize twin: the same network, "
            "frames, steps and sampling, the images resized.", ""]
     sh = h.get("shipped_condition", "within")
+    pr = any(k.startswith("precision_") for k in h)  # precision and recall beside the IoU (issue 59; later runs)
     out += table(["held-out split", "within" + (" (shipped)" if sh == "within" else ""),
-                  "resize twin" + (" (shipped)" if sh == "resize" else ""), "within − resize"],
+                  "resize twin" + (" (shipped)" if sh == "resize" else ""), "within − resize"]
+                 + (["precision / recall (shipped)"] if pr else []),
                  [[k, num(h.get(f"within_{k}")), num(h.get(f"resize_{k}")), num(h.get(f"within_minus_resize_{k}"))]
+                  + ([f"{num(h.get(f'precision_{sh}_{k}'))} / {num(h.get(f'recall_{sh}_{k}'))}"] if pr else [])
                   for k in d.get("sets", [])])
     out += [f"Mean over the splits: within {num(h.get('mean_within'))}, resize {num(h.get('mean_resize'))}; shipped "
             f"(the higher mean): **{sh}**. Checkpoint {num(h.get('checkpoint_mb'))} MB; predict per 1280×720 frame "
