@@ -183,5 +183,6 @@ def readme_figures(data: dict[str, dict]) -> list[tuple[str, list[str], str]]:
         h = data["route_finetune_idd"]["headline"]
         out.append(("Your first hour, 5: your own model fine-tuned on a new camera's store, over it as it is",
                     [f"{h[f'own virtual camera_minus_zero_n{n}']:+.1f} with {n} frames"
-                     for n in data["route_finetune_idd"]["frames"]], "route_finetune_idd.json"))
+                     for n in data["route_finetune_idd"]["frames"]]
+                    + [f"about {round(h['own virtual camera_n60_minutes'])} min"], "route_finetune_idd.json"))
     return out
