@@ -504,6 +504,7 @@ def test_warp_into_a_models_virtual_camera_to_fine_tune_it(two_stores, tmp_path)
     a resize model, or a file that is no vctrain checkpoint, is refused in one line."""
     from conftest import run_cli
     from vcprep.store import Store
+    from vcprep.store.trained import trained_virtual
 
     root, stores = two_stores
     trained = load_checkpoint(root / "a.pt")["data"]["store_params"]
@@ -511,14 +512,14 @@ def test_warp_into_a_models_virtual_camera_to_fine_tune_it(two_stores, tmp_path)
     cam_file = tmp_path / "cam.yaml"
     cam_file.write_text(__import__("yaml").safe_dump(cam.to_dict(), sort_keys=False))
     src = root / "src1"
-    for source in (root / "a.pt", stores[0]):
-        out = tmp_path / f"new-{Path(source).stem}"
-        proc = run_cli("warp", "--camera", cam_file, "--images", src / "images", "--labels", src / "labels",
-                       "--label-format", FMT, "--virtual", source, "--within", "none", "--out", out, "-q")
-        assert proc.returncode == 0, proc.stderr
-        new = Store.open(out).params
-        assert {k: new[k] for k in ("virtual", "scale", "store_size")} == \
-            {k: trained[k] for k in ("virtual", "scale", "store_size")}
+    proc = run_cli("warp", "--camera", cam_file, "--images", src / "images", "--labels", src / "labels",
+                   "--label-format", FMT, "--virtual", root / "a.pt", "--within", "none", "--out", tmp_path / "new-a", "-q")
+    assert proc.returncode == 0, proc.stderr
+    new = Store.open(tmp_path / "new-a").params
+    assert {k: new[k] for k in ("virtual", "scale", "store_size")} == \
+        {k: trained[k] for k in ("virtual", "scale", "store_size")}
+    virt, scale, _ = trained_virtual(stores[0])  # the model's training store says the same
+    assert virt.to_dict() == trained["virtual"] and scale == trained["scale"]
     # without --virtual the design from the camera: another virtual camera than the model's
     proc = run_cli("warp", "--camera", cam_file, "--images", src / "images", "--out", tmp_path / "design", "-q",
                    "--within", "none")
@@ -531,9 +532,11 @@ def test_warp_into_a_models_virtual_camera_to_fine_tune_it(two_stores, tmp_path)
     resize["data"] = {**resize["data"], "mode": "resize", "store_params": None}
     torch.save(resize, tmp_path / "resize.pt")
     torch.save({"weights": 1}, tmp_path / "other.pt")
-    for bad, says in (("resize.pt", "a resize model has no virtual camera"), ("other.pt", "not a vctrain checkpoint"),
-                      ("gone.pt", "no such model file")):
-        proc = run_cli("warp", "--camera", cam_file, "--images", src / "images", "--virtual", tmp_path / bad,
-                       "--out", tmp_path / "x", "-q")
-        assert proc.returncode == 1 and says in proc.stderr and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
-        assert not (tmp_path / "x" / "store.json").exists()
+    proc = run_cli("warp", "--camera", cam_file, "--images", src / "images", "--virtual", tmp_path / "resize.pt",
+                   "--out", tmp_path / "x", "-q")
+    assert proc.returncode == 1 and len(proc.stderr.strip().splitlines()) == 1, proc.stderr
+    assert "a resize model has no virtual camera" in proc.stderr and "--baseline resize" in proc.stderr
+    assert not (tmp_path / "x" / "store.json").exists()
+    for bad, says in (("other.pt", "not a vctrain checkpoint"), ("gone.pt", "no such model file")):
+        with pytest.raises(InputError, match=says):
+            trained_virtual(tmp_path / bad)
