@@ -1,4 +1,5 @@
-"""The networks' cost side by side (issue 53): ``lite0fpn`` (EfficientNet-Lite0 encoder) against ``resfpn``.
+"""The networks' cost side by side (issues 53, 59): ``lite0fpn`` (EfficientNet-Lite0 encoder) against ``resfpn``,
+and the larger ``lite1fpn``/``lite2fpn``.
 
     .venv/bin/python benchmarks/speed/networks.py [--repeats 7] [--train-steps 6] [--models resfpn,lite0fpn]
 
@@ -16,8 +17,8 @@ every repeat so that a load change on this shared machine hits both alike:
                      (the cpu recipe's study crop), after one warm-up step
 
 Reported: median and min..max over ``--repeats`` (timings in ms) or ``--train-steps`` (one figure per
-step), and the ratios lite0fpn / resfpn of the medians (the target of issue 53: predict at 1 thread
-<= 2x). Results: benchmarks/speed/results/networks.{md,json}; the last stdout line is one JSON object.
+step), and each network's medians over the first's (``--models``' baseline; the targets: issue 53's
+lite0fpn / resfpn predict at 1 thread <= 2x, issue 59's shipped model at most 1.5x today's). Results: benchmarks/speed/results/networks.{md,json}; the last stdout line is one JSON object.
 """
 from __future__ import annotations
 
@@ -105,18 +106,17 @@ def main() -> None:
             got[m]["train_img_per_s"].append(_train_step(*trains[m]))
     res = {m: {k: _stat(v) for k, v in d.items()} for m, d in got.items()}
     head = {f"{k}_{m}": res[m][k]["median"] for m in models for k in res[m]}
-    if len(models) == 2:
-        b, n = models
-        for k in res[b]:
-            head[f"{k}_{n}_over_{b}"] = round(res[n][k]["median"] / res[b][k]["median"], 2)
+    base, others = models[0], models[1:]  # every other network over the first (the baseline of the run)
+    for n in others:
+        for k in res[base]:
+            head[f"{k}_{n}_over_{base}"] = round(res[n][k]["median"] / res[base][k]["median"], 2)
     lines = [f"Networks on {where} ({w}x{h}); predict and network at 1 thread ({a.repeats} repeats), training at "
              f"2 threads (batch {BATCH} of {CROP[0]}x{CROP[1]} windows, {a.train_steps} steps); median (min..max).",
-             "", "| figure | " + " | ".join(models) + (f" | {models[1]} / {models[0]} |" if len(models) == 2 else " |"),
-             "|---|" + "---|" * (len(models) + (len(models) == 2))]
-    for k in got[models[0]]:
+             "", "| figure | " + " | ".join(models) + "".join(f" | {n} / {base}" for n in others) + " |",
+             "|---|" + "---|" * (2 * len(models) - 1)]
+    for k in got[base]:
         cells = [f"{res[m][k]['median']} ({res[m][k]['min']}..{res[m][k]['max']})" for m in models]
-        lines.append(f"| {k} | " + " | ".join(cells) + (f" | {head[f'{k}_{models[1]}_over_{models[0]}']} |"
-                                                        if len(models) == 2 else " |"))
+        lines.append(f"| {k} | " + " | ".join(cells + [str(head[f"{k}_{n}_over_{base}"]) for n in others]) + " |")
     table = "\n".join(lines) + "\n"
     print(table)
     out = results_dir(__file__)
