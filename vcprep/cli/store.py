@@ -42,7 +42,7 @@ DESIGN = (f"pan +/-{DESIGN_PAN_RANGE:g} deg, tilt +/-{DESIGN_TILT_RANGE:g} deg, 
           f"{STORE_PIXELS:,} px")
 VIRTUAL_HELP = ("virtual camera: 'design' (designed from --camera: the measured design), a preset or a YAML file "
                 "(e.g. from 'vcprep camera design CAM1 CAM2 ...' for several cameras in one store), or a model "
-                "(.pt) or store: the virtual camera and scale it was trained in (frames to fine-tune it on); "
+                "(.pt) or store: the virtual camera and scale it was trained in; "
                 "default: the store's own when OUT is a store, else 'design'")
 SCALE_HELP = (f"store scale of the full virtual camera (0.125: the 'virtual' preset at 688x350); default: the store's "
               f"own, else the scale giving {STORE_PIXELS:,} pixels (480x360's)")
@@ -107,7 +107,7 @@ def warp_cmd(
           --virtual virtual --scale 0.125 --within none   # the paper's 688x350 store
       vcprep warp --camera camvid --images data/camvid/val --out stores/val --within vps.csv
       vcprep warp --camera estimate --images mine/images --labels mine/labels --label-format camvid \\
-          --virtual models/vc.pt --out stores/tune   # a model's virtual camera: frames to fine-tune it on
+          --virtual models/vc.pt --out stores/tune   # into the virtual camera a model was trained in
       vcprep warp --camera kitti/training/calib --images kitti/training/image_2 \\
           --labels kitti/training/gt_image_2 --label-format kitti --out stores/kitti   # per-frame calibration
       vcprep warp --camera cityscapes/camera/train --images cityscapes/leftImg8bit/train \\
