@@ -80,10 +80,12 @@ def _first(split: dict, n: int) -> dict:
     return {"images": split["images"], "labels": split["labels"], "include": stems[:n]}
 
 
-def study_file(wd: Path, quick: bool, epochs: int, model: str | None = None, pretrained: bool = True) -> Path:
+def study_file(wd: Path, quick: bool, epochs: int, model: str | None = None, pretrained: bool = True,
+               store_pixels: int | None = None) -> Path:
     """The study: five training splits (role train), six held-out splits (role test); ``model``: every
     condition's network (study ``train: arch``; default the recipe's); ``pretrained`` False: trained
-    from scratch (the control of a pretrained network)."""
+    from scratch (the control of a pretrained network); ``store_pixels``: the working resolution's pixel
+    budget of both twins (study ``store_pixels``; default 480x360's)."""
     n = 3 if quick else None
     cam = str(native_camera(wd))
     cs = {"images": str(CITYSCAPES / "images"), "labels": str(CITYSCAPES / "labels")}
@@ -110,8 +112,8 @@ def study_file(wd: Path, quick: bool, epochs: int, model: str | None = None, pre
     train.update({"arch": model} if model else {})
     train.update({} if pretrained else {"pretrained": False})
     path = wd / "study.yaml"
-    path.write_text(yaml.safe_dump({"datasets": datasets, "train": {**train, "balance": "datasets",
-                                                                     "shading_aug": SHADING_AUG}},
+    path.write_text(yaml.safe_dump({"datasets": datasets, **({"store_pixels": store_pixels} if store_pixels else {}),
+                                    "train": {**train, "balance": "datasets", "shading_aug": SHADING_AUG}},
                                    sort_keys=False))
     return path
 
@@ -256,16 +258,21 @@ def main() -> None:
                     "(issue 53); WORKDIR/model-<name>; results in benchmarks/what_a_user_gets/results only with --ship")
     ap.add_argument("--no-pretrained", action="store_true", help="with --model: the network from scratch (the "
                     "control of its ImageNet weights); WORKDIR/model-<name>-scratch")
+    ap.add_argument("--store-pixels", type=int, default=None, help="working resolution's pixel budget of both twins "
+                    "(default 172800, 480x360's; issue 59's lever); WORKDIR[/model-<name>]/px<N>")
     a = ap.parse_args()
     if a.model:
         a.workdir = a.workdir / (f"model-{a.model}" + ("-scratch" if a.no_pretrained else ""))
+    if a.store_pixels:
+        a.workdir = a.workdir / f"px{a.store_pixels}"
     require_data(CITYSCAPES, IDD, DATA, KITTI, BDD, LUMS)
     conds = a.conditions.split(",")
     wd = (a.workdir / "quick" if a.quick else a.workdir).resolve()  # the study file holds absolute paths
     wd.mkdir(parents=True, exist_ok=True)
     sd = wd / f"seed{a.seed}"
     if not a.collect:
-        run_study(study_file(wd, a.quick, a.epochs, a.model, not a.no_pretrained), sd, conds, a.seed, a.threads)
+        run_study(study_file(wd, a.quick, a.epochs, a.model, not a.no_pretrained, a.store_pixels), sd, conds, a.seed,
+                  a.threads)
     cells, missing, minutes, pr = collect(sd, conds)
     head: dict = {}
     for t in SETS:
@@ -297,10 +304,11 @@ def main() -> None:
     targets["checkpoint <= 20 MB"] = None if head["checkpoint_mb"] is None else head["checkpoint_mb"] <= 20
     table = render(cells, minutes, head, missing)
     print(table)
-    res_dir = (wd / "results") if a.quick or (a.model and not a.ship) else results_dir(__file__)
+    res_dir = (wd / "results") if a.quick or ((a.model or a.store_pixels) and not a.ship) else results_dir(__file__)
     command = (f"benchmarks/what_a_user_gets/shipped_model.py {'--quick ' if a.quick else ''}--epochs {a.epochs} --seed {a.seed} "
                f"--conditions {a.conditions} --threads {a.threads}" + (" --collect" if a.collect else "")
-               + (f" --model {a.model}" if a.model else "") + (" --no-pretrained" if a.no_pretrained else ""))
+               + (f" --model {a.model}" if a.model else "") + (" --no-pretrained" if a.no_pretrained else "")
+               + (f" --store-pixels {a.store_pixels}" if a.store_pixels else ""))
     result = {"headline": head, "targets": targets, "cells": cells, "sets": SETS, "epochs": a.epochs, "model": a.model,
               "steps_per_epoch": 2 if a.quick else STEPS, "balance": "datasets", "seed": a.seed,
               "threads": a.threads, "machine": machine(), "date": today(), "command": command}
