@@ -171,15 +171,21 @@ def measure(a: argparse.Namespace, model: Path, wd: Path) -> dict:
     return cells
 
 
-def summarise(cells: dict, unseen: bool) -> tuple[dict, dict]:
-    """(headline, targets): per condition and N the mean IoU, precision, recall and minutes; the
-    fine-tuned gain over zero-shot paired per seed."""
+def cell_means(cells: dict) -> dict:
+    """'<condition>_n<N>_<iou|precision|recall|minutes>': the mean over seeds of each condition and N."""
     head: dict = {}
     for cond, by_n in cells.items():
         for n, rows in by_n.items():
             for k in ("iou", "precision", "recall"):
                 head[f"{cond}_n{n}_{k}"] = round(float(np.mean([r[k] for r in rows])), 2)
             head[f"{cond}_n{n}_minutes"] = round(float(np.mean([r["seconds"] for r in rows])) / 60, 2)
+    return head
+
+
+def summarise(cells: dict, unseen: bool) -> tuple[dict, dict]:
+    """(headline, targets): per condition and N the mean IoU, precision, recall and minutes; the
+    fine-tuned gain over zero-shot paired per seed."""
+    head = cell_means(cells)
     targets = {}
     for n, rows in cells.get("fine-tuned", {}).items():
         gain = seed_stats([r["iou"] - z["iou"] for r, z in zip(rows, cells["zero-shot"][n])])

@@ -41,13 +41,12 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.measure.data import BIN, DATA, ROOT, run
 from benchmarks.measure.report import machine, results_dir, today, write_json
 from benchmarks.measure.stats import seed_stats
-from benchmarks.what_a_user_gets.own_frames import IDD, SETS, link_frames
+from benchmarks.what_a_user_gets.own_frames import IDD, SETS, cell_means, link_frames
 from benchmarks.what_a_user_gets.user_route import my_frames
 
 ZERO, MODEL_VC, OWN_VC, SCRATCH = "zero-shot", "model's virtual camera", "own virtual camera", "from scratch"
@@ -135,12 +134,9 @@ def measure(a: argparse.Namespace, wd: Path) -> dict:
 def summarise(cells: dict, unseen: bool) -> tuple[dict, dict]:
     """(headline, targets): per condition and N the mean IoU, precision, recall, minutes; each
     condition's gain over zero-shot paired per seed."""
-    head: dict = {}
+    head = cell_means(cells)
     for cond, by_n in cells.items():
         for n, rows in by_n.items():
-            for k in ("iou", "precision", "recall"):
-                head[f"{cond}_n{n}_{k}"] = round(float(np.mean([r[k] for r in rows])), 2)
-            head[f"{cond}_n{n}_minutes"] = round(float(np.mean([r["seconds"] for r in rows])) / 60, 2)
             if cond != ZERO:
                 gain = seed_stats([r["iou"] - z["iou"] for r, z in zip(rows, cells[ZERO][n])])
                 head[f"{cond}_minus_zero_n{n}"] = round(gain["mean"], 2)
