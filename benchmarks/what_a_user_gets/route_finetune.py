@@ -41,7 +41,6 @@ import sys
 import time
 from pathlib import Path
 
-
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.measure.data import BIN, DATA, ROOT, run
 from benchmarks.measure.report import machine, results_dir, today, write_json
