@@ -518,7 +518,7 @@ def test_warp_into_a_models_virtual_camera_to_fine_tune_it(two_stores, tmp_path)
     new = Store.open(tmp_path / "new-a").params
     assert {k: new[k] for k in ("virtual", "scale", "store_size")} == \
         {k: trained[k] for k in ("virtual", "scale", "store_size")}
-    virt, scale, _ = trained_virtual(stores[0])  # the model's training store says the same
+    virt, scale = trained_virtual(stores[0])  # the model's training store says the same
     assert virt.to_dict() == trained["virtual"] and scale == trained["scale"]
     # without --virtual the design from the camera: another virtual camera than the model's
     proc = run_cli("warp", "--camera", cam_file, "--images", src / "images", "--out", tmp_path / "design", "-q",

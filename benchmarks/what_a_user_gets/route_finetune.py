@@ -69,7 +69,7 @@ def base_model(wd: Path, seed: int, a: argparse.Namespace) -> Path:
 def user_stores(frames: Path, fmt: str, n_dir: Path, base: Path, a: argparse.Namespace) -> tuple[str, Path, Path]:
     """(camera, own-design store, model's-virtual-camera store) of the user's N frames: the camera
     estimated from them (idd) or the preset (camvid); the model's virtual camera is the same for every
-    seed (the design from camvid), so one store serves them all."""
+    seed (the design from camvid), so one store serves them all (``base``: any seed's model)."""
     data = ["--images", frames / "images", "--labels", frames / "labels", "--label-format", fmt, "-q"]
     own = n_dir / "own"
     if a.set == "idd":
@@ -116,9 +116,10 @@ def measure(a: argparse.Namespace, wd: Path) -> dict:
     for n in a.frames:
         n_dir = wd / f"n{n}"
         frames = link_frames(pool[:n], n_dir / "frames", suffixes)
+        # the stores do not depend on the seed: every seed's route model has the same virtual camera
+        camera, own, model_vc = user_stores(frames, fmt, n_dir, base_model(a.base_wd, a.seeds[0], a), a)
         for seed in a.seeds:
             base = base_model(a.base_wd, seed, a)
-            camera, own, model_vc = user_stores(frames, fmt, n_dir, base, a)
             tune = ["--init", base, "--seed", seed, *a.epochs]
             fits = {ZERO: None, MODEL_VC: [model_vc, *tune], OWN_VC: [own, *tune],
                     SCRATCH: [own, "--seed", seed, *a.epochs]}

@@ -9,7 +9,7 @@ on this machine (the baseline in the same run), scored on the six held-out split
 working resolution's pixel budget (``--store-pixels N``; default 172,800, 480x360's; 307,200 is
 640x480's). The baseline ``--baseline`` (default ``lite0fpn``, today's shipped recipe: the resize twin)
 runs first. Each variant is one ``shipped_model.py --conditions resize --model NET [--store-pixels N]
---epochs E --seed S`` run (resumed where it stopped), its results read from its work folder.
+--epochs E --seed S`` run (resumed where it stopped), its figures read from the headline it prints last.
 
 Reported per variant: road IoU, precision and recall (%) per held-out split, the mean IoU over the six,
 the predict time of a 1280x720 frame at 1 thread (shipped_model.py's, one process a model: noisier than
@@ -50,9 +50,7 @@ def measure(variant: str, a: argparse.Namespace) -> dict:
     args = ["--conditions", "resize", "--model", net, "--epochs", a.epochs, "--seed", a.seed, "--threads", a.threads]
     args += ["--store-pixels", px] if px else []
     args += ["--quick"] if a.quick else []
-    run(sys.executable, SCRIPT, *args, stream=True)
-    wd = WORKDIR / f"model-{net}" / (f"px{px}" if px else "") / ("quick" if a.quick else "")
-    h = json.loads((wd / "results" / "shipped_model.json").read_text())["headline"]
+    h = json.loads(run(sys.executable, SCRIPT, *args, stream=True).strip().splitlines()[-1])  # its headline
     row = {"iou": {t: h[f"resize_{t}"] for t in SETS}, "precision": {t: h.get(f"precision_resize_{t}") for t in SETS},
            "recall": {t: h.get(f"recall_resize_{t}") for t in SETS}, "mean": h.get("mean_resize"),
            "predict_ms_t1": h.get("predict_ms_1280x720_resize_t1"), "minutes": h["minutes_per_model"].get("resize")}

@@ -207,7 +207,7 @@ def _warp_virtual(virtual: Optional[str], scale: Optional[float], cam, items: li
         return (virt, scale_for_pixels(virt) if scale is None else float(scale),
                 f", virtual camera designed from {one.name}: {DESIGN}")
     if is_trained_source(virtual):  # a model's (or a store's) own virtual camera and scale: fine-tuning's data
-        virt, own_scale, _ = trained_virtual(virtual)
+        virt, own_scale = trained_virtual(virtual)
         designed = f", designed from its training camera: {DESIGN}" if virt.name == DESIGN_NAME else ""
         return (virt, own_scale if scale is None else float(scale),
                 f", the virtual camera of {Path(virtual).name}{designed}" if designed else "")

@@ -26,19 +26,20 @@ def is_trained_source(spec: str) -> bool:
     return p.suffix.lower() in CHECKPOINT_SUFFIXES or (p.is_dir() and (p / "store.json").is_file())
 
 
-def trained_virtual(spec: str | Path) -> tuple[Camera, float, dict[str, Any]]:
-    """(virtual camera, scale, store parameters) of a vctrain checkpoint or a store folder."""
+def trained_virtual(spec: str | Path) -> tuple[Camera, float]:
+    """(virtual camera, scale) of a vctrain checkpoint or a store folder."""
     path = Path(spec)
     if path.is_dir():
         from .layout import Store
 
         store = Store.open(path)
-        return camera_from_dict(store.params["virtual"], path / "store.json"), float(store.scale), store.params
+        return camera_from_dict(store.params["virtual"], path / "store.json"), float(store.scale)
     params = _checkpoint_store_params(path)
-    return camera_from_dict(params["virtual"], path), float(params["scale"]), params
+    return camera_from_dict(params["virtual"], path), float(params["scale"])
 
 
 def _checkpoint_store_params(path: Path) -> dict[str, Any]:
+    """The checkpoint's ``data.store_params``; the format name is vctrain.training.checkpoint.CKPT_FORMAT's."""
     fix = "give a virtual-camera model written by 'vctrain fit STORE' (or its training store)"
     if not path.is_file():
         raise InputError("no such model file", path, fix)
