@@ -185,4 +185,9 @@ def readme_figures(data: dict[str, dict]) -> list[tuple[str, list[str], str]]:
                     [f"{h[f'own virtual camera_minus_zero_n{n}']:+.1f} with {n} frames"
                      for n in data["route_finetune_idd"]["frames"]]
                     + [f"about {round(h['own virtual camera_n60_minutes'])} min"], "route_finetune_idd.json"))
+    if "route_finetune_camvid" in data:  # ... and where it loses: a new drive of the camera the model knows
+        h = data["route_finetune_camvid"]["headline"]
+        out.append(("Your first hour, 5: your own model fine-tuned on a new drive of its own camera, over it as it is",
+                    [f"a new drive of its own camera: {h['own virtual camera_minus_zero_n20']:+.1f} with 20 frames"],
+                    "route_finetune_camvid.json"))
     return out
