@@ -25,9 +25,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))  # the repository: `benchmarks.measure`, also when loaded by path (tests)
 from benchmarks.measure.page import headline  # noqa: E402
-from benchmarks.measure.page.format import r_generic, table  # noqa: E402
-from benchmarks.measure.page.multi_camera import r_loo_diagnose  # noqa: E402
-from benchmarks.measure.page.sections import RENDER  # noqa: E402
+from benchmarks.measure.page.format import table  # noqa: E402
+from benchmarks.measure.page.sections import renderer  # noqa: E402
 
 BENCHMARKS = ROOT / "benchmarks"
 # a folder per question (a package: not measure/, not the scratch folder out/): benchmarks/<question>/results/
@@ -162,7 +161,7 @@ def render_page(folders: list[Path] = RESULTS) -> str:
             d = {"headline": {"entries": len(d) if isinstance(d, list) else d}}
         out += [f"## {stem}", ""]
         out += table(["", ""], run_facts(p, d))
-        out += RENDER.get(stem, r_loo_diagnose if stem.startswith("loo_diagnose_") else r_generic)(d)
+        out += renderer(stem)(d)
     return "\n".join(out).rstrip("\n") + "\n"
 
 

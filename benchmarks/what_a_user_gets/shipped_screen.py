@@ -1,6 +1,7 @@
 """Screening the shipped model's appearance levers (issue 59, item 2): today's recipe and each candidate
 trained by benchmarks/what_a_user_gets/shipped_model.py with the same seed, epochs and frames, back to back
-on this machine (the baseline in the same run), scored on the six held-out splits.
+on this machine (the baseline in the same run), scored on the six held-out splits. Work folder
+benchmarks/out/shipped_model/epochs<E>/ (shipped_model.py's ``--workdir``): a budget's runs are its own.
 
     .venv/bin/python benchmarks/what_a_user_gets/shipped_screen.py [--epochs 15] [--seed 0]
                                                                    [--candidates lite1fpn,lite2fpn,lite0fpn@px307200] [--quick]
@@ -16,8 +17,9 @@ the predict time of a 1280x720 frame at 1 thread (shipped_model.py's, one proces
 benchmarks/speed/networks.py's interleaved figures) and the training minutes. **Targets** (issue 59,
 checked, not asserted; a screen points, the full budget decides): the mean above the baseline's; no
 split below the baseline's; KITTI's precision above the baseline's; predict at most 1.5x the baseline's.
-Outputs benchmarks/what_a_user_gets/results/shipped_screen.{md,json} (``--quick``: the work folder's);
-the last stdout line is one JSON object. Time: about 33 minutes a lite0fpn model at 15 epochs on 2
+Outputs benchmarks/what_a_user_gets/results/shipped_screen_e<E>.{md,json} (the table: the results page's
+:func:`~benchmarks.measure.page.multi_camera.r_shipped_screen`) (``--quick``: the work folder's);
+the last stdout line is one JSON object. Time: about 17 minutes a lite0fpn model at 15 epochs on 2
 cores, more for the larger networks and resolutions.
 """
 from __future__ import annotations
@@ -29,6 +31,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.measure.data import ROOT, run
+from benchmarks.measure.page.multi_camera import r_shipped_screen
 from benchmarks.measure.report import machine, results_dir, today, write_json
 from benchmarks.what_a_user_gets.shipped_model import SETS
 
@@ -49,7 +52,7 @@ def measure(variant: str, a: argparse.Namespace) -> dict:
     net, px = parse(variant)
     args = ["--conditions", "resize", "--model", net, "--epochs", a.epochs, "--seed", a.seed, "--threads", a.threads]
     args += ["--store-pixels", px] if px else []
-    args += ["--quick"] if a.quick else []
+    args += ["--quick"] if a.quick else ["--workdir", WORKDIR / f"epochs{a.epochs}"]  # a budget's runs never resume another's
     h = json.loads(run(sys.executable, SCRIPT, *args, stream=True).strip().splitlines()[-1])  # its headline
     row = {"iou": {t: h[f"resize_{t}"] for t in SETS}, "precision": {t: h.get(f"precision_resize_{t}") for t in SETS},
            "recall": {t: h.get(f"recall_resize_{t}") for t in SETS}, "mean": h.get("mean_resize"),
@@ -65,25 +68,6 @@ def targets(base: dict, row: dict) -> dict[str, bool]:
             "predict <= 1.5x the baseline's": row["predict_ms_t1"] <= 1.5 * base["predict_ms_t1"]}
 
 
-def render(rows: dict[str, dict], base: str, a: argparse.Namespace) -> str:
-    f = lambda v: "-" if v is None else f"{v:.1f}"
-    lines = [f"The shipped recipe's resize twin, one model a variant on the five development sets' training splits "
-             f"({a.epochs} epochs, seed {a.seed}); road IoU % (precision / recall) on each held-out split; baseline "
-             f"`{base}` (today's recipe) in the same run.", "",
-             "| variant | " + " | ".join(SETS) + " | mean | − baseline | predict ms (1 thread) | minutes |",
-             "|---|" + "---|" * (len(SETS) + 4)]
-    for v, r in rows.items():
-        cells = [f"{f(r['iou'][t])} ({f(r['precision'][t])} / {f(r['recall'][t])})" for t in SETS]
-        d = "-" if v == base else f"{r['mean'] - rows[base]['mean']:+.1f}"
-        lines.append(f"| {v} | " + " | ".join(cells) + f" | **{f(r['mean'])}** | {d} | {f(r['predict_ms_t1'])} | "
-                     f"{f(r['minutes'])} |")
-    lines += ["", "| variant | " + " | ".join(targets(rows[base], rows[base])) + " |", "|---|" + "---|" * 4]
-    for v, r in rows.items():
-        if v != base:
-            lines.append(f"| {v} | " + " | ".join("yes" if ok else "no" for ok in targets(rows[base], r).values()) + " |")
-    return "\n".join(lines) + "\n"
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--candidates", default="lite1fpn,lite2fpn,lite0fpn@px307200", help="NET[@pxN], comma list")
@@ -97,19 +81,20 @@ def main() -> None:
     for v in variants:
         parse(v)  # every name checked before the first hour of training
     rows = {v: measure(v, a) for v in variants}
-    text = render(rows, a.baseline, a)
-    print(text)
     out = WORKDIR / "quick" / "results" if a.quick else results_dir(__file__)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "shipped_screen.md").write_text(text)
     head = {f"{k}_{v}": r[k] for v, r in rows.items() for k in ("mean", "predict_ms_t1", "minutes")}
     head.update({f"{v}_minus_baseline": round(r["mean"] - rows[a.baseline]["mean"], 2) for v, r in rows.items()})
-    write_json(out / "shipped_screen.json",
-               {"headline": head, "rows": rows, "targets": {v: targets(rows[a.baseline], r) for v, r in rows.items()
-                                                             if v != a.baseline},
-                "baseline": a.baseline, "epochs": a.epochs, "seed": a.seed, "sets": SETS, "machine": machine(),
-                "date": today(), "command": f"benchmarks/what_a_user_gets/shipped_screen.py --candidates "
-                                            f"{a.candidates} --baseline {a.baseline} --epochs {a.epochs} --seed {a.seed}"})
+    result = {"headline": head, "rows": rows, "targets": {v: targets(rows[a.baseline], r) for v, r in rows.items()
+                                                         if v != a.baseline},
+              "baseline": a.baseline, "epochs": a.epochs, "seed": a.seed, "sets": SETS, "machine": machine(),
+              "date": today(), "command": f"benchmarks/what_a_user_gets/shipped_screen.py --candidates "
+                                          f"{a.candidates} --baseline {a.baseline} --epochs {a.epochs} --seed {a.seed}"}
+    text = "\n".join(r_shipped_screen(result))
+    print(text)
+    stem = f"shipped_screen_e{a.epochs}"  # a budget's screen beside another's
+    (out / f"{stem}.md").write_text(text)
+    write_json(out / f"{stem}.json", result)
     print(json.dumps(head))
 
 

@@ -68,6 +68,22 @@ def r_shipped_model(d: dict) -> list[str]:
     return out + table(["target (issue 34)", "met"], [[k, "not measured" if v is None else num(v)] for k, v in t.items()])
 
 
+def r_shipped_screen(d: dict) -> list[str]:
+    """The shipped model's appearance levers (benchmarks/what_a_user_gets/shipped_screen.py): each variant's resize
+    twin against today's recipe (the baseline) trained in the same run; the script writes its .md with this."""
+    rows, base, sets = d["rows"], d["baseline"], d["sets"]
+    pr = lambda r, t: f"{num(r['iou'][t], 1)} ({num(r['precision'][t], 1)} / {num(r['recall'][t], 1)})"  # noqa: E731
+    out = [f"The shipped recipe's resize twin, one model a variant on the five development sets' training splits "
+           f"({d['epochs']} epochs, seed {d['seed']}); road IoU % (precision / recall) on each held-out split; baseline "
+           f"`{base}` (today's recipe) in the same run.", ""]
+    out += table(["variant"] + sets + ["mean", "− baseline", "predict ms (1 thread)", "minutes"],
+                 [[v] + [pr(r, t) for t in sets] + [f"**{num(r['mean'], 1)}**",
+                  "-" if v == base else f"{r['mean'] - rows[base]['mean']:+.1f}", num(r["predict_ms_t1"], 1),
+                  num(r["minutes"], 1)] for v, r in rows.items()])
+    names = next(iter(d["targets"].values()), {})
+    return out + table(["variant"] + list(names), [[v] + [num(ok) for ok in t.values()] for v, t in d["targets"].items()])
+
+
 def r_finetune(d: dict) -> list[str]:
     """Fine-tuning on 20 labelled frames of a camera the model has not seen (benchmarks/what_a_user_gets/finetune.py)."""
     c, seeds, h = d["cells"], d.get("seeds", []), d["headline"]

@@ -1,6 +1,6 @@
 """The results page's sections (benchmarks/results_page.py): one renderer per benchmark JSON (``RENDER``:
-the JSON's stem -> the Markdown lines of its figures; :func:`r_generic` for a JSON without one,
-:func:`r_loo_diagnose` for every ``loo_diagnose_<set>``). Number formats: measure/page/format.py; the
+the JSON's stem, or a stem's beginning ending in "_", -> the Markdown lines of its figures; :func:`renderer`
+picks; :func:`r_generic` for a JSON without one). Number formats: measure/page/format.py; the
 multi-camera benchmarks' renderers: measure/page/multi_camera.py."""
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from typing import Callable
 
 from .format import _mean_std, median3, ms, num, pct, r_generic, table
 from .multi_camera import (r_adapt_loo, r_finetune, r_merged_estimated, r_multi_camera, r_low_camera, r_own_frames,
-                           r_route_finetune, r_shipped_model)
+                           r_loo_diagnose, r_route_finetune, r_shipped_model, r_shipped_screen)
 
 
 # ---------------------------------------------------------------- one renderer per benchmark
@@ -369,4 +369,11 @@ RENDER: dict[str, Callable[[dict], list[str]]] = {
     "predict_threads": r_predict_threads, "own_frames_idd_unseen": r_own_frames, "own_frames_idd_shipped": r_own_frames,
     "own_frames_camvid_shipped": r_own_frames, "low_camera": r_low_camera, "merged_estimated": r_merged_estimated,
     "route_finetune_idd": r_route_finetune, "route_finetune_camvid": r_route_finetune,
+    # a name ending in "_": every stem it begins (loo_diagnose_<set>, shipped_screen_e<epochs>)
+    "loo_diagnose_": r_loo_diagnose, "shipped_screen_": r_shipped_screen,
 }
+
+
+def renderer(stem: str) -> Callable[[dict], list[str]]:
+    """The section renderer of a results JSON's stem: its own, else a prefix's, else :func:`r_generic`."""
+    return RENDER.get(stem) or next((f for k, f in RENDER.items() if k.endswith("_") and stem.startswith(k)), r_generic)
