@@ -10,7 +10,7 @@
   in document order, in a scratch folder that holds ``examples/``;
 * every relative Markdown link resolves to a file, and its ``#anchor`` to a heading.
 
-No network, nothing from ../shared.
+No network, no dataset outside the repository.
 """
 from __future__ import annotations
 

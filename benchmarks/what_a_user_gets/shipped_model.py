@@ -249,7 +249,8 @@ def main() -> None:
     ap.add_argument("--epochs", type=int, default=60)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--conditions", default="within,resize")
-    ap.add_argument("--workdir", type=Path, default=ROOT / "benchmarks" / "out" / "shipped_model")
+    ap.add_argument("--workdir", type=Path, default=ROOT / "benchmarks" / "out" / "shipped_model",
+                    help="runs in WORKDIR[/model-<name>][/px<N>]/epochs<E>")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--ship", type=Path, default=None, help="copy the best measured model here (road.pt, results.json)")
     ap.add_argument("--quick", action="store_true", help="smoke run: a few frames, 2 steps")
@@ -259,12 +260,13 @@ def main() -> None:
     ap.add_argument("--no-pretrained", action="store_true", help="with --model: the network from scratch (the "
                     "control of its ImageNet weights); WORKDIR/model-<name>-scratch")
     ap.add_argument("--store-pixels", type=int, default=None, help="working resolution's pixel budget of both twins "
-                    "(default 172800, 480x360's; issue 59's lever); WORKDIR[/model-<name>]/px<N>")
+                    "(default 172800, 480x360's; issue 59's lever); WORKDIR[/model-<name>]/px<N>/epochs<E>")
     a = ap.parse_args()
     if a.model:
         a.workdir = a.workdir / (f"model-{a.model}" + ("-scratch" if a.no_pretrained else ""))
     if a.store_pixels:
         a.workdir = a.workdir / f"px{a.store_pixels}"
+    a.workdir = a.workdir / f"epochs{a.epochs}"  # a budget's runs never resume another's
     require_data(CITYSCAPES, IDD, DATA, KITTI, BDD, LUMS)
     conds = a.conditions.split(",")
     wd = (a.workdir / "quick" if a.quick else a.workdir).resolve()  # the study file holds absolute paths

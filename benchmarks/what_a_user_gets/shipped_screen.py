@@ -1,7 +1,7 @@
 """Screening the shipped model's appearance levers (issue 59, item 2): today's recipe and each candidate
 trained by benchmarks/what_a_user_gets/shipped_model.py with the same seed, epochs and frames, back to back
-on this machine (the baseline in the same run), scored on the six held-out splits. Work folder
-benchmarks/out/shipped_model/epochs<E>/ (shipped_model.py's ``--workdir``): a budget's runs are its own.
+on this machine (the baseline in the same run), scored on the six held-out splits, in shipped_model.py's
+work folders (a budget's runs are its own there).
 
     .venv/bin/python benchmarks/what_a_user_gets/shipped_screen.py [--epochs 15] [--seed 0]
                                                                    [--candidates lite1fpn,lite2fpn,lite0fpn@px307200] [--quick]
@@ -52,7 +52,7 @@ def measure(variant: str, a: argparse.Namespace) -> dict:
     net, px = parse(variant)
     args = ["--conditions", "resize", "--model", net, "--epochs", a.epochs, "--seed", a.seed, "--threads", a.threads]
     args += ["--store-pixels", px] if px else []
-    args += ["--quick"] if a.quick else ["--workdir", WORKDIR / f"epochs{a.epochs}"]  # a budget's runs never resume another's
+    args += ["--quick"] if a.quick else []
     h = json.loads(run(sys.executable, SCRIPT, *args, stream=True).strip().splitlines()[-1])  # its headline
     row = {"iou": {t: h[f"resize_{t}"] for t in SETS}, "precision": {t: h.get(f"precision_resize_{t}") for t in SETS},
            "recall": {t: h.get(f"recall_resize_{t}") for t in SETS}, "mean": h.get("mean_resize"),
