@@ -17,8 +17,9 @@ the predict time of a 1280x720 frame at 1 thread (shipped_model.py's, one proces
 benchmarks/speed/networks.py's interleaved figures) and the training minutes. **Targets** (issue 59,
 checked, not asserted; a screen points, the full budget decides): the mean above the baseline's; no
 split below the baseline's; KITTI's precision above the baseline's; predict at most 1.5x the baseline's.
-Outputs benchmarks/what_a_user_gets/results/shipped_screen_e<E>[_s<S>].{md,json} (seed 0 unsuffixed) (the table: the results page's
-:func:`~benchmarks.measure.page.multi_camera.r_shipped_screen`) (``--quick``: the work folder's);
+Outputs benchmarks/what_a_user_gets/results/shipped_screen_e<E>[_s<S>].{md,json} (``_s<S>`` for a seed
+other than 0; ``--quick``: the work folder's); the table is the results page's
+:func:`~benchmarks.measure.page.multi_camera.r_shipped_screen`;
 the last stdout line is one JSON object. Time: about 17 minutes a lite0fpn model at 15 epochs on 2
 cores, more for the larger networks and resolutions.
 """
@@ -92,7 +93,7 @@ def main() -> None:
                                           f"{a.candidates} --baseline {a.baseline} --epochs {a.epochs} --seed {a.seed}"}
     text = "\n".join(r_shipped_screen(result))
     print(text)
-    stem = f"shipped_screen_e{a.epochs}" + (f"_s{a.seed}" if a.seed else "")  # a budget's or seed's screen beside another's
+    stem = f"shipped_screen_e{a.epochs}" + (f"_s{a.seed}" if a.seed else "")  # each budget and seed its own file
     (out / f"{stem}.md").write_text(text)
     write_json(out / f"{stem}.json", result)
     print(json.dumps(head))
