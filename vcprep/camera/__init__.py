@@ -13,7 +13,8 @@ from .ego import (EgoEstimate, MIN_DISTINCT, ego_rows_from_frame_files, ego_rows
                   ego_rows_from_label_files, ego_rows_from_labels, rows_at_height)
 from .estimate import (ASSUMED_HEIGHT, ASSUMED_HFOV, ROAD_WIDTH, estimate_camera, estimate_to_yaml, exif_focal_35mm,
                        road_widths, whole_frame_vp_config)
-from .files import camera_from_dict, camera_to_yaml, read_camera_yaml, read_cityscapes_camera, read_kitti_calib
+from .files import (camera_from_dict, camera_to_yaml, read_camera_yaml, read_cityscapes_camera, read_kitti_calib,
+                    read_kitti_entries)
 from .pinhole import Camera, PRESETS, scale_matrix
 from .sources import FrameCameras, PRESET_PREFIX, camera_of_image, load_camera, load_cameras, preset_name
 from .virtual import (DESIGN_ABOVE, DESIGN_PAN_RANGE, DESIGN_TILT_RANGE, EXTENTS, STORE_PIXELS, design_virtual_camera,
@@ -23,7 +24,7 @@ __all__ = ["EgoEstimate", "MIN_DISTINCT", "ego_rows_from_frame_files", "ego_rows
            "ego_rows_from_label_files", "ego_rows_from_labels", "rows_at_height", "ASSUMED_HEIGHT", "ASSUMED_HFOV",
            "ROAD_WIDTH", "estimate_camera", "estimate_to_yaml", "exif_focal_35mm", "road_widths",
            "whole_frame_vp_config", "camera_from_dict", "camera_to_yaml", "read_camera_yaml", "read_cityscapes_camera",
-           "read_kitti_calib", "Camera", "PRESETS", "scale_matrix", "FrameCameras", "PRESET_PREFIX", "camera_of_image",
+           "read_kitti_calib", "read_kitti_entries", "Camera", "PRESETS", "scale_matrix", "FrameCameras", "PRESET_PREFIX", "camera_of_image",
            "load_camera", "load_cameras", "preset_name", "EXTENTS", "design_virtual_camera", "extend_canvas",
            "same_camera_other_canvas", "DESIGN_ABOVE", "DESIGN_PAN_RANGE", "DESIGN_TILT_RANGE", "STORE_PIXELS",
            "scale_for_pixels"]

@@ -14,7 +14,7 @@ from ..errors import InputError
 from ..io.images import read_text
 from .pinhole import PRESETS, Camera
 
-__all__ = ["camera_from_dict", "read_camera_yaml", "yaml_name", "camera_to_yaml", "read_kitti_calib",
+__all__ = ["camera_from_dict", "read_camera_yaml", "yaml_name", "camera_to_yaml", "read_kitti_calib", "read_kitti_entries",
            "read_cityscapes_camera"]
 
 MAX_ABS_TILT_DEG = 80.0
@@ -142,10 +142,9 @@ def camera_to_yaml(cam: Camera) -> str:
     return "\n".join(lines) + "\n"
 
 
-def read_kitti_calib(path: str | Path, image_size: tuple[int, int] = (1242, 375)) -> Camera:
-    """A KITTI calibration file: ``P2`` gives K; ``Tr_cam_to_road`` (KITTI road) gives this
-    frame's camera height and tilt. Without ``Tr_cam_to_road`` the kitti preset's height and
-    zero tilt are used. KITTI files carry no image size: ``image_size`` is that of the frames."""
+def read_kitti_entries(path: str | Path) -> dict[str, np.ndarray]:
+    """Every ``KEY: numbers`` line of a KITTI calibration file, as flat float arrays (``P2``: 12
+    values, ``R0_rect``: 9, ``Tr_cam_to_road``: 12, ...); a malformed line raises :class:`InputError`."""
     path = Path(path)
     text = read_text(path, "camera file", "give the camera file itself")
     entries: dict[str, np.ndarray] = {}
@@ -163,6 +162,15 @@ def read_kitti_calib(path: str | Path, image_size: tuple[int, int] = (1242, 375)
         if not np.all(np.isfinite(vals)):
             raise InputError(f"line {n} ('{key.strip()}') has a non-finite value", path, "fix the calibration file")
         entries[key.strip()] = vals
+    return entries
+
+
+def read_kitti_calib(path: str | Path, image_size: tuple[int, int] = (1242, 375)) -> Camera:
+    """A KITTI calibration file: ``P2`` gives K; ``Tr_cam_to_road`` (KITTI road) gives this
+    frame's camera height and tilt. Without ``Tr_cam_to_road`` the kitti preset's height and
+    zero tilt are used. KITTI files carry no image size: ``image_size`` is that of the frames."""
+    path = Path(path)
+    entries = read_kitti_entries(path)
     if "P2" not in entries:
         raise InputError("no 'P2' line (the left colour camera's projection matrix)", path,
                          "use the calib file of the image_2 camera from the KITTI release")

@@ -17,7 +17,7 @@ from functools import cached_property
 import cv2
 import numpy as np
 
-__all__ = ["RemapMaps", "build_maps", "warp_image", "warp_label", "maps_for", "clear_cache", "OUTSIDE"]
+__all__ = ["RemapMaps", "build_maps", "maps_from_coordinates", "warp_image", "warp_label", "maps_for", "clear_cache", "OUTSIDE"]
 
 OUTSIDE = -64.0  # map value for destination pixels that have no source pixel
 
@@ -81,14 +81,25 @@ def source_coordinates(src_H_dst: np.ndarray, dst_size: tuple[int, int]) -> tupl
     return x, y, front
 
 
-def build_maps(dst_H_src: np.ndarray, src_size: tuple[int, int], dst_size: tuple[int, int]) -> RemapMaps:
-    """Remap maps that warp a ``src_size`` image into ``dst_size`` through ``dst_H_src``."""
+def build_maps(dst_H_src: np.ndarray, src_size: tuple[int, int], dst_size: tuple[int, int],
+               oriented: bool = False) -> RemapMaps:
+    """Remap maps that warp a ``src_size`` image into ``dst_size`` through ``dst_H_src``.
+    ``oriented``: the matrix's homogeneous sign already says which destination pixels lie in front
+    (positive scale of ``inv(dst_H_src) @ (u, v, 1)``); else the middle of the destination is taken
+    to be in front."""
     M = np.linalg.inv(np.asarray(dst_H_src, dtype=np.float64))
-    if M[2] @ np.array([dst_size[0] / 2, dst_size[1] / 2, 1.0]) < 0:
+    if not oriented and M[2] @ np.array([dst_size[0] / 2, dst_size[1] / 2, 1.0]) < 0:
         M = -M  # homogeneous sign: make the middle of the destination 'in front'
     x, y, front = source_coordinates(M, dst_size)
     w, h = src_size
     valid = front & (x >= -0.5) & (x < w - 0.5) & (y >= -0.5) & (y < h - 0.5)
+    return maps_from_coordinates(x, y, valid, src_size)
+
+
+def maps_from_coordinates(x: np.ndarray, y: np.ndarray, valid: np.ndarray, src_size: tuple[int, int]) -> RemapMaps:
+    """:class:`RemapMaps` from the source coordinates (x, y) of every destination pixel and where
+    they are ``valid`` (clamped to the source's edge pixels there, :data:`OUTSIDE` elsewhere)."""
+    w, h = src_size
     map_x = np.where(valid, np.clip(x, 0, w - 1), OUTSIDE).astype(np.float32)
     map_y = np.where(valid, np.clip(y, 0, h - 1), OUTSIDE).astype(np.float32)
     linear = cv2.convertMaps(map_x, map_y, cv2.CV_16SC2)
@@ -100,16 +111,17 @@ _CACHE: "OrderedDict[tuple, RemapMaps]" = OrderedDict()
 _CACHE_MAX = 8
 
 
-def maps_for(dst_H_src: np.ndarray, src_size: tuple[int, int], dst_size: tuple[int, int]) -> RemapMaps:
+def maps_for(dst_H_src: np.ndarray, src_size: tuple[int, int], dst_size: tuple[int, int],
+             oriented: bool = False) -> RemapMaps:
     """:func:`build_maps` with a small LRU cache keyed by the exact matrix and sizes (all images
     of one camera share one homography in between-camera mode, so maps are built once)."""
     H = np.ascontiguousarray(dst_H_src, dtype=np.float64)
-    key = (H.tobytes(), tuple(src_size), tuple(dst_size))
+    key = (H.tobytes(), tuple(src_size), tuple(dst_size), oriented)
     hit = _CACHE.get(key)
     if hit is not None:
         _CACHE.move_to_end(key)
         return hit
-    maps = build_maps(H, src_size, dst_size)
+    maps = build_maps(H, src_size, dst_size, oriented)
     _CACHE[key] = maps
     if len(_CACHE) > _CACHE_MAX:
         _CACHE.popitem(last=False)
