@@ -17,10 +17,12 @@ from __future__ import annotations
 import hashlib
 import json
 from pathlib import Path
+from typing import Any, Callable
 
 import numpy as np
 from tqdm import tqdm
 
+from vcprep.bev import to_bev
 from vcprep.dataset import find_images
 from vcprep.errors import InputError
 from vcprep.io import read_image, write_bytes_atomic
@@ -28,7 +30,9 @@ from vcprep.labels import LabelFormat, RoadShare, decode_label, label_stem_for
 
 from .metrics import KittiMetrics, RoadMetrics
 
-__all__ = ["RECORD", "record_predictions", "recorded_frames", "prediction_stems", "evaluate_folder"]
+BevMapsOf = Callable[[str, tuple[int, int]], Any]  # a frame's stem and size (w, h) -> its BEV maps
+
+__all__ = ["BevMapsOf", "RECORD", "record_predictions", "recorded_frames", "prediction_stems", "evaluate_folder"]
 
 RECORD = "predict.json"  # in a prediction folder: which model's runs wrote which frames
 
@@ -98,13 +102,90 @@ def _recorded_stems(pred_dir: Path, stems: dict[str, dict[str, Path]],
     return kept
 
 
+def _label_files(labels: Path, fmt: LabelFormat) -> dict[str, list[Path]]:
+    """label stem -> its files in the tree ``labels`` (IDD: also by item id <drive>_<stem>)."""
+    label_files: dict[str, list[Path]] = {}
+    for p in find_images(labels, "label"):  # recursively: nested trees (Cityscapes gtFine/<split>/<city>/)
+        if p.suffix.lower() == ".png":
+            label_files.setdefault(p.stem, []).append(p)
+            if fmt.drive_in_id:  # IDD: predictions named by item id <drive>_<stem> (crossval) or by file stem
+                label_files.setdefault(f"{p.parent.name}_{p.stem}", []).append(p)
+    return label_files
+
+
+def _label_of(stem: str, files: dict[str, Path], label_files: dict[str, list[Path]], labels: Path,
+              fmt: LabelFormat) -> Path:
+    """The one label file of the prediction ``stem``."""
+    folders, _, base = stem.rpartition("/")  # a tree's frame: its label in the same folders of the label tree
+    lstem = label_stem_for(Path(base + ".png"), fmt)
+    found = label_files.get(lstem, [])
+    if folders and len(found) > 1:
+        parts = tuple(folders.split("/"))
+        found = [f for f in found if f.parent.relative_to(labels).parts[-len(parts):] == parts]
+    if not found:
+        raise InputError(f"no label '{lstem}.png' in {labels}", files.get("mask") or files.get("prob"),
+                         "check --labels and --label-format")
+    if len(found) > 1:
+        raise InputError(f"two labels '{lstem}.png' in {labels} ({found[0]}, {found[1]})",
+                         files.get("mask") or files.get("prob"), "evaluate one split at a time")
+    return found[0]
+
+
+def _predictions(files: dict[str, Path], label: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """(mask, probability map or None) of one frame, checked against its label's size."""
+    prob = None
+    if "prob" in files:
+        prob = read_image(files["prob"], label=True).array
+        if prob.ndim != 2 or prob.dtype != np.uint8:
+            raise InputError("probability map is not a single-channel 8-bit PNG", files["prob"],
+                             "give the _prob.png written by 'vctrain predict'")
+    if "mask" in files:
+        mask = read_image(files["mask"], label=True).array
+        if mask.ndim != 2:
+            raise InputError("mask is not a single-channel PNG", files["mask"], "give 0/255 road masks")
+    else:
+        mask = prob >= 128
+    for what, arr, f in (("mask", mask, files.get("mask")), ("probability map", prob, files.get("prob"))):
+        if arr is not None and arr.shape != label.shape:
+            raise InputError(f"{what} is {arr.shape[1]}x{arr.shape[0]} but its label is "
+                             f"{label.shape[1]}x{label.shape[0]}", f, "predict at the original image size")
+    return mask, prob
+
+
+class _Scores:
+    """Road and KITTI metrics accumulated frame by frame (``with_prob``: the KITTI ones too)."""
+
+    def __init__(self, with_prob: bool):
+        self.road, self.kitti, self.with_prob = RoadMetrics(), KittiMetrics(), with_prob
+
+    def add(self, mask: np.ndarray, prob: np.ndarray | None, label: np.ndarray) -> None:
+        self.road.add(mask, label)
+        if self.with_prob:
+            self.kitti.add(prob, label)
+
+    def result(self) -> dict[str, float]:
+        result: dict[str, float] = self.road.result()
+        if self.with_prob:
+            k = self.kitti.result()
+            result.update({"maxf": k["maxf"], "ap": k["ap"]})
+            result.update({f"kitti_{key}": k[key] for key in ("precision", "recall", "fpr", "fnr", "threshold")})
+        return result
+
+
 def evaluate_folder(pred_dir: str | Path, labels: str | Path, fmt: LabelFormat,
                     progress: bool = True, road_share: RoadShare | None = None,
-                    notes: list[str] | None = None) -> tuple[dict[str, float], int]:
+                    notes: list[str] | None = None, bev: BevMapsOf | None = None) -> tuple[dict[str, Any], int]:
     """Road metrics (and KITTI metrics from probability maps) of ``pred_dir`` against ``labels``,
     and the number of images. Keys: iou, mean_image_iou, precision, recall, f1; with probability
     maps also maxf, ap, kitti_precision, kitti_recall, kitti_fpr, kitti_fnr, kitti_threshold (the
     operating point of MaxF). Every value is in [0, 1].
+
+    ``bev`` (given: a frame's stem and size -> its :func:`vcprep.bev.bev_maps`): the metrics again
+    in the bird's-eye view of the road, under the key ``bev``: with probability maps the KITTI road
+    benchmark's (``maxf``, ``ap``, ``precision``, ``recall``, ``fpr``, ``fnr``, ``threshold``) and
+    the masks' ``iou``, ``mean_image_iou``; without, the masks' (iou ... f1). Labels and masks go
+    onto the grid by nearest neighbour (unseen cells ignored), probability maps as the devkit's
+    ``transform2BEV`` for a KITTI calibration (its pixel), bilinearly for other cameras.
 
     Every prediction must have its label (the reverse is not required: evaluate a subset by
     predicting a subset). Raises :class:`InputError` on a missing label or a size mismatch.
@@ -120,53 +201,23 @@ def evaluate_folder(pred_dir: str | Path, labels: str | Path, fmt: LabelFormat,
     if not stems:
         raise InputError("no <stem>_mask.png or <stem>_prob.png in folder", pred_dir,
                          "give the --out folder of 'vctrain predict'")
-    label_files: dict[str, list[Path]] = {}
-    for p in find_images(labels, "label"):  # recursively: nested trees (Cityscapes gtFine/<split>/<city>/)
-        if p.suffix.lower() == ".png":
-            label_files.setdefault(p.stem, []).append(p)
-            if fmt.drive_in_id:  # IDD: predictions named by item id <drive>_<stem> (crossval) or by file stem
-                label_files.setdefault(f"{p.parent.name}_{p.stem}", []).append(p)
-    road, kitti = RoadMetrics(), KittiMetrics()
+    label_files = _label_files(labels, fmt)
     with_prob = all("prob" in v for v in stems.values())
+    scores, bev_scores = _Scores(with_prob), _Scores(with_prob)
     for stem, files in tqdm(stems.items(), desc="eval", unit="img", disable=None if progress else True, leave=False):
-        folders, _, base = stem.rpartition("/")  # a tree's frame: its label in the same folders of the label tree
-        lstem = label_stem_for(Path(base + ".png"), fmt)
-        found = label_files.get(lstem, [])
-        if folders and len(found) > 1:
-            parts = tuple(folders.split("/"))
-            found = [f for f in found if f.parent.relative_to(labels).parts[-len(parts):] == parts]
-        if not found:
-            raise InputError(f"no label '{lstem}.png' in {labels}", files.get("mask") or files.get("prob"),
-                             "check --labels and --label-format")
-        if len(found) > 1:
-            raise InputError(f"two labels '{lstem}.png' in {labels} ({found[0]}, {found[1]})",
-                             files.get("mask") or files.get("prob"), "evaluate one split at a time")
-        lf = found[0]
+        lf = _label_of(stem, files, label_files, labels, fmt)
         label = decode_label(read_image(lf, label=True).array, fmt, lf)
         if road_share is not None:
             road_share.add(label)
-        prob = None
-        if "prob" in files:
-            prob = read_image(files["prob"], label=True).array
-            if prob.ndim != 2 or prob.dtype != np.uint8:
-                raise InputError("probability map is not a single-channel 8-bit PNG", files["prob"],
-                                 "give the _prob.png written by 'vctrain predict'")
-        if "mask" in files:
-            mask = read_image(files["mask"], label=True).array
-            if mask.ndim != 2:
-                raise InputError("mask is not a single-channel PNG", files["mask"], "give 0/255 road masks")
-        else:
-            mask = prob >= 128
-        for what, arr, f in (("mask", mask, files.get("mask")), ("probability map", prob, files.get("prob"))):
-            if arr is not None and arr.shape != label.shape:
-                raise InputError(f"{what} is {arr.shape[1]}x{arr.shape[0]} but its label is "
-                                 f"{label.shape[1]}x{label.shape[0]}", f, "predict at the original image size")
-        road.add(mask, label)
-        if with_prob:
-            kitti.add(prob, label)
-    result: dict[str, float] = road.result()
-    if with_prob:
-        k = kitti.result()
-        result.update({"maxf": k["maxf"], "ap": k["ap"]})
-        result.update({f"kitti_{key}": k[key] for key in ("precision", "recall", "fpr", "fnr", "threshold")})
+        mask, prob = _predictions(files, label)
+        scores.add(mask, prob, label)
+        if bev is not None:
+            maps = bev(stem, (label.shape[1], label.shape[0]))
+            bev_scores.add(to_bev((mask != 0).astype(np.uint8), maps, "label"),
+                           None if prob is None else to_bev(prob, maps, "prob"), to_bev(label, maps, "label"))
+    result: dict[str, Any] = scores.result()
+    if bev is not None:
+        b = bev_scores.result()  # with probability maps the KITTI benchmark's names; the masks' IoU beside them
+        kitti = {k.removeprefix("kitti_"): v for k, v in b.items() if k.startswith(("kitti_", "maxf", "ap"))}
+        result["bev"] = {**kitti, "iou": b["iou"], "mean_image_iou": b["mean_image_iou"]} if kitti else b
     return result, len(stems)

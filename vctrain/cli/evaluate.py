@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Optional
 
 import typer
 
@@ -21,6 +22,14 @@ def eval_cmd(
     labels: Path = typer.Option(..., "--labels", "-l", help="folder of ground-truth labels"),
     label_format: str = typer.Option(..., "--label-format", "-f", help=LABEL_FORMAT_HELP),
     as_json: bool = typer.Option(False, "--json", help="print one JSON object (values in [0, 1])"),
+    bev: bool = typer.Option(False, "--bev", help="also score in the bird's-eye view of the road (under 'bev'): the "
+                             "KITTI road benchmark's BEV evaluation; needs --camera"),
+    camera: Optional[str] = typer.Option(None, "--camera", "-c", help="with --bev: the frames' camera (preset, file, "
+                                         "or folder of per-frame calibration files: KITTI calib/ gives the devkit's "
+                                         "transform2BEV), at its nominal or calibrated pose"),
+    grid_range: Optional[str] = typer.Option(None, "--range", help="with --bev: the grid 'X0,X1,Z0,Z1' in metres "
+                                             "(default the KITTI benchmark's -10,10,6,46)"),
+    res: float = typer.Option(0.05, "--res", help="with --bev: cell size in metres"),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar"),
 ):
     """Road IoU (ΣTP/Σ(TP+FP+FN), ignore pixels excluded), mean per-image IoU, precision, recall,
@@ -33,17 +42,26 @@ def eval_cmd(
     not fit them). It scores the frames the folder's last model wrote (predict.json, kept by
     'vctrain predict'), and says how many masks of another model's run it left out.
 
+    --bev scores the same frames again on a metric grid of the road plane (0.05 m cells over
+    x -10..10 m, z 6..46 m by default), where every cell is the same area of road: the KITTI road
+    benchmark's BEV evaluation (MaxF, AP, PRE, REC, FPR, FNR, its threshold sweep) with KITTI
+    calibration files (exactly the devkit's transform2BEV), the same metrics in the BEV of any
+    other --camera. Cells the camera does not see are left out.
+
     \b
     Example:
       vctrain eval preds/camvid_val --labels data/camvid/valannot --label-format camvid
       vctrain eval preds/kitti --labels data/kitti/gt_image_2 --label-format kitti --json
+      vctrain eval preds/kitti --labels data/kitti/gt_image_2 --label-format kitti \\
+          --bev --camera data/kitti/calib --json   # the road benchmark's BEV figures under "bev"
     """
     from vcprep.labels import RoadShare, get_label_format
 
     from ..evaluate import evaluate_folder
 
     fmt, share, notes = get_label_format(label_format), RoadShare(), []
-    result, n = evaluate_folder(pred_dir, labels, fmt, progress=not quiet, road_share=share, notes=notes)
+    result, n = evaluate_folder(pred_dir, labels, fmt, progress=not quiet, road_share=share, notes=notes,
+                                bev=_bev_maps_of(camera, grid_range, res) if bev else None)
     warning = share.warning(fmt, labels)
     for line in notes + ([warning] if warning else []):  # a wrong label format or mixed runs: said under --quiet too
         err(line)
@@ -51,9 +69,23 @@ def eval_cmd(
         emit_json(result)
     else:
         print(f"# {pred_dir}: {count(n, 'frame')} scored against {labels} ({label_format})")
-        for k, v in result.items():
+        flat = {**{k: v for k, v in result.items() if k != "bev"},
+                **{f"bev_{k}": v for k, v in result.get("bev", {}).items()}}
+        for k, v in flat.items():
             print(f"{k:<16} {v:.4f}")
         if "maxf" in result:
             print(MAXF_NOTE)
     if not quiet:
         err(f"{pred_dir}: {count(n, 'image')} evaluated")
+
+
+def _bev_maps_of(camera: Optional[str], grid_range: Optional[str], res: float):
+    """--bev: a frame's stem and size -> its BEV maps (:func:`vcprep.bev.bev_maps`) through --camera."""
+    from vcprep.bev import BevSource, bev_maps, parse_range
+    from vcprep.errors import InputError
+
+    if camera is None:
+        raise InputError("--bev needs the frames' camera", None, "add --camera (a preset, a camera file, or the "
+                         "folder of per-frame calibration files, e.g. KITTI's calib/)")
+    grid, source = parse_range(grid_range, res), BevSource.from_spec(camera)
+    return lambda stem, size: bev_maps(source.view(Path(stem + ".png"), size), grid, stem)
