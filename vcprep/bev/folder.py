@@ -38,6 +38,7 @@ class BevSettings:
     corridor: float = CORRIDOR              # the vehicle's corridor for free_m (metres)
     label_format: LabelFormat | None = None  # how the jobs' labels encode road
     images: bool = True                     # write ID_image.png
+    roll: float = 0.0                       # the camera's roll about its optical axis (degrees, clockwise > 0)
 
 
 def find_masks(folder: Path, jobs: list[Job]) -> dict[str, tuple[Path, str]]:
@@ -75,7 +76,7 @@ def bev_folder(jobs: list[Job], source: BevSource, out: Path, settings: BevSetti
     """Every frame of ``jobs`` onto ``settings.grid``, its PNGs written to ``out`` (module docstring);
     yields, for each frame with a label or a mask, ``{"id", "from": "mask"|"label", "free_m",
     "width_m", "area_m2", "pose"}`` (:func:`road_in_metres`; the mask's where both are given)."""
-    views = frame_views(jobs, source, settings.within, on_image=on_image)
+    views = frame_views(jobs, source, settings.within, on_image=on_image, roll=settings.roll)
     grid = settings.grid
     for job in jobs:
         view = views[job.id]

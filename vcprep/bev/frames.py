@@ -30,9 +30,9 @@ def within_rule(within: str | None, source: BevSource, spec: str | Path | None =
 
 def frame_views(jobs: list[Job], source: BevSource, within: str, rule: VPRule | None = None,
                 on_image: Callable[[int], None] | None = None,
-                on_error: Callable[[int, VCError], None] | None = None) -> dict[str, GroundView]:
-    """job id -> its frame's view (:meth:`BevSource.view` at the pose ``within`` gives it). A frame
-    the VP detector cannot read is told to ``on_error`` (given) and has no view."""
+                on_error: Callable[[int, VCError], None] | None = None, roll: float = 0.0) -> dict[str, GroundView]:
+    """job id -> its frame's view (:meth:`BevSource.view` at the pose ``within`` gives it, turned by
+    ``roll`` degrees). A frame the VP detector cannot read is told to ``on_error`` (given) and has no view."""
     camera = source.camera if not source.calibrated else None
     poses = None
     if camera is not None and within != "none":
@@ -43,5 +43,5 @@ def frame_views(jobs: list[Job], source: BevSource, within: str, rule: VPRule | 
             continue
         pose = poses.get(job.id) if poses is not None else None
         size = image_size(job.image)
-        views[job.id] = source.view(job.image, size, pose.vp if pose else None, pose.status if pose else None)
+        views[job.id] = source.view(job.image, size, pose.vp if pose else None, pose.status if pose else None, roll)
     return views

@@ -52,9 +52,9 @@ def free_distance(bev: np.ndarray, grid: BevGrid, corridor: float = CORRIDOR, or
     stops = np.flatnonzero((blocked | unknown)[start[0]:])
     rows = grid.shape[0]
     if stops.size == 0:
-        return round(grid.z_max - origin_z, 6)
+        return round(float(grid.z_max - origin_z), 6)
     near_first = start[0] + stops[0]
-    return round(grid.z_max - rows * grid.res + near_first * grid.res - origin_z, 6)
+    return round(float(grid.z_max - rows * grid.res + near_first * grid.res - origin_z), 6)
 
 
 def road_width(bev: np.ndarray, grid: BevGrid, distance: float, origin_z: float = 0.0) -> float | None:

@@ -52,14 +52,28 @@ class GroundView:
         return dict(self.pose)
 
 
+def _roll_matrix(cam: Camera, roll: float) -> np.ndarray:
+    """``K Rz K^-1``: pixels of ``cam`` turned by ``roll`` degrees about the optical axis (positive:
+    the image turns clockwise, as :func:`vcprep.synthetic.render_road`'s ``roll``)."""
+    c, s = np.cos(np.radians(roll)), np.sin(np.radians(roll))
+    return cam.K @ np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]) @ np.linalg.inv(cam.K)
+
+
 def camera_view(cam: Camera, vp: tuple[float, float] | None = None, vp_status: str | None = None,
-                source: str | None = None) -> GroundView:
+                source: str | None = None, roll: float = 0.0) -> GroundView:
     """``cam`` (at the frame's size) at its nominal pose, or at the pan and tilt its road vanishing
-    point ``vp`` (u, v source pixels) implies (:func:`vcprep.warp.pose_from_vp`, the warp's rule)."""
-    pan, tilt = (cam.pan, cam.tilt) if vp is None else pose_from_vp(cam, vp)
-    H = ground_to_image(cam, pan, tilt)
+    point ``vp`` (u, v source pixels) implies (:func:`vcprep.warp.pose_from_vp`, the warp's rule).
+    ``roll`` (degrees, known from the mounting: frames do not tell it) turns the camera about its
+    optical axis after pan and tilt; the VP is read in the un-rolled image."""
+    rolled = _roll_matrix(cam, roll) if roll else np.eye(3)
+    if vp is not None and roll:
+        p = np.linalg.inv(rolled) @ np.array([vp[0], vp[1], 1.0])
+        pan, tilt = pose_from_vp(cam, (p[0] / p[2], p[1] / p[2]))
+    else:
+        pan, tilt = (cam.pan, cam.tilt) if vp is None else pose_from_vp(cam, vp)
+    H = rolled @ ground_to_image(cam, pan, tilt)
     pose = (("source", source or ("nominal" if vp is None else "vp")), ("pan_deg", round(float(pan), 4)),
-            ("tilt_deg", round(float(tilt), 4)), ("height_m", float(cam.height)),
+            ("tilt_deg", round(float(tilt), 4)), ("roll_deg", float(roll)), ("height_m", float(cam.height)),
             ("vp", None if vp is None else [round(float(vp[0]), 2), round(float(vp[1]), 2)]), ("vp_status", vp_status))
     return GroundView(tuple(float(v) for v in H.ravel()), (int(cam.size[0]), int(cam.size[1])), pose=pose)
 
@@ -110,9 +124,9 @@ class BevSource:
         return isinstance(self.camera, FrameCameras) or self.calib is not None
 
     def view(self, image: str | Path, size: tuple[int, int], vp: tuple[float, float] | None = None,
-             vp_status: str | None = None) -> GroundView:
+             vp_status: str | None = None, roll: float = 0.0) -> GroundView:
         """The view of ``image`` (of ``size`` (w, h)): a KITTI file's devkit view, else its camera at
-        ``vp``'s pose (None: the camera's nominal pose, or the frame's calibrated one)."""
+        ``vp``'s pose (None: the camera's nominal pose, or the frame's calibrated one), turned by ``roll``."""
         calib = self.calib
         if isinstance(self.camera, FrameCameras):
             calib = self.camera.file_for(image)
@@ -121,5 +135,5 @@ class BevSource:
             if view is not None:
                 return view
         if isinstance(self.camera, FrameCameras):
-            return camera_view(self.camera.for_image(image, size), source="calibration")
-        return camera_view(self.camera.for_image_size(size, image), vp, vp_status)
+            return camera_view(self.camera.for_image(image, size), source="calibration", roll=roll)
+        return camera_view(self.camera.for_image_size(size, image), vp, vp_status, roll=roll)

@@ -38,6 +38,8 @@ def bev_cmd(
                                          "'none' for calibration files (each frame's exact pose)"),
     corridor: float = typer.Option(CORRIDOR, "--corridor", help="width in metres of the vehicle's corridor free_m "
                                    "is measured along"),
+    roll: float = typer.Option(0.0, "--roll", help="the camera's roll about its optical axis in degrees (image "
+                               "turned clockwise > 0), if known: frames and camera files do not tell it"),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar or summary on stderr"),
 ):
     """Frames (and their labels or road masks) onto a metric grid of the road plane: a bird's-eye
@@ -72,7 +74,7 @@ def bev_cmd(
         source = BevSource.from_spec(spec, jobs[0].image)
     rule = within_rule(within, source, spec)
     found = find_masks(masks, jobs) if masks is not None else None
-    settings = BevSettings(grid=grid, within=rule, corridor=corridor, label_format=fmt)
+    settings = BevSettings(grid=grid, within=rule, corridor=corridor, label_format=fmt, roll=roll)
     bar = tqdm(total=len(jobs), desc="vp", unit="img", disable=True if quiet or rule != "estimate" else None, leave=False)
     n = 0
     out.mkdir(parents=True, exist_ok=True)
