@@ -8,7 +8,7 @@ from .io.images import read_image
 from .labels import IGNORE, ROAD, decode_label, get_label_format
 from .store.layout import Store
 
-__all__ = ["to_bgr8", "overlay_label", "warp_figure", "vp_figure", "completion_figure", "footprints_figure", "fov_figure",
+__all__ = ["to_bgr8", "overlay_label", "bev_figure", "warp_figure", "vp_figure", "completion_figure", "footprints_figure", "fov_figure",
            "prior_figure"]
 
 
@@ -395,3 +395,29 @@ def evenly_spread(files: list, n: int) -> list:
     """``n`` of ``files`` (at most all), evenly spread from the first to the last (sample frames)."""
     n = min(n, len(files))
     return [files[round(i * (len(files) - 1) / max(1, n - 1))] for i in range(n)]
+
+
+def bev_figure(frame: np.ndarray, label: np.ndarray | None, bev_image: np.ndarray, bev_label: np.ndarray,
+               grid, road: dict, height: int = 400, corridor: float = 1.8, origin_z: float = 0.0) -> np.ndarray:
+    """Frame (road in green) | its bird's-eye view (far row up; road in green, unseen dark), with
+    the corridor up to ``road['free_m']`` in yellow, the free distance as a red line and the
+    widths of ``road['width_m']`` as white ticks. ``grid`` a :class:`vcprep.bev.BevGrid`;
+    ``origin_z`` the camera's foot in the grid's z (:attr:`vcprep.bev.GroundView.origin_z`)."""
+    s = height / bev_image.shape[0]
+    bev = cv2.resize(overlay_label(bev_image, bev_label), None, fx=s, fy=s, interpolation=cv2.INTER_AREA)
+    px = lambda x, z: (int(round((x - grid.x_min) / grid.res * s)), int(round((grid.z_max - z) / grid.res * s)))  # noqa: E731
+    oz = origin_z
+    if road.get("free_m") is not None:
+        z = road["free_m"] + oz
+        for x in (-corridor / 2, corridor / 2):
+            cv2.line(bev, px(x, grid.z_min), px(x, z), (0, 230, 255), 1, cv2.LINE_AA)
+        cv2.line(bev, px(-corridor, z), px(corridor, z), (0, 0, 255), 2, cv2.LINE_AA)
+        cv2.putText(bev, f"free {road['free_m']:.1f} m", (4, 16), cv2.FONT_HERSHEY_SIMPLEX, 0.45, (0, 0, 255), 1,
+                    cv2.LINE_AA)
+    for d, w in road.get("width_m", {}).items():
+        y = px(0, float(d) + oz)[1]
+        cv2.line(bev, (0, y), (6, y), (255, 255, 255), 1)
+        cv2.putText(bev, f"{d} m: {'-' if w is None else f'{w:.1f} m'}", (8, y + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.38,
+                    (255, 255, 255), 1, cv2.LINE_AA)
+    left = _fit(overlay_label(frame, label), int(round(frame.shape[1] * height / frame.shape[0] * 0.5)), height)
+    return np.hstack([left, np.full((height, 6, 3), 255, np.uint8), bev])

@@ -25,5 +25,9 @@ records it, else "unknown".
   (``between``), on a 1-minute 1280x720 video (issue 35). Results: ``video.json``. Time: unknown in
   all; its two end-to-end runs took 119 s and 151 s (video.json).
 
+* ``bev.py`` -- ``vcprep bev``'s per-frame remap onto the KITTI road grid with cached maps against a bare
+  ``cv2.remap`` of the same grid, a 1280x720 frame (issue 71); also writes docs/bev.png. Results:
+  ``bev.json``. Time: 10 s.
+
 ``networks.py`` takes the frames and checkpoints of ``deploy.py`` (``benchmarks.speed.deploy``).
 """
