@@ -405,7 +405,10 @@ def bev_figure(frame: np.ndarray, label: np.ndarray | None, bev_image: np.ndarra
     ``origin_z`` the camera's foot in the grid's z (:attr:`vcprep.bev.GroundView.origin_z`)."""
     s = height / bev_image.shape[0]
     bev = cv2.resize(overlay_label(bev_image, bev_label), None, fx=s, fy=s, interpolation=cv2.INTER_AREA)
-    px = lambda x, z: (int(round((x - grid.x_min) / grid.res * s)), int(round((grid.z_max - z) / grid.res * s)))  # noqa: E731
+
+    def px(x: float, z: float) -> tuple[int, int]:  # a road point -> the figure's BEV pixel
+        return int(round((x - grid.x_min) / grid.res * s)), int(round((grid.z_max - z) / grid.res * s))
+
     oz = origin_z
     if road.get("free_m") is not None:
         z = road["free_m"] + oz

@@ -21,7 +21,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import statistics
 import sys
 import time
 from pathlib import Path
@@ -31,6 +30,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.measure.report import machine, results_dir, today, write_json
+from benchmarks.speed.warp import timed
 from vcprep.bev import BevGrid, bev_maps, camera_view, clear_cache, kitti_view, road_in_metres, to_bev
 from vcprep.camera import Camera
 from vcprep.figures import bev_figure
@@ -39,17 +39,6 @@ from vcprep.labels import decode_label, get_label_format
 from vcprep.synthetic import RoadScene, render_road
 
 ROOT = Path(__file__).resolve().parents[2]
-
-
-def timed(fn, frames, repeats):
-    """Median over repeats of the mean time per frame (ms), and the spread (min..max)."""
-    runs = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        for f in frames:
-            fn(f)
-        runs.append((time.perf_counter() - t0) * 1000 / len(frames))
-    return statistics.median(runs), min(runs), max(runs)
 
 
 def figure(out: Path) -> dict:
@@ -86,7 +75,8 @@ def main() -> None:
     maps = bev_maps(view, grid)
     cold = (time.perf_counter() - t0) * 1000
     mx, my = maps.map_x, maps.map_y
-    bare = timed(lambda im: cv2.remap(im, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT), frames, args.repeats)
+    bare = timed(lambda im: cv2.remap(im, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT), frames,
+                 args.repeats)
     ours = timed(lambda im: to_bev(im, bev_maps(view, grid), "image"), frames, args.repeats)
     bare_l = timed(lambda lb: cv2.remap(lb, mx, my, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT, borderValue=255),
                    labels, args.repeats)
@@ -98,7 +88,8 @@ def main() -> None:
           f"{args.frames} frames x {args.repeats} repeats")
     print(f"{'what':<8} {'bare ms':>8} {'ours ms':>8} {'ratio':>6}   spread bare / ours")
     for name, b, o in (("image", bare, ours), ("label", bare_l, ours_l)):
-        print(f"{name:<8} {b[0]:>8.3f} {o[0]:>8.3f} {o[0] / b[0]:>6.2f}   {b[1]:.3f}..{b[2]:.3f} / {o[1]:.3f}..{o[2]:.3f}")
+        print(f"{name:<8} {b[0]:>8.3f} {o[0]:>8.3f} {o[0] / b[0]:>6.2f}   "
+              f"{b[1]:.3f}..{b[2]:.3f} / {o[1]:.3f}..{o[2]:.3f}")
     print(f"cold maps {cold:.1f} ms (once per camera pose); ours equals bare within 1 grey level on {100 * same:.2f}% "
           f"of cells; docs/bev.png: KITTI um_000000, free {road['free_m']} m, width {road['width_m']}")
     headline = {"ratio_image": round(ours[0] / bare[0], 3), "ratio_label": round(ours_l[0] / bare_l[0], 3),

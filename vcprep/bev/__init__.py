@@ -28,6 +28,7 @@ from .maps import KINDS, bev_maps, clear_cache, image_H_bev, to_bev
 from .metres import CORRIDOR, DISTANCES, road_in_metres
 from .view import BevSource, GroundView, camera_view, kitti_view
 
-__all__ = ["BevSettings", "bev_folder", "find_masks", "frame_views", "within_rule", "KITTI_GRID", "MAX_CELLS", "BevGrid", "parse_range", "KINDS", "bev_maps",
+__all__ = ["BevSettings", "bev_folder", "find_masks", "frame_views", "within_rule", "KITTI_GRID", "MAX_CELLS",
+           "BevGrid", "parse_range", "KINDS", "bev_maps",
            "clear_cache", "image_H_bev", "to_bev", "CORRIDOR", "DISTANCES", "road_in_metres", "BevSource",
            "GroundView", "camera_view", "kitti_view"]

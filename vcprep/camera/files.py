@@ -14,7 +14,8 @@ from ..errors import InputError
 from ..io.images import read_text
 from .pinhole import PRESETS, Camera
 
-__all__ = ["camera_from_dict", "read_camera_yaml", "yaml_name", "camera_to_yaml", "read_kitti_calib", "read_kitti_entries",
+__all__ = ["camera_from_dict", "read_camera_yaml", "yaml_name", "camera_to_yaml", "read_kitti_calib",
+           "read_kitti_entries",
            "read_cityscapes_camera"]
 
 MAX_ABS_TILT_DEG = 80.0

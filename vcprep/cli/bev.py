@@ -75,7 +75,8 @@ def bev_cmd(
     rule = within_rule(within, source, spec)
     found = find_masks(masks, jobs) if masks is not None else None
     settings = BevSettings(grid=grid, within=rule, corridor=corridor, label_format=fmt, roll=roll)
-    bar = tqdm(total=len(jobs), desc="vp", unit="img", disable=True if quiet or rule != "estimate" else None, leave=False)
+    bar = tqdm(total=len(jobs), desc="vp", unit="img", disable=True if quiet or rule != "estimate" else None,
+               leave=False)
     n = 0
     out.mkdir(parents=True, exist_ok=True)
     for record in bev_folder(jobs, source, out, settings, found, lambda i: bar.update()):
@@ -86,5 +87,6 @@ def bev_cmd(
         print(out)
     if not quiet:
         rows, cols = grid.shape
-        err(f"{out}: {count(len(jobs), 'frame')} onto {cols}x{rows} cells of {res:g} m (x {grid.x_min:g}..{grid.x_max:g}"
+        err(f"{out}: {count(len(jobs), 'frame')} onto {cols}x{rows} cells of {res:g} m "
+            f"(x {grid.x_min:g}..{grid.x_max:g}"
             f" m, z {grid.z_min:g}..{grid.z_max:g} m), poses: {rule}")

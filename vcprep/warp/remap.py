@@ -17,7 +17,8 @@ from functools import cached_property
 import cv2
 import numpy as np
 
-__all__ = ["RemapMaps", "build_maps", "maps_from_coordinates", "warp_image", "warp_label", "maps_for", "clear_cache", "OUTSIDE"]
+__all__ = ["RemapMaps", "build_maps", "maps_from_coordinates", "warp_image", "warp_label", "maps_for", "clear_cache",
+           "OUTSIDE"]
 
 OUTSIDE = -64.0  # map value for destination pixels that have no source pixel
 
