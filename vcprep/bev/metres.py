@@ -5,7 +5,8 @@ or ignore; far row first). Distances are along the road plane from the camera's 
 z minus the view's ``origin_z``: 0 for a camera, the road frame's offset for a KITTI calibration).
 
 - ``free_m``: how far ahead the corridor of the vehicle (``corridor`` metres wide, centred on
-  x = 0: the cells whose centre lies within it, at least the one column nearest 0) is road. From
+  x = 0: the cells whose centre lies within it, at least the one column nearest 0; along z, the
+  road's direction under a VP pose, the camera's heading under a nominal or calibrated one) is road. From
   the nearest row the camera sees in full (or the first with a not-road cell), rows are taken
   outwards until one holds a not-road (0) or unknown (255) cell; ``free_m`` is that row's near
   edge: where the road stops being free, or where the view stops vouching for it. Every row road:
