@@ -4,6 +4,7 @@ is a warning in ``vcprep warp`` and ``vctrain eval``. Oracles: labels rendered w
 (vcprep.synthetic: road below the horizon), and the shipped CamVid labels (3 road, 1 building)."""
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import cv2
@@ -96,3 +97,75 @@ def test_eval_warns_on_a_format_that_finds_no_road(tmp_path):
         assert proc.returncode == 0 and '"iou": 0.0' in proc.stdout, proc.stdout
         warned = _warnings(proc.stderr)
         assert len(warned) == 1 and needle in warned[0] and f"'{spec}'" in warned[0], proc.stderr
+
+
+# -- KITTI road labels read as the devkit reads them (issue 70) ------------------------------------------------
+KITTI = ROOT / "examples/kitti"
+
+
+def _kitti_with_strays(seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """The shipped KITTI label (BGR) with stray colours painted in, as 21 of the benchmark's 289 training
+    labels carry them: pure blue anywhere, and off-palette magentas/reds/greys inside the labelled area;
+    and the pixels painted."""
+    gt = cv2.imread(str(KITTI / "gt_image_2/um_road_000000.png"), cv2.IMREAD_UNCHANGED)
+    rng = np.random.default_rng(seed)
+    painted = np.zeros(gt.shape[:2], bool)
+    h, w = gt.shape[:2]
+    for colour in ((255, 0, 0), (254, 3, 250), (0, 7, 200), (30, 30, 30), (255, 255, 0)):  # BGR
+        ys, xs = rng.integers(0, h, 40), rng.integers(0, w, 40)
+        gt[ys, xs] = colour
+        painted[ys, xs] = True
+    return gt, painted
+
+
+def test_kitti_labels_decode_as_the_devkit_pixel_for_pixel():
+    """The devkit (evaluateRoad.py, on cv2's BGR image): evaluated area = red channel > 0, road = blue
+    channel > 0 there. Stray colours follow that rule instead of stopping the read; the palette's own
+    colours keep their meaning (magenta road, red not road, black ignore)."""
+    gt, painted = _kitti_with_strays()
+    got = decode_label(gt, get_label_format("kitti"))
+    valid, road = gt[..., 2] > 0, gt[..., 0] > 0
+    assert np.array_equal(got == 1, valid & road)
+    assert np.array_equal(got == 0, valid & ~road)
+    assert np.array_equal(got == 255, ~valid)
+    clean = cv2.imread(str(KITTI / "gt_image_2/um_road_000000.png"), cv2.IMREAD_UNCHANGED)
+    palette = {(255, 0, 255): 1, (0, 0, 255): 0, (0, 0, 0): 255}  # BGR -> decoded
+    for bgr, value in palette.items():
+        assert (decode_label(clean, get_label_format("kitti"))[(clean == bgr).all(-1)] == value).all()
+    assert painted.sum() > 100 and (got[painted & (gt[..., 2] == 0)] == 255).all()
+
+
+def test_eval_on_a_label_with_stray_blue_equals_the_clean_label(tmp_path):
+    """Pure blue pixels lie outside the devkit's evaluated area (red clear), so MaxF, AP and IoU on a label
+    carrying them equal those on the clean label, even where the prediction is certain road there."""
+    from vcprep.io import write_png
+
+    clean = cv2.imread(str(KITTI / "gt_image_2/um_road_000000.png"), cv2.IMREAD_UNCHANGED)
+    stray = clean.copy()
+    ys, xs = np.nonzero(clean[..., 2] == 0)
+    pick = np.random.default_rng(1).choice(len(ys), 8, replace=False)
+    stray[ys[pick], xs[pick]] = (255, 0, 0)  # BGR pure blue: 8 pixels, as in um_road_000057.png
+    prob = np.where(clean[..., 0] > 0, 200, 60).astype(np.uint8)
+    prob[ys[pick], xs[pick]] = 255
+    pred = tmp_path / "preds"
+    pred.mkdir()
+    write_png(pred / "um_000000_prob.png", prob, kind="mask")
+    write_png(pred / "um_000000_mask.png", np.where(prob >= 128, 255, 0).astype(np.uint8), kind="mask")
+    scores = []
+    for name, label in (("clean", clean), ("stray", stray)):
+        (tmp_path / name).mkdir()
+        cv2.imwrite(str(tmp_path / name / "um_road_000000.png"), label)
+        proc = run_cli("eval", pred, "--labels", tmp_path / name, "--label-format", "kitti", "--json", "-q",
+                       prog="vctrain")
+        assert proc.returncode == 0, proc.stderr
+        scores.append(json.loads(proc.stdout))
+    assert scores[0] == scores[1] and scores[0]["maxf"] > 0.99
+
+
+def test_a_label_that_is_not_kitti_is_still_refused(tmp_path):
+    """A grey picture is no KITTI label: one channel, or three equal ones (ids saved as an image)."""
+    grey = cv2.imread(str(CAMVID_LABELS / sorted(p.name for p in CAMVID_LABELS.iterdir())[0]), cv2.IMREAD_UNCHANGED)
+    with pytest.raises(Exception, match="needs a colour image"):
+        decode_label(grey, get_label_format("kitti"), "x.png")
+    with pytest.raises(Exception, match=r"label colour \(R,G,B\)=\((\d+),\1,\1\) at pixel .* not in format 'kitti'"):
+        decode_label(cv2.merge([grey] * 3), get_label_format("kitti"), "x.png")

@@ -24,7 +24,8 @@ NOT_ROAD, ROAD, IGNORE = 0, 1, 255
 class LabelFormat:
     """How one dataset encodes road in its label files.
 
-    ``kind`` is ``ids`` (single-channel class ids) or ``colours`` (BGR triples, read per channel).
+    ``kind`` is ``ids`` (single-channel class ids) or ``channels`` (colour images read channel by channel, as the KITTI road devkit reads its ground truth:
+    ``valid_channel`` set = labelled, then ``road_channel`` set = road; ``valid_channel`` clear = ignore).
     ``max_value`` bounds valid ids (None: any value; unlisted values are not road).
     ``image_suffix``/``label_suffix``: an image ``<stem><image_suffix>.<ext>`` has the label
     ``<stem><label_suffix>.png``; ``kitti_naming`` inserts ``_road`` after the category.
@@ -42,19 +43,23 @@ class LabelFormat:
     label_suffix: str = ""
     kitti_naming: bool = False
     drive_in_id: bool = False
+    road_channel: int | None = None   # ``channels``: the BGR channel whose non-zero pixels are road
+    valid_channel: int | None = None  # ``channels``: the BGR channel whose zero pixels are ignore
     description: str = ""
     extra: dict = field(default_factory=dict)
 
 
-# BGR colours for KITTI gt_image_2 (road magenta (255,0,255), not road red (255,0,0), ignore black)
+# KITTI gt_image_2 (magenta road, red not road, black outside the evaluated area) is read as the devkit
+# reads it (evaluateRoad.py on cv2's BGR image): road = blue channel > 0, evaluated area = red channel > 0,
+# so a stray colour (a few pure blue pixels in 21 of the 289 training labels) is simply outside the area.
 LABEL_FORMATS: dict[str, LabelFormat] = {
     f.name: f
     for f in [
         LabelFormat("camvid", "ids", road=(3,), ignore=(11,), max_value=11,
                     description="SegNet CamVid ids: 3 road, 11 unlabelled (ego bonnet) = ignore, 0..11"),
-        LabelFormat("kitti", "colours", road=((255, 0, 255),), not_road=((0, 0, 255),), ignore=((0, 0, 0),),
-                    kitti_naming=True,
-                    description="KITTI road gt_image_2 colours: magenta road, red not road, black ignore"),
+        LabelFormat("kitti", "channels", road_channel=0, valid_channel=2, kitti_naming=True,
+                    description="KITTI road gt_image_2, read as the devkit: red set = evaluated (blue set: road, "
+                                "magenta; clear: not road, red), red clear = ignore"),
         LabelFormat("cityscapes", "ids", road=(7,), ignore=(1, 2, 3), max_value=33,
                     image_suffix="_leftImg8bit", label_suffix="_gtFine_labelIds",
                     description="Cityscapes labelIds: 7 road; 1 ego vehicle, 2 rectification border, 3 out of roi = ignore"),
@@ -112,26 +117,11 @@ def get_label_format(name: str) -> LabelFormat:
 def decode_label(raw: np.ndarray, fmt: LabelFormat, file: str | Path | None = None) -> np.ndarray:
     """Raw label image -> uint8 (h, w) with 0 not road, 1 road, 255 ignore.
 
-    Values outside the format (an id above ``max_value``, a colour not in the table) raise
+    Values outside the format (an id above ``max_value``; for ``channels``, a grey picture) raise
     :class:`InputError` naming the first offending value.
     """
-    if fmt.kind == "colours":
-        if raw.ndim != 3 or raw.shape[2] < 3:
-            raise InputError(f"label has {1 if raw.ndim == 2 else raw.shape[2]} channel(s), format '{fmt.name}' "
-                             "needs a colour image", file, "give the colour-coded gt_image_2 file")
-        bgr = raw[..., :3].astype(np.uint32)
-        code = (bgr[..., 0] << 16) | (bgr[..., 1] << 8) | bgr[..., 2]
-        out = np.full(code.shape, 254, dtype=np.uint8)
-        for value, colours in ((ROAD, fmt.road), (NOT_ROAD, fmt.not_road), (IGNORE, fmt.ignore)):
-            for b, g, r in colours:
-                out[code == ((b << 16) | (g << 8) | r)] = value
-        bad = out == 254
-        if bad.any():
-            y, x = np.argwhere(bad)[0]
-            b, g, r = raw[y, x, :3]
-            raise InputError(f"label colour (R,G,B)=({r},{g},{b}) at pixel ({x}, {y}) is not in format '{fmt.name}'",
-                             file, "check --label-format (kitti expects magenta road, red not road, black ignore)")
-        return out
+    if fmt.kind == "channels":
+        return _decode_channels(raw, fmt, file)
     if raw.ndim == 3:
         if raw.shape[2] >= 3 and np.array_equal(raw[..., 0], raw[..., 1]) and np.array_equal(raw[..., 0], raw[..., 2]):
             raw = raw[..., 0]
@@ -153,6 +143,25 @@ def decode_label(raw: np.ndarray, fmt: LabelFormat, file: str | Path | None = No
     out[np.isin(raw, fmt.road)] = ROAD
     if fmt.ignore:
         out[np.isin(raw, fmt.ignore)] = IGNORE
+    return out
+
+
+def _decode_channels(raw: np.ndarray, fmt: LabelFormat, file: str | Path | None) -> np.ndarray:
+    """A colour label read channel by channel (the KITTI devkit's rule): ``valid_channel`` clear -> ignore,
+    else ``road_channel`` set -> road, clear -> not road. A grey picture (every channel equal: ids saved as
+    an image, a mask) is not such a label and is refused, naming its first non-black pixel."""
+    if raw.ndim != 3 or raw.shape[2] < 3:
+        raise InputError(f"label has {1 if raw.ndim == 2 else raw.shape[2]} channel(s), format '{fmt.name}' "
+                         "needs a colour image", file, "give the colour-coded gt_image_2 file")
+    bgr = raw[..., :3]
+    if np.array_equal(bgr[..., 0], bgr[..., 1]) and np.array_equal(bgr[..., 0], bgr[..., 2]) and bgr.any():
+        y, x = np.argwhere(bgr[..., 0] > 0)[0]
+        b, g, r = bgr[y, x]
+        raise InputError(f"label colour (R,G,B)=({r},{g},{b}) at pixel ({x}, {y}) is not in format '{fmt.name}'",
+                         file, "check --label-format (kitti expects magenta road, red not road, black ignore)")
+    valid = bgr[..., fmt.valid_channel] > 0
+    out = np.where(valid, NOT_ROAD, IGNORE).astype(np.uint8)
+    out[valid & (bgr[..., fmt.road_channel] > 0)] = ROAD
     return out
 
 
@@ -232,7 +241,7 @@ class RoadShare:
         problem = self.problem()
         if problem is None:
             return None
-        road = ", ".join(str(v) for v in fmt.road)
+        road = ", ".join(str(v) for v in fmt.road) if fmt.kind == "ids" else f"BGR channel {fmt.road_channel} set"
         return (f"warning: {where}: under label format '{fmt.name}' (road = {road}) {problem}: the format probably "
                 f"does not fit these labels (check --label-format: a named format such as camvid or cityscapes, or "
                 f"values:road=ID;ignore=ID with the ids these labels give road and ignore)")
