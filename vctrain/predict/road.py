@@ -38,7 +38,8 @@ from vcprep.warp import pose_from_vp
 
 from .frames import NEEDS_CAMERA, FramePredictor, extends, warps_frames
 
-__all__ = ["own_vehicle", "ego_rows", "frames_ego_rows", "sources_ego_rows", "rows_at", "folder_ego_camera", "RoadRun", "skipped_lines", "within_rule", "virtual_within",
+__all__ = ["own_vehicle", "ego_rows", "frames_ego_rows", "sources_ego_rows",
+           "rows_at", "folder_ego_camera", "RoadRun", "skipped_lines", "within_rule", "virtual_within",
            "model_vp_rule", "frame_poses", "rectangle_views", "frames_canvas", "geometry_line", "run_road",
            "write_prediction", "out_dir"]
 
