@@ -44,7 +44,7 @@ def test_the_shipped_model_by_name_from_another_folder(tmp_path):
     # the README's path from another folder: refused, naming where the shipped model is and its name
     proc = run_cli("predict", "models/road-multicamera/road.pt", EXAMPLES / "kitti/image_2", "--out", "o2",
                    prog="vctrain", cwd=tmp_path)
-    assert_one_error_line(proc, "model not found", str(SHIPPED), "shipped")
+    assert_one_error_line(proc, "checkpoint not found", str(SHIPPED), "shipped")
     assert_one_error_line(run_cli("predict", "road-multicamra", EXAMPLES / "kitti/image_2", "--out", "o2",
                                   prog="vctrain", cwd=tmp_path), "did you mean 'road-multicamera'?")
 

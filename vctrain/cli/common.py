@@ -94,7 +94,8 @@ def model_arg(arg: Optional[Path]) -> Optional[Path]:
     if not models or arg.suffix.lower() not in ("", ".pt", ".onnx"):
         return arg
     here = f"the shipped model is {models['shipped']}, named {SHIPPED} or shipped; " if "shipped" in models else ""
-    raise InputError("model not found", arg, here + one_of(str(arg), models,
+    what = "ONNX graph" if arg.suffix.lower() == ".onnx" else "checkpoint"
+    raise InputError(f"{what} not found", arg, here + one_of(str(arg), models,
                                                              what="give a .pt written by 'vctrain fit' or a name:"))
 
 

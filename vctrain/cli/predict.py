@@ -15,7 +15,8 @@ from .common import app, model_arg, path_or_json, pin_threads, threads_option
 
 EGO_HELP = ("the own vehicle (bonnet, dashboard) in a video or a folder of one camera's frames, predicted "
             "'not road': auto (the camera's ego_rows, else found from up to 48 frames spread over them, said on "
-            "stderr), none (no search: the camera as given) or N bottom rows; default: auto for a virtual-camera "
+            "stderr; a model that reads frames as they are: per source in a folder of several, by folder, "
+            "BDD100K- or CamVid-style name prefix), none (no search: the camera as given) or N bottom rows; default: auto for a virtual-camera "
             "model, none for a model that reads frames as they are (the shipped model: give --ego auto or N "
             "for a dashcam)")
 
