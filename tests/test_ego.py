@@ -663,3 +663,63 @@ def test_a_resize_model_cuts_the_own_vehicle_only_when_asked(resize_model, drive
         for (prob0, mask0), (prob, mask) in zip(base, cut):
             assert not prob[-n:].any() and not mask[-n:].any()
             assert np.array_equal(prob[:-n], prob0[:-n]) and np.array_equal(mask[:-n], mask0[:-n])
+
+
+# -- the own vehicle per source (issue 72.4) ---------------------------------------------------------------
+
+def test_sources_are_grouped_by_folder_then_bdd_then_camvid_names(tmp_path):
+    from vcprep.camera import source_groups
+    rule, g = source_groups([tmp_path / "a" / "x.png", tmp_path / "b" / "x.png", tmp_path / "a" / "y.png"])
+    assert rule.startswith("folder") and {k: len(v) for k, v in g.items()} == {str(tmp_path / "a"): 2,
+                                                                                 str(tmp_path / "b"): 1}
+    rule, g = source_groups([tmp_path / n for n in ("0a0a0b1a-7c39d841.jpg", "0a0a0b1a-27d9fc44.jpg",
+                                                    "0a0c3694-24b5193a.jpg")])
+    assert rule.startswith("BDD100K") and sorted(g) == ["0a0a0b1a", "0a0c3694"] and len(g["0a0a0b1a"]) == 2
+    rule, g = source_groups([tmp_path / n for n in ("0001TP_006690.png", "0016E5_07959.png", "0001TP_006720.png")])
+    assert rule.startswith("CamVid") and sorted(g) == ["0001TP", "0016E5"]
+    for names in (("f_001.png", "f_002.png"), ("a.png", "b.png"), ("0001TP_1.png", "b.png")):  # one source
+        rule, g = source_groups([tmp_path / n for n in names])
+        assert rule == "one source" and len(g) == 1 and len(next(iter(g.values()))) == 2
+
+
+def test_a_mixed_folder_gets_each_sources_own_vehicle(resize_model, drive, tmp_path):
+    """Two dashcams in one folder (BDD100K-style names), bonnet tops 12 and 30 rows up, and a third
+    source of one frame: --ego auto says the rule, finds 12 and 30 (one --ego N could fit neither) and
+    cuts each source's frames at its own rows; the one-frame source is named as not searched, its
+    frame predicted as with --ego none."""
+    frames = tmp_path / "mixed"
+    frames.mkdir()
+    for i, f in enumerate(drive):
+        src, rows = ("aaaaaaaa", 12) if i % 2 else ("bbbbbbbb", 30)
+        cv2.imwrite(str(frames / f"{src}-{i:08x}.png"), _paint_bonnet(f, rows))
+    cv2.imwrite(str(frames / "cccccccc-00000000.png"), _paint_bonnet(drive[0], 20))
+    runs = {}
+    for ego in ("none", "auto"):
+        proc = run_cli("predict", resize_model, frames, "--out", tmp_path / ego, "--ego", ego, prog="vctrain")
+        assert proc.returncode == 0, proc.stderr
+        runs[ego] = proc.stderr
+    said = runs["auto"]
+    assert "3 sources grouped by BDD100K-style source prefix" in said, said
+    found = {s: int(said.split(f"own vehicle of {s} (18 frames): ")[1].split(" rows")[0])
+             for s in ("aaaaaaaa", "bbbbbbbb")}
+    assert abs(found["aaaaaaaa"] - 12) <= 2 and abs(found["bbbbbbbb"] - 30) <= 2, said
+    assert "warning: own vehicle not searched in 1 source of 3 (cccccccc; 1 frame)" in said and "--ego N" in said
+    for stem, n in (("aaaaaaaa-00000001", found["aaaaaaaa"]), ("bbbbbbbb-00000002", found["bbbbbbbb"])):
+        prob0, prob = _png(tmp_path / "none" / f"{stem}_prob.png"), _png(tmp_path / "auto" / f"{stem}_prob.png")
+        assert not prob[-n:].any() and np.array_equal(prob[:-n], prob0[:-n]), stem
+    one = "cccccccc-00000000_prob.png"
+    assert np.array_equal(_png(tmp_path / "none" / one), _png(tmp_path / "auto" / one))
+
+
+def test_a_night_drive_finds_its_dashboard_or_says_it_could_not(drive):
+    """Night frames (a tenth of the day's light): a dark dashboard 30 rows high is found as by day; with
+    no vehicle the search says it could not tell (the bottom is dark), not that there is none."""
+    from vcprep.camera import ego_rows_from_frames
+    night = [(f * 0.1).astype(np.uint8) for f in drive]
+    dash = [f.copy() for f in night]
+    for f in dash:
+        f[-30:] = 3
+    assert abs(ego_rows_from_frames(dash).rows - 30) <= 2
+    est = ego_rows_from_frames(night)
+    assert est.rows == 0 and "could not tell" in est.describe() and "dark" in est.describe()
+    assert "no own vehicle" in ego_rows_from_frames(drive).describe()  # by day: none, as before

@@ -6,8 +6,9 @@ Library code raises :class:`VCError` (or a subclass); the CLI turns it into a si
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Iterable
 
-__all__ = ["VCError", "InputError", "GeometryError", "StoreError"]
+__all__ = ["VCError", "InputError", "GeometryError", "StoreError", "one_of"]
 
 
 class VCError(Exception):
@@ -36,3 +37,15 @@ class GeometryError(VCError):
 
 class StoreError(VCError):
     """A virtual-camera image store that is missing, inconsistent or built with other parameters."""
+
+
+def one_of(name: str, choices: Iterable[str], also: str = "", what: str = "use one of") -> str:
+    """The fix for ``name`` rejected from the table ``choices``: "did you mean 'camvid'? use one of
+    camvid, kitti, ..." (the closest names by :func:`difflib.get_close_matches`, where any is close),
+    ``also`` appended (e.g. "or a camera YAML file"). The one wording of every name refused from a table."""
+    import difflib
+
+    choices = [str(c) for c in choices]
+    close = difflib.get_close_matches(str(name), choices, n=2, cutoff=0.6)
+    mean = f"did you mean {' or '.join(repr(c) for c in close)}? " if close else ""
+    return f"{mean}{what} {', '.join(choices)}" + (f" {also}" if also else "")

@@ -12,7 +12,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from .errors import InputError
+from .errors import InputError, one_of
 
 __all__ = ["ROAD", "NOT_ROAD", "IGNORE", "LabelFormat", "LABEL_FORMATS", "LABEL_FORMAT_HELP", "get_label_format", "decode_label",
            "label_stem_for", "RoadShare"]
@@ -111,7 +111,7 @@ def get_label_format(name: str) -> LabelFormat:
     if name.startswith("values:"):
         return _parse_values(name)
     raise InputError(f"unknown label format '{name}'", None,
-                     f"use one of {', '.join(LABEL_FORMATS)} or values:road=ID[,ID];ignore=ID")
+                     one_of(name, LABEL_FORMATS, "or values:road=ID[,ID];ignore=ID"))
 
 
 def decode_label(raw: np.ndarray, fmt: LabelFormat, file: str | Path | None = None) -> np.ndarray:

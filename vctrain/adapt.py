@@ -38,7 +38,7 @@ import numpy as np
 from vcprep.warp import backproject_array
 from vcprep.camera import Camera, FrameCameras
 from vcprep.dataset import Job
-from vcprep.errors import InputError
+from vcprep.errors import InputError, one_of
 from vcprep.io import read_image, write_png
 from vcprep.labels import IGNORE, ROAD
 from vcprep.prior import check_prior_fits, check_thresholds, meta_path, read_prior, surrogate_labels
@@ -116,7 +116,7 @@ def write_surrogate_labels(store: Store | str | Path, prior: np.ndarray, lo: flo
     :class:`vctrain.predict.Predictor`) is needed for ``combine`` 'fuse' and 'self'. Returns the label
     shares over all pixels (road, not_road, ignore)."""
     if combine not in COMBINE:
-        raise InputError(f"unknown combination '{combine}'", None, f"use one of {', '.join(COMBINE)}")
+        raise InputError(f"unknown combination '{combine}'", None, one_of(combine, COMBINE))
     check_thresholds(lo, hi)
     root = store.root if isinstance(store, Store) else Path(store)
     with store_lock(root, on_wait=err):
@@ -206,7 +206,7 @@ def adapt(model: str | Path, images: str | Path | Iterable[str | Path] | Sequenc
     lo, hi, combine = settings.lo, settings.hi, settings.combine
     check_thresholds(lo, hi)
     if combine not in COMBINE:
-        raise InputError(f"unknown combination '{combine}'", None, f"use one of {', '.join(COMBINE)}")
+        raise InputError(f"unknown combination '{combine}'", None, one_of(combine, COMBINE))
     epochs = int(settings.epochs)
     lr = (float(settings.lr) if settings.lr is not None
           else ADAPT_LR_FACTOR * float((ck.get("config") or {}).get("lr") or 0.005))

@@ -17,7 +17,7 @@ from typing import Mapping
 
 from .files import (read_camera_yaml, read_cityscapes_camera,
                            read_kitti_calib)
-from ..errors import InputError
+from ..errors import InputError, one_of
 from .pinhole import PRESETS, Camera
 
 
@@ -36,7 +36,7 @@ def preset_name(spec: str | Path) -> str | None:
     if s.startswith(PRESET_PREFIX):
         name = s[len(PRESET_PREFIX):]
         if name not in PRESETS:
-            raise InputError(f"unknown camera preset '{name}'", s, f"use one of {', '.join(PRESETS)}")
+            raise InputError(f"unknown camera preset '{name}'", s, one_of(name, PRESETS))
         return name
     if s in PRESETS:
         if os.path.lexists(s):
@@ -58,7 +58,7 @@ def load_camera(spec: str | Path, image_size: tuple[int, int] | None = None) -> 
     path = Path(s)
     if not path.exists():
         raise InputError("not a camera preset and no such file", s,
-                         f"use one of {', '.join(PRESETS)} or a camera YAML file")
+                         one_of(s, PRESETS, "or a camera YAML file"))
     suffix = path.suffix.lower()
     if suffix in (".yaml", ".yml"):
         return read_camera_yaml(path)

@@ -32,7 +32,7 @@ import numpy as np
 
 from .pinhole import Camera
 from .files import camera_from_dict
-from ..errors import InputError
+from ..errors import InputError, one_of
 from ..warp.homography import apply_homography, virt_H_src
 
 __all__ = ["VirtualDesign", "design_virtual_camera", "same_camera_other_canvas", "extend_canvas", "EXTENTS",
@@ -100,7 +100,7 @@ def design_virtual_camera(cameras: list[Camera], pan_range: float = 20.0, tilt_r
     if not (0 <= pan_range < 60 and 0 <= tilt_range < 60):
         raise InputError("pose ranges must be in [0, 60) degrees", None, "e.g. --pan-range 20 --tilt-range 15")
     if extent not in EXTENTS:
-        raise InputError(f"unknown extent '{extent}'", None, f"use one of {', '.join(EXTENTS)}")
+        raise InputError(f"unknown extent '{extent}'", None, one_of(extent, EXTENTS))
     if above is not None and not 0 <= above < 60:
         raise InputError(f"'above' must be degrees in [0, 60), got {above}", None, "e.g. --above 8")
     height = float(np.mean([c.height for c in cameras])) if height is None else float(height)

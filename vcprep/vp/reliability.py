@@ -64,7 +64,7 @@ from typing import Callable, Iterable, Mapping, Sequence
 import numpy as np
 
 from ..camera.pinhole import Camera
-from ..errors import InputError, VCError
+from ..errors import InputError, VCError, one_of
 from ..warp.homography import pose_from_vp, vp_from_pose
 from ..io.images import read_text
 from .estimate import (VPConfig, VPResult, _result, estimate_vp)
@@ -105,7 +105,7 @@ class VPRule:
 
     def __post_init__(self):
         if self.sequences not in SEQUENCES:
-            raise InputError(f"unknown VP sequence rule '{self.sequences}'", None, f"use one of {', '.join(SEQUENCES)}")
+            raise InputError(f"unknown VP sequence rule '{self.sequences}'", None, one_of(self.sequences, SEQUENCES))
 
     def config(self, base: VPConfig = VPConfig()) -> VPConfig:
         """``base`` with this rule's pose ranges."""

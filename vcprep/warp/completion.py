@@ -65,7 +65,7 @@ from .completion_rays import (FALLBACK_TOWARD, INSET, LABEL_RIM, _centre, _exit_
                               _to_source, exit_points_rectangle, label_exit_points)
 from .completion_tables import (_CACHE_MAX, BAND_ROWS, TABLE_ARC, TABLE_COLS, AngleFill, AngleIndex,  # noqa: F401
                                 _angle_index, _build_angle_index, _lru, _rays)
-from ..errors import GeometryError, InputError
+from ..errors import GeometryError, InputError, one_of
 from ..labels import IGNORE
 from .remap import RemapMaps, maps_for
 
@@ -175,7 +175,7 @@ class CompletionMaps:
 
 def check_method(method: str) -> str:
     if method not in METHODS:
-        raise InputError(f"unknown completion method '{method}'", None, f"use one of {', '.join(METHODS)}")
+        raise InputError(f"unknown completion method '{method}'", None, one_of(method, METHODS))
     return method
 
 

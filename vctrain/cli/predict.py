@@ -10,19 +10,22 @@ import typer
 
 from vcprep.cliutil import ensure_parent, err
 
-from .common import app, path_or_json, pin_threads, threads_option
+from .common import app, model_arg, path_or_json, pin_threads, threads_option
 
 
 EGO_HELP = ("the own vehicle (bonnet, dashboard) in a video or a folder of one camera's frames, predicted "
             "'not road': auto (the camera's ego_rows, else found from up to 48 frames spread over them, said on "
-            "stderr), none (no search: the camera as given) or N bottom rows; default: auto for a virtual-camera "
+            "stderr; a model that reads frames as they are: per source in a folder of several, by folder, "
+            "BDD100K- or CamVid-style name prefix), none (no search: the camera as given) or N bottom rows; default: auto for a virtual-camera "
             "model, none for a model that reads frames as they are (the shipped model: give --ego auto or N "
             "for a dashcam)")
 
 
 @app.command("predict")
 def predict_cmd(
-    checkpoint: Optional[Path] = typer.Argument(None, help="model written by 'vctrain fit' (left out with --prior)"),
+    checkpoint: Optional[Path] = typer.Argument(None, help="model written by 'vctrain fit', or a shipped "
+                                                         "model's name from any folder: shipped (= road-multicamera) "
+                                                         "(left out with --prior)"),
     images: Optional[List[Path]] = typer.Argument(None, help="image files or folders, or video files (.mp4 .avi .mkv .mov ...)"),
     out: Path = typer.Option(..., "--out", "-o", help="output folder (created)"),
     camera: Optional[str] = typer.Option(None, "--camera", "-c",
@@ -83,6 +86,7 @@ def predict_cmd(
     \b
     Example:
       vctrain predict models/road-multicamera/road.pt my/frames --out preds --overlay   # the shipped model
+      vctrain predict shipped my/frames --out preds   # the same model by its name, from any folder
       vctrain predict models/road-multicamera/road.pt dashcam/ --ego auto --out preds/dashcam   # bonnet cut off
       vctrain predict runs/vc.pt --camera kitti data/kitti/image_2 --out preds/kitti
       vctrain predict runs/vc.pt --camera low.yaml frames/ --beyond rays --out preds/low   # far below the training camera
@@ -98,6 +102,7 @@ def predict_cmd(
 
     pin_threads(threads)
     frames_camera = partial(camera_for, camera, quiet=quiet) if camera is not None else None
+    checkpoint = model_arg(checkpoint) if prior is None else checkpoint
     result = predict_inputs(checkpoint, images, out, frames_camera, prior=prior, store=store, device=device,
                             keep_store=keep_store, within=within, overlay=overlay, mask_video=mask_video, ego=ego,
                             progress=not quiet, vp_range=vp_range, vp_smooth=vp_smooth, vp_sequences=vp_sequences,
@@ -140,7 +145,8 @@ def _failed(result, out: Path) -> None:
 
 @app.command("export")
 def export_cmd(
-    checkpoint: Path = typer.Argument(..., help="model written by 'vctrain fit' (virtual-camera or resize baseline)"),
+    checkpoint: Path = typer.Argument(..., help="model written by 'vctrain fit' (virtual-camera or resize baseline), or a "
+                                                  "shipped model's name: shipped (= road-multicamera)"),
     camera: Optional[str] = typer.Option(None, "--camera", "-c",
                                          help="the camera the graph is for: preset or file (.yaml, KITTI .txt, "
                                               "Cityscapes .json); its image size is the graph's input size (with "
@@ -193,7 +199,7 @@ def export_cmd(
         if frame_size is not None and tuple(cam.size) != tuple(frame_size):
             cam = cam.for_image_size(frame_size, frame)  # the same camera at the frames' size (same aspect)
     ensure_parent(out)
-    info = export_onnx(checkpoint, cam, out, vp_input=vp_input, pose_range=(pose_range, pose_range),
+    info = export_onnx(model_arg(checkpoint), cam, out, vp_input=vp_input, pose_range=(pose_range, pose_range),
                        size=frame_size, camera_spec=camera)
     if not quiet:
         w, h = info["inputs"]["frame"][1][1], info["inputs"]["frame"][1][0]

@@ -11,7 +11,7 @@ from pathlib import Path
 from typing import Any, Callable, Optional, Sequence
 
 from vcprep.cliutil import count, rate_text
-from vcprep.errors import InputError
+from vcprep.errors import InputError, one_of
 
 __all__ = ["CameraFor", "Predicted", "predict_inputs"]
 
@@ -115,7 +115,7 @@ def _set_beyond(predictor: Any, beyond: str, path: Path) -> None:
     from .frames import BEYOND
 
     if beyond not in BEYOND:
-        raise InputError(f"unknown --beyond '{beyond}'", None, f"use one of {', '.join(BEYOND)}")
+        raise InputError(f"unknown --beyond '{beyond}'", None, one_of(beyond, BEYOND))
     if getattr(predictor, "beyond_rule", None) is None or getattr(predictor, "mode", None) != "virtual" \
             or getattr(predictor, "takes_frames", False):
         raise InputError("--beyond is for a virtual-camera model (.pt); a resize model, the prior and an "

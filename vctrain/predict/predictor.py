@@ -177,7 +177,7 @@ def predict_frames(predictor: Any, images: Iterable[str | Path], out: str | Path
                    camera: Camera | FrameCameras | None, progress: bool = True, keep_store: str | Path | None = None,
                    overlay: bool = False, within: str = "auto", vp_rule: Any = None,
                    say: Callable[[str], None] | None = None, ego_source: str = "",
-                   vehicle: tuple[int, int] | None = None) -> RoadRun:
+                   vehicle: tuple[int, int] | dict | None = None) -> RoadRun:
     """Image files/folders through the one road for a frame (:func:`vctrain.predict.road.run_road`:
     a frame that fails is named and skipped); with ``keep_store`` (a model that warps frames) the
     warped frames are also kept as a store there, and predicted from it (the same masks). ``vp_rule``,

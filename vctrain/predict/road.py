@@ -38,7 +38,8 @@ from vcprep.warp import pose_from_vp
 
 from .frames import NEEDS_CAMERA, FramePredictor, extends, warps_frames
 
-__all__ = ["own_vehicle", "ego_rows", "frames_ego_rows", "rows_at", "folder_ego_camera", "RoadRun", "skipped_lines", "within_rule", "virtual_within",
+__all__ = ["own_vehicle", "ego_rows", "frames_ego_rows", "sources_ego_rows",
+           "rows_at", "folder_ego_camera", "RoadRun", "skipped_lines", "within_rule", "virtual_within",
            "model_vp_rule", "frame_poses", "rectangle_views", "frames_canvas", "geometry_line", "run_road",
            "write_prediction", "out_dir"]
 
@@ -179,11 +180,16 @@ def ego_rows(height: int, stated: int, source: str | Path, ego: str, say: Callab
 
 
 def frames_ego_rows(camera: Camera | None, files: list[Path], ego: str, say: Callable[[str], None] | None = None,
-                    warn: Callable[[str], None] | None = None) -> tuple[int, int]:
+                    warn: Callable[[str], None] | None = None) -> tuple[int, int] | dict[Path, tuple[int, int]]:
     """(rows, frame height) of the own vehicle in a folder of one camera's frames, for a model that
     reads frames as they are: with a camera, :func:`folder_ego_camera`'s; without, by the same rule
     at the first frame's size (``ego`` 'auto' looks in up to :data:`vcprep.io.EGO_SAMPLES` frames
-    spread over the folder)."""
+    spread over the folder). Frames of several sources (``ego`` 'auto', no rows stated; a folder per
+    drive, BDD100K- or CamVid-style names): each source's own, file -> (rows, height) (:func:`sources_ego_rows`)."""
+    if ego == "auto" and not (camera is not None and camera.ego_rows):
+        per_source = sources_ego_rows(files, say, warn)
+        if per_source is not None:
+            return per_source
     if camera is not None:
         cam = folder_ego_camera(camera, files, ego, say, warn)
         return cam.ego_rows, cam.size[1]
@@ -196,12 +202,42 @@ def frames_ego_rows(camera: Camera | None, files: list[Path], ego: str, say: Cal
     return rows, height
 
 
-def _spread(files: list[Path]) -> list[Path]:
-    """Up to :data:`vcprep.io.EGO_SAMPLES` of ``files``, spread evenly over them (first and last included)."""
+def sources_ego_rows(files: list[Path], say: Callable[[str], None] | None = None,
+                     warn: Callable[[str], None] | None = None) -> dict[Path, tuple[int, int]] | None:
+    """Each source's own vehicle in frames of several sources (:func:`vcprep.camera.ego_rows_per_source`):
+    file -> (rows, at height) for the sources searched; the rule and each source's rows said through
+    ``say``, a source found without one or not searched (too few frames) through ``warn``. None: one source."""
+    from vcprep.camera import GROUP_MIN_DISTINCT, ego_rows_per_source, source_groups
+    from vcprep.cliutil import count
     from vcprep.io import EGO_SAMPLES
 
-    return [files[k] for k in sorted({int(round(k)) for k in np.linspace(0, len(files) - 1,
-                                                                          min(EGO_SAMPLES, len(files)))})]
+    if len(source_groups(files)[1]) < 2:
+        return None
+    rule, sources = ego_rows_per_source(files, EGO_SAMPLES)
+    say, warn = say or (lambda _m: None), warn or say or (lambda _m: None)
+    say(f"own vehicle: {count(len(sources), 'source')} grouped by {rule}, each searched alone")
+    for s in sources:
+        if s.estimate is not None and s.estimate.rows:
+            say(f"own vehicle of {s.name} ({count(len(s.files), 'frame')}): {s.estimate.rows} rows found from the "
+                f"frames ({s.estimate.describe()})")
+        elif s.estimate is not None:
+            warn(f"own vehicle of {s.name}: none found ({s.estimate.describe()}); {MISSED_VEHICLE}")
+    left = [s for s in sources if s.estimate is None]
+    if left:
+        names = ", ".join(s.name for s in left[:6]) + (", ..." if len(left) > 6 else "")
+        warn(f"own vehicle not searched in {count(len(left), 'source')} of {len(sources)} ({names}; "
+             f"{count(sum(len(s.files) for s in left), 'frame')}): fewer than {GROUP_MIN_DISTINCT} distinct frames "
+             "each (a single frame cannot show which edge stays put), so nothing is cut there; give --ego N if "
+             "they show your own vehicle")
+    return {f: (s.estimate.rows, s.estimate.size[1]) for s in sources if s.estimate is not None for f in s.files}
+
+
+def _spread(files: list[Path]) -> list[Path]:
+    """Up to :data:`vcprep.io.EGO_SAMPLES` of ``files``, spread evenly over them (first and last included)."""
+    from vcprep.camera import spread
+    from vcprep.io import EGO_SAMPLES
+
+    return spread(files, EGO_SAMPLES)
 
 
 def rows_at(vehicle: tuple[int, int] | None, height: int) -> int:
@@ -332,22 +368,23 @@ def _remove_outputs(out: Path, stem: str) -> None:
 
 
 def _predict_one(fps: dict, predictor: Any, job: Job, camera, views, vp, out: Path, overlay: bool,
-                 vehicle: tuple[int, int] | None = None) -> Path:
+                 vehicle: tuple[int, int] | dict | None = None) -> Path:
     img = read_image(job.image).array
     size = (img.shape[1], img.shape[0])
     if hasattr(predictor, "check_frame_size"):  # a graph takes its camera at any uniform rescale, nothing else
         predictor.check_frame_size(size, job.image)
     cam = camera_of_image(camera, job.image, size) if camera is not None else None
-    fp = fps.get((cam, size))
+    rows = rows_at(vehicle.get(job.image) if isinstance(vehicle, dict) else vehicle, size[1])  # dict: per source
+    fp = fps.get((cam, size, rows))
     if fp is None:
-        fp = fps[(cam, size)] = FramePredictor(predictor, cam, size, views=views, ego_rows=rows_at(vehicle, size[1]))
+        fp = fps[(cam, size, rows)] = FramePredictor(predictor, cam, size, views=views, ego_rows=rows)
     return write_prediction(out, job.id, fp.predict(img, vp), job.image if overlay else None)[0]
 
 
 def run_road(predictor: Any, images: Iterable[str | Path], out: str | Path,
              camera: Camera | FrameCameras | None, progress: bool = True, overlay: bool = False,
              within: str = "auto", vp_rule: Any = None, say: Callable[[str], None] | None = None,
-             ego_source: str = "", vehicle: tuple[int, int] | None = None) -> RoadRun:
+             ego_source: str = "", vehicle: tuple[int, int] | dict | None = None) -> RoadRun:
     """Predict image files/folders taken with ``camera`` (needed for virtual-camera models; a
     :class:`~vcprep.camera.FrameCameras` gives every image its own calibrated camera and pose);
     writes ``<stem>_mask.png``, ``<stem>_prob.png`` (and ``_overlay.png``) in ``out``. A frame that
@@ -357,8 +394,8 @@ def run_road(predictor: Any, images: Iterable[str | Path], out: str | Path,
     'auto': :func:`within_rule`); estimated VPs follow ``vp_rule`` or the model's
     (:func:`model_vp_rule`). ``say`` (given) hears one line: which VPs, own vehicle (``ego_source``:
     where its rows come from) and rectangle a virtual-camera model's frames were warped with. ``vehicle``
-    (rows, at frame height; :func:`frames_ego_rows`): a model that reads frames as they are predicts
-    'not road' on the own vehicle's rows."""
+    (rows, at frame height, or file -> that per source; :func:`frames_ego_rows`): a model that reads
+    frames as they are predicts 'not road' on the own vehicle's rows."""
     t0 = time.perf_counter()
     jobs = collect_images(images, trees=True)  # a tree whose frames repeat names: outputs mirror it
     out = out_dir(out)

@@ -58,7 +58,7 @@ from typing import Any, Sequence
 
 from vcprep.camera import (DESIGN_ABOVE, DESIGN_PAN_RANGE, DESIGN_TILT_RANGE, PRESET_PREFIX, PRESETS, STORE_PIXELS,
                            preset_name)
-from vcprep.errors import InputError
+from vcprep.errors import InputError, one_of
 from vcprep.io import read_text
 from vcprep.labels import get_label_format
 
@@ -194,7 +194,7 @@ class Study:
         for d in self.datasets:
             if d.name == name:
                 return d
-        raise InputError(f"no dataset named '{name}'", self.path, f"use one of {', '.join(d.name for d in self.datasets)}")
+        raise InputError(f"no dataset named '{name}'", self.path, one_of(name, [d.name for d in self.datasets]))
 
 
 # -- the study file ------------------------------------------------------------------------------
@@ -207,7 +207,7 @@ def _mapping(v: Any, what: str, path: Path) -> dict:
 def _keys(d: dict, allowed: Sequence[str], required: Sequence[str], what: str, path: Path) -> None:
     unknown = sorted(set(map(str, d)) - set(allowed))
     if unknown:
-        raise InputError(f"unknown key '{unknown[0]}' in {what}", path, f"allowed keys: {', '.join(allowed)}")
+        raise InputError(f"unknown key '{unknown[0]}' in {what}", path, one_of(unknown[0], allowed, what="allowed keys:"))
     for k in required:
         if k not in d:
             raise InputError(f"missing key '{k}' in {what}", path, "see the study schema in docs/studies.md")
@@ -249,7 +249,7 @@ def _check_train_keys(t: dict, path: Path) -> None:
     """Keys of the study's ``train:`` section: TrainConfig fields the study does not set per run."""
     bad = sorted(set(map(str, t)) - set(TRAIN_KEYS))
     if bad:
-        raise InputError(f"unknown key '{bad[0]}' in 'train'", path, f"allowed keys: {', '.join(TRAIN_KEYS)}")
+        raise InputError(f"unknown key '{bad[0]}' in 'train'", path, one_of(bad[0], TRAIN_KEYS, what="allowed keys:"))
 
 
 def camera_spec(spec: str, path: Path, what: str) -> str:
@@ -311,7 +311,7 @@ def _dataset(r: Any, i: int, path: Path, before: Sequence[Dataset]) -> Dataset:
         raise InputError(f"dataset #{i + 1} has a bad name {name!r}", path, "use letters, digits, '_', '-', '.'")
     role = r.get("role", "both")
     if role not in ROLES:
-        raise InputError(f"dataset '{name}' has an unknown role {role!r}", path, f"use one of {', '.join(ROLES)}")
+        raise InputError(f"dataset '{name}' has an unknown role {role!r}", path, one_of(str(role), ROLES))
     # a test-role dataset is never trained on (only 'test:'); a train-role one never tested ('train:')
     need, unused = {"both": ("train", None), "train": ("train", "test"), "test": ("test", "train")}[role]
     if r.get(need) is None:
@@ -421,7 +421,7 @@ def check_conditions(conds: Sequence[str], file: Path | None = None) -> list[str
     """``conds`` without repeats, in order; an unknown one raises (naming ``file``, the study file)."""
     for c in conds:
         if c not in CONDITIONS:
-            raise InputError(f"unknown condition '{c}'", file, f"choose from {', '.join(CONDITIONS)}")
+            raise InputError(f"unknown condition '{c}'", file, one_of(c, CONDITIONS, what="choose from"))
     return list(dict.fromkeys(conds))
 
 
