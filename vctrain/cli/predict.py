@@ -35,6 +35,10 @@ def predict_cmd(
                                                                 "'vcprep prior' (p_g >= 0.5, back-projected)"),
     store: Optional[Path] = typer.Option(None, "--store", help="predict every item of this store instead of IMAGES"),
     device: str = typer.Option("auto", "--device", help="auto, cpu, cuda, cuda:N"),
+    engine: str = typer.Option("auto", "--engine", help="what runs a .pt model's network: auto (onnxruntime on the "
+                                                        "CPU where installed, else PyTorch), torch or onnx (the same "
+                                                        "network exported in memory); said on stderr and recorded in "
+                                                        "OUT/predict.json"),
     keep_store: Optional[Path] = typer.Option(None, "--keep-store", help="keep the warped images in this store"),
     within: str = typer.Option("auto", "--within", help="per-image VP correction: auto (as the model was trained), "
                                                          "estimate, a CSV id,u,v, or none"),
@@ -101,7 +105,7 @@ def predict_cmd(
     result = predict_inputs(checkpoint, images, out, frames_camera, prior=prior, store=store, device=device,
                             keep_store=keep_store, within=within, overlay=overlay, mask_video=mask_video, ego=ego,
                             progress=not quiet, vp_range=vp_range, vp_smooth=vp_smooth, vp_sequences=vp_sequences,
-                            say=None if quiet else (lambda msg: err(f"{out}: {msg}")), beyond=beyond)
+                            say=None if quiet else (lambda msg: err(f"{out}: {msg}")), beyond=beyond, engine=engine)
     _report(result, out, quiet)
 
 
