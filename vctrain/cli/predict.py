@@ -206,4 +206,7 @@ def export_cmd(
         err(f"{out}: {info['mode']} model for camera {info['camera_name']} ({w}x{h}; {inner}; "
             f"{'VP input' if vp_input else 'mount pose built in'}; opset {info['opset']}; onnxruntime vs torch max "
             f"|diff| {info['max_abs_diff_vs_torch']:.1e})")
+        if frame_size is None:  # the size came from the camera: say it, and how to get another
+            err(f"{out}: the graph takes {w}x{h} frames only (the size of camera {camera}); for frames of another "
+                f"size export with --frame A_FRAME or --size WxH")
     path_or_json(out, info, as_json)

@@ -68,8 +68,8 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
     (a virtual-camera model only): the rule for frame pixels outside its training rectangle
     (:data:`vctrain.predict.frames.BEYOND`; None: the default, extend). ``engine`` runs a ``.pt``
     model's network (:data:`vctrain.deploy.engine.ENGINES`; 'auto': onnxruntime on the CPU where
-    installed); a graph runs in onnxruntime, the prior in numpy; ``say`` hears which, and
-    ``predict.json`` records it. Bad combinations raise :class:`InputError` before anything is predicted."""
+    installed); a graph runs in onnxruntime, the prior in numpy; the summary line says which,
+    and ``predict.json`` records it. Bad combinations raise :class:`InputError` before anything is predicted."""
     if prior is not None:
         if checkpoint is not None and checkpoint.suffix.lower() == ".pt":
             raise InputError("give either a model or --prior, not both", checkpoint, "drop one of them")
@@ -93,9 +93,7 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
     videos = check_video_stems([p for p in images or [] if is_video(p)])
     images = [p for p in images or [] if not is_video(p)]
     predictor = _predictor(checkpoint, prior, device, engine)
-    engine_used = _engine_used(predictor)
-    if say is not None and engine_used:
-        say(f"engine: {engine_used}")
+    engine_used = _engine_used(predictor)  # said in the summary line (Predicted.line)
     if beyond is not None:
         _set_beyond(predictor, beyond, checkpoint if prior is None else prior)
     if store is None:  # (frames: a study's candidate model takes stores only, said before any frame is read)
