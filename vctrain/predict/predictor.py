@@ -81,12 +81,22 @@ class Predictor:
         self._onnx = OnnxNetwork(self.model) if self.engine == "onnx" else None
         return self.engine
 
-    def logits(self, x: np.ndarray) -> torch.Tensor:
-        """The network's logits (1, K, h, w) float32 on the CPU or device, of one input array
-        (C, h, w), through :attr:`engine`."""
+    def logits(self, x: np.ndarray) -> torch.Tensor | np.ndarray:
+        """The network's logits (1, K, h, w) float32 of one input array (C, h, w), through
+        :attr:`engine`: a tensor on the device (torch), an array (onnx)."""
         if self._onnx is not None:
-            return torch.from_numpy(self._onnx(x[None]))
+            return self._onnx(x[None])
         return self.model(self.network_input(x)).float()
+
+    def road_softmax(self, x: np.ndarray) -> np.ndarray:
+        """P(road) float32 (h, w): the softmax's class 1 of the logits of ``x`` (C, h, w). The onnx
+        engine takes it in numpy: a torch operator between two onnxruntime calls wakes torch's
+        OpenMP threads, which then spin on the cores onnxruntime needs (4x slower on 2 cores)."""
+        logits = self.logits(x)
+        if isinstance(logits, np.ndarray):
+            e = np.exp(logits[0] - logits[0].max(axis=0, keepdims=True))
+            return (e[1] / e.sum(axis=0)).astype(np.float32)
+        return torch.softmax(logits, dim=1)[0, 1].cpu().numpy().astype(np.float32)
 
     @property
     def mode(self) -> str:
@@ -121,8 +131,7 @@ class Predictor:
             sx, sy = size[0] / w0, size[1] / h0
             v = scale_matrix(sx, sy) @ np.array([vp[0], vp[1], 1.0])  # (pixel centres, as the training's)
             x = np.concatenate([x, ray_angles(size, (v[0], v[1]), (focal[0] * sx, focal[1] * sy))], axis=0)
-        logits = self.logits(x)
-        prob = torch.softmax(logits, dim=1)[0, 1].cpu().numpy().astype(np.float32)
+        prob = self.road_softmax(x)
         if (w0, h0) != size:
             prob = cv2.resize(prob, (w0, h0), interpolation=cv2.INTER_LINEAR)
         return prob
