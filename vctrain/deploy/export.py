@@ -35,10 +35,7 @@ at the camera's image size, ``vp`` float32 (2,) with ``vp_input``; output ``road
 """
 from __future__ import annotations
 
-import contextlib
-import io
 import json
-import warnings
 from pathlib import Path
 from typing import Any
 
@@ -54,12 +51,12 @@ from vcprep.warp import ray_clamped
 from .graph_ops import (FALLBACK_TOWARD, TABLE_ARC, _backproject_coords, _backproject_grid, _fixed_point,
                         _load_fraction, _padded, _pair_rows, _resize_u8, _sample_f, _sample_u8, _seen_box, _store_fraction,
                         _store_maps_from_vp, _taps, _vp_map)
+from .engine import OPSET, trace_onnx
 from .runtime import (GRAPH_FORMAT, OnnxPredictor, _session,  # noqa: F401
                            require, vp_from_cam)
 
 __all__ = ["OPSET", "RoadGraph", "export_onnx", "OnnxPredictor", "require"]
 
-OPSET = 17
 
 
 def _sees_store(idx: torch.Tensor, ax: torch.Tensor, ay: torch.Tensor) -> torch.Tensor:
@@ -247,32 +244,6 @@ def _geometry(predictor, camera: Camera, vp_input: bool, pose_range: tuple[float
     return g
 
 
-@contextlib.contextmanager
-def _float64_scalars():
-    """The TorchScript exporter types arithmetic among 0-d tensors (``H[0, 0] * vp[0]``) as the
-    default dtype: float32 would cast the graph's float64 homography and completion centre to
-    float32 (~3e-8 relative: a centre one float32 step off, fixed-point maps rounding the other
-    way). Exporting with float64 as the default keeps them float64; tensors of a stated dtype
-    (the network's, the uint8 frame's) are unaffected."""
-    old = torch.get_default_dtype()
-    torch.set_default_dtype(torch.float64)
-    try:
-        yield
-    finally:
-        torch.set_default_dtype(old)
-
-
-def trace_onnx(module: nn.Module, args: tuple, inputs: list[str], outputs: list[str], fold: bool = True) -> bytes:
-    """``module`` traced to ONNX (opset :data:`OPSET`, TorchScript exporter) with float64 scalars
-    (:func:`_float64_scalars`); ``fold``: constant folding."""
-    buf = io.BytesIO()
-    with warnings.catch_warnings(), _float64_scalars():
-        warnings.simplefilter("ignore")  # the TorchScript exporter's deprecation and tracer notes
-        torch.onnx.export(module, args, buf, dynamo=False, opset_version=OPSET, input_names=inputs,
-                          output_names=outputs, do_constant_folding=fold)
-    return buf.getvalue()
-
-
 def _vp_geometry(g: dict[str, Any], cam: Camera, vs: Camera, H: np.ndarray,
                  vp_store: tuple[float, float]) -> dict[str, Any]:
     """What a ``--vp-input`` graph holds besides :func:`_geometry`'s sizes: the camera and the
@@ -308,12 +279,15 @@ def frames_camera(size: tuple[int, int]) -> Camera:
 
 def export_onnx(checkpoint: str | Path, camera: Camera | None, out: str | Path, vp_input: bool = False,
                 pose_range: tuple[float, float] = (5.0, 5.0), check: bool = True, size: tuple[int, int] | None = None,
-                camera_spec: str | None = None) -> dict[str, Any]:
+                camera_spec: str | None = None, int8: bool = False, calib: str | Path | None = None) -> dict[str, Any]:
     """Write the ONNX graph of ``checkpoint`` for ``camera`` to ``out`` (module docstring); with
     ``check`` runs it once in onnxruntime against the torch module. Returns its description (also
     stored in the graph's metadata ``vcseg``): inputs, output, sizes, opset, max_abs_diff.
     ``camera`` None: a model that reads frames as they are, for frames of ``size`` (w, h);
-    ``camera_spec``: how the camera was named (``--camera``), for the graph's own advice."""
+    ``camera_spec``: how the camera was named (``--camera``), for the graph's own advice. ``int8``:
+    the network quantized to 8 bits, calibrated on the frames of ``calib`` (None: the examples;
+    :mod:`vctrain.deploy.quantize`); the description's ``int8`` gives the calibration and the share of
+    pixels whose mask is the float graph's."""
     onnx = require("onnx")
     from ..predict.predictor import Predictor
 
@@ -359,6 +333,8 @@ def export_onnx(checkpoint: str | Path, camera: Camera | None, out: str | Path, 
         with torch.no_grad():
             ref = graph(torch.from_numpy(test), *((vp,) if vp_input else ())).numpy()
         info["max_abs_diff_vs_torch"] = float(np.abs(got - ref).max())
+    if int8:
+        model, info["int8"] = _int8(model, (w, h), vp if vp_input else None, calib)
     entry = model.metadata_props.add()
     entry.key, entry.value = "vcseg", json.dumps(info)
     out = Path(out)
@@ -367,3 +343,14 @@ def export_onnx(checkpoint: str | Path, camera: Camera | None, out: str | Path, 
     except OSError as e:
         raise InputError(f"cannot write: {e.strerror or e}", out, "check the folder exists and is writable") from None
     return info
+
+
+def _int8(model, size: tuple[int, int], vp: torch.Tensor | None, calib: str | Path | None):
+    """(the int8 graph, its description) of the float graph ``model`` (:mod:`vctrain.deploy.quantize`)."""
+    from .quantize import calibration_frames, quantize_graph
+
+    frames, source = calibration_frames(calib, size)
+    feeds = [{"frame": f, **({"vp": vp.numpy()} if vp is not None else {})} for f in frames]
+    del model.metadata_props[:]  # (the description is added to the int8 graph)
+    q, agreement = quantize_graph(model, feeds)
+    return q, {"calibration": source, "frames": len(frames), "mask_agreement": agreement}
