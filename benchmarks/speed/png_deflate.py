@@ -30,9 +30,9 @@ differed in about 1 process of 500-3000 (issue 61): 40 processes cannot show so 
 300 can only make it unlikely; the design of the library is the argument (docs/development.md).
 
 ``versions`` in the JSON: the library's version for zlib and zlib-ng, the PyPI ``deflate`` wrapper's
-for libdeflate (it bundles libdeflate, so its version fixes libdeflate's). Threads: ``cv2.setNumThreads(1)``. Results: ``benchmarks/speed/results/png_deflate.json``; the last
-stdout line is one JSON object: ms and KB per store image for each candidate, and the determinism
-verdicts.
+for libdeflate (it bundles libdeflate, so its version fixes libdeflate's). Threads:
+``cv2.setNumThreads(1)``. Results: ``benchmarks/speed/results/png_deflate.json``; the last stdout
+line is one JSON object: ms and KB per store image for each candidate, and the determinism verdicts.
 """
 from __future__ import annotations
 
@@ -235,7 +235,8 @@ def main() -> None:
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     result = {"benchmark": "png_deflate", "date": today(), "data": source,
-              "command": " ".join([".venv/bin/python", "benchmarks/speed/png_deflate.py", *sys.argv[1:]]), "frames": args.frames,
+              "command": " ".join(["python", "benchmarks/speed/png_deflate.py", *sys.argv[1:]]),
+              "frames": args.frames,
               "items": {k: len(v) for k, v in kinds.items()}, "shapes": shapes, "filters": KIND_FILTER,
               "writer": {"deflate": png.DEFLATE, "kinds": PNG_KINDS}, "versions": versions,
               "machine": platform.machine(), "cores": os.cpu_count(), "loadavg_1min": os.getloadavg()[0],

@@ -246,12 +246,13 @@ def report(times: dict, cpu: dict, own: dict, loads: list[float], n: int, source
             "machine": platform.machine(), "python": platform.python_version(), "cv2": cv2.__version__,
             "deflate": png.DEFLATE + (f" (PyPI deflate {deflate.__version__})" if png.DEFLATE == "libdeflate" else ""),
             "date": today(),
-            "command": " ".join([".venv/bin/python", "benchmarks/speed/store.py", *sys.argv[1:]]),
+            "command": " ".join(["python", "benchmarks/speed/store.py", *sys.argv[1:]]),
             "repeats": args.repeats, "stages": st, "cores_busy": cores_used,
             "machine_busy_ms_per_item": {k: 1000 * float(np.median(cpu[k])) / n for k in names},
             "loadavg_1min": loads,
             "items_s": {k: n / med[k] for k in names[:4]},
-            "process_cpu_ms_per_item": {k: 1000 * float(np.median(own[k])) / n for k in names if k != "jobs2"},
+            "process_cpu_ms_per_item": {k: 1000 * float(np.median(own[k])) / n for k in names
+                                        if k not in ("jobs2", "cpu2")},  # (a pool's workers are other processes)
             "jobs2_speedup": speedup, "ratio_vs_png_io": ratio, "ratio_vs_png_io_paired": paired,
             "ratio_vs_png_io_cpu": ratio_cpu,
             "ratio_vs_same_encoder": ratio_same, "control_cpu_speedup": machine,

@@ -11,12 +11,14 @@ no version has ever been non-deterministic; the output changes between versions,
 Not ISA-L (``python-isal``): its stream depended on the process, not only on the bytes (the same
 704 bytes at level 2 gave another LZ77 parse in 6 of 3000 fresh processes, never with address-space
 randomisation off; two builds of one store then differed in a file about once in 100; issue 61).
-Not zlib-ng either: as fast, but its matcher has read stale window bytes that changed the stream
-(zlib-ng issue 2100, 2026, since fixed), and the standard library's zlib is 2x slower (issue 69).
-benchmarks/speed/png_deflate.py measures them all and checks the bytes in fresh processes with a
-dirtied heap; on our 2-core machine, CamVid, a 688x350 store image: libdeflate level 1 2.9 ms and
-211 KB, zlib level 2 (the writer before issue 69) 6.3 ms and 219 KB, ISA-L (before issue 61) 2.3 ms
-and 241 KB.
+Not zlib-ng either: faster only at a larger size (level 1: 282 KB for a store image), and its
+matcher has read stale window bytes that changed the stream (zlib-ng issue 2100, 2026, since
+fixed). Not the standard library's zlib (the writer of issues 61-68): deterministic but 2-5x slower.
+benchmarks/speed/png_deflate.py measures them all on a store's content and checks the bytes in
+fresh processes with a dirtied heap. On our 2-core machine, CamVid, a 688x350 store image:
+libdeflate level 1 2.9 ms and 213 KB; zlib level 2 221 KB and 6.8 ms on a quiet machine (issue 69),
+14.5 ms in that benchmark's run (load 13, where libdeflate kept its 2.9 ms); ISA-L (before issue 61)
+2.3 ms and 241 KB.
 
 Any PNG reader (OpenCV, Pillow, browsers) reads the files. Supported: uint8 and uint16, grey
 (H, W) or (H, W, 1), BGR and BGRA (OpenCV order, stored as RGB and RGBA), per-row filter 'none',
