@@ -12,6 +12,10 @@ records it, else "unknown".
   same image to the same size (issue 4). Results: ``completion.json``. Time: unknown.
 * ``store.py`` -- building a store (``vcprep warp``) with 1 and 2 worker processes against plain PNG
   decode + encode of the same frames. Results: ``store.json``. Time: unknown.
+* ``png_deflate.py`` -- the PNG writer with each deflate candidate (zlib, zlib-ng, libdeflate) on a
+  store's images, labels, valid masks and frames, against OpenCV's encoder, and whether each gives the
+  same bytes in fresh processes (issue 69). Results: ``png_deflate.json``. Time: about 5 min on 2
+  loaded cores.
 * ``stages.py`` -- each stage's time per image, beside the paper's Table 3. Results: ``stages.json``.
   Time: unknown.
 * ``deploy.py`` -- the exported ONNX graph (``vctrain export``) against the torch path per frame, at

@@ -161,13 +161,16 @@ def _naming(e: OSError, path: Path) -> OSError:
 
 
 # PNG settings per kind of content, (row filter, deflate level), chosen by measurement (CamVid
-# frames and their 1/8 virtual-camera images, one thread; encoder: vcprep.io.png, zlib level 2,
-# deterministic; ISA-L was 3-6x faster but not, see vcprep.io.png):
-# - 'photo': 'sub' filter - camera frames, 8.6 ms and 275 KB at 480x360 ('none': 314 KB, slower);
-# - 'store': no filter - virtual-camera images are mostly completion, pixels repeated along rays,
-#   which LZ77 matching finds unfiltered: 6.8 ms and 220 KB at 688x350 ('sub': 233 KB, slower);
-# - 'mask': no filter - labels, valid masks and predictions (few values): 0.3 ms, 4 KB.
-PNG_KINDS = {"photo": ("sub", 2), "store": ("none", 2), "mask": ("none", 2)}
+# frames and their 1/8 virtual-camera images, one thread; encoder: vcprep.io.png, libdeflate,
+# deterministic; benchmarks/speed/png_deflate.py):
+# - 'photo': 'sub' filter, level 1 - camera frames, 3.4 ms and 258 KB at 480x360 ('none': 314 KB;
+#   'up': 252 KB, about as fast);
+# - 'store': no filter, level 1 - virtual-camera images are mostly completion, pixels repeated along
+#   rays, which LZ77 matching finds unfiltered: 2.9 ms and 213 KB at 688x350 ('sub': 217 KB, 'up':
+#   233 KB; level 2: 197 KB, slower);
+# - 'mask': no filter, level 2 - labels, valid masks and predictions (few values): 0.35 ms, 3 KB
+#   (level 1 is slower here, 0.54 ms).
+PNG_KINDS = {"photo": ("sub", 1), "store": ("none", 1), "mask": ("none", 2)}
 
 
 def write_png(path: str | Path, array: np.ndarray, kind: str = "photo", level: int | None = None) -> str:

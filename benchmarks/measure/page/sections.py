@@ -35,17 +35,38 @@ def r_completion(d: dict) -> list[str]:
 
 
 def r_store(d: dict) -> list[str]:
+    own = d.get("process_cpu_ms_per_item", {})
     rows = [[k, num(v["median_s"], 3), num(d["items_s"].get(k), 1) if k in d["items_s"] else "-",
-             num(d["cores_busy"].get(k)), num(d["machine_busy_ms_per_item"].get(k), 1)]
+             num(d["cores_busy"].get(k)), num(d["machine_busy_ms_per_item"].get(k), 1),
+             num(own.get(k), 1) if k not in ("jobs2", "cpu2") else "-"]  # (a pool's workers are other processes)
             for k, v in d["stages"].items()]
-    out = table(["stage", "median s", "items/s", "cores busy", "machine busy ms per item"], rows)
+    out = table(["stage", "median s", "items/s", "cores busy", "machine busy ms per item",
+                 "this process's CPU ms per item"], rows)
     tg = d.get("targets", {})
     ratios = [[k, num(d[k]), tg.get(k, "reported")] for k in
-              ("jobs2_speedup", "ratio_vs_png_io", "ratio_vs_same_encoder", "control_cpu_speedup") if k in d]
+              ("jobs2_speedup", "ratio_vs_png_io", "ratio_vs_png_io_paired", "ratio_vs_png_io_cpu", "ratio_vs_same_encoder",
+               "control_cpu_speedup") if k in d]
     return out + table(["figure", "measured", "target"], ratios) + [
         f"{d['frames']} frames {num(d['source_size'])} → store {num(d['store_size'])}, completion "
         f"{d['completion']}, {d['repeats']} repeats; 1-minute load average recorded: "
-        f"{', '.join(num(x) for x in d.get('loadavg_1min', []))}.", ""]
+        f"{', '.join(num(x) for x in d.get('loadavg_1min', []))}."
+        + (f" PNG deflate: {d['deflate']}." if d.get("deflate") else ""), ""]
+
+
+def r_png_deflate(d: dict) -> list[str]:
+    """The PNG writer's deflate candidates per content kind (benchmarks/speed/png_deflate.py)."""
+    t = d["ms_kb"]
+    kinds = list(t)
+    rows = [[name] + [f"{num(t[k][name]['ms'])} / {num(t[k][name]['kb'], 1)}" for k in kinds] for name in t[kinds[0]]]
+    det = [[n, num(v["processes"]), num(v["items"]), ",".join(map(str, v["levels"])), num(v["max_distinct_streams"]),
+            num(v["threads_agree"])] for n, v in d["determinism"].items()]
+    w = d["writer"]["kinds"]
+    return table(["encoder: ms / KB per image"] + [f"{k} {d['shapes'][k][1]}×{d['shapes'][k][0]}" for k in kinds], rows) + table(
+        ["deflate", "fresh processes", "items", "levels", "distinct streams per item (max)", "threads agree"], det) + [
+        f"Writer: {d['writer']['deflate']}, (filter, level) per kind {', '.join(f'{k} {v[0]} {v[1]}' for k, v in w.items())}; "
+        f"versions {', '.join(f'{k} {v}' for k, v in d['versions'].items())}; items {', '.join(f'{k} {v}' for k, v in d['items'].items())}; "
+        f"1-minute load average {num(d['loadavg_1min'])} at the end (other jobs on the machine can slow some "
+        f"encoders far more than others: compare within one run).", ""]
 
 
 def r_stages(d: dict) -> list[str]:
@@ -362,7 +383,7 @@ def r_predict_threads(d: dict) -> list[str]:
 
 
 RENDER: dict[str, Callable[[dict], list[str]]] = {
-    "warp": r_warp, "video": r_video, "completion": r_completion, "deploy": r_deploy, "store": r_store, "stages": r_stages, "train": r_train,
+    "warp": r_warp, "video": r_video, "completion": r_completion, "deploy": r_deploy, "store": r_store, "store.zlib": r_store, "png_deflate": r_png_deflate, "stages": r_stages, "train": r_train,
     "camera_estimate": r_camera_estimate, "focal_from_verticals": r_focal_from_verticals, "as_shipped": r_as_shipped, "vp": r_vp, "vp.dev": r_vp, "cross_camera": r_cross_camera, "real_cameras": r_real_cameras,
     "real_cameras_within_seq_fallback": r_real_cameras, "multi_camera": r_multi_camera, "multi_camera_median": r_multi_camera,
     "shipped_model": r_shipped_model, "shipped_model_e60": r_shipped_model, "finetune": r_finetune, "finetune_cityscapes": r_finetune, "adapt_loo": r_adapt_loo,
