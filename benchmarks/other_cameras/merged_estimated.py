@@ -68,18 +68,28 @@ def frames_only_camera(fd: Path, entry: dict) -> Path:
     if path.is_file():
         return path
     from vcprep.camera import camera_to_yaml, estimate_camera
-    from vcprep.dataset import collect_images
+    from vcprep.dataset import list_dataset
+    from vcprep.labels import get_label_format
     from vctrain.predict.road import folder_ego_camera
 
-    test = entry["test"]
-    jobs = collect_images([Path(test["images"])], trees=True)
-    files = [j.image for j in jobs if fnmatchcase(j.id, test.get("include", "*"))]  # (a smoke run's subset)
+    test = entry["test"]  # (its include: a smoke run's subset, matched on the study's item ids: IDD's name the drive)
+    jobs = list_dataset(test["images"], fmt=get_label_format(entry["label_format"]))
+    files = [j.image for j in jobs if fnmatchcase(j.id, test.get("include", "*"))]
     est = estimate_camera(files, name=f"{entry['name']}-frames-only")
     cam = folder_ego_camera(est.camera, files, "auto")
     fd.mkdir(parents=True, exist_ok=True)
     write_json(path.with_suffix(".json"), {**est.to_dict(), "camera": cam.to_dict(), "frames": len(files)})
     path.write_text(camera_to_yaml(cam))
     return path
+
+
+def frames_only_entry(fd: Path, entry: dict) -> dict:
+    """A study's test entry given its frames-only camera (:func:`frames_only_camera`, kept in ``fd``), in place."""
+    cam = frames_only_camera(fd, entry)
+    entry["camera"] = str(cam)
+    if not yaml.safe_load(cam.read_text()).get("ego_rows"):
+        entry["ego"] = "none"  # nothing found in the frames: crossval must not look in the test labels
+    return entry
 
 
 def fold_study(wd: Path, fold: str, quick: bool, epochs: int | None, model: str) -> Path:
@@ -91,11 +101,7 @@ def fold_study(wd: Path, fold: str, quick: bool, epochs: int | None, model: str)
                       [g for g in GUESSED if g != fold], model)
     study = yaml.safe_load(path.read_text())
     if fold in GUESSED:
-        entry = next(d for d in study["datasets"] if d["name"] == fold)
-        cam = frames_only_camera(fd, entry)
-        entry["camera"] = str(cam)
-        if not yaml.safe_load(cam.read_text()).get("ego_rows"):
-            entry["ego"] = "none"  # nothing found in the frames: crossval must not look in the test labels
+        frames_only_entry(fd, next(d for d in study["datasets"] if d["name"] == fold))
     path.write_text(yaml.safe_dump(study, sort_keys=False))
     return path
 
