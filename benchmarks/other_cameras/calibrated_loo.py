@@ -59,7 +59,7 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.other_cameras.as_shipped import BDD, CITYSCAPES, IDD, KITTI_SEM, LUMS, camvid_steps_per_epoch, link_stores, run_study
-from benchmarks.other_cameras.merged_estimated import frames_only_entry
+from benchmarks.other_cameras.merged_estimated import fold_args, frames_only_entry
 from benchmarks.other_cameras.multi_camera import SHADING_AUG, study_file, summarise
 from benchmarks.other_cameras.multi_camera import collect as loo_collect
 from benchmarks.measure.data import DATA, ROOT, require_data
@@ -187,21 +187,11 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--model", default="lite0fpn", choices=("lite0fpn", "resfpn"), help="every condition's network")
     ap.add_argument("--seeds", default="0,1,2")
-    ap.add_argument("--held-out", default=",".join(CALIBRATED), help="the folds, run in that order")
-    ap.add_argument("--epochs", type=int, default=None, help="default: crossval's (the recipe's)")
-    ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--idd-include", default="", help="IDD-Lite's test frames: globs on its item ids <drive>_<frame>, "
                     "comma-separated (default: all 1,403; e.g. '1[0-4][0-9]_*': drives 100-149, 149 frames, for a "
                     "shared CPU), with its file and estimated; WORKDIR/idd-<globs> then")
-    ap.add_argument("--workdir", type=Path, default=ROOT / "benchmarks" / "out" / "calibrated_loo")
-    ap.add_argument("--quick", action="store_true", help="smoke run: a few frames, 2 steps, seed 0")
-    ap.add_argument("--collect", action="store_true", help="run nothing: report what is finished")
-    a = ap.parse_args()
+    a, folds, seeds = fold_args(ap, CALIBRATED, ROOT / "benchmarks" / "out" / "calibrated_loo")
     require_data(DATA, CITYSCAPES, KITTI_SEM, IDD, BDD, LUMS)
-    folds = [f for f in a.held_out.split(",") if f]
-    if not folds or set(folds) - set(CALIBRATED):
-        raise SystemExit(f"--held-out {a.held_out}: folds are {', '.join(CALIBRATED)}")
-    seeds = [0] if a.quick else [int(s) for s in a.seeds.split(",") if s]
     idd = [g for g in a.idd_include.split(",") if g]
     wd = a.workdir / "quick" if a.quick else a.workdir
     if idd and not a.quick:  # another IDD-Lite test set: its own studies (and frames-only estimate)
