@@ -137,7 +137,8 @@ def render(cells: dict, head: dict, targets: dict, a: argparse.Namespace, seeds:
     mean = lambda key: (lambda v: round(float(np.mean(v)), 2) if v else None)([x for x in cells.get(key, []) if x is not None])
     train = lambda fold: " + ".join(c for c in CALIBRATED if c != fold)
     lines = [f"Calibrated leave-one-out, `{a.model}`: road IoU (%), mean over seeds {seeds}; each fold trained on the other "
-             f"two calibrated cameras (balance: datasets, {steps} steps an epoch), tested on all frames of the held-out one "
+             f"two calibrated cameras (balance: datasets, {steps} steps an epoch, "
+             + (f"{a.epochs} epochs" if a.epochs else "the recipe's epochs") + "), tested on all frames of the held-out one "
              "and of IDD-Lite, BDD100K and LUMS (their shipped, assumed files; `-est`: their camera estimated from their "
              "frames alone), each in its own camera."
              + (f" IDD-Lite: only its frames whose ids match `{a.idd_include}`." if a.idd_include and not a.quick else ""), "",
