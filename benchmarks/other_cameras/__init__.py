@@ -32,6 +32,11 @@ records it, else "unknown"; a study's total is its models times the minutes a mo
   and labels, the held-out set from its frames only, as ``vctrain predict --camera estimate``), one
   study per fold, lite0fpn (issue 59). Results: ``merged_estimated.{md,json}``. Time: the folds run so
   far in merged_estimated.json (``minutes_per_model``), two models a fold and seed.
+* ``calibrated_loo.py`` -- **the calibrated leave-one-out**: CamVid, Cityscapes and KITTI
+  (``kitti_semantics``), the three calibrated cameras, each held out in turn and trained on the other
+  two; IDD-Lite, BDD100K and LUMS test-only in every fold, with their assumed files and estimated from
+  their frames; ``within`` against ``resize``, ``--model`` resfpn or lite0fpn (issue 73). Results:
+  ``calibrated_loo_<model>.{md,json}``. Time: two models a fold and seed; ``minutes_per_model`` in the JSON.
 * ``multi_camera_candidates.py`` -- issue 44's candidates for a camera-aware model that wins when
   cameras are merged, one table over the finished folds (it trains nothing). Results:
   ``multi_camera_candidates.{md,json}``. Time: unknown.
@@ -43,7 +48,7 @@ records it, else "unknown"; a study's total is its models times the minutes a mo
 * ``adapt_loo.py`` -- adapting to a held-out camera without its labels: the geometric prior against
   self-training, on the losing folds (issue 34). Results: ``adapt_loo.{md,json}``. Time: unknown.
 
-``multi_camera.py`` (and through it ``merged_estimated.py``) and ``benchmarks/what_a_user_gets/shipped_model.py`` build their studies with
+``multi_camera.py`` (and through it ``merged_estimated.py`` and ``calibrated_loo.py``) and ``benchmarks/what_a_user_gets/shipped_model.py`` build their studies with
 ``as_shipped.py``'s (``benchmarks.other_cameras.as_shipped``; the shipped model also takes
 ``multi_camera.py``'s shading augmentation); ``multi_camera_ensembles.py`` takes
 ``multi_camera_candidates.py``'s folds; ``loo_diagnose.py``, ``adapt_loo.py`` and the candidates read the

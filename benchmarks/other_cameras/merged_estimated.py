@@ -68,18 +68,29 @@ def frames_only_camera(fd: Path, entry: dict) -> Path:
     if path.is_file():
         return path
     from vcprep.camera import camera_to_yaml, estimate_camera
-    from vcprep.dataset import collect_images
+    from vcprep.dataset import list_dataset
+    from vcprep.labels import get_label_format
     from vctrain.predict.road import folder_ego_camera
 
-    test = entry["test"]
-    jobs = collect_images([Path(test["images"])], trees=True)
-    files = [j.image for j in jobs if fnmatchcase(j.id, test.get("include", "*"))]  # (a smoke run's subset)
+    test = entry["test"]  # (its include: a smoke run's subset, matched on the study's item ids: IDD's name the drive)
+    jobs = list_dataset(test["images"], fmt=get_label_format(entry["label_format"]))
+    globs = test.get("include", "*")
+    files = [j.image for j in jobs if any(fnmatchcase(j.id, g) for g in ([globs] if isinstance(globs, str) else globs))]
     est = estimate_camera(files, name=f"{entry['name']}-frames-only")
     cam = folder_ego_camera(est.camera, files, "auto")
     fd.mkdir(parents=True, exist_ok=True)
     write_json(path.with_suffix(".json"), {**est.to_dict(), "camera": cam.to_dict(), "frames": len(files)})
     path.write_text(camera_to_yaml(cam))
     return path
+
+
+def frames_only_entry(fd: Path, entry: dict) -> dict:
+    """A study's test entry given its frames-only camera (:func:`frames_only_camera`, kept in ``fd``), in place."""
+    cam = frames_only_camera(fd, entry)
+    entry["camera"] = str(cam)
+    if not yaml.safe_load(cam.read_text()).get("ego_rows"):
+        entry["ego"] = "none"  # nothing found in the frames: crossval must not look in the test labels
+    return entry
 
 
 def fold_study(wd: Path, fold: str, quick: bool, epochs: int | None, model: str) -> Path:
@@ -91,11 +102,7 @@ def fold_study(wd: Path, fold: str, quick: bool, epochs: int | None, model: str)
                       [g for g in GUESSED if g != fold], model)
     study = yaml.safe_load(path.read_text())
     if fold in GUESSED:
-        entry = next(d for d in study["datasets"] if d["name"] == fold)
-        cam = frames_only_camera(fd, entry)
-        entry["camera"] = str(cam)
-        if not yaml.safe_load(cam.read_text()).get("ego_rows"):
-            entry["ego"] = "none"  # nothing found in the frames: crossval must not look in the test labels
+        frames_only_entry(fd, next(d for d in study["datasets"] if d["name"] == fold))
     path.write_text(yaml.safe_dump(study, sort_keys=False))
     return path
 
@@ -140,22 +147,28 @@ def cameras(wd: Path, folds: list[str]) -> dict[str, dict]:
     return out
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--seeds", default="0,1")
-    ap.add_argument("--held-out", default=",".join(LOO), help=f"the folds, a subset of {','.join(LOO)}, run in that order")
-    ap.add_argument("--model", default=DEFAULT_MODEL, help="every condition's network (study train: arch)")
+def fold_args(ap: argparse.ArgumentParser, every: list[str], workdir: Path) -> tuple[argparse.Namespace, list[str], list[int]]:
+    """The options of a study run fold by fold added to ``ap`` (beside its own), parsed: (the arguments,
+    the folds to run, a subset of ``every``, and the seeds: 0 alone in a smoke run)."""
+    ap.add_argument("--held-out", default=",".join(every), help=f"the folds, a subset of {','.join(every)}, run in that order")
     ap.add_argument("--epochs", type=int, default=None, help="default: crossval's (the recipe's)")
     ap.add_argument("--threads", type=int, default=2)
-    ap.add_argument("--workdir", type=Path, default=ROOT / "benchmarks" / "out" / "merged_estimated")
+    ap.add_argument("--workdir", type=Path, default=workdir)
     ap.add_argument("--quick", action="store_true", help="smoke run: a few frames, 2 steps, seed 0")
     ap.add_argument("--collect", action="store_true", help="run nothing: report what is finished")
     a = ap.parse_args()
-    require_data(CITYSCAPES, IDD, DATA, KITTI, BDD, LUMS)
     folds = [f for f in a.held_out.split(",") if f]
-    if set(folds) - set(LOO):
-        raise SystemExit(f"--held-out {a.held_out}: folds are {', '.join(LOO)}")
-    seeds = [0] if a.quick else [int(s) for s in a.seeds.split(",") if s]
+    if not folds or set(folds) - set(every):
+        raise SystemExit(f"--held-out {a.held_out}: folds are {', '.join(every)}")
+    return a, folds, [0] if a.quick else [int(s) for s in a.seeds.split(",") if s]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--seeds", default="0,1")
+    ap.add_argument("--model", default=DEFAULT_MODEL, help="every condition's network (study train: arch)")
+    a, folds, seeds = fold_args(ap, LOO, ROOT / "benchmarks" / "out" / "merged_estimated")
+    require_data(CITYSCAPES, IDD, DATA, KITTI, BDD, LUMS)
     wd = (a.workdir / "quick" if a.quick else a.workdir) / a.model
     if not a.collect:
         for fold in folds:

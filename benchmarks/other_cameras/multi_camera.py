@@ -83,7 +83,8 @@ import numpy as np
 import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
-from benchmarks.other_cameras.as_shipped import BDD, CITYSCAPES, IDD, LUMS, camvid_steps_per_epoch, link_stores, run_study
+from benchmarks.other_cameras.as_shipped import (BDD, CITYSCAPES, IDD, KITTI_SEM, KITTI_SEM_FORMAT, LUMS,
+                                                 camvid_steps_per_epoch, link_stores, run_study)
 from benchmarks.measure.data import CS_FORMAT, DATA, KITTI, LUMS_FORMAT, ROOT, native_camera, require_data
 from benchmarks.measure.report import machine, results_dir, today, write_json
 from benchmarks.measure.stats import seed_stats
@@ -111,14 +112,17 @@ def _link_all(dst: Path, parts: list[tuple[Path, Path]], n: int | None = None) -
 
 def study_file(wd: Path, quick: bool, epochs: int | None, shading_aug: float = SHADING_AUG,
                extent: str = "max", train_on: list[str] | None = None, extra: dict | None = None,
-               home: Path | None = None, estimate: list[str] | None = None, model: str | None = None) -> Path:
+               home: Path | None = None, estimate: list[str] | None = None, model: str | None = None,
+               names: list[str] | None = None) -> Path:
     """The study: the five real datasets held out in turn, KITTI a test set; ``extent`` the designed
     rectangle's rule (study key ``extent``). ``train_on``: only these datasets trained on (role
     train), every other one a test set (one model, runs/_all/). ``extra``: training settings added.
     ``home``: the study whose CamVid frames and camera file this one names (default ``wd``: its
     own), so that a study sharing its stores names the very same source files. ``estimate``: these
     datasets get ``camera: estimate`` (their camera estimated from their own frames and labels).
-    ``model``: every condition's architecture (study ``train: arch``; default the recipe's)."""
+    ``model``: every condition's architecture (study ``train: arch``; default the recipe's). ``names``:
+    the datasets written, in that order (default: the five of LOO and the KITTI road frame as a test
+    set); ``kitti_semantics`` (98 calibrated KITTI frames, role both) is one of them only when named."""
     n = QUICK_FRAMES if quick else None
     home = home or wd
     camvid = ({"images": str(home / "frames" / "camvid" / "images"), "labels": str(home / "frames" / "camvid" / "labels")}
@@ -136,6 +140,8 @@ def study_file(wd: Path, quick: bool, epochs: int | None, shading_aug: float = S
                 "idd": both("idd", IDD / "camera.yaml", "idd", idd),
                 "bdd": both("bdd", BDD / "camera.yaml", "bdd", split(BDD)),
                 "lums": both("lums", LUMS / "camera.yaml", LUMS_FORMAT, split(LUMS))}
+    if "kitti_semantics" in (names or ()):
+        datasets["kitti_semantics"] = both("kitti_semantics", KITTI_SEM / "camera.yaml", KITTI_SEM_FORMAT, split(KITTI_SEM))
     kitti = {"name": "kitti", "role": "test", "camera": str(KITTI / "calib"), "label_format": "kitti",
              "test": {"images": str(KITTI / "image_2"), "labels": str(KITTI / "gt_image_2")}}
     train = ({"epochs": 1, "max_steps": 2} if quick else
@@ -146,7 +152,8 @@ def study_file(wd: Path, quick: bool, epochs: int | None, shading_aug: float = S
         d["role"] = "train" if k in train_on else "test"
         del d["test" if k in train_on else "train"]
     path = wd / "study.yaml"
-    path.write_text(yaml.safe_dump({"datasets": [datasets[k] for k in LOO] + [kitti],
+    picked = [datasets[k] for k in names] if names else [datasets[k] for k in LOO] + [kitti]
+    path.write_text(yaml.safe_dump({"datasets": picked,
                                     **({"extent": extent} if extent != "max" else {}),
                                     "train": {**train, "balance": "datasets", "shading_aug": shading_aug,
                                               **({"arch": model} if model else {}), **(extra or {})}},
