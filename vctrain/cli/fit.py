@@ -54,6 +54,12 @@ HELP = {  # the options whose help does not fit on their line
     "freeze_bn": "keep BatchNorm's running statistics fixed while training (default: off)",
     "average_init": "with --init: OUT holds A x the starting weights + (1 - A) x the trained ones (WiSE-FT; "
                     "validation scores that average; OUT.last.pt keeps the trained ones for --resume); default: 0.5, 0 without --init",
+    "l2sp": "with --init: add L2SP/2 x the squared distance of the weights from the starting ones to the loss (L2-SP); "
+            "default: 0",
+    "force_labels": "train on labels whose road makes no sense under --label-format (none, nearly all, or mostly in "
+                    "the frames' upper half: vctrain eval's check), which are refused otherwise",
+    "overwrite": "replace a model of another run at --out (refused otherwise; the same command again resumes an "
+                 "interrupted run, or says a finished one is done)",
     "balance": "several stores: 'items' (each item once an epoch) or 'datasets' (each store equally often); default: "
                "the recipe's (multicamera: datasets; cpu, paper: items)",
 }
@@ -62,7 +68,7 @@ HELP = {  # the options whose help does not fit on their line
 # for FIT_NO_OPTION (tests/test_vctrain.py checks both ways)
 FIT_OPTION_FIELD = {"model": "arch", "width": "base_width", "val_store": "val_stores", "quiet": "progress"}
 FIT_NO_OPTION = ("momentum", "max_steps")
-FIT_NOT_CONFIG = ("as_json", "threads")
+FIT_NOT_CONFIG = ("as_json", "threads", "overwrite")
 
 
 def _fit_config(options: dict[str, Any]) -> TrainConfig:
@@ -137,6 +143,9 @@ def fit_cmd(
     freeze_bn: Optional[bool] = typer.Option(None, "--freeze-bn/--no-freeze-bn", help=HELP["freeze_bn"]),
     average_init: Optional[float] = typer.Option(None, "--average-init", help=HELP["average_init"]),
     balance: Optional[str] = typer.Option(None, "--balance", help=HELP["balance"]),
+    l2sp: Optional[float] = typer.Option(None, "--l2sp", help=HELP["l2sp"]),
+    force_labels: bool = typer.Option(TRAIN.force_labels, "--force-labels", help=HELP["force_labels"]),
+    overwrite: bool = typer.Option(False, "--overwrite", help=HELP["overwrite"]),
     workers: int = typer.Option(TRAIN.workers, "--workers", help="data loader processes"),
     log: Optional[Path] = typer.Option(None, "--log", help="JSON-lines log, one row per epoch (default: beside OUT, runs/vc.log.jsonl)"),
     as_json: bool = typer.Option(False, "--json", help="print the run summary as one JSON object instead of the path"),
@@ -169,14 +178,30 @@ def fit_cmd(
       vctrain fit --baseline resize --images my/images --labels my/labels --label-format camvid --init models/road-multicamera/road.pt --out runs/mine_ft.pt
     """
     cfg = _fit_config(locals())  # (first: locals() are the options, each named as its TrainConfig field)
+    from vcprep.cliutil import Interrupted
+
+    from ..training.checkpoint import last_path
+    from ..training.guard import verdict
     from ..training.loop import fit
+    from ..training.rerun import rerun_plan
     pin_threads(threads)
     check_data_folders(images, labels)  # --baseline resize
     for path in filter(None, (out, log)):  # runs/vc.pt: runs/ is created, as warp and predict create theirs
         ensure_parent(path)
-    summary = fit(cfg)
+    what, note = rerun_plan(cfg, overwrite)  # the same command resumes, or finds its run done; another's is refused
+    if note and not quiet:
+        err(note)
+    if what == "done":
+        path_or_json(out, {"out": str(out), "done": True}, as_json)
+        return
+    try:
+        summary = fit(cfg)
+    except KeyboardInterrupt:  # Ctrl-C: the epochs done are in OUT.last.pt, and the same command goes on from there
+        raise Interrupted(f"the epochs finished are saved ({last_path(out)})") from None
     if not quiet:
         err(_fit_line(out, summary))
+        if summary.get("finetune"):
+            err(verdict(str(out), summary["finetune"], summary["data"]["val_items"]))
     path_or_json(out, summary, as_json)
 
 
