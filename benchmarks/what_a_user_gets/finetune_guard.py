@@ -21,7 +21,7 @@ road.pt`` plus): ``default`` nothing else (fit --init's defaults: a fifth of the
 sequence, the trained model kept only if it beats the start there); ``before`` ``--val-fraction 0``
 (every frame trained, the last epoch kept: the defaults before issue 72); ``freeze-bn``
 ``--freeze-bn``; ``l2sp`` ``--l2sp 0.1``; ``lr/3`` ``--lr 0.0000667``; ``10 epochs`` ``--epochs 10``;
-``no average`` ``--average-init 0``; ``4 epochs`` ``--epochs 4`` and ``before, 4 epochs`` (the screening that
+``no average`` ``--average-init 0``; ``4 epochs`` ``--epochs 4`` and ``before 4 epochs`` (the screening that
 fitted a deadline on 2 shared cores: an epoch of 48 frames took 6 minutes there). ``zero-shot``: the model as it is.
 
 Scored by ``vctrain predict`` + ``vctrain eval`` in the frames' own pixels: road IoU % = sum TP /
@@ -52,7 +52,7 @@ from benchmarks.what_a_user_gets.own_frames import SHIPPED, link_frames, score
 KITTI_SEM = SHARED_DATA / "kitti_semantics"
 VARIANTS = {"default": [], "before": ["--val-fraction", 0], "freeze-bn": ["--freeze-bn"], "l2sp": ["--l2sp", 0.1],
             "lr/3": ["--lr", 0.0000667], "10 epochs": ["--epochs", 10], "no average": ["--average-init", 0],
-            "4 epochs": ["--epochs", 4], "before, 4 epochs": ["--val-fraction", 0, "--epochs", 4]}
+            "4 epochs": ["--epochs", 4], "before 4 epochs": ["--val-fraction", 0, "--epochs", 4]}
 
 
 def _dusk() -> tuple[list, list]:

@@ -30,9 +30,10 @@ CROP_HELP = ("train on random windows of the working image: WxH pixels, a share 
              "height (0.44x1: full height); 1: the whole image; validation and prediction see the whole image "
              "(default: the recipe's: cpu 0.4444x1, the measured design of 'vctrain crossval'; paper: 1)")
 HELP = {  # the options whose help does not fit on their line
-    "out": "the checkpoint: the best epoch by validation road IoU (the last without validation, --init's default; "
-           "--average-init: averaged with the start); the latest epoch goes beside it, for --resume: "
-           "runs/vc.pt -> runs/vc.last.pt",
+    "out": "the checkpoint: the best epoch by validation road IoU (the last without validation; with --init the "
+           "start, unless the last epoch -- averaged with the start, --average-init -- scores higher); the latest "
+           "epoch goes beside it, for --resume: runs/vc.pt -> runs/vc.last.pt. The same command again resumes an "
+           "interrupted run or says a finished one is done; a model of another run is refused (--overwrite)",
     "resume": "continue from the latest epoch's checkpoint (runs/vc.last.pt for --out runs/vc.pt) up to --epochs",
     "baseline": "'resize': the paper's baseline, the same network on the original images simply resized (no virtual "
                 "camera); 'mixed': both views of every store frame, one network",
@@ -45,12 +46,15 @@ HELP = {  # the options whose help does not fit on their line
     "ray_channels": "two extra input channels: each pixel's ray angles beside and below the road VP, from the camera's "
                     "focal length",
     "init": "fine-tune: start from this checkpoint's weights (same model, width, input channels and --baseline; "
-            "a resize model's working size unless --size); with validation the starting weights are epoch 0, kept "
-            "unless an epoch scores higher",
-    "val_fraction": "share of the training items held out for validation (default: 0.1; with --init 0: every frame "
-                    "trains and the last epoch is kept)",
+            "a resize model's working size unless --size); a fifth of the frames is held out (--val-split "
+            "sequence), the start is scored on it before the first epoch and kept unless the trained model scores "
+            "higher there",
+    "val_fraction": "share of the training items held out for validation (default: 0.1; with --init 0.2, the frames "
+                    "the start must be beaten on; 0: every frame trains and the last epoch is kept)",
     "val_split": "which items --val-fraction holds out: 'random', 'block' (the last share of each folder or store in "
-                 "name order: whole drives, or a stretch of one) or 'auto' (block with --init, else random)",
+                 "name order), 'sequence' (whole sequences where the names show three or more, 0001TP_006690 -> "
+                 "0001TP; the last stretch of each where one or two; else random) or 'auto' (sequence with --init, "
+                 "else random)",
     "freeze_bn": "keep BatchNorm's running statistics fixed while training (default: off)",
     "average_init": "with --init: OUT holds A x the starting weights + (1 - A) x the trained ones (WiSE-FT; "
                     "validation scores that average; OUT.last.pt keeps the trained ones for --resume); default: 0.5, 0 without --init",
@@ -164,7 +168,10 @@ def fit_cmd(
     request: segnet, SGD 0.005 momentum 0.9, weight decay 0.0005, batch 8, poly decay); any option
     given wins. The checkpoint describes itself (model, config, virtual camera, scale, completion,
     metrics), so predict and eval need no repeated flags. Prints the checkpoint path; OUT's folder
-    is created. 'torchrun --nproc-per-node N vctrain fit ...' trains data-parallel. Time (cpu
+    is created. The same command again resumes an interrupted run, or says a finished one is done;
+    a model of another run at OUT is refused (--overwrite). --init (fine-tuning) holds out a fifth
+    of the frames, scores the starting model on them first and keeps it unless the trained one
+    scores higher there. Labels whose road makes no sense under --label-format are refused. 'torchrun --nproc-per-node N vctrain fit ...' trains data-parallel. Time (cpu
     recipe, 2 cores): about 3 minutes for 305 CamVid frames at the default store's 638x271.
 
     \b
