@@ -21,8 +21,8 @@ road.pt`` plus): ``default`` nothing else (fit --init's defaults: a fifth of the
 sequence, the trained model kept only if it beats the start there); ``before`` ``--val-fraction 0``
 (every frame trained, the last epoch kept: the defaults before issue 72); ``freeze-bn``
 ``--freeze-bn``; ``l2sp`` ``--l2sp 0.1``; ``lr/3`` ``--lr 0.0000667``; ``10 epochs`` ``--epochs 10``;
-``no average`` ``--average-init 0``; ``4 epochs`` ``--epochs 4`` and ``before 4 epochs`` (the screening that
-fitted a deadline on 2 shared cores: an epoch of 48 frames took 6 minutes there). ``zero-shot``: the model as it is.
+``no average`` ``--average-init 0``; ``4 epochs`` ``--epochs 4``, ``before 4 epochs``, ``freeze-bn 4 epochs``, ``l2sp 4 epochs``
+(the screening that fitted a deadline on 2 shared cores: an epoch of 48 frames took 2-6 minutes there). ``zero-shot``: the model as it is.
 
 Scored by ``vctrain predict`` + ``vctrain eval`` in the frames' own pixels: road IoU % = sum TP /
 sum (TP+FP+FN) on the test frames; beside it the fit's own held-out figures (the start's and the
@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shlex
 import sys
 import time
 from pathlib import Path
@@ -52,7 +53,8 @@ from benchmarks.what_a_user_gets.own_frames import SHIPPED, link_frames, score
 KITTI_SEM = SHARED_DATA / "kitti_semantics"
 VARIANTS = {"default": [], "before": ["--val-fraction", 0], "freeze-bn": ["--freeze-bn"], "l2sp": ["--l2sp", 0.1],
             "lr/3": ["--lr", 0.0000667], "10 epochs": ["--epochs", 10], "no average": ["--average-init", 0],
-            "4 epochs": ["--epochs", 4], "before 4 epochs": ["--val-fraction", 0, "--epochs", 4]}
+            "4 epochs": ["--epochs", 4], "before 4 epochs": ["--val-fraction", 0, "--epochs", 4],
+            "freeze-bn 4 epochs": ["--freeze-bn", "--epochs", 4], "l2sp 4 epochs": ["--l2sp", 0.1, "--epochs", 4]}
 
 
 def _dusk() -> tuple[list, list]:
@@ -208,7 +210,7 @@ def main() -> None:
                 "machine": machine(), "date": today(),
                 "command": f"benchmarks/what_a_user_gets/finetune_guard.py --cases {','.join(a.cases)} --frames "
                            f"{','.join(map(str, a.frames))} --seeds {','.join(map(str, a.seeds))} --variants "
-                           f"{','.join(a.variants)}" + (f" --tag {a.tag}" if a.tag else "")})
+                           f"{shlex.quote(','.join(a.variants))} --threads {a.threads}" + (f" --tag {a.tag}" if a.tag else "")})
     print(json.dumps(head))
 
 
