@@ -54,7 +54,8 @@ KITTI_SEM = SHARED_DATA / "kitti_semantics"
 VARIANTS = {"default": [], "before": ["--val-fraction", 0], "freeze-bn": ["--freeze-bn"], "l2sp": ["--l2sp", 0.1],
             "lr/3": ["--lr", 0.0000667], "10 epochs": ["--epochs", 10], "no average": ["--average-init", 0],
             "4 epochs": ["--epochs", 4], "before 4 epochs": ["--val-fraction", 0, "--epochs", 4],
-            "freeze-bn 4 epochs": ["--freeze-bn", "--epochs", 4], "l2sp 4 epochs": ["--l2sp", 0.1, "--epochs", 4]}
+            "freeze-bn 4 epochs": ["--freeze-bn", "--epochs", 4], "l2sp 4 epochs": ["--l2sp", 0.1, "--epochs", 4],
+            "bn not frozen": ["--no-freeze-bn"]}
 
 
 def _dusk() -> tuple[list, list]:

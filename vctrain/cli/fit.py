@@ -55,7 +55,7 @@ HELP = {  # the options whose help does not fit on their line
                  "name order), 'sequence' (whole sequences where the names show three or more, 0001TP_006690 -> "
                  "0001TP; the last stretch of each where one or two; else random) or 'auto' (sequence with --init, "
                  "else random)",
-    "freeze_bn": "keep BatchNorm's running statistics fixed while training (default: off)",
+    "freeze_bn": "keep BatchNorm's running statistics fixed while training (default: on with --init, off without)",
     "average_init": "with --init: OUT holds A x the starting weights + (1 - A) x the trained ones (WiSE-FT; "
                     "validation scores that average; OUT.last.pt keeps the trained ones for --resume); default: 0.5, 0 without --init",
     "l2sp": "with --init: add L2SP/2 x the squared distance of the weights from the starting ones to the loss (L2-SP); "
