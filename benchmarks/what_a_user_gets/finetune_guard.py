@@ -31,7 +31,7 @@ trained model's road IoU on the held-out frames, which one ``--out`` kept) and t
 (``dusk``, every seed and N) nor on its held-out frames (by construction: it keeps the start
 otherwise); ``kitti`` 60 frames >= zero-shot + 2 (mean over seeds). Outputs
 benchmarks/what_a_user_gets/results/finetune_guard.{md,json}; the last stdout line is one JSON object.
-Cells are cached under WORKDIR, so a rerun adds only what is missing.
+Cells are cached under WORKDIR, so a rerun adds only what is missing (``--cached-only``: tabulates them, trains nothing).
 Time: a fit of 60 frames took 3-6 minutes on 2 shared cores.
 """
 from __future__ import annotations
@@ -109,17 +109,20 @@ def measure(a: argparse.Namespace) -> dict:
         fmt, frames_of, suffixes, _ = CASES[case]
         pool, test_items = frames_of()
         wd = a.workdir / case
-        test = link_frames(test_items, wd / "frames" / "test", suffixes)
+        relink = (lambda items, d: d) if a.cached_only else (lambda items, d: link_frames(items, d, suffixes))
+        test = relink(test_items, wd / "frames" / "test")  # (--cached-only: never under a running fit's feet)
         zero_file = wd / "zero.json"
         if not zero_file.is_file():
             zero_file.write_text(json.dumps(score(SHIPPED, test, fmt, wd / "pred-zero-shot", a.threads)))
         out[case] = {"zero-shot": json.loads(zero_file.read_text())}
         for n in a.frames:
-            frames = link_frames(pool[:n], wd / "frames" / f"train{n}", suffixes)
+            frames = relink(pool[:n], wd / "frames" / f"train{n}")
             for seed in a.seeds:
                 for variant in a.variants:
-                    c = cell(case, variant, frames, test, seed, wd / f"n{n}" / f"seed{seed}" / variant.replace("/", "-").replace(" ", "-"),
-                             a.threads)
+                    folder = wd / f"n{n}" / f"seed{seed}" / variant.replace("/", "-").replace(" ", "-")
+                    if a.cached_only and not (folder / "cell.json").is_file():
+                        continue
+                    c = cell(case, variant, frames, test, seed, folder, a.threads)
                     out[case].setdefault(variant, {}).setdefault(str(n), []).append(c)
                     print(f"{case} n={n} seed={seed} {variant}: {c}", flush=True)
     return out
@@ -157,7 +160,7 @@ def table(cells: dict, head: dict, a: argparse.Namespace) -> str:
         ns = sorted({n for v, by_n in by_variant.items() if v != "zero-shot" for n in by_n}, key=int)
         lines += [f"{CASES[case][3]}; model {SHIPPED.relative_to(ROOT)}; road IoU % on the test frames, mean over seeds "
                   f"(per seed; gain on zero-shot, worst seed; held-out figures of the fit: start -> trained, "
-                  f"kept); minutes a fit on {a.threads} cores.", "",
+                  f"kept); minutes a fit at {a.threads} thread(s), the machine shared.", "",
                   f"zero-shot: **{head[f'{case}_zero-shot']:.1f}**", "",
                   "| variant | " + " | ".join(f"{n} frames" for n in ns) + " |", "|---|" + "---|" * len(ns)]
         for variant, by_n in by_variant.items():
@@ -187,6 +190,7 @@ def main() -> None:
     ap.add_argument("--variants", default="default", help=f"comma list of {', '.join(VARIANTS)}")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--workdir", type=Path, default=ROOT / "benchmarks" / "out" / "finetune_guard")
+    ap.add_argument("--cached-only", action="store_true", help="tabulate the cells measured so far, train nothing")
     ap.add_argument("--tag", default="", help="results file suffix (a screening run: finetune_guard_<tag>)")
     a = ap.parse_args()
     require_data(DATA, KITTI_SEM)
