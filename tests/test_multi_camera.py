@@ -177,7 +177,7 @@ def test_block_validation_holds_out_each_sources_last_items_in_name_order():
 
 
 def test_fit_init_keeps_the_starting_weights_unless_an_epoch_beats_them(two_stores, tmp_path):
-    """With validation, a fine-tuning run scores its starting weights as epoch 0, and only an epoch
+    """With validation, a fine-tuning run scores its starting weights as epoch 0, and only a last epoch
     with a higher validation IoU replaces them: training that cannot change the network (a rate too
     small to move a float32 weight, BatchNorm's statistics frozen) leaves the init's weights."""
     root, stores = two_stores
@@ -192,22 +192,23 @@ def test_fit_init_keeps_the_starting_weights_unless_an_epoch_beats_them(two_stor
     last = load_checkpoint(tmp_path / "b.last.pt")
     assert [row["val_iou"] for row in last["history"]] == [b["best_iou"]] * 3  # nothing moved: ties keep epoch 0
     assert b["config"]["val_split"] == "auto" and last["data"]["train_items_per_source"] == {stores[0]: 4, stores[1]: 2}  # 0.25 of 6 and of 2: 2 and 0
-    # a real rate: the checkpoint is the first epoch of the highest validation IoU, epoch 0 among them
+    # a real rate: the checkpoint is the last epoch where it scores higher than the start, else the start
+    # (issue 72: not the best epoch, which on a few held-out frames was an early one)
     r = CliRunner().invoke(app, [*args, "--lr", "0.05", "--out", str(tmp_path / "c.pt")])
     assert r.exit_code == 0, r.output
     c, c_last = load_checkpoint(tmp_path / "c.pt"), load_checkpoint(tmp_path / "c.last.pt")
     ious = [row["val_iou"] for row in c_last["history"]]
-    assert c["best_epoch"] == int(np.argmax(ious)) and c["best_iou"] == max(ious)
+    assert c["best_epoch"] == (2 if ious[2] > ious[0] else 0) and c["best_iou"] == max(ious[0], ious[2])
 
 
 def test_fit_init_average_holds_the_mean_of_the_start_and_the_trained_weights(two_stores, tmp_path):
     """--average-init A: OUT holds A x the init's weights + (1 - A) x the trained ones (every float
     tensor, BatchNorm statistics included); OUT.last.pt the trained ones, and a resumed run averages
-    with the same start. Without validation (--init's default) OUT is the last epoch."""
+    with the same start. Without validation (--val-fraction 0) OUT is the last epoch."""
     root, stores = two_stores
     a = load_checkpoint(root / "a.pt")
     args = ["fit", stores[0], "--init", str(root / "a.pt"), "--lr", "0.05", "--epochs", "1", "--quiet",
-            "--average-init", "0.25", "--out", str(tmp_path / "b.pt")]
+            "--val-fraction", "0", "--average-init", "0.25", "--out", str(tmp_path / "b.pt")]
     r = CliRunner().invoke(app, args)
     assert r.exit_code == 0, r.output
     b, last = load_checkpoint(tmp_path / "b.pt"), load_checkpoint(tmp_path / "b.last.pt")

@@ -236,13 +236,25 @@ class RoadShare:
                     "where sky and buildings are, not road")
         return None
 
-    def warning(self, fmt: "LabelFormat", where: str | Path) -> str | None:
-        """'warning: <where>: under label format '<name>' (road = ...) <problem>: ... (<fix>)', or None."""
+    def _said(self, fmt: "LabelFormat") -> tuple[str, str] | None:
+        """(what makes no sense, the fix) under ``fmt``, or None."""
         problem = self.problem()
         if problem is None:
             return None
         road = ", ".join(str(v) for v in fmt.road) if fmt.kind == "ids" else f"BGR channel {fmt.road_channel} set"
-        return (f"warning: {where}: under label format '{fmt.name}' (road = {road}) {problem}: the format probably "
-                f"does not fit these labels (check --label-format: a named format such as camvid or cityscapes, or "
-                f"values:road=ID;ignore=ID with the ids these labels give road and ignore)")
+        return (f"under label format '{fmt.name}' (road = {road}) {problem}: the format probably does not fit these "
+                f"labels", "check --label-format: a named format such as camvid or cityscapes, or values:road=ID;"
+                "ignore=ID with the ids these labels give road and ignore")
+
+    def warning(self, fmt: "LabelFormat", where: str | Path) -> str | None:
+        """'warning: <where>: under label format '<name>' (road = ...) <problem>: ... (<fix>)', or None."""
+        said = self._said(fmt)
+        return None if said is None else f"warning: {where}: {said[0]} ({said[1]})"
+
+    def refuse(self, fmt: "LabelFormat", where: str | Path, override: str) -> None:
+        """Raise :class:`InputError` with :meth:`warning`'s words when the labels make no sense under ``fmt``
+        (``override``: the flag that goes on anyway, added to the fix)."""
+        said = self._said(fmt)
+        if said is not None:
+            raise InputError(said[0], where, f"{said[1]}; or {override} to train on them anyway")
 

@@ -23,6 +23,11 @@ docs/development.md or the results JSON records it, else "unknown".
   the shipped recipe trained without IDD-Lite (one it never saw). Results:
   ``own_frames_idd_{shipped,unseen}.{md,json}``. Time: about 2-3 min a fit of 60 frames, 8 of 200, plus
   the base model (about 30 min).
+* ``finetune_guard.py`` -- fine-tuning the shipped model that never leaves a user worse off (issue 72):
+  ``fit --init``'s held-out guard and recipe variants on CamVid's dusk drive (scored on the daylight
+  drive) and on KITTI (a camera the model never saw), against zero-shot. Results:
+  ``finetune_guard[_<tag>].{md,json}``. Time: 5-8 min a 4-epoch fit of 60 frames on 2 shared cores,
+  20-25 min a 20-epoch one.
 * ``finetune.py`` -- fine-tuning on a camera the model has not seen: 20 labelled frames of it
   (issue 34: the learning-rate rule; before fit --init's issue-60 defaults). Results:
   ``finetune.{md,json}`` (LUMS), ``finetune_<set>.{md,json}``. Time: unknown.

@@ -30,9 +30,10 @@ CROP_HELP = ("train on random windows of the working image: WxH pixels, a share 
              "height (0.44x1: full height); 1: the whole image; validation and prediction see the whole image "
              "(default: the recipe's: cpu 0.4444x1, the measured design of 'vctrain crossval'; paper: 1)")
 HELP = {  # the options whose help does not fit on their line
-    "out": "the checkpoint: the best epoch by validation road IoU (the last without validation, --init's default; "
-           "--average-init: averaged with the start); the latest epoch goes beside it, for --resume: "
-           "runs/vc.pt -> runs/vc.last.pt",
+    "out": "the checkpoint: the best epoch by validation road IoU (the last without validation; with --init the "
+           "start, unless the last epoch -- averaged with the start, --average-init -- scores higher); the latest "
+           "epoch goes beside it, for --resume: runs/vc.pt -> runs/vc.last.pt. The same command again resumes an "
+           "interrupted run or says a finished one is done; a model of another run is refused (--overwrite)",
     "resume": "continue from the latest epoch's checkpoint (runs/vc.last.pt for --out runs/vc.pt) up to --epochs",
     "baseline": "'resize': the paper's baseline, the same network on the original images simply resized (no virtual "
                 "camera); 'mixed': both views of every store frame, one network",
@@ -45,15 +46,24 @@ HELP = {  # the options whose help does not fit on their line
     "ray_channels": "two extra input channels: each pixel's ray angles beside and below the road VP, from the camera's "
                     "focal length",
     "init": "fine-tune: start from this checkpoint's weights (same model, width, input channels and --baseline; "
-            "a resize model's working size unless --size); with validation the starting weights are epoch 0, kept "
-            "unless an epoch scores higher",
-    "val_fraction": "share of the training items held out for validation (default: 0.1; with --init 0: every frame "
-                    "trains and the last epoch is kept)",
+            "a resize model's working size unless --size); a fifth of the frames is held out (--val-split "
+            "sequence), the start is scored on it before the first epoch and kept unless the trained model scores "
+            "higher there",
+    "val_fraction": "share of the training items held out for validation (default: 0.1; with --init 0.2, the frames "
+                    "the start must be beaten on; 0: every frame trains and the last epoch is kept)",
     "val_split": "which items --val-fraction holds out: 'random', 'block' (the last share of each folder or store in "
-                 "name order: whole drives, or a stretch of one) or 'auto' (block with --init, else random)",
-    "freeze_bn": "keep BatchNorm's running statistics fixed while training (default: off)",
+                 "name order), 'sequence' (whole sequences where the names show three or more, 0001TP_006690 -> "
+                 "0001TP; the last stretch of each where one or two; else random) or 'auto' (sequence with --init, "
+                 "else random)",
+    "freeze_bn": "keep BatchNorm's running statistics fixed while training (default: on with --init, off without)",
     "average_init": "with --init: OUT holds A x the starting weights + (1 - A) x the trained ones (WiSE-FT; "
                     "validation scores that average; OUT.last.pt keeps the trained ones for --resume); default: 0.5, 0 without --init",
+    "l2sp": "with --init: add L2SP/2 x the squared distance of the weights from the starting ones to the loss (L2-SP); "
+            "default: 0",
+    "force_labels": "train on labels whose road makes no sense under --label-format (none, nearly all, or mostly in "
+                    "the frames' upper half: vctrain eval's check), which are refused otherwise",
+    "overwrite": "replace a model of another run at --out (refused otherwise; the same command again resumes an "
+                 "interrupted run, or says a finished one is done)",
     "balance": "several stores: 'items' (each item once an epoch) or 'datasets' (each store equally often); default: "
                "the recipe's (multicamera: datasets; cpu, paper: items)",
 }
@@ -62,7 +72,7 @@ HELP = {  # the options whose help does not fit on their line
 # for FIT_NO_OPTION (tests/test_vctrain.py checks both ways)
 FIT_OPTION_FIELD = {"model": "arch", "width": "base_width", "val_store": "val_stores", "quiet": "progress"}
 FIT_NO_OPTION = ("momentum", "max_steps")
-FIT_NOT_CONFIG = ("as_json", "threads")
+FIT_NOT_CONFIG = ("as_json", "threads", "overwrite")
 
 
 def _fit_config(options: dict[str, Any]) -> TrainConfig:
@@ -137,6 +147,9 @@ def fit_cmd(
     freeze_bn: Optional[bool] = typer.Option(None, "--freeze-bn/--no-freeze-bn", help=HELP["freeze_bn"]),
     average_init: Optional[float] = typer.Option(None, "--average-init", help=HELP["average_init"]),
     balance: Optional[str] = typer.Option(None, "--balance", help=HELP["balance"]),
+    l2sp: Optional[float] = typer.Option(None, "--l2sp", help=HELP["l2sp"]),
+    force_labels: bool = typer.Option(TRAIN.force_labels, "--force-labels", help=HELP["force_labels"]),
+    overwrite: bool = typer.Option(False, "--overwrite", help=HELP["overwrite"]),
     workers: int = typer.Option(TRAIN.workers, "--workers", help="data loader processes"),
     log: Optional[Path] = typer.Option(None, "--log", help="JSON-lines log, one row per epoch (default: beside OUT, runs/vc.log.jsonl)"),
     as_json: bool = typer.Option(False, "--json", help="print the run summary as one JSON object instead of the path"),
@@ -155,7 +168,10 @@ def fit_cmd(
     request: segnet, SGD 0.005 momentum 0.9, weight decay 0.0005, batch 8, poly decay); any option
     given wins. The checkpoint describes itself (model, config, virtual camera, scale, completion,
     metrics), so predict and eval need no repeated flags. Prints the checkpoint path; OUT's folder
-    is created. 'torchrun --nproc-per-node N vctrain fit ...' trains data-parallel. Time (cpu
+    is created. The same command again resumes an interrupted run, or says a finished one is done;
+    a model of another run at OUT is refused (--overwrite). --init (fine-tuning) holds out a fifth
+    of the frames, scores the starting model on them first and keeps it unless the trained one
+    scores higher there. Labels whose road makes no sense under --label-format are refused. 'torchrun --nproc-per-node N vctrain fit ...' trains data-parallel. Time (cpu
     recipe, 2 cores): about 3 minutes for 305 CamVid frames at the default store's 638x271.
 
     \b
@@ -169,14 +185,30 @@ def fit_cmd(
       vctrain fit --baseline resize --images my/images --labels my/labels --label-format camvid --init models/road-multicamera/road.pt --out runs/mine_ft.pt
     """
     cfg = _fit_config(locals())  # (first: locals() are the options, each named as its TrainConfig field)
+    from vcprep.cliutil import Interrupted
+
+    from ..training.checkpoint import last_path
+    from ..training.guard import verdict
     from ..training.loop import fit
+    from ..training.rerun import rerun_plan
     pin_threads(threads)
     check_data_folders(images, labels)  # --baseline resize
     for path in filter(None, (out, log)):  # runs/vc.pt: runs/ is created, as warp and predict create theirs
         ensure_parent(path)
-    summary = fit(cfg)
+    what, note = rerun_plan(cfg, overwrite)  # the same command resumes, or finds its run done; another's is refused
+    if note and not quiet:
+        err(note)
+    if what == "done":
+        path_or_json(out, {"out": str(out), "done": True}, as_json)
+        return
+    try:
+        summary = fit(cfg)
+    except KeyboardInterrupt:  # Ctrl-C: the epochs done are in OUT.last.pt, and the same command goes on from there
+        raise Interrupted(f"the epochs finished are saved ({last_path(out)})") from None
     if not quiet:
         err(_fit_line(out, summary))
+        if summary.get("finetune"):
+            err(verdict(str(out), summary["finetune"], summary["data"]["val_items"]))
     path_or_json(out, summary, as_json)
 
 

@@ -6,7 +6,9 @@ config      :class:`TrainConfig` (every setting declared once, ``None`` = the re
 data        the training items: reading a store item or a resized frame, decoding, augmenting
 trainset    a run's data: its stores, samples, validation split, working size, window, epoch order
 loop        :func:`fit`: the loop (nanoGPT style), validation, resume, fine-tuning, torchrun
-finetune    starting from a checkpoint: what --init and --resume take from it, the average with the start
+finetune    starting from a checkpoint: what --init and --resume take from it, the average with the start, L2-SP
+guard       fine-tuning never worse than its start: the held-out frames, the start's score, what --out keeps
+rerun       runs never lost: the same command resumes or says it is done; another run's --out is refused
 checkpoint  self-describing checkpoints: everything predict and eval need to rebuild the model
 ==========  ==========================================================================================
 
@@ -22,13 +24,16 @@ from typing import Any
 # and `vctrain eval` start without importing torch (about 1.5 s a process).
 _HOME = {
     "config": ("TrainConfig", "RECIPES", "DEFAULT_RECIPE", "SCHEDULES", "OPTIMIZERS", "BALANCES", "TRAIN_WINDOW",
-               "AdaptSettings", "ADAPT_EPOCHS", "ADAPT_LR_FACTOR"),
+               "AdaptSettings", "ADAPT_EPOCHS", "ADAPT_LR_FACTOR", "RUN_ONLY"),
     "data": ("Sample", "RoadDataset", "store_samples", "resize_samples", "source_focal", "to_input", "vp_proximity",
              "vp_in_store", "ray_angles", "resize_pair", "class_frequencies", "median_frequency_weights"),
     "trainset": ("BASELINES", "MIN_SIDE", "MixedViews", "view_batches", "prepare_data", "resize_working_size",
-                 "crop_size", "epoch_order", "training_sets"),
-    "loop": ("fit", "evaluate", "get_lr", "resolve_device", "resolve_recipe", "last_path"),
-    "checkpoint": ("CKPT_FORMAT", "CKPT_VERSION", "save_checkpoint", "load_checkpoint", "model_from_checkpoint"),
+                 "crop_size", "epoch_order", "training_sets", "check_labels", "sequence_of", "sequence_items"),
+    "loop": ("fit", "evaluate", "get_lr", "resolve_device", "resolve_recipe"),
+    "guard": ("score_start", "say_plan", "keeps", "verdict", "finetune_record", "settle"),
+    "rerun": ("request_of", "data_stamp", "rerun_plan"),
+    "checkpoint": ("CKPT_FORMAT", "CKPT_VERSION", "save_checkpoint", "load_checkpoint", "model_from_checkpoint",
+                   "last_path"),
 }
 _MODULE_OF = {name: module for module, names in _HOME.items() for name in names}
 __all__ = [name for names in _HOME.values() for name in names]

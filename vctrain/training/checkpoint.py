@@ -31,10 +31,16 @@ from torch import nn
 from ..networks.args import ARCHITECTURES
 from ..networks.build import build_model
 
-__all__ = ["CKPT_FORMAT", "CKPT_VERSION", "save_checkpoint", "load_checkpoint", "model_from_checkpoint"]
+__all__ = ["CKPT_FORMAT", "CKPT_VERSION", "save_checkpoint", "load_checkpoint", "model_from_checkpoint", "last_path"]
 
 CKPT_FORMAT = "vctrain-checkpoint"
 CKPT_VERSION = 1
+
+
+def last_path(out: str | Path) -> Path:
+    """The latest epoch's checkpoint beside ``out`` (runs/vc.pt -> runs/vc.last.pt), for --resume."""
+    out = Path(out)
+    return out.with_name(out.stem + ".last.pt")
 
 
 def save_checkpoint(path: str | Path, ckpt: dict[str, Any]) -> None:

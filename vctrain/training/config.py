@@ -12,8 +12,8 @@ from pathlib import Path
 from typing import Any, Optional
 
 __all__ = ["TrainConfig", "TRAIN_WINDOW", "RECIPES", "DEFAULT_RECIPE", "SCHEDULES", "OPTIMIZERS", "BALANCES", "AdaptSettings", "ADAPT_EPOCHS",
-           "ADAPT_LR_FACTOR", "VAL_SPLITS", "FINETUNE_FREEZE_BN",
-           "FINETUNE_AVERAGE_INIT", "VAL_FRACTION", "FINETUNE_VAL_FRACTION"]
+           "ADAPT_LR_FACTOR", "VAL_SPLITS", "RUN_ONLY", "FINETUNE_FREEZE_BN",
+           "FINETUNE_AVERAGE_INIT", "FINETUNE_L2SP", "VAL_FRACTION", "FINETUNE_VAL_FRACTION"]
 
 # full-height training windows of 4/9 of the working width: the measured best design (a crossval study's
 # and the cpu recipe's default; 76800 px a step at 172800-px stores)
@@ -94,6 +94,9 @@ class TrainConfig:
                                        # training); None: FINETUNE_FREEZE_BN with init, no without
     average_init: Optional[float] = None  # with init: the checkpoint holds A x the init's weights + (1 - A) x the
                                        # trained ones (WiSE-FT); None: FINETUNE_AVERAGE_INIT with init, 0 without
+    l2sp: Optional[float] = None       # with init: loss + l2sp/2 x the squared distance of the weights from the start's
+                                       # (L2-SP, Li et al. 2018); None: FINETUNE_L2SP with init, 0 without
+    force_labels: bool = False         # train on labels whose road makes no sense under label_format (refused otherwise)
     workers: int = 0                   # DataLoader worker processes
     log: Optional[str] = None          # JSON-lines log; None: '<out stem>.log.jsonl'
     progress: bool = True              # tqdm bar on stderr
@@ -113,11 +116,17 @@ class TrainConfig:
         return d
 
 
-VAL_SPLITS = ("auto", "random", "block")
+# settings of how a run runs, not of what it trains: a rerun that differs only in these is the same run
+# (vctrain.training.rerun)
+RUN_ONLY = ("progress", "resume", "workers", "device", "log")
+VAL_SPLITS = ("auto", "random", "block", "sequence")
 VAL_FRACTION = 0.1  # a run's validation share unless set
-FINETUNE_VAL_FRACTION = 0.0  # fit --init's: every frame trains, the last epoch is kept (own_frames.py: picking an
-                             # epoch on a few held-out frames chose worse models than the last)
-FINETUNE_FREEZE_BN = False  # fit --init's default for freeze_bn (benchmarks/what_a_user_gets/own_frames.py)
+FINETUNE_VAL_FRACTION = 0.2  # fit --init's held-out share: the starting model is scored on it before the first epoch,
+                             # and the trained one replaces it only with a higher score there (vctrain.training.guard)
+FINETUNE_FREEZE_BN = True  # fit --init's default for freeze_bn: issue 72's screening (finetune_guard.py, seed 0, 60 frames,
+                           # 4 epochs) gained more on a camera never seen (+4.8 against +2.7) and lost less on another
+                           # drive of a known one (-0.1 against -0.4); L2-SP 0.1 lost more (-0.7)
+FINETUNE_L2SP = 0.0  # fit --init's default for l2sp (benchmarks/what_a_user_gets/finetune_guard.py)
 FINETUNE_AVERAGE_INIT = 0.5  # fit --init's default for average_init: WiSE-FT's (benchmarks/what_a_user_gets/own_frames.py)
 
 ADAPT_EPOCHS = 5       # a short fine-tune

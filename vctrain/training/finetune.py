@@ -17,10 +17,11 @@ from torch import nn
 from vcprep.errors import InputError
 
 from .checkpoint import load_checkpoint
-from .config import ADAPT_LR_FACTOR, FINETUNE_AVERAGE_INIT, FINETUNE_FREEZE_BN, TrainConfig
+from .config import ADAPT_LR_FACTOR, FINETUNE_AVERAGE_INIT, FINETUNE_FREEZE_BN, FINETUNE_L2SP, TrainConfig
 from ..networks.args import ARCHITECTURES
 
-__all__ = ["check_init", "unset_from_checkpoints", "init_record", "anchor_weights", "averaged", "as_saved"]
+__all__ = ["check_init", "unset_from_checkpoints", "init_record", "anchor_weights", "averaged", "as_saved",
+           "l2sp_penalty"]
 
 
 def check_init(cfg: TrainConfig, init: dict[str, Any], info: dict[str, Any]) -> None:
@@ -60,6 +61,8 @@ def init_network(cfg: TrainConfig, init: dict[str, Any]) -> None:
         cfg.freeze_bn = FINETUNE_FREEZE_BN
     if cfg.average_init is None:
         cfg.average_init = FINETUNE_AVERAGE_INIT
+    if cfg.l2sp is None:
+        cfg.l2sp = FINETUNE_L2SP
     if cfg.arch is None:
         cfg.arch = init["model_args"]["arch"]
     if cfg.base_width is None and cfg.arch == init["model_args"]["arch"]:
@@ -74,7 +77,7 @@ def unset_from_checkpoints(cfg: TrainConfig, resume: dict[str, Any] | None, init
         cfg.lr = (resume.get("config") or {}).get("lr")
     if resume is not None and cfg.arch is None:  # the checkpoint's network, not the recipe's
         cfg.arch = resume["model_args"]["arch"]
-    for k in ("freeze_bn", "average_init", "val_fraction"):  # a resumed fine-tuning run goes on as it began
+    for k in ("freeze_bn", "average_init", "val_fraction", "l2sp"):  # a resumed fine-tuning run goes on as it began
         if resume is not None and getattr(cfg, k) is None:
             setattr(cfg, k, (resume.get("config") or {}).get(k))
     if init is not None:
@@ -127,3 +130,26 @@ def as_saved(model: nn.Module, weights: dict[str, torch.Tensor], anchor: dict[st
     net = copy.deepcopy(model)
     net.load_state_dict(weights)
     return net
+
+
+def l2sp_penalty(model: nn.Module, cfg: TrainConfig, resume: dict[str, Any] | None, init: dict[str, Any] | None):
+    """L2-SP (Li et al. 2018): a callable giving ``l2sp / 2`` x the squared distance of the model's
+    parameters from the weights the run started from (the ``init`` checkpoint's, or a resumed run's
+    first start); None when ``cfg.l2sp`` is 0 or unset."""
+    alpha = float(cfg.l2sp or 0.0)
+    if alpha < 0:
+        raise InputError(f"l2sp must be >= 0, got {alpha}", None, "use e.g. 0.01, or 0 for none")
+    if alpha == 0:
+        return None
+    if init is not None:
+        start = {k: v.detach().clone() for k, v in model.state_dict().items()}
+    elif (resume or {}).get("init", {}).get("path") and Path(resume["init"]["path"]).is_file():
+        start = load_checkpoint(resume["init"]["path"])["model"]
+    else:
+        raise InputError("--l2sp pulls toward the weights a run started from, and this run starts from none",
+                         cfg.resume, "add --init MODEL.pt, or leave --l2sp out")
+    pairs = [(p, start[name].to(p.device)) for name, p in model.named_parameters()]
+
+    def penalty() -> torch.Tensor:
+        return 0.5 * alpha * sum(((p - p0) ** 2).sum() for p, p0 in pairs)
+    return penalty

@@ -58,24 +58,22 @@ from tqdm import tqdm
 
 from vcprep.errors import InputError
 
-from .checkpoint import load_checkpoint, model_from_checkpoint, save_checkpoint
+from .checkpoint import last_path, load_checkpoint, model_from_checkpoint, save_checkpoint
 from .config import (BALANCES, FINETUNE_VAL_FRACTION, VAL_FRACTION, DEFAULT_RECIPE, OPTIMIZERS, RECIPES, SCHEDULES,
                      TrainConfig)
 from .data import RoadDataset, class_frequencies, median_frequency_weights
-from .finetune import anchor_weights, as_saved, averaged, check_init, init_record, unset_from_checkpoints
-from .trainset import MixedViews, crop_size, epoch_order, prepare_data, training_sets, view_batches
+from .finetune import (anchor_weights, as_saved, averaged, check_init, init_record, l2sp_penalty,
+                       unset_from_checkpoints)
+from . import guard
+from .rerun import request_of
+from .trainset import MixedViews, check_labels, crop_size, epoch_order, prepare_data, training_sets, view_batches
 from ..metrics import RoadMetrics
 from ..networks.args import ARCHITECTURES, model_args_for
 from ..networks.build import build_model, resolve_pretrained
 
-__all__ = ["fit", "evaluate", "get_lr", "resolve_device", "resolve_recipe", "last_path"]
+__all__ = ["fit", "evaluate", "get_lr", "resolve_device", "resolve_recipe"]
 
 WARMUP = 0.03  # share of the steps with a linear warm-up (cosine schedule)
-
-
-def last_path(out: str | Path) -> Path:
-    out = Path(out)
-    return out.with_name(out.stem + ".last.pt")
 
 
 def resolve_recipe(cfg: TrainConfig, device: torch.device | None = None) -> TrainConfig:
@@ -263,6 +261,7 @@ class _Loop:
     steps_per_epoch: int
     total_steps: int
     show: bool                       # progress bar
+    penalty: Any = None              # L2-SP: a callable giving the pull toward the starting weights
 
 
 def _train_epoch(loop: _Loop, loader, epoch: int, step: int, t0: float) -> tuple[float, int, int]:
@@ -284,7 +283,7 @@ def _train_epoch(loop: _Loop, loader, epoch: int, step: int, t0: float) -> tuple
             g["lr"] = lr
         x = x.to(loop.device, non_blocking=True).contiguous(memory_format=loop.fmt)
         y = y.to(loop.device, non_blocking=True)
-        loss = _step(loop.net, opt, x, y, loop.weight, epoch)
+        loss = _step(loop.net, opt, x, y, loop.weight, epoch, loop.penalty)
         step += 1
         loss_sum += loss.item() * len(x)
         n_seen += len(x)
@@ -304,10 +303,12 @@ def _resumed(resume: dict[str, Any] | None, opt: torch.optim.Optimizer) -> tuple
 
 
 def _step(net: nn.Module, opt: torch.optim.Optimizer, x: torch.Tensor, y: torch.Tensor,
-          weight: torch.Tensor | None, epoch: int) -> torch.Tensor:
-    """One optimiser step on the batch (x, y); returns its loss."""
+          weight: torch.Tensor | None, epoch: int, penalty=None) -> torch.Tensor:
+    """One optimiser step on the batch (x, y), plus ``penalty()`` (L2-SP) when given; returns its loss."""
     logits = net(x)
     loss = F.cross_entropy(logits, y, weight=weight, ignore_index=255)
+    if penalty is not None:
+        loss = loss + penalty()
     if not torch.isfinite(loss):
         if (y != 255).any():
             raise InputError(f"training diverged (loss {float(loss)}) at epoch {epoch + 1}", None, "lower --lr")
@@ -383,21 +384,36 @@ def _start(cfg: TrainConfig) -> tuple[int, int, torch.device, Path, Path]:
     return rank, world, device, out, Path(cfg.log) if cfg.log else out.with_name(out.stem + ".log.jsonl")
 
 
-def _score_start(model: nn.Module, loader, device: torch.device, weight: torch.Tensor | None,
-                 say: bool) -> dict[str, Any]:
-    """Epoch 0 of a fine-tuning run with validation: the starting weights' validation metrics (on
-    stderr when ``say``)."""
-    row: dict[str, Any] = {"epoch": 0, "step": 0, "init": True}
-    _validate(row, model, loader, device, weight, -1.0)
-    if say:
-        from vcprep.cliutil import err
+def _open_log(log_path: Path, history: list[dict[str, Any]] | None) -> None:
+    """Start the log afresh with the rows of the run so far (a resumed run's history): a rerun never
+    duplicates a row, and a new run never continues another's (None: another rank's, nothing)."""
+    if history is not None:
+        log_path.write_text("".join(json.dumps(row) + "\n" for row in history))
 
-        err(f"epoch 0 (the --init weights): val IoU {row['val_iou']:.4f}")
-    return row
+
+def _placed(model: nn.Module, model_args: dict[str, Any], device: torch.device, distributed: bool):
+    """(memory format, the network the steps run: DDP-wrapped when distributed) with ``model`` on ``device``."""
+    # channels-last runs resfpn's convolutions ~20 % faster on the CPU; SegNet's unpooling wants NCHW
+    fmt = torch.channels_last if model_args["arch"] == "resfpn" else torch.contiguous_format
+    model.to(device, memory_format=fmt)
+    net = nn.parallel.DistributedDataParallel(model, device_ids=[device.index] if device.type == "cuda" else None) \
+        if distributed else model
+    return fmt, net
+
+
+def _start_of_fine_tuning(cfg: TrainConfig, info: dict[str, Any], init: dict[str, Any], model: nn.Module, val_loader,
+                          device: torch.device, weight: torch.Tensor | None, master: bool) -> dict[str, Any] | None:
+    """A fine-tuning run's epoch 0: the starting weights scored on the held-out frames (None: none held
+    out), and the plan said before the first epoch (guard.py)."""
+    row0 = guard.score_start(model, val_loader, device, weight, evaluate) if len(val_loader.dataset) else None
+    if master and cfg.progress:
+        guard.say_plan(cfg, info, init, row0)
+    return row0
 
 
 def fit(cfg: TrainConfig) -> dict[str, Any]:
     """Train according to ``cfg``; returns a summary (best val IoU, timings, paths)."""
+    request = request_of(cfg)  # the run as asked, before the defaults fill it (rerun.py)
     rank, world, device, out, log_path = _start(cfg)
     distributed, master = world > 1, rank == 0
 
@@ -407,43 +423,41 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
     resolve_recipe(cfg, device)
     train_s, val_s, info = prepare_data(cfg)
     model, model_args = _network(cfg, resume, init, info)
-    # channels-last runs resfpn's convolutions ~20 % faster on the CPU; SegNet's unpooling wants NCHW
-    fmt = torch.channels_last if model_args["arch"] == "resfpn" else torch.contiguous_format
-    model.to(device, memory_format=fmt)
-    net = nn.parallel.DistributedDataParallel(model, device_ids=[device.index] if device.type == "cuda" else None) \
-        if distributed else model
-
+    fmt, net = _placed(model, model_args, device, distributed)
     train_ds, val_ds = training_sets(cfg, train_s, val_s, info)
+    check_labels(cfg, train_ds)  # labels read with a format that does not fit them: refused before training
     weight = _class_weight(cfg, train_ds, info, device)
-
     per_rank_batch, steps_per_epoch = _steps_per_epoch(cfg, train_ds, world)
     total_steps = steps_per_epoch * cfg.epochs
     opt = _optimizer(cfg, model)
     val_loader = torch.utils.data.DataLoader(val_ds, batch_sampler=view_batches(val_ds, range(len(val_ds)), per_rank_batch),
                                              num_workers=cfg.workers)
-
     start_epoch, step, best_iou, best_epoch, history = _resumed(resume, opt)
     # the weights a fine-tuning run started from (a resumed one keeps its first run's record)
     init_from = (resume or {}).get("init") or (init_record(cfg.init, init) if init is not None else None)
-    loop = _Loop(net, opt, cfg, device, fmt, weight, world, steps_per_epoch, total_steps, cfg.progress and master)
-    del net  # the loop holds it (and _leave_group drops it)
-
     anchor, share = anchor_weights(cfg, model, resume, init), float(cfg.average_init or 0.0)
+    loop = _Loop(net, opt, cfg, device, fmt, weight, world, steps_per_epoch, total_steps, cfg.progress and master,
+                 l2sp_penalty(model, cfg, resume, init))
+    del net  # the loop holds it (and _leave_group drops it)
+    guarded = init_from is not None and len(val_ds) > 0  # fine-tuning, never worse than its start (guard.py)
 
     def checkpoint(epoch: int, metrics: dict[str, Any]) -> dict[str, Any]:
+        fine = guard.finetune_record(history, best_epoch, cfg.epochs) if guarded else None
         return {"model": model.state_dict(), "model_args": model_args, "config": cfg.to_dict(), "data": info,
-                "epoch": epoch, "step": step, "metrics": metrics, "best_iou": best_iou, "best_epoch": best_epoch,
-                "history": history, "optimizer": opt.state_dict(), **({"init": init_from} if init_from else {})}
+                "request": request, "epoch": epoch, "step": step, "metrics": metrics, "best_iou": best_iou,
+                "best_epoch": best_epoch, "history": history, "optimizer": opt.state_dict(),
+                **({"init": init_from} if init_from else {}), **({"finetune": fine} if fine else {})}
 
-    if init is not None and start_epoch == 0 and len(val_ds):
-        # the weights fine-tuning starts from are a candidate too: an epoch replaces them only if it
-        # scores higher on validation
-        row0 = _score_start(model, val_loader, device, weight, master and cfg.progress)
+    _open_log(log_path, history if master else None)
+    row0 = _start_of_fine_tuning(cfg, info, init, model, val_loader, device, weight, master) \
+        if init is not None and start_epoch == 0 else None
+    if row0 is not None:  # the starting weights are what --out holds unless the trained ones beat them
         best_iou, best_epoch = row0["val_iou"], 0
         history.append(row0)
         if master:
             _write_log(log_path, row0)
-            save_checkpoint(out, checkpoint(0, row0))
+            for path in (out, last_path(out)):  # (OUT.last.pt: a rerun resumes from here)
+                save_checkpoint(path, checkpoint(0, row0))
     seconds, images = 0.0, 0
     for epoch in range(start_epoch, cfg.epochs):
         loader = _epoch_loader(train_ds, cfg, epoch, rank, world, per_rank_batch)
@@ -458,19 +472,21 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
         saved = averaged(model, anchor, share)  # what --out holds: the trained weights, or their average with the start
         improved = _validate(row, as_saved(model, saved, anchor), val_loader, device, weight, best_iou) \
             if len(val_ds) else True
+        improved = guard.keeps(cfg, epoch + 1, improved) if guarded else improved  # (guarded: the last epoch or none)
         if improved:
             best_iou, best_epoch = row.get("val_iou", -1.0), epoch + 1
         history.append(row)
         if master:
-            _write_log(log_path, row)
             ck = checkpoint(epoch + 1, row)
             save_checkpoint(last_path(out), ck)  # the trained weights themselves: --resume goes on from them
+            _write_log(log_path, row)  # (after the checkpoint: a row logged is a row a rerun resumes after)
             if improved:
                 save_checkpoint(out, ck if anchor is None else {**ck, "model": saved, "average_init": share})
             if cfg.progress:
                 _say_epoch(row, cfg.epochs, improved)
     replicas_identical = _leave_group(loop, model, world) if distributed else None
     return {"replicas_identical": replicas_identical, "world_size": world,
+            "finetune": guard.settle(out, history, best_epoch, cfg.epochs) if guarded and master else None,
             "out": str(out), "last": str(last_path(out)), "log": str(log_path), "epochs": cfg.epochs,
             "best_val_iou": best_iou if best_iou >= 0 else None, "best_epoch": best_epoch,
             "seconds": seconds, "seconds_per_epoch": seconds / max(cfg.epochs - start_epoch, 1),

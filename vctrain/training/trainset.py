@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from collections import Counter
 from dataclasses import replace
 from typing import Any, Sequence
@@ -29,7 +30,7 @@ from .config import BALANCES, VAL_SPLITS, TrainConfig
 from .data import RoadDataset, Sample, resize_samples, store_samples
 
 __all__ = ["BASELINES", "MIN_SIDE", "MixedViews", "view_batches", "prepare_data", "resize_working_size", "crop_size",
-           "epoch_order", "training_sets"]
+           "epoch_order", "training_sets", "check_labels", "sequence_of", "sequence_items"]
 
 MIN_SIDE = 32  # the smallest working side: five 2x2 poolings
 # what a model is trained on (TrainConfig.baseline): 'none' the virtual camera's store items, 'resize'
@@ -115,12 +116,44 @@ def _completion(stores: list[Store]) -> str:
 
 
 def val_split(cfg: TrainConfig) -> str:
-    """The validation split a run uses: ``cfg.val_split``, 'auto' resolved (block when fine-tuning)."""
+    """The validation split a run uses: ``cfg.val_split``, 'auto' resolved (sequence when fine-tuning)."""
     if cfg.val_split not in VAL_SPLITS:
         raise InputError(f"unknown validation split '{cfg.val_split}'", None, f"use one of {', '.join(VAL_SPLITS)}")
     if cfg.val_split == "auto":
-        return "block" if cfg.init else "random"
+        return "sequence" if cfg.init else "random"
     return cfg.val_split
+
+
+def sequence_of(item_id: str) -> str:
+    """The sequence (drive, clip) a frame's name shows: the name less its trailing frame number
+    (CamVid ``0001TP_006690`` -> ``0001TP``, IDD-Lite ``<drive>_<frame>`` -> ``<drive>``); frames of
+    one sequence share it."""
+    return re.sub(r"[_.-]?\d+$", "", item_id.rsplit("/", 1)[-1])
+
+
+def sequence_items(ids: list[str], sources: list[str], fraction: float, seed: int) -> tuple[set[int], str]:
+    """('sequence' split) the indices held out and how they were chosen: whole sequences (a seeded
+    draw of them, about ``fraction`` of the frames) where the names show three or more; the last share
+    of each in name order (a stretch, not the neighbours of training frames) where they show one or
+    two; a seeded share where every name is its own (no sequence)."""
+    groups: dict[tuple[str, str], list[int]] = {}
+    for i, (name, src) in enumerate(zip(ids, sources)):
+        groups.setdefault((src, sequence_of(name)), []).append(i)
+    names = sorted({g[1] or "(unnamed)" for g in groups})
+    if all(len(m) == 1 for m in groups.values()):
+        held = validation_items(ids, sources, fraction, "random", seed)
+        return held, f"a seeded {fraction:.0%} (the frames' names show no sequence)"
+    if len(groups) < 3:
+        held = validation_items(ids, sources, fraction, "block", seed)
+        return held, f"the last {fraction:.0%} in name order of sequence {', '.join(names)}"
+    target, held, chosen = max(1, int(round(fraction * len(ids)))), set(), []
+    keys = sorted(groups)
+    for k in np.random.default_rng(seed).permutation(len(keys)):
+        if len(held) >= target or len(chosen) == len(keys) - 1:
+            break
+        held.update(groups[keys[k]])
+        chosen.append(keys[k][1] or "(unnamed)")
+    return held, f"whole sequences {', '.join(sorted(chosen))} of {len(keys)}"
 
 
 def validation_items(ids: list[str], sources: list[str], fraction: float, split: str, seed: int) -> set[int]:
@@ -189,8 +222,13 @@ def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str
     elif cfg.val_fraction > 0:
         if not 0 < cfg.val_fraction < 1:
             raise InputError(f"validation fraction {cfg.val_fraction} is not in [0, 1)", None, "use e.g. 0.1")
-        held = validation_items([s.id for s in train], [s.source for s in train], cfg.val_fraction,
-                                val_split(cfg), cfg.seed)
+        ids, sources, split = [s.id for s in train], [s.source for s in train], val_split(cfg)
+        if split == "sequence":
+            held, info["held_out"] = sequence_items(ids, sources, cfg.val_fraction, cfg.seed)
+        else:
+            held = validation_items(ids, sources, cfg.val_fraction, split, cfg.seed)
+            info["held_out"] = f"{'a seeded' if split == 'random' else 'the last'} {cfg.val_fraction:.0%}" + \
+                ("" if split == "random" else " of each folder or store in name order")
         val = [s for i, s in enumerate(train) if i in held]
         train = [s for i, s in enumerate(train) if i not in held]
     else:
@@ -324,3 +362,19 @@ def training_sets(cfg: TrainConfig, train_s: list, val_s: list, info: dict[str, 
     tv, vv = pair(train_s[:nt], val_s[:nv], info["input_size"], info["crop_size"])
     tr, vr = pair(train_s[nt:], val_s[nv:], info["resize_size"], info["resize_crop_size"])
     return MixedViews(tv, tr), MixedViews(vv, vr)
+
+
+def check_labels(cfg: TrainConfig, train_ds: Any, samples: int = 48) -> None:
+    """Refuse labels read with a format that does not fit them (vctrain eval's check,
+    :class:`vcprep.labels.RoadShare`) before training: up to ``samples`` of the items decoded from a
+    label format, spread over the set; ``cfg.force_labels`` trains on them anyway."""
+    from vcprep.labels import RoadShare
+
+    coded = [i for i, s in enumerate(train_ds.samples) if s.label_format is not None]
+    if cfg.force_labels or not coded:
+        return
+    share = RoadShare()
+    for k in sorted({int(round(k)) for k in np.linspace(0, len(coded) - 1, min(samples, len(coded)))}):
+        share.add(train_ds.item(coded[k])[1])
+    first = train_ds.samples[coded[0]]
+    share.refuse(get_label_format(first.label_format), cfg.labels or first.label.parent, "add --force-labels")

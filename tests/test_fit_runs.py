@@ -1,0 +1,153 @@
+"""``vctrain fit`` on a user's own frames (issue 72): fine-tuning never worse than its start (the held-out
+frames, the start's score, the starting weights kept when the trained ones do not beat them), labels read
+with a format that does not fit them refused before training, and runs never lost (the same command
+resumes an interrupted run or finds a finished one done; another run's model is not overwritten)."""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import torch
+
+from conftest import run_cli, write_synthetic_dataset
+from vcprep.camera import PRESETS
+from vctrain.training import load_checkpoint, sequence_items
+
+torch.set_num_threads(1)
+CAM = PRESETS["camvid"].for_image_size((64, 48))
+TINY = ["--model", "resfpn", "--width", "4", "--batch-size", "4", "--crop", "1", "--size", "64x48"]
+
+
+@pytest.fixture(scope="module")
+def frames(tmp_path_factory):
+    """8 synthetic frames of one drive ('seq_0000' ...) with CamVid labels (road 3, else 0, and the
+    upper quarter building, 1), and a start model trained on them (resfpn, width 4)."""
+    root = tmp_path_factory.mktemp("own")
+    img, lab = write_synthetic_dataset(root / "d", CAM, n=8)
+    for p in lab.iterdir():  # the frames' top quarter is building (CamVid 1): upper half, never road
+        a = cv2.imread(str(p), cv2.IMREAD_UNCHANGED)
+        a[: a.shape[0] // 4] = 1
+        cv2.imwrite(str(p), a)
+    data = ["--baseline", "resize", "--images", img, "--labels", lab, "--label-format", "camvid"]
+    r = run_cli("fit", *data, *TINY, "--epochs", "15", "--lr", "0.01", "--out", root / "start.pt", "-q",
+                prog="vctrain")
+    assert r.returncode == 0, r.stderr
+    return root, data
+
+
+def test_labels_read_with_a_format_that_does_not_fit_are_refused_before_training(frames, tmp_path):
+    """CamVid labels read with 'values:road=1;ignore=255' (1 is CamVid's building): eval's check
+    (road mostly in the frames' upper half) stops fit with one line and the fix; --force-labels trains."""
+    root, data = frames
+    wrong = [*data[:-1], "values:road=1;ignore=255"]
+    r = run_cli("fit", *wrong, *TINY, "--epochs", "1", "--out", tmp_path / "w.pt", prog="vctrain")
+    assert r.returncode == 1 and not (tmp_path / "w.pt").exists()
+    line = r.stderr.strip().splitlines()[-1]
+    assert line.startswith("Error: ") and "upper half" in line and "--force-labels" in line and "--label-format" in line
+    r = run_cli("fit", *wrong, *TINY, "--epochs", "1", "--force-labels", "--out", tmp_path / "w.pt", "-q",
+                prog="vctrain")
+    assert r.returncode == 0 and (tmp_path / "w.pt").is_file()
+
+
+def test_held_out_frames_follow_the_sequences_their_names_show():
+    ids = [f"{s}_{i:06d}" for s in ("0001TP", "0006R0", "0016E5", "Seq05VD") for i in range(5)]
+    held, how = sequence_items(ids, ["f"] * 20, 0.2, seed=0)
+    assert len(held) == 5 and len({ids[i].split("_")[0] for i in held}) == 1 and "whole sequences" in how
+    one = [f"0001TP_{i:06d}" for i in (9, 3, 0, 7, 1, 5, 2, 8, 6, 4)]  # one drive: its last stretch by name
+    held, how = sequence_items(one, ["f"] * 10, 0.2, seed=0)
+    assert sorted(one[i] for i in held) == ["0001TP_000008", "0001TP_000009"] and "0001TP" in how
+    alone = [f"{i:06d}_10" for i in range(10)]  # KITTI-style: every name its own, no sequence
+    held, how = sequence_items(alone, ["f"] * 10, 0.2, seed=0)
+    assert len(held) == 2 and held != sequence_items(alone, ["f"] * 10, 0.2, seed=1)[0] and "seeded" in how
+
+
+def test_fine_tuning_that_scores_lower_keeps_the_starting_weights(frames, tmp_path):
+    """A fine-tune that wrecks the model (lr 1, three epochs) scores below the start on the held-out
+    frames: OUT holds the starting weights, the run says so with both figures and exits 0. Before issue
+    72 nothing was held out and OUT held the wrecked model."""
+    root, data = frames
+    r = run_cli("fit", *data, "--init", root / "start.pt", "--batch-size", "4", "--lr", "1", "--epochs", "3",
+                "--average-init", "0", "--out", tmp_path / "ft.pt", prog="vctrain")
+    assert r.returncode == 0, r.stderr
+    start, ft, last = (load_checkpoint(p) for p in (root / "start.pt", tmp_path / "ft.pt", tmp_path / "ft.last.pt"))
+    assert all(torch.equal(start["model"][k], ft["model"][k]) for k in start["model"])
+    assert any(not torch.equal(start["model"][k], last["model"][k]) for k in start["model"])  # it did train
+    fine = ft["finetune"]
+    assert fine["kept"] == "start" and fine["trained_val_iou"] < fine["start_val_iou"]
+    before = r.stderr.split("epoch 1/3")[0]  # said before the first epoch: the plan and the start's score
+    assert f"fine-tuning {root / 'start.pt'}" in before and "lr 1" in before and "held out: 2 frames" in before
+    assert f"{fine['start_val_iou']:.4f}" in before
+    assert "the starting model, unchanged" in r.stderr and f"{fine['trained_val_iou']:.4f}" in r.stderr
+    log = [json.loads(x) for x in (tmp_path / "ft.log.jsonl").read_text().splitlines()]
+    assert [row["epoch"] for row in log] == [0, 1, 2, 3] and log[0]["init"] is True
+
+
+def test_fine_tuning_that_scores_higher_is_kept(frames, tmp_path):
+    """A start trained on other frames for one epoch; fine-tuned on these, the trained model beats it on
+    the held-out frames and OUT holds it (the last epoch, averaged with the start)."""
+    root, data = frames
+    other = write_synthetic_dataset(tmp_path / "o", PRESETS["camvid"].for_image_size((64, 48)), n=2)
+    r = run_cli("fit", "--baseline", "resize", "--images", other[0], "--labels", other[1], "--label-format", "camvid",
+                *TINY, "--epochs", "1", "--out", tmp_path / "weak.pt", "-q", prog="vctrain")
+    assert r.returncode == 0, r.stderr
+    r = run_cli("fit", *data, "--init", tmp_path / "weak.pt", "--batch-size", "4", "--lr", "0.01", "--epochs", "6",
+                "--out", tmp_path / "ft.pt", "-q", prog="vctrain")
+    assert r.returncode == 0, r.stderr
+    ft = load_checkpoint(tmp_path / "ft.pt")
+    assert ft["finetune"]["kept"] == "epoch 6" and ft["epoch"] == 6
+    assert ft["finetune"]["trained_val_iou"] > ft["finetune"]["start_val_iou"]
+
+
+def test_the_same_command_on_a_finished_run_is_done_and_another_runs_model_is_refused(frames, tmp_path):
+    root, data = frames
+    cmd = ["fit", *data, *TINY, "--epochs", "2", "--out", tmp_path / "m.pt"]
+    assert run_cli(*cmd, "-q", prog="vctrain").returncode == 0
+    before = (tmp_path / "m.pt").read_bytes()
+    r = run_cli(*cmd, prog="vctrain")  # a Makefile's rerun: exit 0, nothing trained
+    assert r.returncode == 0 and "finished" in r.stderr and "epoch 1/" not in r.stderr
+    assert r.stdout.strip() == str(tmp_path / "m.pt") and (tmp_path / "m.pt").read_bytes() == before
+    r = run_cli(*cmd[:-4], "--epochs", "3", "--out", tmp_path / "m.pt", prog="vctrain")  # another run's --out
+    assert r.returncode == 1 and "another run" in r.stderr and "--overwrite" in r.stderr
+    assert (tmp_path / "m.pt").read_bytes() == before
+    (tmp_path / "hand.pt").write_bytes(b"not a model")
+    r = run_cli(*cmd[:-1], tmp_path / "hand.pt", prog="vctrain")
+    assert r.returncode == 1 and "--overwrite" in r.stderr and (tmp_path / "hand.pt").read_bytes() == b"not a model"
+    r = run_cli(*cmd[:-4], "--epochs", "3", "--out", tmp_path / "m.pt", "--overwrite", "-q", prog="vctrain")
+    assert r.returncode == 0 and load_checkpoint(tmp_path / "m.pt")["epoch"] == 3
+    log = [json.loads(x)["epoch"] for x in (tmp_path / "m.log.jsonl").read_text().splitlines()]
+    assert log == [1, 2, 3]  # the replaced run's rows are gone, not followed by the new ones
+
+
+def test_rerunning_an_interrupted_fit_resumes_it_to_the_uninterrupted_result(frames, tmp_path):
+    """Ctrl-C (SIGINT) after the first epoch, then the same command: it resumes after the last epoch
+    saved, the log holds every epoch once, and the weights are those of the run never interrupted."""
+    root, data = frames
+    cmd = [str(Path(sys.executable).with_name("vctrain")), "fit", *map(str, data), *TINY, "--epochs", "12",
+           "--out", str(tmp_path / "i.pt")]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path), "OMP_NUM_THREADS": "1"}
+    proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True, env=env,
+                            start_new_session=True)
+    for line in proc.stderr:
+        if line.startswith("epoch 1/12"):
+            os.killpg(proc.pid, signal.SIGINT)
+            break
+    rest = proc.stderr.read()
+    assert proc.wait(timeout=120) == 130 and "run the same command again" in rest
+    done = load_checkpoint(tmp_path / "i.last.pt")["epoch"]
+    assert 1 <= done < 12
+    r = run_cli(*cmd[1:], prog="vctrain")
+    assert r.returncode == 0 and f"resuming the interrupted run after epoch {done} of 12" in r.stderr
+    log = [json.loads(x)["epoch"] for x in (tmp_path / "i.log.jsonl").read_text().splitlines()]
+    assert log == list(range(1, 13))
+    r = run_cli(*cmd[1:-1], str(tmp_path / "u.pt"), "-q", prog="vctrain")  # the same run, never interrupted
+    assert r.returncode == 0
+    a, b = load_checkpoint(tmp_path / "i.last.pt"), load_checkpoint(tmp_path / "u.last.pt")
+    for k in a["model"]:
+        torch.testing.assert_close(a["model"][k].float(), b["model"][k].float(), atol=1e-5, rtol=0)
