@@ -87,25 +87,27 @@ def several_merged(m: dict, stem: str = "multi_camera_median") -> Row:
                f"each dataset held out in turn, trained on the other {n - 1}; worst {worst}", fig, stem)
 
 
-def shipped(data: dict[str, dict]) -> Row | None:
-    """The shipped model's condition, and why: its twins' held-out means (benchmarks/what_a_user_gets/
-    shipped_model.py); None without a run of both twins."""
-    ship, twins = data["shipped_model"]["headline"]["shipped_condition"], shipped_twins(data)
-    if twins is None:
-        return None
-    stem, d = twins
-    other = "within" if ship == "resize" else "resize"
-    fig = f"{d['headline'][f'mean_{ship}']:.1f} against {d['headline'][f'mean_{other}']:.1f}"
-    return Row("the shipped model", f"the shipped model, {SHIPPED}", WINNER[ship],
-               f"mean **{fig}**: its {TWIN[ship]} against its {TWIN[other]}, same frames "
-               f"({_seeds([d['seed']])}, {d['epochs']} epochs)",
-               f"{len(d['sets'])} held-out splits: " + ", ".join(NAMES.get(s, s) for s in d["sets"]), fig, stem)
+def shipped(data: dict[str, dict]) -> Row:
+    """The model that ships (benchmarks/what_a_user_gets/shipped_model.json): its held-out mean, and why it is
+    the twin it is: the last run of both twins (an earlier network's, ``shipped_twins``), when there is one."""
+    d = data["shipped_model"]
+    h, ship = d["headline"], d["headline"]["shipped_condition"]
+    fig = f"{h[f'mean_{ship}']:.1f}"
+    by = f"held-out mean **{fig}** ({_seeds([d['seed']])}, {d['epochs']} epochs)"
+    twins = shipped_twins(data)
+    if twins is not None:
+        stem, t = twins
+        other = "within" if ship == "resize" else "resize"
+        by += (f"; its {TWIN[other]} was last trained beside it for an earlier network ({t['epochs']} epochs): "
+               f"{t['headline'][f'mean_{other}']:.1f} against {t['headline'][f'mean_{ship}']:.1f}")
+    return Row("the shipped model", f"the shipped model, {SHIPPED}", WINNER[ship], by,
+               f"{len(d['sets'])} held-out splits: " + ", ".join(NAMES.get(s, s) for s in d["sets"]), fig,
+               "shipped_model")
 
 
 def rows(data: dict[str, dict]) -> list[Row]:
     """The three regimes, as measured."""
-    out = [one_camera(data["as_shipped"]), several_merged(data["multi_camera_median"])]
-    return out + [r for r in [shipped(data)] if r]
+    return [one_camera(data["as_shipped"]), several_merged(data["multi_camera_median"]), shipped(data)]
 
 
 def render(data: dict[str, dict]) -> str:
@@ -123,7 +125,9 @@ def render(data: dict[str, dict]) -> str:
     lines += [f"- **Which model to use**: the shipped one, {SHIPPED}, {network} trained on "
               f"several cameras merged, the {TWIN[cond]}, {because}.",
               f"- **When the virtual camera pays**: a model trained on one camera and used on others "
-              f"({one.figure} IoU points over resize).",
+              f"({one.figure} IoU points over resize): your labelled frames from one camera, described by a "
+              f"file (calibrated or estimated), trained with `vcprep warp` + `vctrain fit`; with several cameras merged, "
+              f"train the resize twin (`--baseline resize`).",
               "- **Every figure**, with the script and the results file it comes from: [docs/results.md](docs/results.md)."]
     return "\n".join(lines)
 
@@ -159,7 +163,7 @@ def readme_figures(data: dict[str, dict]) -> list[tuple[str, list[str], str]]:
                    [f"{n} {f}" for n, f in worst_merged(data["multi_camera_median"])[:2]], "multi_camera_median.json"))
     out += [("headline: the shipped model's network and twin",
              [x for x in (s.get("model"), f"the {TWIN[s['headline']['shipped_condition']]}") if x], "shipped_model.json"),
-            ("Your first hour, 2: the shipped model's held-out road IoU", [
+            ("Three routes, 1: the shipped model's held-out road IoU", [
                 f"{'CamVid val' if t == 'camvid' else NAMES[t]} {cells[t]:.1f}" for t in cells if t != "kitti"]
              + [f"KITTI frame it never saw {cells['kitti']:.1f}"], "shipped_model.json"),
             ("Your first hour, 2: the shipped model on held-out frames (the figure)", ["shipped_model.png"],
@@ -170,15 +174,17 @@ def readme_figures(data: dict[str, dict]) -> list[tuple[str, list[str], str]]:
             ("Your first hour, 5: minutes a `--model lite0fpn` model, the same frames (the route's fits, median)",
              [f"takes {round(statistics.median(data['user_route_lite0fpn']['fit_seconds']['vc']) / 60)}"],
              "user_route_lite0fpn.json")]
-    if "own_frames_idd_unseen" in data:  # the route's fine-tuning line
-        d = data["own_frames_idd_unseen"]
-        h, frames = d["headline"], d["frames"].split(",")
-        out += [("Your first hour, 5: fine-tuning the shipped model on a camera it never saw, over it as it is",
-                 [f"{h[f'fine-tuned_minus_zero-shot_n{n}']:+.1f} with {n} frames" for n in frames], "own_frames_idd_unseen.json"),
-                ("Your first hour, 5: the same 60 frames from ImageNet alone, against fine-tuned",
-                 [f"{h['imagenet_n60_iou']:.1f} against {h['fine-tuned_n60_iou']:.1f}"], "own_frames_idd_unseen.json"),
-                ("Your first hour, 5: minutes a fine-tuning on 2 cores",
-                 [f"{h[f'fine-tuned_n{n}_minutes']:.0f} min for {n} frames" for n in frames], "own_frames_idd_unseen.json")]
+    out += [("Three routes, 2: your own model in the virtual camera against its resize twin, on other cameras",
+             [f"{rs[0].figure} over its resize twin"], f"{rs[0].source}.json"),
+            ("Three routes, 3: several cameras merged, the virtual camera against resize",
+             [f"{rs[1].figure} for the virtual camera"], f"{rs[1].source}.json")]
+    if "finetune_guard_screen" in data:  # route 2: fine-tuning the shipped model, held-out guard (issue 72)
+        h = data["finetune_guard_screen"]["headline"]
+        out.append(("Three routes, 2: fine-tuning the shipped model by default, 60 frames",
+                    [f"{h['kitti_default_n60_seeds']} seeds",
+                     f"(KITTI) {h['kitti_zero-shot']:.1f} -> {h['kitti_default_n60']:.1f}",
+                     f"in other light, {h['dusk_zero-shot']:.1f} -> {h['dusk_default_n60']:.1f}"],
+                    "finetune_guard_screen.json"))
     if "route_finetune_idd" in data:  # your own model fine-tuned on a new camera's store
         h = data["route_finetune_idd"]["headline"]
         out.append(("Your first hour, 5: your own model fine-tuned on a new camera's store, over it as it is",
