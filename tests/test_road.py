@@ -137,11 +137,13 @@ def _masks(folder: Path) -> dict[str, np.ndarray]:
 
 
 @pytest.mark.parametrize("which", ["virtual", "resize"])
-def test_a_graph_takes_its_camera_at_another_resolution(model, drive, which, tmp_path):  # noqa: F811
-    """A graph exported for the drive's camera at 480x360 takes the 240x180 frames (a folder and a
-    video) of the same camera: resized in, P(road) resized back to the frame. The oracle is the .pt
-    model on the same frames with the camera scaled exactly (no resampling of the frame): the masks
-    agree but for the resampling at the road's edge."""
+def test_a_graph_refuses_its_camera_at_another_resolution_and_says_the_export(model, drive, which, tmp_path):  # noqa: F811
+    """A graph exported for the drive's camera at 480x360 refuses its 240x180 frames (a folder and a
+    video: no silent resize, issue 69) with one line naming both sizes and the export that fits; that
+    export, run, gives the .pt model's masks on the same frames (but for float rounding at the
+    road's edge)."""
+    import shlex
+
     root, cam, frames, video = drive
     (tmp_path / "big.yaml").write_text(camera_to_yaml(cam.resized(2.0)))  # the same camera at 480x360
     (tmp_path / "frames").mkdir()
@@ -150,18 +152,27 @@ def test_a_graph_takes_its_camera_at_another_resolution(model, drive, which, tmp
     ckpt = model if which == "virtual" else SHIPPED
     assert run_cli("export", ckpt, "--camera", tmp_path / "big.yaml", "-o", tmp_path / "big.onnx",
                    prog="vctrain").returncode == 0
-    for src, out in ((tmp_path / "frames", "f"), (video, "v")):
-        g = run_cli("predict", tmp_path / "big.onnx", src, "--out", tmp_path / f"g{out}", prog="vctrain")
-        assert g.returncode == 0, g.stderr
-        pt = run_cli("predict", ckpt, "--camera", tmp_path / "big.yaml", src, "--out", tmp_path / f"pt{out}",
-                     "--ego", "none", prog="vctrain")
-        assert pt.returncode == 0, pt.stderr
-        a, b = _masks(tmp_path / f"g{out}"), _masks(tmp_path / f"pt{out}")
-        assert a.keys() == b.keys() and len(a) == (4 if out == "f" else len(frames))
-        for name in a:
-            assert a[name].shape == (180, 240), name
-            assert (a[name] == b[name]).mean() > 0.97, (name, (a[name] == b[name]).mean())
-            assert 0.02 < (a[name] > 0).mean() < 0.98, name  # road and not road: a real mask, not an empty one
+    for src in (tmp_path / "frames", video):
+        g = run_cli("predict", tmp_path / "big.onnx", src, "--out", tmp_path / "g", prog="vctrain")
+        assert_one_error_line(g, "240x180", "480x360", "vctrain export")
+        assert not (tmp_path / "g").exists()
+    fix = g.stderr.strip().rsplit("(", 1)[1].rstrip(")")  # 'export a graph for 240x180: vctrain export ...'
+    argv = shlex.split(fix.split(": ", 1)[1])
+    assert argv[:2] == ["vctrain", "export"] and "--frame" in argv
+    argv[argv.index("--frame") + 1] = str(tmp_path / "frames/f0.png")
+    argv[argv.index("-o") + 1] = str(tmp_path / "small.onnx")
+    assert run_cli(*argv[1:], prog="vctrain").returncode == 0
+    g = run_cli("predict", tmp_path / "small.onnx", tmp_path / "frames", "--out", tmp_path / "g", prog="vctrain")
+    assert g.returncode == 0, g.stderr
+    pt = run_cli("predict", ckpt, "--camera", tmp_path / "big.yaml", tmp_path / "frames", "--out", tmp_path / "pt",
+                 "--ego", "none", prog="vctrain")
+    assert pt.returncode == 0, pt.stderr
+    a, b = _masks(tmp_path / "g"), _masks(tmp_path / "pt")
+    assert a.keys() == b.keys() and len(a) == 4
+    for name in a:
+        assert a[name].shape == (180, 240), name
+        assert (a[name] == b[name]).mean() > 0.99, (name, (a[name] == b[name]).mean())
+        assert 0.02 < (a[name] > 0).mean() < 0.98, name  # road and not road: a real mask, not an empty one
 
 
 def test_a_graph_refuses_another_aspect_and_leaves_no_folder(drive, tmp_path):  # noqa: F811
@@ -174,7 +185,7 @@ def test_a_graph_refuses_another_aspect_and_leaves_no_folder(drive, tmp_path):  
     assert proc.returncode == 1
     error = [ln for ln in proc.stderr.splitlines() if ln.startswith("Error: ")]
     assert len(error) == 1 and "wide.png" in error[0] and "240x150" in error[0] and "240x180" in error[0]
-    assert "not a uniform rescale" in error[0] and "vctrain export" in error[0]
+    assert "not a uniform rescale" in error[0] and "vctrain export" in error[0] and "--frame" in error[0]
     assert not (tmp_path / "o").exists()
 
 

@@ -45,16 +45,17 @@ def _sha256(path: Path) -> str:
     return h.hexdigest()
 
 
-def record_predictions(out: Path, model: Path, masks: list[Path]) -> None:
+def record_predictions(out: Path, model: Path, masks: list[Path], engine: str = "") -> None:
     """Note in ``out/predict.json`` that ``model`` wrote ``masks`` (``<id>_mask.png`` in ``out``, an id
-    with folders for a tree's frames: ``drive1/000123``): a run of the same model (the same file
-    content) adds its frames to the record, a run of another model replaces it."""
+    with folders for a tree's frames: ``drive1/000123``) through ``engine`` (what ran its network,
+    given: ``engine``): a run of the same model (the same file content) adds its frames to the
+    record, a run of another model replaces it."""
     stems = [m.relative_to(out).as_posix()[: -len("_mask.png")] for m in masks if m.name.endswith("_mask.png")]
     sha = _sha256(model)
     old = recorded_frames(out)
     if old is not None and old[1] == sha:
         stems = old[2] + [s for s in stems if s not in set(old[2])]
-    doc = {"model": str(model), "model_sha256": sha, "frames": stems}
+    doc = {"model": str(model), "model_sha256": sha, **({"engine": engine} if engine else {}), "frames": stems}
     write_bytes_atomic(out / RECORD, (json.dumps(doc, indent=1) + "\n").encode())
 
 

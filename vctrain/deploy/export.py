@@ -308,12 +308,15 @@ def frames_camera(size: tuple[int, int]) -> Camera:
 
 def export_onnx(checkpoint: str | Path, camera: Camera | None, out: str | Path, vp_input: bool = False,
                 pose_range: tuple[float, float] = (5.0, 5.0), check: bool = True, size: tuple[int, int] | None = None,
-                camera_spec: str | None = None) -> dict[str, Any]:
+                camera_spec: str | None = None, int8: bool = False, calib: str | Path | None = None) -> dict[str, Any]:
     """Write the ONNX graph of ``checkpoint`` for ``camera`` to ``out`` (module docstring); with
     ``check`` runs it once in onnxruntime against the torch module. Returns its description (also
     stored in the graph's metadata ``vcseg``): inputs, output, sizes, opset, max_abs_diff.
     ``camera`` None: a model that reads frames as they are, for frames of ``size`` (w, h);
-    ``camera_spec``: how the camera was named (``--camera``), for the graph's own advice."""
+    ``camera_spec``: how the camera was named (``--camera``), for the graph's own advice. ``int8``:
+    the network quantized to 8 bits, calibrated on the frames of ``calib`` (None: the examples;
+    :mod:`vctrain.deploy.quantize`); the description's ``int8`` gives the calibration and the share of
+    pixels whose mask is the float graph's."""
     onnx = require("onnx")
     from ..predict.predictor import Predictor
 
@@ -359,6 +362,8 @@ def export_onnx(checkpoint: str | Path, camera: Camera | None, out: str | Path, 
         with torch.no_grad():
             ref = graph(torch.from_numpy(test), *((vp,) if vp_input else ())).numpy()
         info["max_abs_diff_vs_torch"] = float(np.abs(got - ref).max())
+    if int8:
+        model, info["int8"] = _int8(model, (w, h), vp if vp_input else None, calib)
     entry = model.metadata_props.add()
     entry.key, entry.value = "vcseg", json.dumps(info)
     out = Path(out)
@@ -367,3 +372,14 @@ def export_onnx(checkpoint: str | Path, camera: Camera | None, out: str | Path, 
     except OSError as e:
         raise InputError(f"cannot write: {e.strerror or e}", out, "check the folder exists and is writable") from None
     return info
+
+
+def _int8(model, size: tuple[int, int], vp: torch.Tensor | None, calib: str | Path | None):
+    """(the int8 graph, its description) of the float graph ``model`` (:mod:`vctrain.deploy.quantize`)."""
+    from .quantize import calibration_frames, quantize_graph
+
+    frames, source = calibration_frames(calib, size)
+    feeds = [{"frame": f, **({"vp": vp.numpy()} if vp is not None else {})} for f in frames]
+    del model.metadata_props[:]  # (the description is added to the int8 graph)
+    q, agreement = quantize_graph(model, feeds)
+    return q, {"calibration": source, "frames": len(frames), "mask_agreement": agreement}

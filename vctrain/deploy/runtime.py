@@ -84,52 +84,36 @@ class OnnxPredictor:
         return abs(pan - cam.pan) > pose_range[0] + 1e-6 or abs(tilt - cam.tilt) > pose_range[1] + 1e-6
 
     def check_frame_size(self, size: tuple[int, int], name: str | Path | None = None) -> None:
-        """Raise :meth:`size_error` unless frames of ``size`` (w, h) are the graph's camera's or a
-        uniform rescale of it (:meth:`vcprep.camera.Camera.for_image_size`)."""
+        """Raise :meth:`size_error` unless frames of ``size`` (w, h) are the graph's own size: a graph
+        is traced for one frame size and never resizes a frame silently (issue 69: a 480x360 frame
+        through a 960x720 graph scored 92.72 against 92.81, up to 4.7 % of a frame's pixels different)."""
         if tuple(size) != tuple(self.size):
-            try:
-                self.camera.for_image_size(tuple(size), name)
-            except InputError:
-                raise self.size_error(size, name) from None
+            raise self.size_error(size, name)
 
     def size_error(self, size: tuple[int, int], name: str | Path | None) -> InputError:
-        """A frame that is no uniform rescale of the graph's camera: another camera (or a crop), which
-        needs a graph exported for it."""
+        """One line naming both sizes and the fix: a graph exported for frames of this size."""
         w, h = size
-        what = (f"frame is {w}x{h} but the graph's camera is {self.size[0]}x{self.size[1]}, and {w}x{h} is not a "
-                f"uniform rescale of it")
+        gw, gh = self.size
+        what = f"frame is {w}x{h} but the graph was exported for {gw}x{gh} frames"
         ckpt = self.info.get("checkpoint", "MODEL.pt")
-        if not self.info.get("camera_given", True):
-            return InputError(what, name, f"export a graph for {w}x{h}: vctrain export {ckpt} --frame {name or 'FRAME'} "
-                              f"-o road_{w}x{h}.onnx")
-        return InputError(what, name, f"export the model for this camera: vctrain export {ckpt} --camera CAMERA "
+        cam = f" --camera {self.info['camera_file']}" if self.info.get("camera_file") else \
+            (" --camera CAMERA" if self.info.get("camera_given", True) else "")
+        if self.info.get("camera_given", True):
+            try:  # the same camera at another resolution: the same export at that size
+                self.camera.for_image_size((w, h), name)
+            except InputError:
+                what += f" (and {w}x{h} is not a uniform rescale of its camera: another camera, or a crop)"
+        return InputError(what, name, f"export a graph for {w}x{h}: vctrain export {ckpt}{cam} "
                           f"--frame {name or 'FRAME'} -o road_{w}x{h}.onnx")
 
     def road_probability(self, frame: np.ndarray, vp: tuple[float, float] | None = None,
                          name: str | Path | None = None) -> np.ndarray:
-        """P(road) float32 (h, w) of one BGR uint8 frame of the graph's camera, at its size or any
-        uniform rescale of it: such a frame is resized to the graph's size (INTER_AREA when
-        shrinking, else bilinear; ``vp`` in the frame's pixels is mapped with it by the pixel-centre
-        rule), and P(road) is resized back to the frame's (bilinear): scaling is exact for a pinhole
-        camera, so this is the graph's own camera seeing the frame, up to the resampling."""
+        """P(road) float32 (h, w) of one BGR uint8 frame at the graph's own size (another size raises
+        :meth:`size_error`); ``vp`` (a ``--vp-input`` graph) in the frame's pixels."""
         if frame.dtype != np.uint8 or frame.ndim != 3 or frame.shape[2] != 3:
             raise InputError(f"frame is {frame.dtype} with shape {frame.shape}, the graph takes uint8 BGR (h, w, 3)",
                              name, "give 8-bit colour frames")
-        size = (frame.shape[1], frame.shape[0])
-        if size != self.size:
-            self.check_frame_size(size, name)
-            import cv2
-
-            from vcprep.camera import scale_matrix
-
-            sx, sy = self.size[0] / size[0], self.size[1] / size[1]
-            small = sx * sy < 1.0
-            frame = cv2.resize(frame, self.size, interpolation=cv2.INTER_AREA if small else cv2.INTER_LINEAR)
-            if vp is not None:
-                u, v, _ = scale_matrix(sx, sy) @ np.array([float(vp[0]), float(vp[1]), 1.0])
-                vp = (float(u), float(v))
-            prob = self._run(frame, vp)
-            return cv2.resize(prob, size, interpolation=cv2.INTER_LINEAR)
+        self.check_frame_size((frame.shape[1], frame.shape[0]), name)
         return self._run(frame, vp)
 
     def _run(self, frame: np.ndarray, vp: tuple[float, float] | None) -> np.ndarray:

@@ -34,6 +34,7 @@ class Predicted:
     frames: int = 0       # frames predicted: images, and every video's frames
     seconds: float = 0.0  # wall-clock time of the whole run
     masks: list = field(default_factory=list)  # the masks of image files and store items (what eval scores)
+    engine: str = ""      # what ran the network ('onnxruntime 1.32.0', 'PyTorch 2.13.0 (cuda:0)'; vctrain.deploy.engine)
 
     def said(self) -> list[str]:
         """One line per skipped frame: 'skipped: <file>: <problem> (<fix>)'."""
@@ -46,7 +47,8 @@ class Predicted:
         (geometric prior); ...' (the rate counts every frame predicted, a video's included)."""
         what = " and ".join(([count(self.images, "image")] if self.images is not None else [])
                             + ([count(self.videos, "video")] if self.videos else []))
-        return f"{what} predicted ({self.source}); {rate_text(self.frames, self.seconds, 'frame')}"
+        engine = f"; {self.engine}" if self.engine else ""
+        return f"{what} predicted ({self.source}{engine}); {rate_text(self.frames, self.seconds, 'frame')}"
 
 
 def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]], out: Path,
@@ -55,7 +57,8 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
                    overlay: bool = False, mask_video: bool = False, ego: Optional[str] = None,
                    progress: bool = True, vp_range: Optional[tuple[float, float]] = None,
                    vp_smooth: Optional[int] = None, vp_sequences: Optional[str] = None,
-                   say: Optional[Callable[[str], None]] = None, beyond: Optional[str] = None) -> Predicted:
+                   say: Optional[Callable[[str], None]] = None, beyond: Optional[str] = None,
+                   engine: str = "auto") -> Predicted:
     """``vctrain predict``: ``checkpoint`` (a ``.pt`` model or an ``.onnx`` graph; with ``prior``
     it is the first image) on ``images`` (files, folders, videos) or every item of ``store``.
     ``camera_for`` (None: no --camera) gives the frames' camera. ``vp_range`` (pan, tilt degrees),
@@ -63,7 +66,10 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
     estimated VPs follow (default: the model's, :func:`vctrain.predict.road.model_vp_rule`); ``say``
     (given) hears which VPs, own vehicle and rectangle image files were warped with. ``beyond``
     (a virtual-camera model only): the rule for frame pixels outside its training rectangle
-    (:data:`vctrain.predict.frames.BEYOND`; None: the default, extend). Bad combinations raise :class:`InputError` before anything is predicted."""
+    (:data:`vctrain.predict.frames.BEYOND`; None: the default, extend). ``engine`` runs a ``.pt``
+    model's network (:data:`vctrain.deploy.engine.ENGINES`; 'auto': onnxruntime on the CPU where
+    installed); a graph runs in onnxruntime, the prior in numpy; the summary line says which,
+    and ``predict.json`` records it. Bad combinations raise :class:`InputError` before anything is predicted."""
     if prior is not None:
         if checkpoint is not None and checkpoint.suffix.lower() == ".pt":
             raise InputError("give either a model or --prior, not both", checkpoint, "drop one of them")
@@ -86,7 +92,8 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
                          "give the original frames (IMAGES)")
     videos = check_video_stems([p for p in images or [] if is_video(p)])
     images = [p for p in images or [] if not is_video(p)]
-    predictor = _predictor(checkpoint, prior, device)
+    predictor = _predictor(checkpoint, prior, device, engine)
+    engine_used = _engine_used(predictor)  # said in the summary line (Predicted.line)
     if beyond is not None:
         _set_beyond(predictor, beyond, checkpoint if prior is None else prior)
     if store is None:  # (frames: a study's candidate model takes stores only, said before any frame is read)
@@ -97,6 +104,7 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
     try:
         result = _predict_all(predictor, prior, images, videos, out, camera_for, store, keep_store, within, overlay,
                               mask_video, ego, progress, vp_range, vp_smooth, vp_sequences, say)
+        result.engine = engine_used
     except BaseException:
         if not existed:
             _remove_empty(Path(out))
@@ -106,7 +114,7 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
     elif result.written:
         from ..evaluate import record_predictions
 
-        record_predictions(Path(out), prior if prior is not None else checkpoint, result.masks)
+        record_predictions(Path(out), prior if prior is not None else checkpoint, result.masks, engine_used)
     return result
 
 
@@ -184,12 +192,15 @@ def _source(predictor, prior: Optional[Path]) -> str:
     return source
 
 
-def _predictor(checkpoint: Optional[Path], prior: Optional[Path], device: str):
+def _predictor(checkpoint: Optional[Path], prior: Optional[Path], device: str, engine: str = "torch"):
     """The prior's predictor (``prior`` given), an exported graph's (``.onnx``) or the checkpoint's
-    model on ``device``."""
+    model on ``device`` through ``engine``."""
     if prior is None and checkpoint.suffix.lower() == ".onnx":
         from ..deploy.runtime import OnnxPredictor
 
+        if engine == "torch":
+            raise InputError("an exported graph runs in onnxruntime, not PyTorch", checkpoint,
+                             "drop --engine torch, or give the .pt model")
         return OnnxPredictor(checkpoint)
     if prior is not None:
         from ..adapt import PriorPredictor
@@ -197,7 +208,21 @@ def _predictor(checkpoint: Optional[Path], prior: Optional[Path], device: str):
         return PriorPredictor(prior)
     from .predictor import Predictor
 
-    return Predictor(checkpoint, device)
+    return Predictor(checkpoint, device, engine)
+
+
+def _engine_used(predictor) -> str:
+    """What runs the network, as stderr and predict.json say it ('' for the prior: no network)."""
+    from ..deploy.engine import engine_name
+
+    if getattr(predictor, "takes_frames", False):
+        return f"{engine_name('onnx')}, the graph{' (int8)' if predictor.info.get('int8') else ''}"
+    kind = getattr(predictor, "engine", None)
+    if kind is None:
+        return ""
+    device = str(predictor.device)
+    return engine_name(kind) + (", the network exported in memory" if kind == "onnx" else "") + \
+        (f" on {device}" if device != "cpu" else "")
 
 
 def _vp_rule(predictor, vp_range: Optional[tuple[float, float]], vp_smooth: Optional[int],

@@ -53,7 +53,7 @@ class Predictor:
 
     beyond_rule = DEFAULT_BEYOND  # frame pixels outside the training rectangle (vctrain.predict.frames: BEYOND)
 
-    def __init__(self, checkpoint: str | Path, device: str = "auto"):
+    def __init__(self, checkpoint: str | Path, device: str = "auto", engine: str = "torch"):
         self.path = Path(checkpoint)
         self.ckpt = load_checkpoint(self.path)
         self.data: dict[str, Any] = self.ckpt["data"]
@@ -66,6 +66,37 @@ class Predictor:
         self.greyscale = float(self.data.get("greyscale", 0.0)) >= 1.0
         self.vp_channel = bool(self.data.get("vp_channel", False))
         self.ray_channels = bool(self.data.get("ray_channels", False))
+        self.engine = "torch"
+        self._onnx = None
+        self.use_engine(engine)
+
+    def use_engine(self, engine: str) -> str:
+        """Run the network through ``engine`` (:data:`vctrain.deploy.engine.ENGINES`: 'torch', 'onnx'
+        (the same network exported in memory, run in onnxruntime) or 'auto': onnx on the CPU where
+        onnxruntime is installed); returns the one chosen. The default, torch, is what studies and
+        evaluation score."""
+        from ..deploy.engine import OnnxNetwork, choose_engine
+
+        self.engine = choose_engine(engine, str(self.device))
+        self._onnx = OnnxNetwork(self.model) if self.engine == "onnx" else None
+        return self.engine
+
+    def logits(self, x: np.ndarray) -> torch.Tensor | np.ndarray:
+        """The network's logits (1, K, h, w) float32 of one input array (C, h, w), through
+        :attr:`engine`: a tensor on the device (torch), an array (onnx)."""
+        if self._onnx is not None:
+            return self._onnx(x[None])
+        return self.model(self.network_input(x)).float()
+
+    def road_softmax(self, x: np.ndarray) -> np.ndarray:
+        """P(road) float32 (h, w): the softmax's class 1 of the logits of ``x`` (C, h, w). The onnx
+        engine takes it in numpy: a torch operator between two onnxruntime calls wakes torch's
+        OpenMP threads, which then spin on the cores onnxruntime needs (4x slower on 2 cores)."""
+        logits = self.logits(x)
+        if isinstance(logits, np.ndarray):
+            e = np.exp(logits[0] - logits[0].max(axis=0, keepdims=True))
+            return (e[1] / e.sum(axis=0)).astype(np.float32)
+        return torch.softmax(logits, dim=1)[0, 1].cpu().numpy().astype(np.float32)
 
     @property
     def mode(self) -> str:
@@ -100,8 +131,7 @@ class Predictor:
             sx, sy = size[0] / w0, size[1] / h0
             v = scale_matrix(sx, sy) @ np.array([vp[0], vp[1], 1.0])  # (pixel centres, as the training's)
             x = np.concatenate([x, ray_angles(size, (v[0], v[1]), (focal[0] * sx, focal[1] * sy))], axis=0)
-        logits = self.model(self.network_input(x))
-        prob = torch.softmax(logits.float(), dim=1)[0, 1].cpu().numpy().astype(np.float32)
+        prob = self.road_softmax(x)
         if (w0, h0) != size:
             prob = cv2.resize(prob, (w0, h0), interpolation=cv2.INTER_LINEAR)
         return prob

@@ -9,7 +9,7 @@ images) and writes, for ``drive.mp4`` into ``OUT``:
   video's order, undecodable frames included), as ``vctrain predict`` writes for images; or, with
   ``mask_video``, ``OUT/drive_mask.mkv`` instead: the masks (0/255) as a lossless FFV1 video;
 - with ``overlay``, ``OUT/drive_overlay.mp4`` (MPEG-4 Part 2, the input's frame rate and size):
-  every frame with the predicted road tinted green (:func:`vcprep.figures.overlay_label`), the
+  every frame with the predicted road tinted green (:func:`vctrain.predict.road.tint_road`), the
   horizon of the frame's pose (cyan line) and its road vanishing point (red cross).
 
 The own vehicle (a virtual-camera model): a camera that states no ``ego_rows`` gets them from
@@ -24,7 +24,8 @@ worker thread while the frames before it are predicted and written, :data:`VP_AH
 said on stderr and skipped (no mask; the videos repeat the previous frame, so they keep the
 input's length and timing); a video that ends before the frame count in its header says so.
 Videos are written under a temporary name and renamed when complete, so an interrupted run
-leaves no half-written video (each PNG is written atomically anyway).
+leaves no half-written video (each PNG is written atomically anyway). Frames are decoded and
+written on threads of their own while the network runs (:mod:`vctrain.predict.pipeline`), in order.
 """
 from __future__ import annotations
 
@@ -45,7 +46,8 @@ from vcprep.io import VideoInfo, open_video, read_frames, sample_frames
 from vcprep.warp import ground_to_image, pose_from_vp, vp_from_pose
 
 from .frames import NEEDS_CAMERA, FramePredictor, StageTimes, StreamingVPs, reads_road_vps, warps_frames
-from .road import ego_rows, model_vp_rule, own_vehicle, within_rule
+from .pipeline import DEPTH, Prefetch, Writer
+from .road import ego_rows, model_vp_rule, own_vehicle, tint_road, within_rule
 
 __all__ = ["check_video_stems", "ego_camera", "predict_video", "draw_overlay", "horizon_segment"]
 
@@ -79,9 +81,7 @@ def draw_overlay(frame: np.ndarray, mask: np.ndarray, cam: Camera | None, vp: tu
     """``frame`` with the road of ``mask`` (0/255) tinted green, the horizon at the pose of
     ``vp`` (cyan) and ``vp`` itself (red cross); ``vp`` None: the camera's average pose; no
     ``cam`` (a resize model run without --camera): the road only."""
-    from vcprep.figures import overlay_label
-
-    out = overlay_label(frame, (mask > 0).astype(np.uint8))
+    out = tint_road(frame, mask)
     if cam is None:
         return out
     vp = vp_from_pose(cam) if vp is None else vp
@@ -160,6 +160,8 @@ def predict_video(predictor, video: str | Path, out: str | Path, camera: Camera 
     video = Path(video)
     cap, info = open_video(video)
     try:
+        if hasattr(predictor, "check_frame_size"):  # a graph takes frames of its own size only
+            predictor.check_frame_size(info.size, video)
         cam = _video_camera(predictor, camera, video, info, ego, progress)
         mode = within_rule(predictor, within, cam)
         given = None
@@ -174,13 +176,17 @@ def predict_video(predictor, video: str | Path, out: str | Path, camera: Camera 
         vps = StreamingVPs(fp.camera, vp_window, cfg=cfg, times=fp.times) if mode == "estimate" else None
         out = _out_folder(out, video.stem, mask_video)
         pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="vp") if vps is not None and vp_ahead else None
-        sink = None
+        sink = frames = None
         try:
             sink = _FrameSink(fp, out, video.stem, info, mask_video, overlay, progress)
-            frames = read_frames(cap, info, lambda msg: tqdm.write(msg, file=sys.stderr))
+            # decoded on a thread of its own, DEPTH frames ahead (vctrain.predict.pipeline)
+            frames = Prefetch(read_frames(cap, info, lambda msg: tqdm.write(msg, file=sys.stderr)), DEPTH)
             _stream(frames, sink, vps, given, mode, pool.submit if pool is not None else _now, vp_ahead)
+            frames.close()
             return sink.close()
         except BaseException:
+            if frames is not None:
+                frames.close()
             if sink is not None:
                 sink.abort()
             raise
@@ -239,7 +245,8 @@ def _out_folder(out: str | Path, stem: str, mask_video: bool) -> Path:
 class _FrameSink:
     """Where a video's predicted frames go, in frame order: the mask PNGs (or the mask video), the
     overlay video and the progress bar. Frames read wait in ``held`` (in ``order``) until their
-    VP is final (per-frame VPs)."""
+    VP is final (per-frame VPs). The network runs in the caller's thread (:meth:`emit`); what is
+    written of a frame is written on the :class:`~vctrain.predict.pipeline.Writer`'s thread, in order."""
 
     def __init__(self, fp: FramePredictor, out: Path, stem: str, info: VideoInfo, mask_video: bool,
                  overlay: bool, progress: bool):
@@ -261,16 +268,21 @@ class _FrameSink:
                         leave=False)
         self.held: dict[int, np.ndarray | None] = {}
         self.order: list[int] = []
+        self.writer = Writer(DEPTH)
 
     def emit(self, i: int, vp) -> None:
-        """Predict held frame ``i`` with ``vp`` and write it (an undecodable frame: the videos
-        repeat their last frame)."""
+        """Predict held frame ``i`` with ``vp`` and hand it to the writer (an undecodable frame: the
+        videos repeat their last frame)."""
         frame = self.held.pop(i)
+        prob = None if frame is None else self.fp.predict(frame, vp)
+        self.writer.submit(self._write, i, frame, prob, vp)
+
+    def _write(self, i: int, frame: np.ndarray | None, prob: np.ndarray | None, vp) -> None:
+        """Frame ``i``'s outputs (on the writer's thread)."""
         if frame is None:
             for o in self.outs:
                 o.write(None)
         else:
-            prob = self.fp.predict(frame, vp)
             if self.mv is None:
                 self.written.append(self._write_prediction(self.frame_dir, f"{self.stem}_{i:06d}", prob)[0])
             mask = np.where(prob >= 0.5, 255, 0).astype(np.uint8)
@@ -288,7 +300,9 @@ class _FrameSink:
             self.emit(i, done.get(i))
 
     def close(self) -> list[Path]:
-        """Finish the videos; the paths written (mask PNGs or mask video, then the overlay video)."""
+        """Finish the writes and the videos; the paths written (mask PNGs or mask video, then the
+        overlay video)."""
+        self.writer.close()
         self.bar.close()
         for o in self.outs:
             o.close()
@@ -296,6 +310,8 @@ class _FrameSink:
         return self.written
 
     def abort(self) -> None:
+        if getattr(self, "writer", None) is not None:
+            self.writer.abort()
         for o in self.outs:
             o.abort()
 

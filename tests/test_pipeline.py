@@ -1,0 +1,213 @@
+"""Camera-rate prediction (issue 69): decode, network and writing on three threads
+(vctrain.predict.pipeline), the network's engine (vctrain.deploy.engine) and the int8 graph
+(vctrain.deploy.quantize).
+
+Oracles: the sequential path (each decoded frame through :meth:`Predictor.road_probability`, one
+after the other, in this thread) for the threaded video and folder runs; PyTorch for the onnx
+engine; the float graph for the int8 graph; items of known order and a failure at a known place
+for the threads themselves.
+"""
+from __future__ import annotations
+
+import json
+import random
+import threading
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import torch
+
+from vcprep.camera import PRESETS
+from vcprep.io import read_image
+from vcprep.synthetic import RoadScene, render_road
+
+from conftest import assert_one_error_line, run_cli
+
+from vctrain.predict import Predictor, predict_inputs
+from vctrain.predict.pipeline import Prefetch, Writer
+
+ROOT = Path(__file__).resolve().parents[1]
+SHIPPED = ROOT / "models/road-multicamera/road.pt"
+EXAMPLES = ROOT / "examples/camvid/images"  # 3 real CamVid frames, 480x360
+torch.set_num_threads(1)
+
+
+# -- the threads: order, completeness, errors --------------------------------------------------------
+
+def _slow(items, fail_at=None):
+    for i in items:
+        time.sleep(random.random() * 0.002)
+        if i == fail_at:
+            raise ValueError(f"item {i}")
+        yield i
+
+
+def test_prefetch_yields_every_item_in_order_and_raises_where_it_failed():
+    random.seed(0)
+    with Prefetch(_slow(range(200)), depth=3) as items:
+        assert list(items) == list(range(200))
+    seen = []
+    with pytest.raises(ValueError, match="item 57"):
+        with Prefetch(_slow(range(200), fail_at=57), depth=3) as items:
+            for i in items:
+                seen.append(i)
+    assert seen == list(range(57))  # every item before the failure, none after
+    with Prefetch(_slow(range(10_000)), depth=2) as items:  # left early: the thread stops
+        next(iter(items))
+    assert not any(t.name == "decode" and t.is_alive() for t in threading.enumerate())
+
+
+def test_writer_runs_every_call_in_order_and_raises_the_first_error():
+    random.seed(1)
+    done = []
+    w = Writer(depth=2)
+    for i in range(300):
+        w.submit(lambda i: (time.sleep(random.random() * 0.0005), done.append(i)), i)
+    w.close()
+    assert done == list(range(300))
+
+    done.clear()
+
+    def write(i):
+        if i == 20:
+            raise OSError(28, "No space left on device", f"f{i}.png")
+        done.append(i)
+    w = Writer(depth=2)
+    with pytest.raises(OSError, match="No space left"):
+        for i in range(100):
+            w.submit(write, i)
+        w.close()
+    assert done == list(range(20))  # nothing after the failed write is written
+    w.abort()
+    w = Writer(depth=2)
+    w.submit(time.sleep, 0.05)
+    for i in range(5):
+        w.submit(done.append, 1000 + i)
+    w.abort()  # Ctrl-C: the write running finishes, the waiting ones are dropped
+    assert 1004 not in done
+
+
+# -- the threaded road against the sequential path -------------------------------------------------
+
+@pytest.fixture(scope="module")
+def drive(tmp_path_factory):
+    """12 rendered 240x180 CamVid-camera frames as an mp4v video and as a folder of PNGs."""
+    root = tmp_path_factory.mktemp("pipeline")
+    cam = PRESETS["camvid"].resized(0.25)
+    frames = [render_road(cam, RoadScene(offset=0.3 * i - 1.5, texture_seed=i), pan=2 * np.sin(i), supersample=1)[0]
+              for i in range(12)]
+    (root / "frames").mkdir()
+    w = cv2.VideoWriter(str(root / "drive.mp4"), cv2.VideoWriter_fourcc(*"mp4v"), 10.0, cam.size)
+    for i, f in enumerate(frames):
+        w.write(f)
+        cv2.imwrite(str(root / "frames" / f"f{i:02d}.png"), f)
+    w.release()
+    return root
+
+
+def _decoded(video: Path) -> list[np.ndarray]:
+    cap, out = cv2.VideoCapture(str(video)), []
+    while True:
+        ok, f = cap.read()
+        if not ok:
+            return out
+        out.append(f)
+
+
+def test_threaded_video_and_folder_give_the_sequential_masks_in_order(drive, tmp_path):
+    """Every frame, in order, with the masks the sequential path gives (same engine: PyTorch), and
+    the overlay video has every frame."""
+    p = Predictor(SHIPPED, "cpu", "torch")
+    frames = _decoded(drive / "drive.mp4")
+    ref = [np.where(p.road_probability(f) >= 0.5, 255, 0).astype(np.uint8) for f in frames]
+    r = predict_inputs(SHIPPED, [drive / "drive.mp4"], tmp_path / "v", overlay=True, progress=False, engine="torch")
+    masks = [m for m in r.written if m.name.endswith("_mask.png")]
+    assert [m.name for m in masks] == [f"drive_{i:06d}_mask.png" for i in range(len(frames))]
+    for m, want in zip(masks, ref):
+        assert np.array_equal(read_image(m).array, want), m.name
+    assert len(_decoded(tmp_path / "v/drive_overlay.mp4")) == len(frames)
+    files = sorted((drive / "frames").iterdir())
+    ref = [np.where(p.road_probability(read_image(f).array) >= 0.5, 255, 0).astype(np.uint8) for f in files]
+    r = predict_inputs(SHIPPED, [drive / "frames"], tmp_path / "f", overlay=True, progress=False, engine="torch")
+    assert [m.name for m in r.written] == [f"{f.stem}_mask.png" for f in files]
+    for m, want in zip(r.written, ref):
+        assert np.array_equal(read_image(m).array, want), m.name
+    from vcprep.figures import overlay_label  # the folder's overlay: overlay_label's numbers, through a table
+
+    want = overlay_label(read_image(files[3]).array, (ref[3] > 0).astype(np.uint8))
+    assert np.array_equal(read_image(tmp_path / f"f/{files[3].stem}_overlay.png").array, want)
+
+
+def test_a_failing_write_ends_the_run_with_its_error_and_no_partial_video(drive, tmp_path):
+    """Frame 5's write fails (a folder stands where its probability PNG goes): the run ends with that
+    error, the frames before it are written, none after it, and the overlay video's temporary file
+    is removed (no video left)."""
+    out = tmp_path / "o"
+    (out / "drive/drive_000005_prob.png").mkdir(parents=True)
+    with pytest.raises(OSError) as e:
+        predict_inputs(SHIPPED, [drive / "drive.mp4"], out, overlay=True, progress=False, engine="torch")
+    assert "drive_000005_prob.png" in str(e.value)
+    assert sorted(p.name for p in out.iterdir()) == ["drive"]  # no overlay video, finished or temporary
+    assert sorted(p.name for p in (out / "drive").glob("*_mask.png")) == [f"drive_{i:06d}_mask.png" for i in range(5)]
+
+
+# -- the engine -------------------------------------------------------------------------------------
+
+def test_onnx_engine_gives_pytorchs_masks_and_both_are_recorded(tmp_path):
+    """--engine onnx (the network exported in memory) against --engine torch on the CamVid examples:
+    P(road) within float rounding, the masks identical; each run says its engine in predict.json and
+    on stderr."""
+    pytest.importorskip("onnxruntime")
+    runs = {}
+    for engine in ("torch", "onnx"):
+        r = run_cli("predict", SHIPPED, EXAMPLES, "--out", tmp_path / engine, "--engine", engine, "--threads", "1",
+                    prog="vctrain")
+        assert r.returncode == 0, r.stderr
+        runs[engine] = json.loads((tmp_path / engine / "predict.json").read_text())["engine"]
+        assert runs[engine] in r.stderr
+    assert runs["torch"].startswith("PyTorch ") and runs["onnx"].startswith("onnxruntime ")
+    for f in sorted(EXAMPLES.iterdir()):
+        a, b = (read_image(tmp_path / e / f"{f.stem}_mask.png").array for e in ("torch", "onnx"))
+        assert np.array_equal(a, b), f.name
+        pa, pb = (read_image(tmp_path / e / f"{f.stem}_prob.png").array.astype(int) for e in ("torch", "onnx"))
+        assert np.abs(pa - pb).max() <= 1  # 0-255: a rounding step at most
+    assert_one_error_line(run_cli("predict", SHIPPED, EXAMPLES, "--out", tmp_path / "x", "--engine", "tensorrt",
+                                  prog="vctrain"), "unknown --engine 'tensorrt'")
+
+
+# -- the int8 graph ---------------------------------------------------------------------------------
+
+def test_int8_graph_agrees_with_the_float_graph_and_refuses_another_size(tmp_path):
+    """`vctrain export --int8` of the shipped model for 480x360 frames, calibrated on the examples:
+    its masks are the float graph's on >= 99 % of the examples' pixels (measured here with both
+    graphs, and as the export reports it); predict says and records the int8 graph; a 240x180 frame is
+    refused with one line naming both sizes and the export that fits."""
+    pytest.importorskip("onnxruntime")
+    from vctrain.deploy import OnnxPredictor, export_onnx
+
+    export_onnx(SHIPPED, None, tmp_path / "f.onnx", size=(480, 360))
+    r = run_cli("export", SHIPPED, "--size", "480x360", "--int8", "-o", tmp_path / "q.onnx", "--threads", "1",
+                prog="vctrain")
+    assert r.returncode == 0, r.stderr
+    assert "int8 network, calibrated on" in r.stderr and "% of their pixels" in r.stderr
+    f, q = OnnxPredictor(tmp_path / "f.onnx", threads=1), OnnxPredictor(tmp_path / "q.onnx", threads=1)
+    same = total = 0
+    for img in (read_image(p).array for p in sorted(EXAMPLES.iterdir())):
+        a, b = f.road_probability(img) >= 0.5, q.road_probability(img) >= 0.5
+        same, total = same + int((a == b).sum()), total + a.size
+        assert 0.05 < a.mean() < 0.95  # a real road in view
+    assert same / total >= 0.99
+    assert abs(q.info["int8"]["mask_agreement"] - same / total) < 0.01  # (it also saw the KITTI frame, resized)
+    assert (tmp_path / "q.onnx").stat().st_size < 0.5 * (tmp_path / "f.onnx").stat().st_size
+    r = run_cli("predict", tmp_path / "q.onnx", EXAMPLES, "--out", tmp_path / "p", "--threads", "1", prog="vctrain")
+    assert r.returncode == 0, r.stderr
+    assert json.loads((tmp_path / "p/predict.json").read_text())["engine"].endswith("the graph (int8)")
+    small = tmp_path / "small"
+    small.mkdir()
+    cv2.imwrite(str(small / "s.png"), cv2.resize(read_image(sorted(EXAMPLES.iterdir())[0]).array, (240, 180)))
+    assert_one_error_line(run_cli("predict", tmp_path / "q.onnx", small, "--out", tmp_path / "s", prog="vctrain"),
+                          "frame is 240x180 but the graph was exported for 480x360 frames",
+                          "vctrain export", "--frame")

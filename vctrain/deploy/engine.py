@@ -1,0 +1,86 @@
+"""Which engine runs a checkpoint's network in ``vctrain predict`` (``--engine``): PyTorch, or the
+same network exported in memory to ONNX and run in onnxruntime.
+
+``auto`` takes onnxruntime where it is installed (the ``deploy`` extra) and the model runs on the
+CPU: the same network is 1.3-1.6x faster there than PyTorch's (the shipped lite0fpn at 480x360, two
+threads: benchmarks/speed/predict_e2e.py), and its logits differ from PyTorch's by float rounding
+only (max |dP| ~1e-6; the masks, P >= 0.5, agree on all but a pixel in millions:
+tests/test_pipeline.py measures it). OpenVINO was not added: see docs/predict-eval.md#engines.
+
+:class:`OnnxNetwork` exports the network (BN folded, what :class:`vctrain.predict.Predictor` holds)
+once per input shape (the EfficientNet encoders pad by the input size, so a graph is traced for
+one size) and runs it with the threads ``vctrain predict --threads`` set.
+"""
+from __future__ import annotations
+
+import time
+from typing import Callable
+
+import numpy as np
+import torch
+from torch import nn
+
+from vcprep.errors import InputError
+
+from .runtime import _session, require
+
+__all__ = ["ENGINES", "OnnxNetwork", "choose_engine", "engine_name"]
+
+ENGINES = ("auto", "torch", "onnx")
+
+
+def choose_engine(engine: str, device: str) -> str:
+    """'torch' or 'onnx' for ``--engine`` ``engine`` on ``device`` (a torch device string):
+    ``auto`` is onnx on the CPU where onnxruntime is installed, else torch."""
+    if engine not in ENGINES:
+        raise InputError(f"unknown --engine '{engine}'", None, f"use one of {', '.join(ENGINES)}")
+    if engine == "onnx":
+        require("onnxruntime")
+        if device != "cpu":
+            raise InputError(f"--engine onnx runs on the CPU, not {device}", None, "drop --device, or use --engine torch")
+        return "onnx"
+    if engine == "torch" or device != "cpu":
+        return "torch"
+    try:
+        import onnxruntime  # noqa: F401
+    except ImportError:
+        return "torch"
+    return "onnx"
+
+
+def engine_name(engine: str) -> str:
+    """'PyTorch 2.13.0' / 'onnxruntime 1.32.0': the engine and its version, as stderr and
+    predict.json say it."""
+    if engine == "onnx":
+        return f"onnxruntime {require('onnxruntime').__version__}"
+    return f"PyTorch {torch.__version__.split('+')[0]}"
+
+
+class OnnxNetwork:
+    """``model`` (eval mode) exported to ONNX per input shape and run in onnxruntime: (1, C, h, w)
+    float32 in, logits (1, K, h, w) float32 out, as ``model(x)``. ``say`` (given) hears the first
+    export's time."""
+
+    def __init__(self, model: nn.Module, say: Callable[[str], None] | None = None):
+        self.model = model
+        self.say = say
+        self._sessions: dict[tuple[int, ...], object] = {}
+        self.export_seconds = 0.0
+
+    def session(self, shape: tuple[int, ...]):
+        """The onnxruntime session for inputs of ``shape`` (exported on first use)."""
+        s = self._sessions.get(shape)
+        if s is None:
+            from .export import trace_onnx
+
+            t0 = time.perf_counter()
+            x = torch.zeros(shape, dtype=torch.float32)
+            with torch.no_grad():
+                graph = trace_onnx(self.model, (x,), ["x"], ["logits"])
+            s = self._sessions[shape] = _session(require("onnxruntime"), graph)
+            self.export_seconds += time.perf_counter() - t0
+        return s
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        x = np.ascontiguousarray(x, dtype=np.float32)
+        return self.session(tuple(x.shape)).run(None, {"x": x})[0]
