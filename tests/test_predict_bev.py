@@ -131,3 +131,22 @@ def test_bev_without_a_camera_is_one_error_line(scene, tmp_path):
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("Error:") and "--bev needs the frames' camera" in lines[0]
     assert "add --camera" in lines[0] and not r.stdout and not (tmp_path / "out").exists()
+
+
+def test_store_items_get_their_bev_too(scene, tmp_path):
+    from vcprep.camera import PRESETS, read_camera_yaml
+    from vcprep.store import WarpSettings, warp_dataset
+
+    cam_file, frames, _ = scene
+    cam = read_camera_yaml(cam_file)
+    warp_dataset(collect_images([frames]), tmp_path / "store", WarpSettings(cam, PRESETS["virtual"], 0.02,
+                                                                              progress=False))
+    out = tmp_path / "out"
+    r = run_cli("predict", MODEL, "--store", tmp_path / "store", "--camera", cam_file, "--out", out, "-q", *BEV_ARGS,
+                prog="vctrain")
+    assert r.returncode == 0, r.stderr
+    records = _lines(r.stdout)
+    assert [x["id"] for x in records] == ["road_0", "road_1"]
+    for x in records:  # a store built at the camera's pose: its items' BEV at that pose
+        assert x["pose"]["source"] == "nominal"
+        _check_frame(out, x["id"], x, camera_view(cam))

@@ -112,8 +112,9 @@ class BevRun:
 
     def view(self, image: str | Path, size: tuple[int, int], vp: tuple[float, float] | None = None,
              status: str | None = None) -> GroundView:
-        """The frame's view: at its VP's pose (``vp``; ignored under the rule 'none'), else nominal."""
-        if self.rule == "none":
+        """The frame's view: at its VP's pose (``vp``; ignored under the rule 'none' and for a store
+        item's ``status`` 'camera' or 'calibrated': the camera's own pose), else nominal."""
+        if self.rule == "none" or status in ("camera", "calibrated"):
             vp, status = None, None
         return self.source.view(image, size, vp, status)
 
