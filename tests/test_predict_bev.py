@@ -82,7 +82,7 @@ def _check_frame(out: Path, stem: str, record: dict, view) -> None:
 
 def test_folder_bev_equals_the_library_on_predicts_own_masks(scene, tmp_path):
     from vctrain.predict.road import model_vp_rule
-    from vctrain.training.checkpoint import load_checkpoint
+    from vctrain.training import load_checkpoint
 
     cam_file, frames, _ = scene
     out = tmp_path / "out"

@@ -291,21 +291,21 @@ class _FrameSink:
         self.order: list[int] = []
         self.writer = Writer(DEPTH)
 
-    def emit(self, i: int, vp) -> None:
+    def emit(self, i: int, vp, status: str | None = None) -> None:
         """Predict held frame ``i`` with ``vp`` and hand it to the writer (an undecodable frame: the
         videos repeat their last frame)."""
         frame = self.held.pop(i)
         prob = None if frame is None else self.fp.predict(frame, vp if self.model_vps else None)
-        self.writer.submit(self._write, i, frame, prob, vp)
+        self.writer.submit(self._write, i, frame, prob, vp, status)
 
-    def _write(self, i: int, frame: np.ndarray | None, prob: np.ndarray | None, vp) -> None:
+    def _write(self, i: int, frame: np.ndarray | None, prob: np.ndarray | None, vp, status: str | None = None) -> None:
         """Frame ``i``'s outputs (on the writer's thread)."""
         if frame is None:
             for o in self.outs:
                 o.write(None)
         else:
             inset = None if self.bev is None else self.bev.write(self.frame_dir, f"{self.stem}_{i:06d}", prob,
-                                                                 self.source, vp, frame=i)
+                                                                 self.source, vp, status, frame=i)
             if self.mv is None:
                 self.written.append(self._write_prediction(self.frame_dir, f"{self.stem}_{i:06d}", prob)[0])
             mask = np.where(prob >= 0.5, 255, 0).astype(np.uint8)
@@ -318,10 +318,10 @@ class _FrameSink:
 
     def release(self, final: list[tuple[int, object]]) -> None:
         """Predict, in order, every held frame up to the last whose VP is final."""
-        done = {i: r.vp for i, r in final}
+        done = dict(final)
         while self.order and (self.held[self.order[0]] is None or self.order[0] in done):
             i = self.order.pop(0)
-            self.emit(i, done.get(i))
+            self.emit(i, *((done[i].vp, done[i].status) if i in done else (None,)))
 
     def close(self) -> list[Path]:
         """Finish the writes and the videos; the paths written (mask PNGs or mask video, then the
