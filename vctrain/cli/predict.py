@@ -65,9 +65,10 @@ def predict_cmd(
                                          "(the network's own values there) or rays (the network on the training "
                                          "rectangle alone, rays beyond it)"),
     bev: bool = typer.Option(False, "--bev", help="also the road in a bird's-eye view and in metres (needs --camera): "
-                             "OUT/<stem>_bev_prob.png (0-255, unseen 0) and <stem>_bev_mask.png (the values of 'vcprep bev': "
-                             "0 not road, 1 road, 255 unseen), far row first; stdout: one JSON line per frame "
-                             "(id, free_m, width_m, area_m2, pose) instead of the paths; an inset in the overlays. "
+                             "OUT/<stem>_bev_prob.png (0-255, unseen 0) and <stem>_bev_mask.png (the values of "
+                             "'vcprep bev': 0 not road, 1 road, 255 unseen), far row first; stdout: one JSON line "
+                             "per frame (id, free_m, width_m, area_m2, pose) instead of the paths; an inset in the "
+                             "overlays. "
                              "Each frame's pose from its road VP (--within none: the camera's nominal pose)"),
     corridor: float = corridor_option("with --bev: "),
     grid_range: Optional[str] = range_option("with --bev: "),
