@@ -98,13 +98,13 @@ def engine_model(engine: str, graphs: dict[str, Path]):
     """(the path predict is given, its --engine, a network-only call on ``frame``)."""
     from vctrain.deploy import OnnxPredictor
     from vctrain.predict import Predictor
-    from vctrain.training.data import resize_pair, to_input
+    from vctrain.training import to_input
 
     if engine in ("torch", "onnx"):
         p = Predictor(MODEL, "cpu", engine)
 
         def net(frame):
-            x = to_input(resize_pair(frame, None, p.size)[0])
+            x = to_input(cv2.resize(frame, p.size, interpolation=cv2.INTER_LINEAR))
             return lambda: p.logits(x)
         return MODEL, engine, net
     g = OnnxPredictor(graphs[engine])

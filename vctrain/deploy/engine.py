@@ -13,7 +13,10 @@ one size) and runs it with the threads ``vctrain predict --threads`` set.
 """
 from __future__ import annotations
 
+import contextlib
+import io
 import time
+import warnings
 from typing import Callable
 
 import numpy as np
@@ -24,9 +27,36 @@ from vcprep.errors import InputError
 
 from .runtime import _session, require
 
-__all__ = ["ENGINES", "OnnxNetwork", "choose_engine", "engine_name"]
+__all__ = ["ENGINES", "OPSET", "OnnxNetwork", "choose_engine", "engine_name", "trace_onnx"]
 
 ENGINES = ("auto", "torch", "onnx")
+OPSET = 17  # the ONNX opset of every graph vcseg writes
+
+
+@contextlib.contextmanager
+def _float64_scalars():
+    """The TorchScript exporter types arithmetic among 0-d tensors (``H[0, 0] * vp[0]``) as the
+    default dtype: float32 would cast the graph's float64 homography and completion centre to
+    float32 (~3e-8 relative: a centre one float32 step off, fixed-point maps rounding the other
+    way). Exporting with float64 as the default keeps them float64; tensors of a stated dtype
+    (the network's, the uint8 frame's) are unaffected."""
+    old = torch.get_default_dtype()
+    torch.set_default_dtype(torch.float64)
+    try:
+        yield
+    finally:
+        torch.set_default_dtype(old)
+
+
+def trace_onnx(module: nn.Module, args: tuple, inputs: list[str], outputs: list[str], fold: bool = True) -> bytes:
+    """``module`` traced to ONNX (opset :data:`OPSET`, TorchScript exporter) with float64 scalars
+    (:func:`_float64_scalars`); ``fold``: constant folding."""
+    buf = io.BytesIO()
+    with warnings.catch_warnings(), _float64_scalars():
+        warnings.simplefilter("ignore")  # the TorchScript exporter's deprecation and tracer notes
+        torch.onnx.export(module, args, buf, dynamo=False, opset_version=OPSET, input_names=inputs,
+                          output_names=outputs, do_constant_folding=fold)
+    return buf.getvalue()
 
 
 def choose_engine(engine: str, device: str) -> str:
@@ -71,8 +101,6 @@ class OnnxNetwork:
         """The onnxruntime session for inputs of ``shape`` (exported on first use)."""
         s = self._sessions.get(shape)
         if s is None:
-            from .export import trace_onnx
-
             t0 = time.perf_counter()
             x = torch.zeros(shape, dtype=torch.float32)
             with torch.no_grad():

@@ -35,10 +35,7 @@ at the camera's image size, ``vp`` float32 (2,) with ``vp_input``; output ``road
 """
 from __future__ import annotations
 
-import contextlib
-import io
 import json
-import warnings
 from pathlib import Path
 from typing import Any
 
@@ -54,12 +51,12 @@ from vcprep.warp import ray_clamped
 from .graph_ops import (FALLBACK_TOWARD, TABLE_ARC, _backproject_coords, _backproject_grid, _fixed_point,
                         _load_fraction, _padded, _pair_rows, _resize_u8, _sample_f, _sample_u8, _seen_box, _store_fraction,
                         _store_maps_from_vp, _taps, _vp_map)
+from .engine import OPSET, trace_onnx
 from .runtime import (GRAPH_FORMAT, OnnxPredictor, _session,  # noqa: F401
                            require, vp_from_cam)
 
 __all__ = ["OPSET", "RoadGraph", "export_onnx", "OnnxPredictor", "require"]
 
-OPSET = 17
 
 
 def _sees_store(idx: torch.Tensor, ax: torch.Tensor, ay: torch.Tensor) -> torch.Tensor:
@@ -245,32 +242,6 @@ def _geometry(predictor, camera: Camera, vp_input: bool, pose_range: tuple[float
     bx, by = ray_clamped(bx.double().numpy(), by.double().numpy(), vp_store, rect)
     g["back_qx"], g["back_qy"] = bx.astype(np.float32), by.astype(np.float32)
     return g
-
-
-@contextlib.contextmanager
-def _float64_scalars():
-    """The TorchScript exporter types arithmetic among 0-d tensors (``H[0, 0] * vp[0]``) as the
-    default dtype: float32 would cast the graph's float64 homography and completion centre to
-    float32 (~3e-8 relative: a centre one float32 step off, fixed-point maps rounding the other
-    way). Exporting with float64 as the default keeps them float64; tensors of a stated dtype
-    (the network's, the uint8 frame's) are unaffected."""
-    old = torch.get_default_dtype()
-    torch.set_default_dtype(torch.float64)
-    try:
-        yield
-    finally:
-        torch.set_default_dtype(old)
-
-
-def trace_onnx(module: nn.Module, args: tuple, inputs: list[str], outputs: list[str], fold: bool = True) -> bytes:
-    """``module`` traced to ONNX (opset :data:`OPSET`, TorchScript exporter) with float64 scalars
-    (:func:`_float64_scalars`); ``fold``: constant folding."""
-    buf = io.BytesIO()
-    with warnings.catch_warnings(), _float64_scalars():
-        warnings.simplefilter("ignore")  # the TorchScript exporter's deprecation and tracer notes
-        torch.onnx.export(module, args, buf, dynamo=False, opset_version=OPSET, input_names=inputs,
-                          output_names=outputs, do_constant_folding=fold)
-    return buf.getvalue()
 
 
 def _vp_geometry(g: dict[str, Any], cam: Camera, vs: Camera, H: np.ndarray,

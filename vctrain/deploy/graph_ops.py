@@ -1,7 +1,7 @@
 """The road graph's tensor operations (:mod:`vctrain.deploy.export`): OpenCV's bilinear sampling and
 resize written as ONNX-exportable torch ops, and the homography and projective completion of a
 VP given at run time, in float64 (:func:`_store_maps_from_vp`; traced with float64 scalars,
-:func:`vctrain.deploy.export.trace_onnx`).
+:func:`vctrain.deploy.engine.trace_onnx`).
 
 Sampling convention: every bilinear sample is the one OpenCV computes -- source coordinates
 rounded to 1/32 px, weights from those fractions, 8-bit images rounded half up (``cv2.remap``

@@ -1,0 +1,119 @@
+"""The int8 graph's road IoU on the shipped model's held-out splits, against the float graph and the
+model itself (issue 69; run by ``benchmarks/speed/predict_e2e.py --quality`` or alone).
+
+    .venv/bin/python benchmarks/speed/int8_quality.py [--threads 2]
+
+Splits (never trained on: models/road-multicamera/README.md): CamVid val (101 frames, 480x360),
+the KITTI road frame (1242x375), Cityscapes cs_25xx-cs_29xx (43 frames, 256x256), LUMS captures 1-79
+(640x640). Per split: road.pt through PyTorch (the model card's route), its float graph and its int8
+graph (``vctrain export --size WxH [--int8]``, int8 calibrated on the shipped examples, never on the
+split) at the split's frame size; road IoU = sum TP / sum (TP + FP + FN) over the split, ignore
+excluded (``vctrain eval``), and the share of pixels whose mask the int8 graph shares with the float
+graph. Target (issue 69): int8 within 0.5 IoU points of the float model on every split, masks
+identical on >= 99 % of pixels. Results: benchmarks/speed/results/int8_quality.json.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
+from benchmarks.measure.data import CS_FORMAT, DATA, KITTI, LUMS_FORMAT, SHARED_DATA  # noqa: E402
+from benchmarks.measure.report import machine, results_dir, today, write_json  # noqa: E402
+
+MODEL = Path(__file__).resolve().parents[2] / "models" / "road-multicamera" / "road.pt"
+
+
+def splits() -> list[tuple[str, list[Path], Path, str]]:
+    """(name, image files, label folder, label format) of each held-out split here."""
+    cs, lums = SHARED_DATA / "cityscapes_pix2pix", SHARED_DATA / "lums_road"
+    out = [("camvid_val", sorted((DATA / "val").glob("*.png")), DATA / "valannot", "camvid"),
+           ("kitti", sorted((KITTI / "image_2").glob("*.png")), KITTI / "gt_image_2", "kitti"),
+           ("cityscapes", [p for p in sorted((cs / "images").glob("cs_*")) if 2500 <= int(p.stem[3:7]) <= 2999],
+            cs / "labels", CS_FORMAT)]
+    lums_held = [p for p in sorted((lums / "images").glob("*")) if _capture(p) is not None and 1 <= _capture(p) <= 79]
+    out.append(("lums", lums_held, lums / "labels", LUMS_FORMAT))
+    return [s for s in out if s[1]]
+
+
+def _capture(p: Path) -> int | None:
+    """LUMS's capture number (file names 'color_<n>_png.rf.<hash>')."""
+    parts = p.stem.split("_")
+    return int(parts[1]) if len(parts) > 1 and parts[1].isdigit() else None
+
+
+def split_quality(name: str, files: list[Path], labels: Path, fmt: str, wd: Path) -> dict:
+    from collections import Counter
+
+    from vcprep.io import image_size
+    from vcprep.labels import get_label_format
+    from vctrain.deploy import export_onnx
+    from vctrain.evaluate import evaluate_folder
+    from vctrain.predict import predict_inputs
+
+    size = Counter(image_size(f) for f in files).most_common(1)[0][0]
+    files = [f for f in files if image_size(f) == size]  # a graph takes one size
+    folder = wd / name / "images"
+    folder.mkdir(parents=True, exist_ok=True)
+    for f in files:
+        if not (folder / f.name).exists():
+            (folder / f.name).symlink_to(f)
+    row = {"frames": len(files), "size": list(size)}
+    graphs = {"float_graph": wd / name / "float.onnx", "int8_graph": wd / name / "int8.onnx"}
+    export_onnx(MODEL, None, graphs["float_graph"], size=size)
+    row["int8_export"] = export_onnx(MODEL, None, graphs["int8_graph"], size=size, int8=True)["int8"]
+    for key, path, engine in (("torch", MODEL, "torch"), ("float_graph", graphs["float_graph"], "auto"),
+                              ("int8_graph", graphs["int8_graph"], "auto")):
+        predict_inputs(path, [folder], wd / name / key, progress=False, engine=engine)
+        row[f"iou_{key}"] = 100 * evaluate_folder(wd / name / key, labels, get_label_format(fmt), progress=False)[0]["iou"]
+    same = total = 0
+    from vcprep.io import read_image
+
+    for f in files:
+        a, b = (read_image(wd / name / k / f"{f.stem}_mask.png").array for k in ("float_graph", "int8_graph"))
+        same, total = same + int((a == b).sum()), total + a.size
+    row["int8_same_mask_pct"] = 100 * same / total
+    row["int8_minus_float"] = row["iou_int8_graph"] - row["iou_torch"]
+    print(f"{name}: {len(files)} frames {size[0]}x{size[1]}: IoU torch {row['iou_torch']:.2f}, float graph "
+          f"{row['iou_float_graph']:.2f}, int8 {row['iou_int8_graph']:.2f}; int8 masks = float's on "
+          f"{row['int8_same_mask_pct']:.2f} % of pixels", file=sys.stderr)
+    return row
+
+
+def held_out_quality(wd: Path) -> dict:
+    rows = {name: split_quality(name, files, labels, fmt, wd) for name, files, labels, fmt in splits()}
+    headline = {f"int8_minus_float_{k}": round(r["int8_minus_float"], 2) for k, r in rows.items()}
+    headline.update({f"int8_same_mask_pct_{k}": round(r["int8_same_mask_pct"], 2) for k, r in rows.items()})
+    targets = {"int8 within 0.5 IoU points of the float model on every split":
+               all(abs(r["int8_minus_float"]) <= 0.5 for r in rows.values()),
+               "int8 masks = float graph's on >= 99 % of pixels": all(r["int8_same_mask_pct"] >= 99 for r in rows.values())}
+    return {"splits": rows, "headline": headline, "targets": targets}
+
+
+def main() -> None:
+    from vctrain.threads import use_threads
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--threads", type=int, default=2)
+    args = ap.parse_args()
+    use_threads(args.threads)
+    with tempfile.TemporaryDirectory(prefix="int8_quality-") as tmp:
+        q = held_out_quality(Path(tmp))
+    print("split | frames | size | IoU road.pt (PyTorch) | float graph | int8 graph | int8 - float | int8 mask = float (%)")
+    for k, r in q["splits"].items():
+        print(f"{k} | {r['frames']} | {r['size'][0]}x{r['size'][1]} | {r['iou_torch']:.2f} | {r['iou_float_graph']:.2f} | "
+              f"{r['iou_int8_graph']:.2f} | {r['int8_minus_float']:+.2f} | {r['int8_same_mask_pct']:.2f}")
+    write_json(results_dir(__file__) / "int8_quality.json",
+               {"command": "python " + " ".join(["benchmarks/speed/int8_quality.py"] + sys.argv[1:]), "date": today(),
+                "machine": machine(), "threads": args.threads, "load_average": os.getloadavg()[0], **q})
+    print(json.dumps(q["headline"]))
+
+
+if __name__ == "__main__":
+    main()
