@@ -6,7 +6,8 @@ road) through a camera file, predicted by the shipped resize model; each frame's
 vcprep.bev.to_bev of predict's own perspective mask under the view vcprep.bev gives that frame
 (its road VP by the model's VP rule; --within none: the nominal pose), its BEV probability the same of
 its _prob.png, and its JSON line road_in_metres of that mask, key for key. A video's frames get one
-line each, in order; --bev without a camera is one error line naming the fix.
+line each, in order; --bev without a camera is one error line naming the fix. A virtual-camera model:
+tests/test_vctrain.py (its trained fixture), with the same check.
 """
 from __future__ import annotations
 
