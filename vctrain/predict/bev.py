@@ -18,7 +18,8 @@ The pose each frame is projected with (:meth:`BevRun.view`): its own road VP by 
 predict --within auto`` or ``estimate``: ``vcprep bev``'s rule, :func:`vcprep.bev.within_rule`; the
 model's own VPs where it is warped with them, else estimated by the model's VP rule), the camera's
 nominal pose with ``--within none``, given VPs with a CSV; a per-frame calibration folder or a KITTI
-file gives every frame its calibrated pose (the devkit's transform for ``Tr_cam_to_road``). The maps
+file gives every frame its calibrated pose (the devkit's transform for ``Tr_cam_to_road``; ``--within``
+then concerns the model alone). The maps
 are :func:`vcprep.bev.bev_maps`' (cached: a fixed pose builds them once), one ``cv2.remap`` per
 output. It runs on the pipeline's writing thread (:mod:`vctrain.predict.pipeline`), in frame order.
 """
@@ -108,7 +109,9 @@ class BevRun:
             raise InputError("--bev needs the frames' camera", what, BEV_NEEDS_CAMERA)
         self.options = options
         self.source = BevSource.of(camera, options.spec)
-        self.rule = within_rule(None if within == "auto" else within, self.source, options.spec)
+        # calibration files give every frame its exact pose: --within then concerns the model alone
+        self.rule = "none" if self.source.calibrated else within_rule(None if within == "auto" else within,
+                                                                        self.source, options.spec)
 
     def view(self, image: str | Path, size: tuple[int, int], vp: tuple[float, float] | None = None,
              status: str | None = None) -> GroundView:
