@@ -41,7 +41,8 @@ def predict_cmd(
                                                         "OUT/predict.json"),
     keep_store: Optional[Path] = typer.Option(None, "--keep-store", help="keep the warped images in this store"),
     within: str = typer.Option("auto", "--within", help="per-image VP correction: auto (as the model was trained), "
-                                                         "estimate, a CSV id,u,v, or none"),
+                                                         "estimate, a CSV id,u,v, or none; with --bev also the "
+                                                         "BEV's poses (auto: each frame's own road VP)"),
     overlay: bool = typer.Option(False, "--overlay", help="also write OUT/<stem>_overlay.png (road in green); for a "
                                                            "video OUT/<stem>_overlay.mp4 (road in green; the horizon "
                                                            "and the road VP of each frame too, only with --camera)"),
