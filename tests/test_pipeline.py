@@ -25,6 +25,7 @@ from vcprep.io import read_image
 from vcprep.synthetic import RoadScene, render_road
 
 from conftest import assert_one_error_line, run_cli
+from test_video import _decode
 
 from vctrain.predict import Predictor, predict_inputs
 from vctrain.predict.pipeline import Prefetch, Writer
@@ -108,27 +109,18 @@ def drive(tmp_path_factory):
     return root
 
 
-def _decoded(video: Path) -> list[np.ndarray]:
-    cap, out = cv2.VideoCapture(str(video)), []
-    while True:
-        ok, f = cap.read()
-        if not ok:
-            return out
-        out.append(f)
-
-
 def test_threaded_video_and_folder_give_the_sequential_masks_in_order(drive, tmp_path):
     """Every frame, in order, with the masks the sequential path gives (same engine: PyTorch), and
     the overlay video has every frame."""
     p = Predictor(SHIPPED, "cpu", "torch")
-    frames = _decoded(drive / "drive.mp4")
+    frames = _decode(drive / "drive.mp4")
     ref = [np.where(p.road_probability(f) >= 0.5, 255, 0).astype(np.uint8) for f in frames]
     r = predict_inputs(SHIPPED, [drive / "drive.mp4"], tmp_path / "v", overlay=True, progress=False, engine="torch")
     masks = [m for m in r.written if m.name.endswith("_mask.png")]
     assert [m.name for m in masks] == [f"drive_{i:06d}_mask.png" for i in range(len(frames))]
     for m, want in zip(masks, ref):
         assert np.array_equal(read_image(m).array, want), m.name
-    assert len(_decoded(tmp_path / "v/drive_overlay.mp4")) == len(frames)
+    assert len(_decode(tmp_path / "v/drive_overlay.mp4")) == len(frames)
     files = sorted((drive / "frames").iterdir())
     ref = [np.where(p.road_probability(read_image(f).array) >= 0.5, 255, 0).astype(np.uint8) for f in files]
     r = predict_inputs(SHIPPED, [drive / "frames"], tmp_path / "f", overlay=True, progress=False, engine="torch")

@@ -16,8 +16,9 @@ Engines (``vctrain predict`` in this process, :func:`vctrain.predict.inputs.pred
   int8    the same with ``--int8`` (calibrated on the shipped examples)
 Network only (``net_ms``), beside each: the engine's own call on one decoded frame in memory with
 nothing read or written: torch / onnx the network on the 480x360 input (no resizes), graph / int8
-the graph on the frame (its resizes included); median of 10 calls after one, measured just before
-that engine's runs. End-to-end (``e2e_ms`` per frame, ``fps``): the wall time of the whole
+the graph on the frame (its resizes included); beside it ``frame_ms``, the engine's whole call on the
+frame in memory (torch / onnx: resize, normalisation, network, softmax, resize back); medians of 10
+calls after one, measured just before that engine's runs. End-to-end (``e2e_ms`` per frame, ``fps``): the wall time of the whole
 ``predict_inputs`` run over the frames (PNG masks and probabilities; with ``overlay`` the video's
 ``_overlay.mp4`` or the folder's ``_overlay.png``), engine load excluded. ``ratio`` = e2e_ms /
 net_ms (target <= 1.3). Targets (issue 69): the README's video command on the 1280x720 video with
@@ -95,7 +96,8 @@ def median_ms(fn, n: int = 10) -> float:
 
 
 def engine_model(engine: str, graphs: dict[str, Path]):
-    """(the path predict is given, its --engine, a network-only call on ``frame``)."""
+    """(the path predict is given, its --engine, a network-only call on a frame, the engine's call
+    on a frame: P(road) at its size, resizes included)."""
     from vctrain.deploy import OnnxPredictor
     from vctrain.predict import Predictor
     from vctrain.training import to_input
@@ -106,9 +108,10 @@ def engine_model(engine: str, graphs: dict[str, Path]):
         def net(frame):
             x = to_input(cv2.resize(frame, p.size, interpolation=cv2.INTER_LINEAR))
             return lambda: p.logits(x)
-        return MODEL, engine, net
+        return MODEL, engine, net, lambda frame: (lambda: p.road_probability(frame))
     g = OnnxPredictor(graphs[engine])
-    return graphs[engine], "auto", lambda frame: (lambda: g.road_probability(frame))
+    call = lambda frame: (lambda: g.road_probability(frame))  # noqa: E731
+    return graphs[engine], "auto", call, call
 
 
 def e2e(path: Path, engine: str, src: Path, out: Path, overlay: bool) -> tuple[float, str]:
@@ -139,17 +142,18 @@ def speed(args, wd: Path) -> list[dict]:
             graphs["int8"] = wd / f"road_{tag}_int8.onnx"
             export_onnx(MODEL, None, graphs["int8"], size=size, int8=True)
         for engine in args.engines:
-            path, flag, net = engine_model(engine, graphs)
+            path, flag, net, call = engine_model(engine, graphs)
             e2e(path, flag, folder, wd / "warm", False)  # engine loaded (the in-memory export), caches warm
-            net_ms = median_ms(net(frames[0]))
+            net_ms, frame_ms = median_ms(net(frames[0])), median_ms(call(frames[0]))
             for kind, src in (("video", video), ("folder", folder)):
                 for overlay in (False, True):
                     secs, said = e2e(path, flag, src, wd / "out", overlay)
                     ms = 1000 * secs / len(frames)
                     rows.append({"size": tag, "engine": engine, "input": kind, "overlay": overlay, "net_ms": net_ms,
-                                 "e2e_ms": ms, "fps": 1000 / ms, "ratio": ms / net_ms, "engine_said": said})
+                                 "frame_ms": frame_ms, "e2e_ms": ms, "fps": 1000 / ms, "ratio": ms / net_ms, "engine_said": said})
                     r = rows[-1]
-                    print(f"{tag} {engine:5s} {kind:6s} overlay={overlay!s:5s} net {net_ms:6.1f} ms  e2e {ms:6.1f} ms "
+                    print(f"{tag} {engine:5s} {kind:6s} overlay={overlay!s:5s} net {net_ms:6.1f} ms frame {frame_ms:6.1f} "
+                          f"ms  e2e {ms:6.1f} ms "
                           f"{r['fps']:5.1f} fps  ratio {r['ratio']:.2f}", file=sys.stderr)
     return rows
 
@@ -179,10 +183,11 @@ def main() -> None:
 
             quality = held_out_quality(wd / "quality")
     load1 = os.getloadavg()[0]
-    print("size | engine | input | overlay | network only ms | end-to-end ms | frames/s | end-to-end / network")
+    print("size | engine | input | overlay | network only ms | engine on a frame ms | end-to-end ms | frames/s | "
+          "end-to-end / network")
     for r in rows:
         print(f"{r['size']} | {r['engine']} | {r['input']} | {'yes' if r['overlay'] else 'no'} | {r['net_ms']:.1f} | "
-              f"{r['e2e_ms']:.1f} | {r['fps']:.1f} | {r['ratio']:.2f}")
+              f"{r['frame_ms']:.1f} | {r['e2e_ms']:.1f} | {r['fps']:.1f} | {r['ratio']:.2f}")
     pick = {(r["size"], r["engine"], r["input"], r["overlay"]): r for r in rows}
     headline = {}
     for e in args.engines:

@@ -2,10 +2,11 @@
 same network exported in memory to ONNX and run in onnxruntime.
 
 ``auto`` takes onnxruntime where it is installed (the ``deploy`` extra) and the model runs on the
-CPU: the same network is 1.3-1.6x faster there than PyTorch's (the shipped lite0fpn at 480x360, two
-threads: benchmarks/speed/predict_e2e.py), and its logits differ from PyTorch's by float rounding
-only (max |dP| ~1e-6; the masks, P >= 0.5, agree on all but a pixel in millions:
-tests/test_pipeline.py measures it). OpenVINO was not added: see docs/predict-eval.md#engines.
+CPU: the same network is faster there than PyTorch's (the shipped lite0fpn at 480x360, two threads:
+22.6 against 33.1 ms on a quiet machine; on a loaded one PyTorch's OpenMP threads wait at every
+operator and the gap grows many times: benchmarks/speed/predict_e2e.py), and its P(road) differs
+from PyTorch's by float rounding only (max |dP| ~3e-6; the masks, P >= 0.5, identical on the
+examples: tests/test_pipeline.py). OpenVINO was not tried: docs/predict-eval.md#engines.
 
 :class:`OnnxNetwork` exports the network (BN folded, what :class:`vctrain.predict.Predictor` holds)
 once per input shape (the EfficientNet encoders pad by the input size, so a graph is traced for
