@@ -392,6 +392,29 @@ def test_predict_other_camera_lands_on_road(trained, tmp_path):
     assert res["iou"] > 0.6
 
 
+def test_predict_bev_of_a_virtual_camera_model_equals_the_library_on_its_masks(trained, tmp_path):
+    """predict --bev with a virtual-camera model (tests/test_predict_bev.py has the resize model's):
+    each frame's BEV mask and JSON line are vcprep.bev's on its own perspective mask (--within none:
+    the camera file's pose)."""
+    from conftest import run_cli
+    from test_predict_bev import BEV_ARGS, _check_frame
+
+    from vcprep.bev import camera_view
+    from vcprep.camera import camera_to_yaml
+
+    root, _, _ = trained
+    cam = PRESETS["camvid"].resized(0.1)
+    _render_set(tmp_path / "new", cam, 2, seed=5)
+    (tmp_path / "cam.yaml").write_text(camera_to_yaml(cam))
+    r = run_cli("predict", root / "model.pt", tmp_path / "new/images", "--camera", tmp_path / "cam.yaml", "--within",
+                "none", "--out", tmp_path / "pred", "-q", *BEV_ARGS, prog="vctrain")
+    assert r.returncode == 0, r.stderr
+    records = [json.loads(line) for line in r.stdout.splitlines()]
+    assert [x["id"] for x in records] == ["s5_0", "s5_1"]
+    for x in records:
+        _check_frame(tmp_path / "pred", x["id"], x, camera_view(cam))
+
+
 @pytest.mark.parametrize("beyond", ["hybrid", "rays", "extend"])
 def test_predict_a_wider_steeper_camera_predicts_its_whole_frame(trained, tmp_path, beyond):
     """A camera wider and steeper than the virtual camera the model was trained in: a third of its

@@ -17,7 +17,8 @@ from typing import Any
 
 from .errors import InputError, VCError
 
-__all__ = ["run_app", "emit_json", "err", "count", "ensure_parent", "check_data_folders"]
+__all__ = ["run_app", "emit_json", "err", "count", "ensure_parent", "check_data_folders", "range_option", "res_option",
+           "corridor_option"]
 
 
 def err(msg: str) -> None:
@@ -180,3 +181,33 @@ def parse_size(text: str, what: str = "--size") -> tuple[int, int]:
     if w < 2 or h < 2 or w * h > MAX_PIXELS:
         raise InputError(f"'{text}' is out of range", what, f"width and height >= 2, at most {MAX_PIXELS} pixels")
     return w, h
+
+
+# the options of every command with a bird's-eye view of the road (vcprep bev, vctrain predict --bev and eval --bev):
+# one definition each, parsed by vcprep.bev.parse_range (``when``: 'with --bev: ' where the view is optional)
+RANGE_HELP = ("the grid's lateral then forward extent in metres, 'X0,X1,Z0,Z1' (x right of the camera, z ahead of "
+              "its foot on the road); default the KITTI road benchmark's -10,10,6,46 (write --range=-10,10,6,46)")
+
+
+def range_option(when: str = ""):
+    """``--range X0,X1,Z0,Z1`` (metres; None: the KITTI benchmark's grid)."""
+    import typer
+
+    return typer.Option(None, "--range", help=when + RANGE_HELP)
+
+
+def res_option(when: str = ""):
+    """``--res``: the grid's cell size in metres."""
+    import typer
+
+    return typer.Option(0.05, "--res", help=when + "cell size in metres")
+
+
+def corridor_option(when: str = ""):
+    """``--corridor``: the width of the vehicle's corridor ``free_m`` is measured along."""
+    import typer
+
+    from .bev.metres import CORRIDOR
+
+    return typer.Option(CORRIDOR, "--corridor", help=when + "width in metres of the vehicle's corridor free_m is "
+                        "measured along (centred on the camera)")

@@ -114,9 +114,13 @@ class BevSource:
     @classmethod
     def from_spec(cls, spec: str, sample_image: Path | None = None) -> "BevSource":
         """A preset, a camera file or a folder of per-frame calibration files (:func:`vcprep.camera.load_cameras`)."""
-        cam = load_cameras(spec, sample_image, per_frame=True)
-        calib = Path(spec) if isinstance(cam, Camera) and str(spec).lower().endswith(".txt") else None
-        return cls(cam, calib)
+        return cls.of(load_cameras(spec, sample_image, per_frame=True), spec)
+
+    @classmethod
+    def of(cls, camera: Camera | FrameCameras, spec: str | Path | None = None) -> "BevSource":
+        """The source of a camera already loaded from ``spec`` (a KITTI ``.txt`` file: its devkit view)."""
+        calib = Path(spec) if isinstance(camera, Camera) and str(spec or "").lower().endswith(".txt") else None
+        return cls(camera, calib)
 
     @property
     def calibrated(self) -> bool:

@@ -11,16 +11,11 @@ from tqdm import tqdm
 from ..bev.folder import BevSettings, bev_folder, find_masks
 from ..bev.frames import within_rule
 from ..bev.grid import parse_range
-from ..bev.metres import CORRIDOR
 from ..bev.view import BevSource
-from ..cliutil import check_data_folders, count, emit_json, err
+from ..cliutil import check_data_folders, corridor_option, count, emit_json, err, range_option, res_option
 from ..dataset import list_dataset
 from ..labels import get_label_format
 from .common import FRAMES_HELP, LABEL_FORMAT_HELP, WITHIN_HELP, app, camera_for, check_label_format
-
-RANGE_HELP = ("the grid's lateral then forward extent in metres, 'X0,X1,Z0,Z1' (x right of the camera, z ahead of "
-              "its foot on the road); default the KITTI road benchmark's -10,10,6,46 (write --range=-10,10,6,46)")
-
 
 @app.command("bev")
 def bev_cmd(
@@ -32,12 +27,11 @@ def bev_cmd(
     label_format: Optional[str] = typer.Option(None, "--label-format", "-f", help=LABEL_FORMAT_HELP),
     masks: Optional[Path] = typer.Option(None, "--masks", "-m", help="folder of road masks or probability maps "
                                          "(<stem>_mask.png / <stem>_prob.png, as 'vctrain predict' writes them)"),
-    grid_range: Optional[str] = typer.Option(None, "--range", help=RANGE_HELP),
-    res: float = typer.Option(0.05, "--res", help="cell size in metres"),
+    grid_range: Optional[str] = range_option(),
+    res: float = res_option(),
     within: Optional[str] = typer.Option(None, "--within", help=WITHIN_HELP + "; default 'estimate' for one camera, "
                                          "'none' for calibration files (each frame's exact pose)"),
-    corridor: float = typer.Option(CORRIDOR, "--corridor", help="width in metres of the vehicle's corridor free_m "
-                                   "is measured along"),
+    corridor: float = corridor_option(),
     roll: float = typer.Option(0.0, "--roll", help="the camera's roll about its optical axis in degrees (image "
                                "turned clockwise > 0), if known: frames and camera files do not tell it"),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar or summary on stderr"),

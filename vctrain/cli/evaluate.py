@@ -7,7 +7,7 @@ from typing import Optional
 
 import typer
 
-from vcprep.cliutil import count, emit_json, err
+from vcprep.cliutil import count, emit_json, err, range_option, res_option
 
 from .common import LABEL_FORMAT_HELP, app
 
@@ -27,9 +27,8 @@ def eval_cmd(
     camera: Optional[str] = typer.Option(None, "--camera", "-c", help="with --bev: the frames' camera (preset, file, "
                                          "or folder of per-frame calibration files: KITTI calib/ gives the devkit's "
                                          "transform2BEV), at its nominal or calibrated pose"),
-    grid_range: Optional[str] = typer.Option(None, "--range", help="with --bev: the grid 'X0,X1,Z0,Z1' in metres "
-                                             "(default the KITTI benchmark's -10,10,6,46)"),
-    res: float = typer.Option(0.05, "--res", help="with --bev: cell size in metres"),
+    grid_range: Optional[str] = range_option("with --bev: "),
+    res: float = res_option("with --bev: "),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar"),
 ):
     """Road IoU (ΣTP/Σ(TP+FP+FN), ignore pixels excluded), mean per-image IoU, precision, recall,

@@ -8,7 +8,7 @@ from typing import List, Optional, Tuple
 
 import typer
 
-from vcprep.cliutil import ensure_parent, err
+from vcprep.cliutil import corridor_option, ensure_parent, err, range_option, res_option
 
 from .common import app, model_arg, path_or_json, pin_threads, threads_option
 
@@ -44,7 +44,8 @@ def predict_cmd(
                                                         "OUT/predict.json"),
     keep_store: Optional[Path] = typer.Option(None, "--keep-store", help="keep the warped images in this store"),
     within: str = typer.Option("auto", "--within", help="per-image VP correction: auto (as the model was trained), "
-                                                         "estimate, a CSV id,u,v, or none"),
+                                                         "estimate, a CSV id,u,v, or none; with --bev also the "
+                                                         "BEV's poses (auto: each frame's own road VP)"),
     overlay: bool = typer.Option(False, "--overlay", help="also write OUT/<stem>_overlay.png (road in green); for a "
                                                            "video OUT/<stem>_overlay.mp4 (road in green; the horizon "
                                                            "and the road VP of each frame too, only with --camera)"),
@@ -67,6 +68,15 @@ def predict_cmd(
                                          "the ray from the road VP leaves the training rectangle beyond it), extend "
                                          "(the network's own values there) or rays (the network on the training "
                                          "rectangle alone, rays beyond it)"),
+    bev: bool = typer.Option(False, "--bev", help="also the road in a bird's-eye view and in metres (needs --camera): "
+                             "OUT/<stem>_bev_prob.png (0-255, unseen 0) and <stem>_bev_mask.png (the values of "
+                             "'vcprep bev': 0 not road, 1 road, 255 unseen), far row first; stdout: one JSON line "
+                             "per frame (id, free_m, width_m, area_m2, pose) instead of the paths; an inset in the "
+                             "overlays. "
+                             "Each frame's pose from its road VP (--within none: the camera's nominal pose)"),
+    corridor: float = corridor_option("with --bev: "),
+    grid_range: Optional[str] = range_option("with --bev: "),
+    res: float = res_option("with --bev: "),
     threads: Optional[int] = threads_option(),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar"),
 ):
@@ -85,7 +95,10 @@ def predict_cmd(
     with the model's rule, the own vehicle's rows cut off, the rectangle extended to hold every
     frame; a frame pixel beyond the training rectangle takes P(road) where the ray from the road VP
     through it leaves that rectangle (--beyond hybrid; extend and rays: docs/predict-eval.md);
-    stderr says which VPs, own vehicle and rectangle were used.
+    stderr says which VPs, own vehicle and rectangle were used. --bev (every model kind, a resize
+    model too, given --camera) adds each frame's road in metres: free_m (how far the --corridor
+    ahead is road), width_m at 10, 20 and 30 m (null where not all in view), area_m2 and pose, as
+    'vcprep bev' measures them (docs/bev.md).
 
     \b
     Example:
@@ -97,6 +110,7 @@ def predict_cmd(
       vctrain predict runs/vc.pt --store stores/camvid_val --out preds/camvid_val
       vctrain predict --prior prior.npy --camera kitti data/kitti/image_2 --out preds/geoprior
       vctrain predict runs/vc.pt --camera camvid drive.mp4 --overlay --out preds/drive
+      vctrain predict models/road-multicamera/road.pt --camera camvid drive.mp4 --bev --overlay --out preds/drive
     """
     from functools import partial
 
@@ -107,19 +121,31 @@ def predict_cmd(
     pin_threads(threads)
     frames_camera = partial(camera_for, camera, quiet=quiet) if camera is not None else None
     checkpoint = model_arg(checkpoint) if prior is None else checkpoint
+    bev_options = _bev_options(camera, corridor, grid_range, res) if bev else None
     result = predict_inputs(checkpoint, images, out, frames_camera, prior=prior, store=store, device=device,
                             keep_store=keep_store, within=within, overlay=overlay, mask_video=mask_video, ego=ego,
                             progress=not quiet, vp_range=vp_range, vp_smooth=vp_smooth, vp_sequences=vp_sequences,
-                            say=None if quiet else (lambda msg: err(f"{out}: {msg}")), beyond=beyond, engine=engine)
-    _report(result, out, quiet)
+                            say=None if quiet else (lambda msg: err(f"{out}: {msg}")), beyond=beyond, engine=engine,
+                            bev=bev_options)
+    _report(result, out, quiet, paths=not bev)
 
 
-def _report(result, out: Path, quiet: bool) -> None:
-    """The mask paths on stdout; the skipped frames, the summary line and the error of a run with
+def _bev_options(camera: Optional[str], corridor: float, grid_range: Optional[str], res: float):
+    """--bev's settings (:class:`vctrain.predict.bev.BevOptions`): the grid, the corridor, a JSON line a frame."""
+    from vcprep.bev import parse_range
+    from vcprep.cliutil import emit_json
+
+    from ..predict.bev import BevOptions
+
+    return BevOptions(grid=parse_range(grid_range, res), corridor=corridor, emit=emit_json, spec=camera)
+
+
+def _report(result, out: Path, quiet: bool, paths: bool = True) -> None:
+    """The mask paths on stdout (``paths``; --bev's JSON lines instead); the skipped frames, the summary line and the error of a run with
     skipped frames (exit 1) on stderr."""
     if result.failed and not result.written:  # nothing predicted: the (first) frame's own error
         _failed(result, out)
-    for p in result.written:
+    for p in result.written if paths else ():
         print(p)
     for line in result.said():
         err(line)

@@ -58,7 +58,7 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
                    progress: bool = True, vp_range: Optional[tuple[float, float]] = None,
                    vp_smooth: Optional[int] = None, vp_sequences: Optional[str] = None,
                    say: Optional[Callable[[str], None]] = None, beyond: Optional[str] = None,
-                   engine: str = "auto") -> Predicted:
+                   engine: str = "auto", bev: Any = None) -> Predicted:
     """``vctrain predict``: ``checkpoint`` (a ``.pt`` model or an ``.onnx`` graph; with ``prior``
     it is the first image) on ``images`` (files, folders, videos) or every item of ``store``.
     ``camera_for`` (None: no --camera) gives the frames' camera. ``vp_range`` (pan, tilt degrees),
@@ -69,7 +69,9 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
     (:data:`vctrain.predict.frames.BEYOND`; None: the default, extend). ``engine`` runs a ``.pt``
     model's network (:data:`vctrain.deploy.engine.ENGINES`; 'auto': onnxruntime on the CPU where
     installed); a graph runs in onnxruntime, the prior in numpy; the summary line says which,
-    and ``predict.json`` records it. Bad combinations raise :class:`InputError` before anything is predicted."""
+    and ``predict.json`` records it. ``bev`` (given: :class:`vctrain.predict.bev.BevOptions`): every
+    frame's bird's-eye view and road in metres too (it needs ``camera_for``, or a graph's own camera).
+    Bad combinations raise :class:`InputError` before anything is predicted."""
     if prior is not None:
         if checkpoint is not None and checkpoint.suffix.lower() == ".pt":
             raise InputError("give either a model or --prior, not both", checkpoint, "drop one of them")
@@ -96,6 +98,10 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
     engine_used = _engine_used(predictor)  # said in the summary line (Predicted.line)
     if beyond is not None:
         _set_beyond(predictor, beyond, checkpoint if prior is None else prior)
+    if bev is not None and camera_for is None and getattr(predictor, "camera", None) is None:
+        from .bev import BEV_NEEDS_CAMERA
+
+        raise InputError("--bev needs the frames' camera", checkpoint if prior is None else prior, BEV_NEEDS_CAMERA)
     if store is None:  # (frames: a study's candidate model takes stores only, said before any frame is read)
         from .frames import refuse_mixed
 
@@ -103,7 +109,7 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
     existed = Path(out).exists()
     try:
         result = _predict_all(predictor, prior, images, videos, out, camera_for, store, keep_store, within, overlay,
-                              mask_video, ego, progress, vp_range, vp_smooth, vp_sequences, say)
+                              mask_video, ego, progress, vp_range, vp_smooth, vp_sequences, say, bev)
         result.engine = engine_used
     except BaseException:
         if not existed:
@@ -144,7 +150,7 @@ def _remove_empty(out: Path) -> None:
 
 
 def _predict_all(predictor, prior, images, videos, out, camera_for, store, keep_store, within, overlay, mask_video,
-                 ego, progress, vp_range, vp_smooth, vp_sequences, say) -> Predicted:
+                 ego, progress, vp_range, vp_smooth, vp_sequences, say, bev=None) -> Predicted:
     """:func:`predict_inputs` once its inputs are checked: the videos, the store, the image files."""
     from .frames import StageTimes
     from .video import predict_video
@@ -155,7 +161,7 @@ def _predict_all(predictor, prior, images, videos, out, camera_for, store, keep_
         for v in videos:  # 'estimate': from a sample of the video's own frames (its overlay draws the horizon)
             vcam = camera_for(None, per_frame=False, frames=[v]) if camera_for is not None else None
             written += predict_video(predictor, v, out, vcam, within=within, mask_video=mask_video, overlay=overlay,
-                                     progress=progress, ego=ego, times=times, vp_rule=rule,
+                                     progress=progress, ego=ego, times=times, vp_rule=rule, bev=bev,
                                      **({"vp_window": vp_smooth} if vp_smooth is not None else {}))
     n_images = 0
     if store is not None:
@@ -163,18 +169,30 @@ def _predict_all(predictor, prior, images, videos, out, camera_for, store, keep_
 
         from .predictor import predict_store
 
-        written = predict_store(predictor, Store.open(store), out, progress=progress, overlay=overlay)
+        opened = Store.open(store)
+        written = predict_store(predictor, opened, out, progress=progress, overlay=overlay,
+                                bev=_store_bev(bev, opened, camera_for, within))
         n_images = len(written)
     failed, masks = [], list(written) if store is not None else []
     if images:
         run = _predict_image_files(predictor, images, out, camera_for, keep_store, within, overlay, progress,
-                                   ego, rule, say)
+                                   ego, rule, say, bev)
         written += run.written
         masks += run.written
         failed = run.failed
         n_images = len(run.written) + len(failed)
     return Predicted(written, n_images if images or store else None, len(videos), _source(predictor, prior), failed,
                      times.frames + n_images - len(failed), time.perf_counter() - t0, masks)
+
+
+def _store_bev(bev, store, camera_for: Optional[CameraFor], within: str):
+    """``--bev``'s :class:`~vctrain.predict.bev.BevRun` for a store's items: their camera from ``--camera``."""
+    if bev is None:
+        return None
+    from .bev import BevRun
+
+    sources = [Path(r["source"]) for r in store]
+    return BevRun(bev, camera_for(sources[0], frames=sources) if sources else None, within, store.root)
 
 
 def _source(predictor, prior: Optional[Path]) -> str:
@@ -256,12 +274,13 @@ def _needs_no_camera(predictor) -> bool:
 
 def _predict_image_files(predictor, images: Sequence[Path], out: Path, camera_for: Optional[CameraFor],
                          keep_store: Optional[Path], within: str, overlay: bool, progress: bool,
-                         ego: Optional[str] = None, vp_rule: Any = None, say: Optional[Callable[[str], None]] = None):
+                         ego: Optional[str] = None, vp_rule: Any = None, say: Optional[Callable[[str], None]] = None,
+                         bev: Any = None):
     """Image files and folders: their camera from ``camera_for`` (a virtual-camera model needs
     one; with one camera, its own vehicle found from the frames unless the camera states it: ``ego``
     as for a video; a resize model cuts it only when ``ego`` asks), then
     :func:`vctrain.predict.predictor.predict_frames` (the one road for a frame) with ``vp_rule``
-    (None: the model's); ``say`` hears what the frames were warped with."""
+    (None: the model's); ``say`` hears what the frames were warped with; ``bev``: as run_road takes it."""
     from vcprep.camera import Camera
     from vcprep.cliutil import err
     from vcprep.dataset import collect_images
@@ -273,7 +292,8 @@ def _predict_image_files(predictor, images: Sequence[Path], out: Path, camera_fo
     cam, ego_source, rows = None, "", None
     if camera_for is not None:  # checked even where the model needs none: a typo is never silent
         jobs = collect_images(images, trees=True)
-        cam = camera_for(jobs[0].image, frames=[j.image for j in jobs], needed=not _needs_no_camera(predictor))
+        needed = bev is not None or not _needs_no_camera(predictor)  # (--bev: the road in metres needs it)
+        cam = camera_for(jobs[0].image, frames=[j.image for j in jobs], needed=needed)
     if camera_for is None and warps_frames(predictor):
         raise InputError("a virtual-camera model needs the camera of the images", predictor.path, NEEDS_CAMERA)
     if camera_for is None and reads_road_vps(predictor):
@@ -296,7 +316,7 @@ def _predict_image_files(predictor, images: Sequence[Path], out: Path, camera_fo
         ego_source = (f"--ego {ego}" if ego not in ("auto", "none") else "the camera's ego_rows" if stated
                       else "found from the frames" if cam.ego_rows else "")
     return predict_frames(predictor, images, out, cam, progress=progress, keep_store=keep_store, overlay=overlay,
-                          within=within, vp_rule=vp_rule, say=say, ego_source=ego_source, vehicle=rows)
+                          within=within, vp_rule=vp_rule, say=say, ego_source=ego_source, vehicle=rows, bev=bev)
 
 
 def _reads_frames_as_they_are(predictor) -> bool:

@@ -42,6 +42,7 @@ from ..training.checkpoint import load_checkpoint, model_from_checkpoint
 from ..training.data import ray_angles, resize_pair, source_focal, to_input, vp_in_store, vp_proximity
 from ..networks.build import fold_batchnorm
 from ..training.loop import resolve_device
+from .bev import BevRun
 from .frames import DEFAULT_BEYOND, NEEDS_CAMERA, back_to_frame, extends, refuse_mixed, warps_frames
 from .road import (RoadRun, frames_canvas, geometry_line, model_vp_rule, out_dir, run_road, virtual_within,
                    write_prediction)
@@ -179,9 +180,11 @@ class Predictor:
 
 
 def predict_store(predictor: Predictor, store: Store, out: str | Path, progress: bool = True,
-                  ids: Iterable[str] | None = None, overlay: bool = False) -> list[Path]:
+                  ids: Iterable[str] | None = None, overlay: bool = False, bev: Any = None) -> list[Path]:
     """Predict every item of ``store`` (or those in ``ids``); writes ``<id>_mask.png`` and
-    ``<id>_prob.png`` at the source image size. Returns the mask paths."""
+    ``<id>_prob.png`` at the source image size. Returns the mask paths. ``bev`` (given: a
+    :class:`vctrain.predict.bev.BevRun`): each item's BEV and road in metres too, at the pose of the
+    VP its record holds."""
     out = out_dir(out)
     if predictor.mode in ("virtual", "mixed"):
         from vcprep.camera import same_camera_other_canvas
@@ -198,8 +201,10 @@ def predict_store(predictor: Predictor, store: Store, out: str | Path, progress:
     written = []
     recs = list(store) if ids is None else [store.get(i) for i in ids]
     for rec in tqdm(recs, desc="predict", unit="img", disable=None if progress else True, leave=False):
-        written.append(write_prediction(out, rec["id"], predictor.store_item(store, rec),
-                                        rec["source"] if overlay else None)[0])
+        prob = predictor.store_item(store, rec)
+        inset = bev.write(out, rec["id"], prob, rec["source"], rec.get("vp"), rec.get("vp_status")) \
+            if bev is not None else None
+        written.append(write_prediction(out, rec["id"], prob, rec["source"] if overlay else None, inset)[0])
     return written
 
 
@@ -207,15 +212,15 @@ def predict_frames(predictor: Any, images: Iterable[str | Path], out: str | Path
                    camera: Camera | FrameCameras | None, progress: bool = True, keep_store: str | Path | None = None,
                    overlay: bool = False, within: str = "auto", vp_rule: Any = None,
                    say: Callable[[str], None] | None = None, ego_source: str = "",
-                   vehicle: tuple[int, int] | dict | None = None) -> RoadRun:
+                   vehicle: tuple[int, int] | dict | None = None, bev: Any = None) -> RoadRun:
     """Image files/folders through the one road for a frame (:func:`vctrain.predict.road.run_road`:
     a frame that fails is named and skipped); with ``keep_store`` (a model that warps frames) the
     warped frames are also kept as a store there, and predicted from it (the same masks). ``vp_rule``,
-    ``say``, ``ego_source`` and ``vehicle`` as :func:`~vctrain.predict.road.run_road` takes them."""
+    ``say``, ``ego_source``, ``vehicle`` and ``bev`` as :func:`~vctrain.predict.road.run_road` takes them."""
     refuse_mixed(predictor)
     if keep_store is None or not warps_frames(predictor):
         return run_road(predictor, images, out, camera, progress=progress, overlay=overlay, within=within,
-                        vp_rule=vp_rule, say=say, ego_source=ego_source, vehicle=vehicle)
+                        vp_rule=vp_rule, say=say, ego_source=ego_source, vehicle=vehicle, bev=bev)
     if camera is None:
         raise InputError("a virtual-camera model needs the camera of the images", None,
                          NEEDS_CAMERA)
@@ -224,7 +229,9 @@ def predict_frames(predictor: Any, images: Iterable[str | Path], out: str | Path
                                extend=extends(predictor), vp_rule=vp_rule)
     if say is not None:
         say(geometry_line(warp_geometry(store), model_vp_rule(predictor.data, vp_rule)[1], ego_source))
-    return RoadRun(predict_store(predictor, store, out, progress, ids=[j.id for j in jobs], overlay=overlay))
+    bev_run = BevRun(bev, camera, within) if bev is not None else None
+    return RoadRun(predict_store(predictor, store, out, progress, ids=[j.id for j in jobs], overlay=overlay,
+                                 bev=bev_run))
 
 
 def predict_images(predictor: Any, images: Iterable[str | Path], out: str | Path,

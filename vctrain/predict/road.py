@@ -72,12 +72,12 @@ def skipped_lines(failed: list[tuple[Path, VCError]]) -> list[str]:
     return [f"skipped: {e}" if e.file else f"skipped: {f}: {e}" for f, e in failed]
 
 
-def write_prediction(out: Path, stem: str, prob: np.ndarray, overlay_on: str | Path | np.ndarray | None = None
-                     ) -> tuple[Path, Path]:
+def write_prediction(out: Path, stem: str, prob: np.ndarray, overlay_on: str | Path | np.ndarray | None = None,
+                     inset: Callable[[np.ndarray], np.ndarray] | None = None) -> tuple[Path, Path]:
     """Write ``<stem>_prob.png`` (0-255) and ``<stem>_mask.png`` (0/255); with ``overlay_on``
     (the original image, or its decoded array) also ``<stem>_overlay.png``: predicted road in green
-    over the image (:func:`tint_road`). A ``stem`` with folders (a tree's frame, ``drive1/000123``)
-    is written in those folders of ``out``."""
+    over the image (:func:`tint_road`), ``inset`` (given: ``--bev``'s) drawn on it. A ``stem`` with
+    folders (a tree's frame, ``drive1/000123``) is written in those folders of ``out``."""
     if "/" in stem:
         (out / stem).parent.mkdir(parents=True, exist_ok=True)
     p8 = np.clip(np.rint(prob * 255.0), 0, 255).astype(np.uint8)
@@ -87,7 +87,8 @@ def write_prediction(out: Path, stem: str, prob: np.ndarray, overlay_on: str | P
     write_png(mp, mask, kind="mask")
     if overlay_on is not None:
         frame = overlay_on if isinstance(overlay_on, np.ndarray) else read_image(overlay_on).array
-        write_png(out / f"{stem}_overlay.png", tint_road(frame, mask), level=3)
+        shown = tint_road(frame, mask)
+        write_png(out / f"{stem}_overlay.png", inset(shown) if inset is not None else shown, level=3)
     return mp, pp
 
 
@@ -416,10 +417,25 @@ def _predict_one(fps: dict, predictor: Any, job: Job, img: np.ndarray, camera, v
     return fp.predict(img, vp)
 
 
+def _bev_poses(predictor: Any, bev: Any, jobs: list[Job], camera, within: str, rule: str, poses: dict, vp_rule: Any,
+               run: RoadRun) -> tuple[Any, dict]:
+    """(``--bev``'s :class:`~vctrain.predict.bev.BevRun`, each frame's pose for it: the model's
+    ``poses`` where it takes the same rule, else found by its own); (None, {}) without ``bev``."""
+    if bev is None:
+        return None, {}
+    from .bev import BevRun
+
+    camera = camera if camera is not None else getattr(predictor, "camera", None)  # a graph's own
+    bev_run = BevRun(bev, camera, within, jobs[0].image if jobs else None)
+    if bev_run.rule == rule:
+        return bev_run, poses
+    return bev_run, frame_poses(predictor, jobs, camera, bev_run.rule, vp_rule, run.fail)
+
+
 def run_road(predictor: Any, images: Iterable[str | Path], out: str | Path,
              camera: Camera | FrameCameras | None, progress: bool = True, overlay: bool = False,
              within: str = "auto", vp_rule: Any = None, say: Callable[[str], None] | None = None,
-             ego_source: str = "", vehicle: tuple[int, int] | dict | None = None) -> RoadRun:
+             ego_source: str = "", vehicle: tuple[int, int] | dict | None = None, bev: Any = None) -> RoadRun:
     """Predict image files/folders taken with ``camera`` (needed for virtual-camera models; a
     :class:`~vcprep.camera.FrameCameras` gives every image its own calibrated camera and pose);
     writes ``<stem>_mask.png``, ``<stem>_prob.png`` (and ``_overlay.png``) in ``out``. A frame that
@@ -430,7 +446,9 @@ def run_road(predictor: Any, images: Iterable[str | Path], out: str | Path,
     (:func:`model_vp_rule`). ``say`` (given) hears one line: which VPs, own vehicle (``ego_source``:
     where its rows come from) and rectangle a virtual-camera model's frames were warped with. ``vehicle``
     (rows, at frame height, or file -> that per source; :func:`frames_ego_rows`): a model that reads
-    frames as they are predicts 'not road' on the own vehicle's rows."""
+    frames as they are predicts 'not road' on the own vehicle's rows. ``bev`` (given:
+    :class:`vctrain.predict.bev.BevOptions`): each frame's BEV and road in metres too, at its pose by
+    ``within`` (:mod:`vctrain.predict.bev`)."""
     t0 = time.perf_counter()
     jobs = collect_images(images, trees=True)  # a tree whose frames repeat names: outputs mirror it
     out = out_dir(out)
@@ -441,6 +459,7 @@ def run_road(predictor: Any, images: Iterable[str | Path], out: str | Path,
     run = RoadRun()
     poses = frame_poses(predictor, jobs, camera if camera is not None else getattr(predictor, "camera", None), rule,
                         vp_rule, run.fail)
+    bev_run, bev_poses = _bev_poses(predictor, bev, jobs, camera, within, rule, poses, vp_rule, run)
     views = None
     if extends(predictor):
         views = rectangle_views([j for j in jobs if rule == "none" or j.id in poses], camera, poses, run.fail)
@@ -449,8 +468,12 @@ def run_road(predictor: Any, images: Iterable[str | Path], out: str | Path,
     todo = [j for j in jobs if str(j.image) not in bad]
     # read on one thread, the network on this one, written on a third, in order (vctrain.predict.pipeline)
     writer = Writer(DEPTH)
-    write = lambda job, prob, img: run.written.append(  # noqa: E731
-        write_prediction(out, job.id, prob, img if overlay else None)[0])
+
+    def write(job: Job, prob: np.ndarray, img: np.ndarray) -> None:
+        pose = bev_poses.get(job.id)
+        inset = bev_run.write(out, job.id, prob, job.image, *((pose.vp, pose.status) if pose else ())) \
+            if bev_run is not None else None
+        run.written.append(write_prediction(out, job.id, prob, img if overlay else None, inset)[0])
     try:
         with Prefetch(_read(todo), DEPTH) as frames:
             for job, img, error in tqdm(frames, total=len(todo), desc="predict", unit="img",

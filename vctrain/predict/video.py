@@ -145,7 +145,7 @@ def _now(fn, *args) -> Future:
 def predict_video(predictor, video: str | Path, out: str | Path, camera: Camera | None, within: str = "auto",
                   mask_video: bool = False, overlay: bool = False, progress: bool = True, vp_window: int = 2,
                   times: StageTimes | None = None, ego: str | None = None, vp_ahead: int = VP_AHEAD,
-                  vp_rule=None) -> list[Path]:
+                  vp_rule=None, bev=None) -> list[Path]:
     """Predict every frame of ``video`` (module docstring); returns the paths written (the mask
     PNGs, or the mask video; the overlay video). ``within``: 'auto' (as the model was trained,
     :func:`vctrain.predict.road.within_rule`), 'estimate', 'none' or a CSV ``id,u,v`` whose ids are
@@ -154,7 +154,10 @@ def predict_video(predictor, video: str | Path, out: str | Path, camera: Camera 
     ``vp_window`` frames either side. ``ego``: the own vehicle, as :func:`ego_camera` takes it (a
     virtual-camera model: None is 'auto'; a resize model cuts it only when asked). ``times`` (given) gets the stage timings;
     ``progress`` False also silences the own-vehicle remark. ``vp_ahead``: frames whose VP is
-    estimated in a worker thread ahead of the one predicted (0: in this thread, in turn)."""
+    estimated in a worker thread ahead of the one predicted (0: in this thread, in turn). ``bev`` (given:
+    :class:`vctrain.predict.bev.BevOptions`): each frame's BEV PNGs (in ``OUT/<stem>/``, also with
+    ``mask_video``) and road in metres too, its record with ``"frame"``; its VPs streamed as the
+    model's are where the model takes none."""
     from vcprep.vp import read_vp_csv
 
     video = Path(video)
@@ -164,6 +167,8 @@ def predict_video(predictor, video: str | Path, out: str | Path, camera: Camera 
             predictor.check_frame_size(info.size, video)
         cam = _video_camera(predictor, camera, video, info, ego, progress)
         mode = within_rule(predictor, within, cam)
+        bev_run = _bev_run(bev, cam, within, video)
+        model_vps, mode = mode != "none", _vp_mode(mode, bev_run)  # (--bev: the VPs its poses need)
         given = None
         if mode not in ("estimate", "none"):
             given = read_vp_csv(mode)
@@ -178,7 +183,7 @@ def predict_video(predictor, video: str | Path, out: str | Path, camera: Camera 
         pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="vp") if vps is not None and vp_ahead else None
         sink = frames = None
         try:
-            sink = _FrameSink(fp, out, video.stem, info, mask_video, overlay, progress)
+            sink = _FrameSink(fp, out, video.stem, info, mask_video, overlay, progress, bev_run, model_vps)
             # decoded on a thread of its own, DEPTH frames ahead (vctrain.predict.pipeline)
             frames = Prefetch(read_frames(cap, info, lambda msg: tqdm.write(msg, file=sys.stderr)), DEPTH)
             _stream(frames, sink, vps, given, mode, pool.submit if pool is not None else _now, vp_ahead)
@@ -195,6 +200,21 @@ def predict_video(predictor, video: str | Path, out: str | Path, camera: Camera 
                 pool.shutdown(wait=True, cancel_futures=True)
     finally:
         cap.release()
+
+
+def _bev_run(bev, cam: Camera | None, within: str, video: Path):
+    """``--bev``'s :class:`~vctrain.predict.bev.BevRun` for the video (None without ``bev``)."""
+    if bev is None:
+        return None
+    from .bev import BevRun
+
+    return BevRun(bev, cam, within, video)
+
+
+def _vp_mode(mode: str, bev_run) -> str:
+    """Which VPs the frames are streamed with: the model's (``mode``), or ``--bev``'s where the
+    model takes none."""
+    return mode if bev_run is None or mode != "none" else bev_run.rule
 
 
 def _video_camera(predictor, camera: Camera | None, video: Path, info: VideoInfo, ego: str,
@@ -249,10 +269,11 @@ class _FrameSink:
     written of a frame is written on the :class:`~vctrain.predict.pipeline.Writer`'s thread, in order."""
 
     def __init__(self, fp: FramePredictor, out: Path, stem: str, info: VideoInfo, mask_video: bool,
-                 overlay: bool, progress: bool):
+                 overlay: bool, progress: bool, bev=None, model_vps: bool = True):
         from .predictor import write_prediction
 
         self.fp, self.stem, self.frame_dir, self._write_prediction = fp, stem, out / stem, write_prediction
+        self.bev, self.model_vps, self.source = bev, model_vps, info.path  # (model_vps: the model takes the VPs)
         self.outs: list[_VideoOut] = []
         self.written: list[Path] = []
         self.mv = self.ov = None
@@ -270,34 +291,37 @@ class _FrameSink:
         self.order: list[int] = []
         self.writer = Writer(DEPTH)
 
-    def emit(self, i: int, vp) -> None:
+    def emit(self, i: int, vp, status: str | None = None) -> None:
         """Predict held frame ``i`` with ``vp`` and hand it to the writer (an undecodable frame: the
         videos repeat their last frame)."""
         frame = self.held.pop(i)
-        prob = None if frame is None else self.fp.predict(frame, vp)
-        self.writer.submit(self._write, i, frame, prob, vp)
+        prob = None if frame is None else self.fp.predict(frame, vp if self.model_vps else None)
+        self.writer.submit(self._write, i, frame, prob, vp, status)
 
-    def _write(self, i: int, frame: np.ndarray | None, prob: np.ndarray | None, vp) -> None:
+    def _write(self, i: int, frame: np.ndarray | None, prob: np.ndarray | None, vp, status: str | None = None) -> None:
         """Frame ``i``'s outputs (on the writer's thread)."""
         if frame is None:
             for o in self.outs:
                 o.write(None)
         else:
+            inset = None if self.bev is None else self.bev.write(self.frame_dir, f"{self.stem}_{i:06d}", prob,
+                                                                 self.source, vp, status, frame=i)
             if self.mv is None:
                 self.written.append(self._write_prediction(self.frame_dir, f"{self.stem}_{i:06d}", prob)[0])
             mask = np.where(prob >= 0.5, 255, 0).astype(np.uint8)
             if self.mv is not None:
                 self.mv.write(cv2.cvtColor(mask, cv2.COLOR_GRAY2BGR))
             if self.ov is not None:
-                self.ov.write(draw_overlay(frame, mask, self.fp.camera, vp))
+                shown = draw_overlay(frame, mask, self.fp.camera, vp)
+                self.ov.write(inset(shown) if inset is not None else shown)
         self.bar.update(1)
 
     def release(self, final: list[tuple[int, object]]) -> None:
         """Predict, in order, every held frame up to the last whose VP is final."""
-        done = {i: r.vp for i, r in final}
+        done = dict(final)
         while self.order and (self.held[self.order[0]] is None or self.order[0] in done):
             i = self.order.pop(0)
-            self.emit(i, done.get(i))
+            self.emit(i, *((done[i].vp, done[i].status) if i in done else (None,)))
 
     def close(self) -> list[Path]:
         """Finish the writes and the videos; the paths written (mask PNGs or mask video, then the
