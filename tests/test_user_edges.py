@@ -2,6 +2,7 @@
 another folder, the shipped model named from another folder, and a mistyped name from a table."""
 from __future__ import annotations
 
+import os
 import subprocess
 from pathlib import Path
 
@@ -14,7 +15,10 @@ SHIPPED = ROOT / "models" / "road-multicamera" / "road.pt"
 
 
 def _make_n(cwd: Path, *args: str) -> subprocess.CompletedProcess:
-    return subprocess.run(["make", "-n", *args, "demo"], capture_output=True, text=True, cwd=cwd, timeout=60)
+    """``make -n ... demo`` as a user types it: not a sub-make of ``make test`` (whose MAKELEVEL would
+    add 'Entering directory' lines naming the folder)."""
+    env = {k: v for k, v in os.environ.items() if k not in ("MAKELEVEL", "MAKEFLAGS", "MFLAGS")}
+    return subprocess.run(["make", "-n", *args, "demo"], capture_output=True, text=True, cwd=cwd, timeout=60, env=env)
 
 
 def test_make_demo_runs_from_another_folder(tmp_path):

@@ -58,7 +58,7 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
                    progress: bool = True, vp_range: Optional[tuple[float, float]] = None,
                    vp_smooth: Optional[int] = None, vp_sequences: Optional[str] = None,
                    say: Optional[Callable[[str], None]] = None, beyond: Optional[str] = None,
-                   engine: str = "auto", bev: Any = None) -> Predicted:
+                   engine: str | None = None, bev: Any = None) -> Predicted:
     """``vctrain predict``: ``checkpoint`` (a ``.pt`` model or an ``.onnx`` graph; with ``prior``
     it is the first image) on ``images`` (files, folders, videos) or every item of ``store``.
     ``camera_for`` (None: no --camera) gives the frames' camera. ``vp_range`` (pan, tilt degrees),
@@ -210,9 +210,9 @@ def _source(predictor, prior: Optional[Path]) -> str:
     return source
 
 
-def _predictor(checkpoint: Optional[Path], prior: Optional[Path], device: str, engine: str = "torch"):
+def _predictor(checkpoint: Optional[Path], prior: Optional[Path], device: str, engine: str | None = None):
     """The prior's predictor (``prior`` given), an exported graph's (``.onnx``) or the checkpoint's
-    model on ``device`` through ``engine``."""
+    model on ``device`` through ``engine`` (None: torch for a checkpoint, onnxruntime for a graph)."""
     if prior is None and checkpoint.suffix.lower() == ".onnx":
         from ..deploy.runtime import OnnxPredictor
 
@@ -226,7 +226,7 @@ def _predictor(checkpoint: Optional[Path], prior: Optional[Path], device: str, e
         return PriorPredictor(prior)
     from .predictor import Predictor
 
-    return Predictor(checkpoint, device, engine)
+    return Predictor(checkpoint, device, engine or "torch")
 
 
 def _engine_used(predictor) -> str:
