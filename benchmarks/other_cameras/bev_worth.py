@@ -29,9 +29,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
-from benchmarks.measure.data import BIN, DATA, KITTI, ROOT, require_data, run
+from benchmarks.measure.data import BIN, DATA, KITTI, ROOT, run
 from benchmarks.measure.report import machine, results_dir, today, write_json
-from benchmarks.other_cameras.camera_error import SETS as CALIBRATED, ensure_models, quick_links
+from benchmarks.other_cameras.camera_error import SETS as CALIBRATED, ensure_models, quick_links, run_main
 
 SETS = {  # name: (camera, images, labels, label format)
     "camvid_val": ("camvid", DATA / "val", DATA / "valannot", "camvid"),
@@ -109,17 +109,7 @@ def report(a: argparse.Namespace, cells: dict, seeds: list[int]) -> dict:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--seeds", default="0,1,2")
-    ap.add_argument("--sets", default=",".join(SETS))
-    ap.add_argument("--workdir", type=Path, default=ROOT / "benchmarks" / "out" / "user_route")
-    ap.add_argument("--quick", action="store_true", help="6 frames a set (the models must exist)")
-    a = ap.parse_args()
-    sets = [s for s in a.sets.split(",") if s]
-    require_data(*(SETS[s][1] for s in sets))
-    seeds = [int(s) for s in a.seeds.split(",") if s.strip()]
-    cells = measure(a.workdir, seeds, sets, a.quick)
-    print(json.dumps(report(a, cells, seeds)))
+    run_main(__doc__, SETS, measure, report)
 
 
 if __name__ == "__main__":

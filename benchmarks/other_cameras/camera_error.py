@@ -192,18 +192,25 @@ def report(a: argparse.Namespace, cells: dict, seeds: list[int]) -> dict:
     return head
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def run_main(doc: str, sets_table: dict, measure_fn, report_fn) -> None:
+    """The command line both route benchmarks share (this one and bev_worth.py): --seeds, --sets, --workdir,
+    --quick; ``measure_fn(workdir, seeds, sets, quick)`` -> cells, ``report_fn(args, cells, seeds)`` -> the
+    JSON summary, printed as the last line."""
+    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
     ap.add_argument("--seeds", default="0,1,2")
-    ap.add_argument("--sets", default=",".join(SETS))
+    ap.add_argument("--sets", default=",".join(sets_table))
     ap.add_argument("--workdir", type=Path, default=ROOT / "benchmarks" / "out" / "user_route")
     ap.add_argument("--quick", action="store_true", help="6 frames a set (the models must exist)")
     a = ap.parse_args()
     sets = [s for s in a.sets.split(",") if s]
-    require_data(*(SETS[s][1] for s in sets))
+    require_data(*(sets_table[s][1] for s in sets))
     seeds = [int(s) for s in a.seeds.split(",") if s.strip()]
-    cells = measure(a.workdir, seeds, sets, a.quick)
-    print(json.dumps(report(a, cells, seeds)))
+    cells = measure_fn(a.workdir, seeds, sets, a.quick)
+    print(json.dumps(report_fn(a, cells, seeds)))
+
+
+def main() -> None:
+    run_main(__doc__, SETS, measure, report)
 
 
 if __name__ == "__main__":
