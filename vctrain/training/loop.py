@@ -411,6 +411,16 @@ def _start_of_fine_tuning(cfg: TrainConfig, info: dict[str, Any], init: dict[str
     return row0
 
 
+def _record_start(row0: dict, history: list, master: bool, log_path: Path, out: Path, checkpoint) -> None:
+    """A fine-tuning's start as epoch 0: in the history and the log, and what --out and OUT.last.pt hold
+    (a rerun resumes from here) until trained weights beat it; ``checkpoint(epoch, row)`` builds the dict."""
+    history.append(row0)
+    if master:
+        _write_log(log_path, row0)
+        for path in (out, last_path(out)):
+            save_checkpoint(path, checkpoint(0, row0))
+
+
 def fit(cfg: TrainConfig) -> dict[str, Any]:
     """Train according to ``cfg``; returns a summary (best val IoU, timings, paths)."""
     request = request_of(cfg)  # the run as asked, before the defaults fill it (rerun.py)
@@ -453,11 +463,7 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
         if init is not None and start_epoch == 0 else None
     if row0 is not None:  # the starting weights are what --out holds unless the trained ones beat them
         best_iou, best_epoch = row0["val_iou"], 0
-        history.append(row0)
-        if master:
-            _write_log(log_path, row0)
-            for path in (out, last_path(out)):  # (OUT.last.pt: a rerun resumes from here)
-                save_checkpoint(path, checkpoint(0, row0))
+        _record_start(row0, history, master, log_path, out, checkpoint)
     seconds, images = 0.0, 0
     for epoch in range(start_epoch, cfg.epochs):
         loader = _epoch_loader(train_ds, cfg, epoch, rank, world, per_rank_batch)
