@@ -72,3 +72,21 @@ def test_the_suggestion_is_one_helper():
 
     assert one_of("rayz", ("extend", "rays", "hybrid")) == "did you mean 'rays'? use one of extend, rays, hybrid"
     assert one_of("zzz", ("a", "b"), "or a file") == "use one of a, b or a file"  # nothing close: the list alone
+
+
+def test_fine_tuning_starts_from_the_shipped_model_by_name(tmp_path):
+    """``fit --init shipped`` from another folder fine-tunes the shipped model (said before the first
+    epoch, with its file); the README's path from another folder is refused naming it, before training."""
+    from conftest import write_synthetic_dataset
+    from vcprep.camera import PRESETS
+
+    img, lab = write_synthetic_dataset(tmp_path / "d", PRESETS["camvid"].for_image_size((64, 48)), n=5)
+    data = ["--baseline", "resize", "--images", img, "--labels", lab, "--label-format", "camvid", "--size", "64x64",
+            "--batch-size", "4", "--epochs", "1", "--threads", "1"]
+    proc = run_cli("fit", *data, "--init", "shipped", "--out", "ft.pt", prog="vctrain", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert f"fine-tuning {SHIPPED}" in proc.stderr.split("epoch 1/1")[0] and (tmp_path / "ft.pt").is_file()
+    proc = run_cli("fit", *data, "--init", "models/road-multicamera/road.pt", "--out", "ft2.pt", prog="vctrain",
+                   cwd=tmp_path)
+    assert_one_error_line(proc, "checkpoint not found", str(SHIPPED), "shipped")
+    assert not (tmp_path / "ft2.pt").exists()

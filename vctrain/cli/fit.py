@@ -11,7 +11,7 @@ from vcprep.cliutil import check_data_folders, count, ensure_parent, err
 from vcprep.errors import InputError
 
 from ..training.config import TrainConfig
-from .common import LABEL_FORMAT_HELP, TRAIN, app, parse_size, path_or_json, pin_threads, threads_option
+from .common import LABEL_FORMAT_HELP, TRAIN, app, model_arg, parse_size, path_or_json, pin_threads, threads_option
 
 RECIPE_HELP = ("defaults of every setting below: 'cpu' (resfpn, AdamW, cosine, augmentation, full-height windows of "
                "4/9 of the width; 305 CamVid frames in about 3 min on 2 cores at the default store's 638x271), "
@@ -45,7 +45,8 @@ HELP = {  # the options whose help does not fit on their line
     "color_aug": "augment: brightness/contrast/gain jitter (cpu: 0.3)",
     "ray_channels": "two extra input channels: each pixel's ray angles beside and below the road VP, from the camera's "
                     "focal length",
-    "init": "fine-tune: start from this checkpoint's weights (same model, width, input channels and --baseline; "
+    "init": "fine-tune: start from this checkpoint's weights, or a shipped model's name from any folder: shipped "
+            "(= road-multicamera) (same model, width, input channels and --baseline; "
             "a resize model's working size unless --size); a fifth of the frames is held out (--val-split "
             "sequence), the start is scored on it before the first epoch and kept unless the trained model scores "
             "higher there",
@@ -182,8 +183,9 @@ def fit_cmd(
       vctrain fit stores/camvid_train_fine --crop 0.67 --out runs/vc_fine.pt
       vctrain fit stores/camvid_train --model lite0fpn --out runs/vc_lite0.pt   # ImageNet encoder
       vctrain fit stores/cam_a stores/cam_b stores/cam_c --recipe multicamera --baseline resize --out runs/road.pt
-      vctrain fit --baseline resize --images my/images --labels my/labels --label-format camvid --init models/road-multicamera/road.pt --out runs/mine_ft.pt
+      vctrain fit --baseline resize --images my/images --labels my/labels --label-format camvid --init shipped --out runs/mine_ft.pt
     """
+    init = model_arg(init)  # 'shipped' -> the shipped model's file; a missing file is refused naming it
     cfg = _fit_config(locals())  # (first: locals() are the options, each named as its TrainConfig field)
     from vcprep.cliutil import Interrupted
 
