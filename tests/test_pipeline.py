@@ -203,3 +203,21 @@ def test_int8_graph_agrees_with_the_float_graph_and_refuses_another_size(tmp_pat
     assert_one_error_line(run_cli("predict", tmp_path / "q.onnx", small, "--out", tmp_path / "s", prog="vctrain"),
                           "frame is 240x180 but the graph was exported for 480x360 frames",
                           "vctrain export", "--frame")
+
+
+def test_the_written_probabilities_and_masks_are_numpys_bit_for_bit():
+    """prob_u8 and road_mask (OpenCV's SIMD conversions, for speed) give exactly the defining numpy
+    expressions -- rint(prob x 255) clipped (half to even) and prob >= 0.5 -- on every rounding edge
+    k/255, (k + 0.5)/255 and 0.5, one float step either side of each, and random frames; negative
+    values (a bicubic resize's undershoot) and float64 take the numpy path."""
+    from vctrain.predict.written import prob_u8, road_mask
+
+    k = np.arange(256, dtype=np.float64)
+    edges = np.concatenate([(k + 0.5) / 255, k / 255, [0.5]]).astype(np.float32)
+    near = np.concatenate([np.nextafter(edges, np.float32(-1)), edges, np.nextafter(edges, np.float32(2))])
+    rng = np.random.default_rng(0)
+    cases = [np.clip(near, 0, 1).astype(np.float32).reshape(3, -1), rng.random((720, 1280), dtype=np.float32),
+             rng.random((37, 53)) * 1.2 - 0.1, (rng.random((40, 60), dtype=np.float32) - 0.05)]
+    for prob in cases:
+        assert np.array_equal(prob_u8(prob), np.clip(np.rint(prob * 255.0), 0, 255).astype(np.uint8))
+        assert np.array_equal(road_mask(prob), np.where(prob >= 0.5, 255, 0).astype(np.uint8))

@@ -12,8 +12,9 @@ from __future__ import annotations
 from .frames import FramePredictor, StageTimes, StreamingVPs
 from .inputs import predict_inputs
 from .predictor import Predictor, predict_frames, predict_images, warp_like_training
-from .road import run_road, write_prediction
+from .road import run_road
 from .video import ego_camera, predict_video
+from .written import write_prediction
 
 __all__ = ["FramePredictor", "StageTimes", "StreamingVPs", "predict_inputs", "Predictor", "predict_images",
            "predict_frames", "run_road", "warp_like_training", "write_prediction", "ego_camera", "predict_video"]

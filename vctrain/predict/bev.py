@@ -37,6 +37,8 @@ from vcprep.bev import CORRIDOR, KITTI_GRID, BevGrid, BevSource, GroundView, bev
 from vcprep.errors import InputError
 from vcprep.io import write_png
 
+from .written import prob_u8
+
 __all__ = ["BevOptions", "BevRun", "draw_inset", "BEV_NEEDS_CAMERA"]
 
 BEV_NEEDS_CAMERA = ("add --camera (a preset, a calibration file, or 'estimate' from these frames): its height and "
@@ -129,7 +131,7 @@ class BevRun:
         view = self.view(image, (prob.shape[1], prob.shape[0]), vp, status)
         maps = bev_maps(view, grid, image)
         mask = to_bev((prob >= 0.5).astype(np.uint8), maps, "label")
-        p8 = np.clip(np.rint(prob * 255.0), 0, 255).astype(np.uint8)  # the _prob.png's values
+        p8 = prob_u8(prob)  # the _prob.png's values
         (out / stem).parent.mkdir(parents=True, exist_ok=True)
         write_png(out / f"{stem}_bev_prob.png", to_bev(p8, maps, "prob"))
         write_png(out / f"{stem}_bev_mask.png", mask, kind="mask")

@@ -44,8 +44,8 @@ from ..networks.build import fold_batchnorm
 from ..training.loop import resolve_device
 from .bev import BevRun
 from .frames import DEFAULT_BEYOND, NEEDS_CAMERA, back_to_frame, extends, refuse_mixed, warps_frames
-from .road import (RoadRun, frames_canvas, geometry_line, model_vp_rule, out_dir, run_road, virtual_within,
-                   write_prediction)
+from .road import RoadRun, frames_canvas, geometry_line, model_vp_rule, out_dir, run_road, virtual_within
+from .written import write_prediction
 
 
 

@@ -36,17 +36,18 @@ from tqdm import tqdm
 from vcprep.camera import Camera, FrameCameras, camera_of_image
 from vcprep.dataset import Job, collect_images
 from vcprep.errors import InputError, VCError
-from vcprep.io import image_size, read_image, write_png
+from vcprep.io import image_size, read_image
 from vcprep.vp import frame_poses as poses_of
 from vcprep.warp import pose_from_vp
 
 from .frames import NEEDS_CAMERA, FramePredictor, extends, warps_frames
 from .pipeline import DEPTH, Prefetch, Writer
+from .written import write_prediction
 
 __all__ = ["own_vehicle", "ego_rows", "frames_ego_rows", "sources_ego_rows",
            "rows_at", "folder_ego_camera", "RoadRun", "skipped_lines", "within_rule", "virtual_within",
            "model_vp_rule", "frame_poses", "rectangle_views", "frames_canvas", "geometry_line", "run_road",
-           "write_prediction", "tint_road", "out_dir"]
+           "out_dir"]
 
 
 @dataclass
@@ -70,46 +71,6 @@ class RoadRun:
 def skipped_lines(failed: list[tuple[Path, VCError]]) -> list[str]:
     """One line per failed frame: 'skipped: <file>: <problem> (<fix>)'."""
     return [f"skipped: {e}" if e.file else f"skipped: {f}: {e}" for f, e in failed]
-
-
-def write_prediction(out: Path, stem: str, prob: np.ndarray, overlay_on: str | Path | np.ndarray | None = None,
-                     inset: Callable[[np.ndarray], np.ndarray] | None = None) -> tuple[Path, Path]:
-    """Write ``<stem>_prob.png`` (0-255) and ``<stem>_mask.png`` (0/255); with ``overlay_on``
-    (the original image, or its decoded array) also ``<stem>_overlay.png``: predicted road in green
-    over the image (:func:`tint_road`), ``inset`` (given: ``--bev``'s) drawn on it. A ``stem`` with
-    folders (a tree's frame, ``drive1/000123``) is written in those folders of ``out``."""
-    if "/" in stem:
-        (out / stem).parent.mkdir(parents=True, exist_ok=True)
-    p8 = np.clip(np.rint(prob * 255.0), 0, 255).astype(np.uint8)
-    mask = np.where(prob >= 0.5, 255, 0).astype(np.uint8)
-    pp, mp = out / f"{stem}_prob.png", out / f"{stem}_mask.png"
-    write_png(pp, p8)
-    write_png(mp, mask, kind="mask")
-    if overlay_on is not None:
-        frame = overlay_on if isinstance(overlay_on, np.ndarray) else read_image(overlay_on).array
-        shown = tint_road(frame, mask)
-        write_png(out / f"{stem}_overlay.png", inset(shown) if inset is not None else shown, level=3)
-    return mp, pp
-
-
-ROAD_GREEN, ROAD_ALPHA = (0, 255, 0), 0.45  # BGR; vcprep.figures.overlay_label's tint
-
-
-def tint_road(frame: np.ndarray, mask: np.ndarray) -> np.ndarray:
-    """``frame`` with the road of ``mask`` (> 0) tinted green: :func:`vcprep.figures.overlay_label`'s
-    numbers bit for bit (the same float64 expression, truncated, tabulated once per grey level) at
-    a fraction of its cost (a lookup table and a masked copy: ~1-2 ms for a 1280x720 frame against
-    ~12 ms), so an overlay costs less than the network."""
-    from vcprep.figures import to_bgr8
-
-    frame = to_bgr8(frame)
-    out = frame.copy()
-    cv2.copyTo(cv2.LUT(frame, _TINT), mask, out)
-    return out
-
-
-_TINT = ((1 - ROAD_ALPHA) * np.arange(256, dtype=np.float64)[:, None]
-         + ROAD_ALPHA * np.array(ROAD_GREEN)).astype(np.uint8).reshape(256, 1, 3)
 
 
 def out_dir(out: str | Path) -> Path:

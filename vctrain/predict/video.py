@@ -9,7 +9,7 @@ images) and writes, for ``drive.mp4`` into ``OUT``:
   video's order, undecodable frames included), as ``vctrain predict`` writes for images; or, with
   ``mask_video``, ``OUT/drive_mask.mkv`` instead: the masks (0/255) as a lossless FFV1 video;
 - with ``overlay``, ``OUT/drive_overlay.mp4`` (MPEG-4 Part 2, the input's frame rate and size):
-  every frame with the predicted road tinted green (:func:`vctrain.predict.road.tint_road`), the
+  every frame with the predicted road tinted green (:func:`vctrain.predict.written.tint_road`), the
   horizon of the frame's pose (cyan line) and its road vanishing point (red cross).
 
 The own vehicle (a virtual-camera model): a camera that states no ``ego_rows`` gets them from
@@ -47,7 +47,8 @@ from vcprep.warp import ground_to_image, pose_from_vp, vp_from_pose
 
 from .frames import NEEDS_CAMERA, FramePredictor, StageTimes, StreamingVPs, reads_road_vps, warps_frames
 from .pipeline import DEPTH, Prefetch, Writer
-from .road import ego_rows, model_vp_rule, own_vehicle, tint_road, within_rule
+from .road import ego_rows, model_vp_rule, own_vehicle, within_rule
+from .written import road_mask, tint_road
 
 __all__ = ["check_video_stems", "ego_camera", "predict_video", "draw_overlay", "horizon_segment"]
 
@@ -306,9 +307,9 @@ class _FrameSink:
         else:
             inset = None if self.bev is None else self.bev.write(self.frame_dir, f"{self.stem}_{i:06d}", prob,
                                                                  self.source, vp, status, frame=i)
+            mask = road_mask(prob)
             if self.mv is None:
-                self.written.append(self._write_prediction(self.frame_dir, f"{self.stem}_{i:06d}", prob)[0])
-            mask = np.where(prob >= 0.5, 255, 0).astype(np.uint8)
+                self.written.append(self._write_prediction(self.frame_dir, f"{self.stem}_{i:06d}", prob, mask=mask)[0])
             if self.mv is not None:
                 self.mv.write(cv2.cvtColor(mask, cv2.COLOR_GRAY2BGR))
             if self.ov is not None:
