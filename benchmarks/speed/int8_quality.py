@@ -5,7 +5,8 @@ model itself (issue 69; run by ``benchmarks/speed/predict_e2e.py --quality`` or 
 
 Splits (never trained on: models/road-multicamera/README.md): CamVid val (101 frames, 480x360),
 the KITTI road frame (1242x375), Cityscapes cs_25xx-cs_29xx (43 frames, 256x256), LUMS captures 1-79
-(640x640). Per split: road.pt through PyTorch (the model card's route), its float graph and its int8
+(640x640), BDD100K sources 0a3*/0a4* (15 frames, 1280x720), IDD-Lite's held-out drives (drive % 7 ==
+3: 170 frames, 320x227). Per split: road.pt through PyTorch (the model card's route), its float graph and its int8
 graph (``vctrain export --size WxH [--int8]``, int8 calibrated on the shipped examples, never on the
 split) at the split's frame size; road IoU = sum TP / sum (TP + FP + FN) over the split, ignore
 excluded (``vctrain eval``), and the share of pixels whose mask the int8 graph shares with the float
@@ -28,6 +29,7 @@ from benchmarks.measure.data import CS_FORMAT, DATA, KITTI, LUMS_FORMAT, SHARED_
 from benchmarks.measure.report import machine, results_dir, today, write_json  # noqa: E402
 
 MODEL = Path(__file__).resolve().parents[2] / "models" / "road-multicamera" / "road.pt"
+BDD_HELD = ("0a3", "0a4")  # the shipped model's held-out BDD100K sources (models/road-multicamera/README.md)
 
 
 def splits() -> list[tuple[str, list[Path], Path, str]]:
@@ -39,7 +41,29 @@ def splits() -> list[tuple[str, list[Path], Path, str]]:
             cs / "labels", CS_FORMAT)]
     lums_held = [p for p in sorted((lums / "images").glob("*")) if _capture(p) is not None and 1 <= _capture(p) <= 79]
     out.append(("lums", lums_held, lums / "labels", LUMS_FORMAT))
+    bdd = SHARED_DATA / "bdd100k_drivable"
+    out.append(("bdd", sorted(p for p in (bdd / "images").glob("*.jpg") if p.name.startswith(BDD_HELD)),
+                bdd / "labels", "bdd"))
+    out.append(("idd", [im for im, _, _ in idd_held()], None, "idd"))
     return [s for s in out if s[1]]
+
+
+def idd_held() -> list[tuple[Path, Path, str]]:
+    """IDD-Lite's held-out drives (drive % 7 == 3: 45 drives, 170 frames): (image, label, flat name
+    '<drive>_<frame>'), the frames' names being unique only within a drive."""
+    from benchmarks.what_a_user_gets.own_frames import _idd
+
+    return _idd()[1]
+
+
+def _idd_labels(wd: Path) -> Path:
+    """A flat folder of links to the held-out IDD-Lite labels under the images' flat names."""
+    folder = wd / "idd" / "labels"
+    folder.mkdir(parents=True, exist_ok=True)
+    for _, lab, name in idd_held():
+        if not (folder / f"{name}_label.png").exists():
+            (folder / f"{name}_label.png").symlink_to(lab)
+    return folder
 
 
 def _capture(p: Path) -> int | None:
@@ -61,9 +85,12 @@ def split_quality(name: str, files: list[Path], labels: Path, fmt: str, wd: Path
     files = [f for f in files if image_size(f) == size]  # a graph takes one size
     folder = wd / name / "images"
     folder.mkdir(parents=True, exist_ok=True)
+    flat = {im: f"{n}_image.jpg" for im, _, n in idd_held()} if name == "idd" else {}
     for f in files:
-        if not (folder / f.name).exists():
-            (folder / f.name).symlink_to(f)
+        if not (folder / flat.get(f, f.name)).exists():
+            (folder / flat.get(f, f.name)).symlink_to(f)
+    files = [folder / flat.get(f, f.name) for f in files]
+    labels = _idd_labels(wd) if labels is None else labels
     row = {"frames": len(files), "size": list(size)}
     graphs = {"float_graph": wd / name / "float.onnx", "int8_graph": wd / name / "int8.onnx"}
     export_onnx(MODEL, None, graphs["float_graph"], size=size)
