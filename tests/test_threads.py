@@ -78,7 +78,10 @@ def test_use_threads_pins_torch_opencv_and_onnxruntime():
         model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)])
         model.ir_version = 8
         sess = _session(ort, model.SerializeToString())
-        assert sess.get_session_options().intra_op_num_threads == 3
+        opts = sess.get_session_options()
+        assert opts.intra_op_num_threads == 3
+        # workers sleep between runs: predict's decoding and writing threads get the cores (issue 69)
+        assert opts.get_session_config_entry("session.intra_op.allow_spinning") == "0"
     finally:
         torch.set_num_threads(before[0])
         cv2.setNumThreads(before[1])

@@ -34,11 +34,17 @@ def vp_from_cam(camera: Camera) -> tuple[float, float]:
 
 
 def _session(ort, model, threads: int = 0):
+    """An onnxruntime CPU session of ``model`` (a path or the graph's bytes) at ``threads`` (0: what
+    --threads set, :mod:`vctrain.threads`). Its worker threads sleep between runs instead of spinning:
+    a spinning worker holds a core that ``vctrain predict``'s decoding and writing threads need (on 2
+    cores, a 1280x720 video with overlay through the int8 graph: 29 frames/s against 24 spinning,
+    benchmarks/speed/predict_e2e.py); the numbers are the same either way."""
     from ..threads import threads_in_use
 
     so = ort.SessionOptions()
     so.intra_op_num_threads = threads or threads_in_use()  # what --threads set (vctrain.threads)
     so.log_severity_level = 3
+    so.add_session_config_entry("session.intra_op.allow_spinning", "0")
     return ort.InferenceSession(model, so, providers=["CPUExecutionProvider"])
 
 
