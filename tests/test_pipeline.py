@@ -148,23 +148,25 @@ def test_a_failing_write_ends_the_run_with_its_error_and_no_partial_video(drive,
 
 # -- the engine -------------------------------------------------------------------------------------
 
-def test_onnx_engine_gives_pytorchs_masks_and_both_are_recorded(tmp_path):
-    """--engine onnx (the network exported in memory) against --engine torch on the CamVid examples:
-    P(road) within float rounding, the masks identical; each run says its engine in predict.json and
-    on stderr."""
-    pytest.importorskip("onnxruntime")
+@pytest.mark.parametrize("engine,said", [("onnx", "onnxruntime "), ("openvino", "OpenVINO ")])
+def test_exported_engines_give_pytorchs_masks_and_both_are_recorded(engine, said, tmp_path):
+    """--engine onnx / openvino (the network exported in memory) against --engine torch on the CamVid
+    examples: P(road) within float rounding, the masks identical; each run says its engine in
+    predict.json and on stderr."""
+    pytest.importorskip("onnxruntime" if engine == "onnx" else "openvino")
     runs = {}
-    for engine in ("torch", "onnx"):
+    for engine in ("torch", engine):
         r = run_cli("predict", SHIPPED, EXAMPLES, "--out", tmp_path / engine, "--engine", engine, "--threads", "1",
                     prog="vctrain")
         assert r.returncode == 0, r.stderr
         runs[engine] = json.loads((tmp_path / engine / "predict.json").read_text())["engine"]
         assert runs[engine] in r.stderr
-    assert runs["torch"].startswith("PyTorch ") and runs["onnx"].startswith("onnxruntime ")
+    assert runs["torch"].startswith("PyTorch ") and runs[engine].startswith(said)
+    assert "exported in memory" in runs[engine]
     for f in sorted(EXAMPLES.iterdir()):
-        a, b = (read_image(tmp_path / e / f"{f.stem}_mask.png").array for e in ("torch", "onnx"))
+        a, b = (read_image(tmp_path / e / f"{f.stem}_mask.png").array for e in ("torch", engine))
         assert np.array_equal(a, b), f.name
-        pa, pb = (read_image(tmp_path / e / f"{f.stem}_prob.png").array.astype(int) for e in ("torch", "onnx"))
+        pa, pb = (read_image(tmp_path / e / f"{f.stem}_prob.png").array.astype(int) for e in ("torch", engine))
         assert np.abs(pa - pb).max() <= 1  # 0-255: a rounding step at most
     assert_one_error_line(run_cli("predict", SHIPPED, EXAMPLES, "--out", tmp_path / "x", "--engine", "tensorrt",
                                   prog="vctrain"), "unknown --engine 'tensorrt'")
@@ -221,3 +223,28 @@ def test_the_written_probabilities_and_masks_are_numpys_bit_for_bit():
     for prob in cases:
         assert np.array_equal(prob_u8(prob), np.clip(np.rint(prob * 255.0), 0, 255).astype(np.uint8))
         assert np.array_equal(road_mask(prob), np.where(prob >= 0.5, 255, 0).astype(np.uint8))
+
+
+def test_a_graph_runs_in_openvino_with_onnxruntimes_masks(tmp_path):
+    """The shipped model's 480x360 graph in OpenVINO (the default where installed: the faster runtime)
+    and in onnxruntime (--engine onnx): P(road) within float rounding and the masks identical on the
+    examples (OpenVINO in float32, not the bf16 it would pick on a CPU with bf16 units); predict says
+    which ran; --engine torch on a graph is refused."""
+    pytest.importorskip("openvino")
+    pytest.importorskip("onnxruntime")
+    from vctrain.deploy import OnnxPredictor, export_onnx
+
+    export_onnx(SHIPPED, None, tmp_path / "f.onnx", size=(480, 360))
+    ov, ort = (OnnxPredictor(tmp_path / "f.onnx", threads=1, runtime=r) for r in ("openvino", "onnxruntime"))
+    assert OnnxPredictor(tmp_path / "f.onnx", threads=1).runtime == "openvino"
+    for img in (read_image(p).array for p in sorted(EXAMPLES.iterdir())):
+        a, b = ov.road_probability(img), ort.road_probability(img)
+        assert a.dtype == b.dtype == np.float32 and np.abs(a - b).max() < 1e-4
+        assert np.array_equal(a >= 0.5, b >= 0.5)
+    for engine, said in ((None, "OpenVINO "), ("onnx", "onnxruntime ")):
+        r = run_cli("predict", tmp_path / "f.onnx", EXAMPLES, "--out", tmp_path / str(engine), "--threads", "1",
+                    *(["--engine", engine] if engine else []), prog="vctrain")
+        assert r.returncode == 0, r.stderr
+        assert json.loads((tmp_path / str(engine) / "predict.json").read_text())["engine"].startswith(said)
+    assert_one_error_line(run_cli("predict", tmp_path / "f.onnx", EXAMPLES, "--out", tmp_path / "t", "--engine",
+                                  "torch", prog="vctrain"), "not PyTorch")

@@ -39,11 +39,12 @@ def predict_cmd(
     store: Optional[Path] = typer.Option(None, "--store", help="predict every item of this store instead of IMAGES"),
     device: str = typer.Option("auto", "--device", help="auto, cpu, cuda, cuda:N"),
     engine: Optional[str] = typer.Option(None, "--engine", help="what runs a .pt model's network: torch (the default: "
-                                                         "the engine studies score, a study's masks bit for bit), onnx (the "
-                                                         "same network exported in memory, in onnxruntime: faster on a "
-                                                         "CPU, P(road) within 3e-6 of torch's, so a pixel at P = 0.5 can "
-                                                         "differ) or auto (onnx where installed); said on stderr and "
-                                                         "recorded in OUT/predict.json"),
+                                                         "the engine studies score, a study's masks bit for bit), onnx / "
+                                                         "openvino (the same network exported in memory, in onnxruntime / "
+                                                         "OpenVINO: faster on a CPU, P(road) within 3e-6 of torch's, so a "
+                                                         "pixel at P = 0.5 can differ) or auto (openvino, else onnx, where "
+                                                         "installed); a graph (.onnx) runs in openvino or onnx (default: "
+                                                         "auto); said on stderr and recorded in OUT/predict.json"),
     keep_store: Optional[Path] = typer.Option(None, "--keep-store", help="keep the warped images in this store"),
     within: str = typer.Option("auto", "--within", help="per-image VP correction: auto (as the model was trained), "
                                                          "estimate, a CSV id,u,v, or none; with --bev also the "

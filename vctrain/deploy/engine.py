@@ -1,12 +1,13 @@
 """Which engine runs a checkpoint's network in ``vctrain predict`` (``--engine``): PyTorch, or the
-same network exported in memory to ONNX and run in onnxruntime.
+same network exported in memory to ONNX and run in onnxruntime (``onnx``) or OpenVINO (``openvino``).
 
-``auto`` takes onnxruntime where it is installed (the ``deploy`` extra) and the model runs on the
-CPU: the same network is faster there than PyTorch's (the shipped lite0fpn at 480x360, two threads:
-22.6 against 33.1 ms on a quiet machine; on a loaded one PyTorch's OpenMP threads wait at every
-operator and the gap grows many times: benchmarks/speed/predict_e2e.py), and its P(road) differs
-from PyTorch's by float rounding only (max |dP| ~3e-6; the masks, P >= 0.5, identical on the
-examples: tests/test_pipeline.py). OpenVINO was not tried: docs/predict-eval.md#engines.
+``auto`` takes OpenVINO, else onnxruntime, where installed (the ``deploy`` extra) and the model runs
+on the CPU: the same network is faster there than PyTorch's (the shipped lite0fpn at 480x360, two
+threads, a quiet machine: OpenVINO 12.9 ms, onnxruntime 21.0, PyTorch 37.3; the README's video
+command on a 1280x720 video with overlay 38.7, 31.2 and 20.0 frames/s: benchmarks/speed/predict_e2e.py;
+on a loaded machine PyTorch's OpenMP threads wait at every operator and the gap grows), and its P(road) differs from
+PyTorch's by float rounding only (max |dP| ~3e-6; the masks, P >= 0.5, identical on the examples:
+tests/test_pipeline.py). The default stays torch: what studies score, bit for bit.
 
 :class:`OnnxNetwork` exports the network (BN folded, what :class:`vctrain.predict.Predictor` holds)
 once per input shape (the EfficientNet encoders pad by the input size, so a graph is traced for
@@ -26,11 +27,12 @@ from torch import nn
 
 from vcprep.errors import InputError
 
-from .runtime import _session, require
+from .runtime import compiled, installed, require, runtime_name
 
 __all__ = ["ENGINES", "OPSET", "OnnxNetwork", "choose_engine", "engine_name", "trace_onnx"]
 
-ENGINES = ("auto", "torch", "onnx")
+ENGINES = ("auto", "torch", "onnx", "openvino")
+RUNTIME = {"onnx": "onnxruntime", "openvino": "openvino"}  # an exported engine -> the runtime it runs in
 OPSET = 17  # the ONNX opset of every graph vcseg writes
 
 
@@ -61,55 +63,53 @@ def trace_onnx(module: nn.Module, args: tuple, inputs: list[str], outputs: list[
 
 
 def choose_engine(engine: str, device: str) -> str:
-    """'torch' or 'onnx' for ``--engine`` ``engine`` on ``device`` (a torch device string):
-    ``auto`` is onnx on the CPU where onnxruntime is installed, else torch."""
+    """'torch', 'onnx' or 'openvino' for ``--engine`` ``engine`` on ``device`` (a torch device string):
+    ``auto`` is openvino on the CPU where it is installed, else onnx where onnxruntime is, else torch."""
     if engine not in ENGINES:
         raise InputError(f"unknown --engine '{engine}'", None, f"use one of {', '.join(ENGINES)}")
-    if engine == "onnx":
-        require("onnxruntime")
+    if engine in RUNTIME:
+        require(RUNTIME[engine])
         if device != "cpu":
-            raise InputError(f"--engine onnx runs on the CPU, not {device}", None, "drop --device, or use --engine torch")
-        return "onnx"
+            raise InputError(f"--engine {engine} runs on the CPU, not {device}", None,
+                             "drop --device, or use --engine torch")
+        return engine
     if engine == "torch" or device != "cpu":
         return "torch"
-    try:
-        import onnxruntime  # noqa: F401
-    except ImportError:
-        return "torch"
-    return "onnx"
+    return next((e for e in ("openvino", "onnx") if installed(RUNTIME[e])), "torch")
 
 
 def engine_name(engine: str) -> str:
-    """'PyTorch 2.13.0' / 'onnxruntime 1.32.0': the engine and its version, as stderr and
-    predict.json say it."""
-    if engine == "onnx":
-        return f"onnxruntime {require('onnxruntime').__version__}"
+    """'PyTorch 2.13.0' / 'onnxruntime 1.32.0' / 'OpenVINO 2026.4.1': the engine and its version, as
+    stderr and predict.json say it."""
+    if engine in RUNTIME:
+        return runtime_name(RUNTIME[engine])
     return f"PyTorch {torch.__version__.split('+')[0]}"
 
 
 class OnnxNetwork:
-    """``model`` (eval mode) exported to ONNX per input shape and run in onnxruntime: (1, C, h, w)
-    float32 in, logits (1, K, h, w) float32 out, as ``model(x)``. ``say`` (given) hears the first
-    export's time."""
+    """``model`` (eval mode) exported to ONNX per input shape and run in ``engine``'s runtime ('onnx':
+    onnxruntime, 'openvino'): (1, C, h, w) float32 in, logits (1, K, h, w) float32 out, as
+    ``model(x)``. ``say`` (given) hears the first export's time."""
 
-    def __init__(self, model: nn.Module, say: Callable[[str], None] | None = None):
+    def __init__(self, model: nn.Module, say: Callable[[str], None] | None = None, engine: str = "onnx"):
         self.model = model
         self.say = say
+        self.runtime = RUNTIME[engine]
         self._sessions: dict[tuple[int, ...], object] = {}
         self.export_seconds = 0.0
 
     def session(self, shape: tuple[int, ...]):
-        """The onnxruntime session for inputs of ``shape`` (exported on first use)."""
+        """The compiled network for inputs of ``shape`` (exported on first use): feeds -> outputs."""
         s = self._sessions.get(shape)
         if s is None:
             t0 = time.perf_counter()
             x = torch.zeros(shape, dtype=torch.float32)
             with torch.no_grad():
                 graph = trace_onnx(self.model, (x,), ["x"], ["logits"])
-            s = self._sessions[shape] = _session(require("onnxruntime"), graph)
+            s = self._sessions[shape] = compiled(graph, self.runtime)
             self.export_seconds += time.perf_counter() - t0
         return s
 
     def __call__(self, x: np.ndarray) -> np.ndarray:
         x = np.ascontiguousarray(x, dtype=np.float32)
-        return self.session(tuple(x.shape)).run(None, {"x": x})[0]
+        return self.session(tuple(x.shape))({"x": x})[0]

@@ -1,22 +1,32 @@
-"""Running an exported road graph (:mod:`vctrain.deploy.export`) in onnxruntime: :class:`OnnxPredictor`
-(frame [+ VP] -> P(road)); ``vctrain predict GRAPH.onnx`` runs it on the one road for a frame
-(:mod:`vctrain.predict.road`).
-onnx / onnxruntime are optional (``pip install 'vcseg[deploy]'``) and imported only by
+"""Running an exported road graph (:mod:`vctrain.deploy.export`): :class:`OnnxPredictor` (frame [+ VP]
+-> P(road)) in OpenVINO or onnxruntime (:data:`RUNTIMES`, :func:`compiled`); ``vctrain predict
+GRAPH.onnx`` runs it on the one road for a frame (:mod:`vctrain.predict.road`).
+
+OpenVINO is the default where it is installed (``--engine auto``; ``--engine onnx`` for onnxruntime):
+on this project's 2-core CPU the shipped model's 1280x720 int8 graph ran the README's video command
+(overlay included) at 38.9 frames/s against onnxruntime's 30.5, the float graph at 27.6 against 25.5
+(benchmarks/speed/predict_e2e.py, a quiet machine, one run). It runs every graph in float32
+(``INFERENCE_PRECISION_HINT``: on a CPU with bf16 units it would otherwise compute in bf16, which
+moves masks), so its P(road) is onnxruntime's to float rounding (tests/test_pipeline.py).
+onnx / onnxruntime / openvino are optional (``pip install 'vcseg[deploy]'``) and imported only by
 :func:`require`."""
 from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
 from vcprep.camera import Camera, camera_from_dict
 from vcprep.errors import InputError
 
-__all__ = ["GRAPH_FORMAT", "OnnxPredictor", "require", "vp_from_cam"]
+__all__ = ["GRAPH_FORMAT", "RUNTIMES", "OnnxPredictor", "compiled", "graph_runtime", "require", "runtime_name",
+           "vp_from_cam"]
 
 GRAPH_FORMAT = "vcseg-road-graph"
 DEPLOY_FIX = "pip install 'vcseg[deploy]'"
+RUNTIMES = ("openvino", "onnxruntime")  # what runs an ONNX graph, the fastest first (module docstring)
 
 
 def require(module: str):
@@ -25,6 +35,56 @@ def require(module: str):
         return __import__(module)
     except ImportError:
         raise InputError(f"{module} is not installed (needed to export or run ONNX graphs)", None, DEPLOY_FIX) from None
+
+
+def installed(module: str) -> bool:
+    try:
+        __import__(module)
+    except ImportError:
+        return False
+    return True
+
+
+def graph_runtime(engine: str | None) -> str:
+    """The runtime a graph runs in for ``--engine`` ``engine``: 'openvino' or 'onnxruntime' (``onnx``);
+    None or 'auto': the fastest installed (:data:`RUNTIMES`); 'torch' is refused (a graph is ONNX)."""
+    if engine in ("onnx", "onnxruntime"):
+        return "onnxruntime"
+    if engine == "openvino":
+        return "openvino"
+    if engine not in (None, "auto"):
+        raise InputError(f"an exported graph runs in OpenVINO or onnxruntime, not {engine}", None,
+                         "give --engine openvino, onnx or auto, or the .pt model")
+    return next((r for r in RUNTIMES if installed(r)), "onnxruntime")
+
+
+def runtime_name(runtime: str) -> str:
+    """'OpenVINO 2026.4.1' / 'onnxruntime 1.32.0': the runtime and its version, as stderr and
+    predict.json say it."""
+    if runtime == "openvino":
+        return f"OpenVINO {require('openvino').__version__.split('-')[0]}"
+    return f"onnxruntime {require('onnxruntime').__version__}"
+
+
+def compiled(model: str | bytes, runtime: str, threads: int = 0) -> Callable[[dict], list[np.ndarray]]:
+    """``model`` (an ONNX file's path or its bytes) compiled for the CPU in ``runtime`` at ``threads``
+    (0: what --threads set): a call feeds -> the outputs (arrays owned by the caller, in order)."""
+    from ..threads import threads_in_use
+
+    threads = threads or threads_in_use()
+    if runtime == "onnxruntime":
+        session = _session(require("onnxruntime"), model, threads)
+        return lambda feeds: session.run(None, feeds)
+    ov = require("openvino")
+    core = ov.Core()
+    net = core.compile_model(core.read_model(model), "CPU", {
+        "INFERENCE_NUM_THREADS": threads, "PERFORMANCE_HINT": "LATENCY", "INFERENCE_PRECISION_HINT": "f32"})
+    request, outputs = net.create_infer_request(), list(net.outputs)
+
+    def run(feeds: dict) -> list[np.ndarray]:
+        res = request.infer(feeds)  # (copies: the request's buffers are reused by the next call)
+        return [res[o] for o in outputs]
+    return run
 
 
 def vp_from_cam(camera: Camera) -> tuple[float, float]:
@@ -48,27 +108,39 @@ def _session(ort, model, threads: int = 0):
     return ort.InferenceSession(model, so, providers=["CPUExecutionProvider"])
 
 
+def _graph_info(path: Path) -> dict:
+    """The ``vcseg`` metadata of an ONNX file ({} when it has none); a file that is not ONNX is refused."""
+    onnx = require("onnx")
+    try:
+        model = onnx.load(str(path), load_external_data=False)
+    except Exception as e:  # protobuf's DecodeError and friends for a foreign or corrupt file
+        raise InputError(f"cannot load ONNX graph ({str(e).splitlines()[0][:120] if str(e) else type(e).__name__})",
+                         path, "give the .onnx file written by 'vctrain export'") from None
+    meta = {p.key: p.value for p in model.metadata_props}.get("vcseg")
+    return json.loads(meta) if meta else {}
+
+
 class OnnxPredictor:
-    """An exported graph (``vctrain export``) run in onnxruntime: frame (+ VP) -> P(road). It takes
-    whole frames (``takes_frames``: the warp and back-projection are inside the graph)."""
+    """An exported graph (``vctrain export``) run in ``runtime`` (:data:`RUNTIMES`; None: the fastest
+    installed): frame (+ VP) -> P(road). It takes whole frames (``takes_frames``: the warp and
+    back-projection are inside the graph)."""
 
     takes_frames = True
 
-    def __init__(self, path: str | Path, threads: int = 0):
-        ort = require("onnxruntime")
+    def __init__(self, path: str | Path, threads: int = 0, runtime: str | None = None):
         self.path = Path(path)
         if not self.path.is_file():
             raise InputError("ONNX graph not found", self.path, "give the .onnx file written by 'vctrain export'")
-        try:
-            self.session = _session(ort, str(self.path), threads)
-        except Exception as e:  # onnxruntime raises its own types for foreign/corrupt files
-            raise InputError(f"cannot load ONNX graph ({str(e).splitlines()[0][:120]})", self.path,
-                             "give the .onnx file written by 'vctrain export'") from None
-        meta = self.session.get_modelmeta().custom_metadata_map.get("vcseg")
-        info = json.loads(meta) if meta else {}
+        self.runtime = graph_runtime(runtime)  # (None: the fastest installed)
+        info = _graph_info(self.path)
         if info.get("format") != GRAPH_FORMAT:
             raise InputError("not a graph written by 'vctrain export' (no vcseg metadata)", self.path,
                              "export the model with 'vctrain export'")
+        try:
+            self._call = compiled(str(self.path), self.runtime, threads)
+        except Exception as e:  # each runtime raises its own types for a graph it cannot run
+            raise InputError(f"cannot load ONNX graph in {self.runtime} ({str(e).splitlines()[0][:120]})", self.path,
+                             "give the .onnx file written by 'vctrain export'") from None
         self.info = info
         self.size = tuple(info["inputs"]["frame"][1][1::-1])  # (w, h)
         self.vp_input = "vp" in info["inputs"]
@@ -128,4 +200,4 @@ class OnnxPredictor:
         self.beyond += self.beyond_range(vp)
         if self.vp_input:
             feeds["vp"] = np.asarray(vp if vp is not None else vp_from_cam(self.camera), dtype=np.float32)
-        return self.session.run(None, feeds)[0]
+        return self._call(feeds)[0]

@@ -67,8 +67,9 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
     (given) hears which VPs, own vehicle and rectangle image files were warped with. ``beyond``
     (a virtual-camera model only): the rule for frame pixels outside its training rectangle
     (:data:`vctrain.predict.frames.BEYOND`; None: the default, extend). ``engine`` runs a ``.pt``
-    model's network (:data:`vctrain.deploy.engine.ENGINES`; 'auto': onnxruntime on the CPU where
-    installed); a graph runs in onnxruntime, the prior in numpy; the summary line says which,
+    model's network (:data:`vctrain.deploy.engine.ENGINES`; 'auto': OpenVINO, else onnxruntime, on the
+    CPU where installed) and a graph's (None or 'auto': the fastest installed; 'onnx', 'openvino');
+    the prior runs in numpy; the summary line says which,
     and ``predict.json`` records it. ``bev`` (given: :class:`vctrain.predict.bev.BevOptions`): every
     frame's bird's-eye view and road in metres too (it needs ``camera_for``, or a graph's own camera).
     Bad combinations raise :class:`InputError` before anything is predicted."""
@@ -212,14 +213,15 @@ def _source(predictor, prior: Optional[Path]) -> str:
 
 def _predictor(checkpoint: Optional[Path], prior: Optional[Path], device: str, engine: str | None = None):
     """The prior's predictor (``prior`` given), an exported graph's (``.onnx``) or the checkpoint's
-    model on ``device`` through ``engine`` (None: torch for a checkpoint, onnxruntime for a graph)."""
+    model on ``device`` through ``engine`` (None: torch for a checkpoint, the fastest runtime installed
+    for a graph)."""
     if prior is None and checkpoint.suffix.lower() == ".onnx":
         from ..deploy.runtime import OnnxPredictor
 
         if engine == "torch":
-            raise InputError("an exported graph runs in onnxruntime, not PyTorch", checkpoint,
+            raise InputError("an exported graph runs in OpenVINO or onnxruntime, not PyTorch", checkpoint,
                              "drop --engine torch, or give the .pt model")
-        return OnnxPredictor(checkpoint)
+        return OnnxPredictor(checkpoint, runtime=engine)
     if prior is not None:
         from ..adapt import PriorPredictor
 
@@ -232,14 +234,15 @@ def _predictor(checkpoint: Optional[Path], prior: Optional[Path], device: str, e
 def _engine_used(predictor) -> str:
     """What runs the network, as stderr and predict.json say it ('' for the prior: no network)."""
     from ..deploy.engine import engine_name
+    from ..deploy.runtime import runtime_name
 
     if getattr(predictor, "takes_frames", False):
-        return f"{engine_name('onnx')}, the graph{' (int8)' if predictor.info.get('int8') else ''}"
+        return f"{runtime_name(predictor.runtime)}, the graph{' (int8)' if predictor.info.get('int8') else ''}"
     kind = getattr(predictor, "engine", None)
     if kind is None:
         return ""
     device = str(predictor.device)
-    return engine_name(kind) + (", the network exported in memory" if kind == "onnx" else "") + \
+    return engine_name(kind) + (", the network exported in memory" if kind != "torch" else "") + \
         (f" on {device}" if device != "cpu" else "")
 
 

@@ -72,14 +72,14 @@ class Predictor:
         self.use_engine(engine)
 
     def use_engine(self, engine: str) -> str:
-        """Run the network through ``engine`` (:data:`vctrain.deploy.engine.ENGINES`: 'torch', 'onnx'
-        (the same network exported in memory, run in onnxruntime) or 'auto': onnx on the CPU where
-        onnxruntime is installed); returns the one chosen. The default, torch, is what studies and
+        """Run the network through ``engine`` (:data:`vctrain.deploy.engine.ENGINES`: 'torch', 'onnx' /
+        'openvino' (the same network exported in memory, run in onnxruntime / OpenVINO) or 'auto':
+        OpenVINO, else onnxruntime, on the CPU where installed); returns the one chosen. The default, torch, is what studies and
         evaluation score."""
         from ..deploy.engine import OnnxNetwork, choose_engine
 
         self.engine = choose_engine(engine, str(self.device))
-        self._onnx = OnnxNetwork(self.model) if self.engine == "onnx" else None
+        self._onnx = OnnxNetwork(self.model, engine=self.engine) if self.engine != "torch" else None
         return self.engine
 
     def logits(self, x: np.ndarray) -> torch.Tensor | np.ndarray:
