@@ -3,8 +3,8 @@ same network exported in memory to ONNX and run in onnxruntime (``onnx``) or Ope
 
 ``auto`` takes OpenVINO, else onnxruntime, where installed (the ``deploy`` extra) and the model runs
 on the CPU: the same network is faster there than PyTorch's (the shipped lite0fpn at 480x360, two
-threads, a quiet machine: OpenVINO 12.9 ms, onnxruntime 21.0, PyTorch 37.3; the README's video
-command on a 1280x720 video with overlay 38.7, 31.2 and 20.0 frames/s: benchmarks/speed/predict_e2e.py;
+threads, a quiet machine: OpenVINO 13.5 ms, onnxruntime 23.0, PyTorch 38.3; the README's video
+command on a 1280x720 video with overlay 36.3, 29.1 and 17.9 frames/s: benchmarks/speed/predict_e2e.py;
 on a loaded machine PyTorch's OpenMP threads wait at every operator and the gap grows), and its P(road) differs from
 PyTorch's by float rounding only (max |dP| ~3e-6; the masks, P >= 0.5, identical on the examples:
 tests/test_pipeline.py). The default stays torch: what studies score, bit for bit.

@@ -4,8 +4,8 @@ GRAPH.onnx`` runs it on the one road for a frame (:mod:`vctrain.predict.road`).
 
 OpenVINO is the default where it is installed (``--engine auto``; ``--engine onnx`` for onnxruntime):
 on this project's 2-core CPU the shipped model's 1280x720 int8 graph ran the README's video command
-(overlay included) at 38.9 frames/s against onnxruntime's 30.5, the float graph at 27.6 against 25.5
-(benchmarks/speed/predict_e2e.py, a quiet machine, one run). It runs every graph in float32
+(overlay included) at 39.3 frames/s against onnxruntime's 32.9, the float graph at 31.6 against 26.6
+(benchmarks/speed/predict_e2e.py, a quiet machine; an earlier run 38.9 / 30.5 and 27.6 / 25.5). It runs every graph in float32
 (``INFERENCE_PRECISION_HINT``: on a CPU with bf16 units it would otherwise compute in bf16, which
 moves masks), so its P(road) is onnxruntime's to float rounding (tests/test_pipeline.py).
 onnx / onnxruntime / openvino are optional (``pip install 'vcseg[deploy]'``) and imported only by
