@@ -151,3 +151,23 @@ def test_rerunning_an_interrupted_fit_resumes_it_to_the_uninterrupted_result(fra
     a, b = load_checkpoint(tmp_path / "i.last.pt"), load_checkpoint(tmp_path / "u.last.pt")
     for k in a["model"]:
         torch.testing.assert_close(a["model"][k].float(), b["model"][k].float(), atol=1e-5, rtol=0)
+
+
+def test_fine_tuning_validates_on_the_frames_given_instead_of_a_share(frames, tmp_path):
+    """--val-images/--val-labels (frames of the light the model will see): every training frame
+    trains, the start and the trained model are scored on the frames given, and the run says so
+    before the first epoch; a half-given or doubled validation is one error line, before training."""
+    root, data = frames
+    vimg, vlab = write_synthetic_dataset(tmp_path / "v", CAM, n=3)
+    r = run_cli("fit", *data, "--init", root / "start.pt", "--batch-size", "4", "--epochs", "1",
+                "--val-images", vimg, "--val-labels", vlab, "--out", tmp_path / "ft.pt", prog="vctrain")
+    assert r.returncode == 0, r.stderr
+    ck = load_checkpoint(tmp_path / "ft.pt")
+    assert ck["data"]["train_items"] == 8 and ck["data"]["val_items"] == 3
+    assert f"held out: 3 frames, the frames of {vimg} (--val-images)" in r.stderr.split("epoch 1/1")[0]
+    assert ck["finetune"]["start_val_iou"] is not None
+    for extra, needle in (([], "--val-images needs --val-labels"),
+                          (["--val-labels", vlab, "--val-store", tmp_path], "either --val-images or --val-store")):
+        r = run_cli("fit", *data, "--init", root / "start.pt", "--epochs", "1", "--val-images", vimg, *extra,
+                    "--out", tmp_path / "x.pt", prog="vctrain")
+        assert r.returncode == 1 and needle in r.stderr.strip().splitlines()[-1] and not (tmp_path / "x.pt").exists()

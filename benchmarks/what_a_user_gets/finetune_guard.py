@@ -26,7 +26,9 @@ sequence, the trained model kept only if it beats the start there); ``before`` `
 (every frame trained, the last epoch kept: the defaults before issue 72); ``freeze-bn``
 ``--freeze-bn``; ``l2sp`` ``--l2sp 0.1``; ``lr/3`` ``--lr 0.0000667``; ``10 epochs`` ``--epochs 10``;
 ``no average`` ``--average-init 0``; ``4 epochs`` ``--epochs 4``, ``before 4 epochs``, ``freeze-bn 4 epochs``, ``l2sp 4 epochs``
-(the screening that fitted a deadline on 2 shared cores: an epoch of 48 frames took 2-6 minutes there). ``zero-shot``: the model as it is.
+(the screening that fitted a deadline on 2 shared cores: an epoch of 48 frames took 2-6 minutes there);
+``daylight guard`` (dusk only) validates on 12 frames of the daylight drive 0006R0 given with
+``--val-images`` instead of a share of the dusk frames (:func:`_daylight_guard`). ``zero-shot``: the model as it is.
 
 Scored by ``vctrain predict`` + ``vctrain eval`` in the frames' own pixels: road IoU % = sum TP /
 sum (TP+FP+FN) on the test frames; beside it the fit's own held-out figures (the start's and the
@@ -59,7 +61,16 @@ VARIANTS = {"default": [], "before": ["--val-fraction", 0], "freeze-bn": ["--fre
             "lr/3": ["--lr", 0.0000667], "10 epochs": ["--epochs", 10], "no average": ["--average-init", 0],
             "4 epochs": ["--epochs", 4], "before 4 epochs": ["--val-fraction", 0, "--epochs", 4],
             "freeze-bn 4 epochs": ["--freeze-bn", "--epochs", 4], "l2sp 4 epochs": ["--l2sp", 0.1, "--epochs", 4],
-            "bn not frozen": ["--no-freeze-bn"]}
+            "bn not frozen": ["--no-freeze-bn"], "daylight guard": []}
+
+
+def _daylight_guard(frames: Path) -> list:
+    """``daylight guard`` (the dusk case only): ``--val-images``/``--val-labels`` with 12 frames of
+    CamVid's daylight drive 0006R0 (every 8th in name order; neither fine-tuned on nor tested on):
+    a user who labels a few frames of the light the model will see besides the ones they fine-tune on."""
+    day = [(p, DATA / "trainannot" / p.name, p.stem) for p in sorted((DATA / "train").glob("0006R0_*.png"))][::8][:12]
+    folder = link_frames(day, frames.parent / "val_daylight", (".png", ".png"))
+    return ["--val-images", folder / "images", "--val-labels", folder / "labels"]
 
 
 def _dusk() -> tuple[list, list]:
@@ -96,7 +107,8 @@ def cell(case: str, variant: str, frames: Path, test: Path, seed: int, out: Path
     out.mkdir(parents=True, exist_ok=True)
     t0 = time.perf_counter()
     run(BIN / "vctrain", "fit", "--baseline", "resize", "--images", frames / "images", "--labels", frames / "labels",
-        "--label-format", fmt, "--init", SHIPPED, *VARIANTS[variant], "--seed", seed, "--out", out / "model.pt",
+        "--label-format", fmt, "--init", SHIPPED, *VARIANTS[variant],
+        *(_daylight_guard(frames) if variant == "daylight guard" else []), "--seed", seed, "--out", out / "model.pt",
         "--overwrite", "-q", env=env)
     dt = time.perf_counter() - t0
     from vctrain.training import load_checkpoint
@@ -131,7 +143,8 @@ def measure(a: argparse.Namespace) -> dict:
             for seed in a.seeds:
                 for variant in a.variants:
                     folder = wd / f"n{n}" / f"seed{seed}" / variant.replace("/", "-").replace(" ", "-")
-                    if a.cached_only and not (folder / "cell.json").is_file():
+                    if (a.cached_only and not (folder / "cell.json").is_file()) or (
+                            variant == "daylight guard" and case != "dusk"):
                         continue
                     c = cell(case, variant, frames, test, seed, folder, a.threads)
                     out[case].setdefault(variant, {}).setdefault(str(n), []).append(c)

@@ -56,6 +56,9 @@ HELP = {  # the options whose help does not fit on their line
                  "name order), 'sequence' (whole sequences where the names show three or more, 0001TP_006690 -> "
                  "0001TP; the last stretch of each where one or two; else random) or 'auto' (sequence with --init, "
                  "else random)",
+    "val_images": "resize baseline: validate on these frames instead of a share of the training ones "
+                  "(replaces --val-fraction; with --init the start is kept unless the trained model scores higher "
+                  "on them): frames of the light or drive the model will be used in",
     "freeze_bn": "keep BatchNorm's running statistics fixed while training (default: on with --init, off without)",
     "average_init": "with --init: OUT holds A x the starting weights + (1 - A) x the trained ones (WiSE-FT; "
                     "validation scores that average; OUT.last.pt keeps the trained ones for --resume); default: 0.5, 0 without --init",
@@ -134,6 +137,8 @@ def fit_cmd(
     val_fraction: Optional[float] = typer.Option(None, "--val-fraction", help=HELP["val_fraction"]),
     val_split: str = typer.Option(TRAIN.val_split, "--val-split", help=HELP["val_split"]),
     val_store: Optional[List[Path]] = typer.Option(None, "--val-store", help="validation store (repeatable; replaces --val-fraction)"),
+    val_images: Optional[Path] = typer.Option(None, "--val-images", help=HELP["val_images"]),
+    val_labels: Optional[Path] = typer.Option(None, "--val-labels", help="--val-images' labels (in --label-format)"),
     class_weights: str = typer.Option(TRAIN.class_weights, "--class-weights", help="'none' or 'median-freq' (median frequency balancing)"),
     hflip: Optional[bool] = typer.Option(None, "--hflip/--no-hflip", help=HELP["hflip"]),
     scale_aug: Optional[float] = typer.Option(None, "--scale-aug", help=HELP["scale_aug"]),
@@ -195,6 +200,9 @@ def fit_cmd(
     from ..training.rerun import rerun_plan
     pin_threads(threads)
     check_data_folders(images, labels)  # --baseline resize
+    for path, opt in ((val_images, "--val-images"), (val_labels, "--val-labels")):
+        if path is not None and not path.is_dir():
+            raise InputError("folder not found", path, f"check {opt}")
     for path in filter(None, (out, log)):  # runs/vc.pt: runs/ is created, as warp and predict create theirs
         ensure_parent(path)
     what, note = rerun_plan(cfg, overwrite)  # the same command resumes, or finds its run done; another's is refused

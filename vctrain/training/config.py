@@ -83,6 +83,8 @@ class TrainConfig:
                                        # items in name order: whole drives or a stretch of one, not neighbours
                                        # of training frames) or 'auto' (block with init, random without)
     val_stores: list[str] = field(default_factory=list)  # validation stores (replace val_fraction)
+    val_images: Optional[str] = None   # resize baseline: validation frames (with val_labels, in label_format;
+    val_labels: Optional[str] = None   #   replace val_fraction): e.g. a few of the light the model will see
     class_weights: str = "none"        # 'none' or 'median-freq' (median frequency balancing)
     hflip: Optional[bool] = None       # random horizontal flip, p = 0.5
     greyscale: float = 0.0             # probability of a greyscale image (1.0: greyscale model)

@@ -28,9 +28,9 @@ __all__ = ["request_of", "data_stamp", "rerun_plan"]
 
 def data_stamp(cfg: TrainConfig) -> str:
     """A hash of the names, sizes and modification times of every file under the run's data folders
-    (``--images``, ``--labels``, the stores, the validation stores): changed frames or labels change it."""
+    (``--images``, ``--labels``, the stores, the validation stores and frames): changed frames or labels change it."""
     h = hashlib.sha256()
-    for top in [cfg.images, cfg.labels, *cfg.stores, *cfg.val_stores]:
+    for top in [cfg.images, cfg.labels, *cfg.stores, *cfg.val_stores, cfg.val_images, cfg.val_labels]:
         if not top or not Path(top).exists():
             continue
         for root, dirs, files in os.walk(top, followlinks=True):

@@ -184,6 +184,22 @@ def validation_items(ids: list[str], sources: list[str], fraction: float, split:
     return held
 
 
+def _val_frames(cfg: TrainConfig) -> list[Sample]:
+    """The validation samples of ``--val-images``/``--val-labels`` (the resize baseline's frames, read
+    with ``--label-format``): frames of the light or drive the model will see, which the training
+    frames' own share cannot stand for."""
+    if cfg.baseline != "resize" or cfg.images is None:
+        raise InputError("--val-images is for the resize baseline trained on --images", cfg.val_images,
+                         "add --baseline resize --images/--labels, or validate a store run on --val-store")
+    if cfg.val_labels is None:
+        raise InputError("--val-images needs --val-labels", cfg.val_images, "add the folder of their labels")
+    if cfg.val_stores:
+        raise InputError("give either --val-images or --val-store, not both", cfg.val_images, "drop one of them")
+    fmt = get_label_format(cfg.label_format)
+    return [Sample(j.id, j.image, j.label, fmt.name, source=str(cfg.val_images))
+            for j in list_dataset(cfg.val_images, cfg.val_labels, fmt)]
+
+
 def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str, Any]]:
     """Training and validation samples plus the checkpoint's ``data`` description."""
     if cfg.baseline not in BASELINES:
@@ -211,7 +227,10 @@ def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str
         train = _samples(stores, cfg.baseline)
     else:
         raise InputError("no training data", None, "give STORE... (or --baseline resize --images/--labels)")
-    if cfg.val_stores:
+    if cfg.val_images is not None:
+        val = _val_frames(cfg)
+        info["held_out"] = f"the frames of {cfg.val_images} (--val-images)"
+    elif cfg.val_stores:
         vstores = _open_stores(cfg.val_stores)
         if cfg.baseline != "resize" and stores:
             for k in ("virtual", "scale"):
