@@ -3,6 +3,8 @@ pixel by pixel (issue 34).
 
     .venv/bin/python benchmarks/other_cameras/loo_diagnose.py [--heldout idd] [--seed 0] [--every 4]
                                                               [--workdir benchmarks/out/multi_camera] [--threads 2]
+    .venv/bin/python benchmarks/other_cameras/loo_diagnose.py --calibrated-fold kitti_semantics --heldout idd
+                     --workdir 'benchmarks/out/calibrated_loo/idd-1(0-4)(0-9)_x'      # a calibrated_loo.py fold
 
 Reads the fold's finished models (``within`` of the ``extent: median`` study in WORKDIR/median/seed<k>,
 ``resize`` of WORKDIR/seed<k>) and the held-out camera's test store; trains nothing. On every
@@ -35,6 +37,19 @@ from benchmarks.measure.report import machine, results_dir, today, write_json
 
 BANDS = 8
 SCALES = (0.5, 0.7, 1.0, 1.4)
+
+
+def _calibrated_fold(workdir: Path, fold: str, model: str, heldout: str, seed: int) -> tuple[Path, Path, Path]:
+    """(within model, resize model, ``heldout``'s test store) of a fold of calibrated_loo.py (WORKDIR: its
+    workdir for the IDD-Lite frames it ran, e.g. benchmarks/out/calibrated_loo/idd-1(0-4)(0-9)_x)."""
+    base = workdir / model / fold / f"seed{seed}"
+    within, resize = (base / "runs" / "_all" / c / "model.pt" for c in ("within", "resize"))
+    store = base / "stores" / heldout / "test" / "within"
+    for p in (within, resize, store / "store.json"):
+        if not p.exists():
+            sys.exit(f"{p}: not found (run benchmarks/other_cameras/calibrated_loo.py --model {model} --seeds {seed} "
+                     f"--held-out {fold} first)")
+    return within, resize, store
 
 
 def _fold(workdir: Path, heldout: str, seed: int) -> tuple[Path, Path, Path]:
@@ -123,7 +138,11 @@ def render(d: dict, heldout: str, seed: int) -> str:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--heldout", default="idd", choices=("lums", "bdd", "camvid", "cityscapes", "idd"))
+    ap.add_argument("--heldout", default="idd", choices=("lums", "bdd", "camvid", "cityscapes", "idd", "kitti_semantics",
+                                                         "idd-est", "bdd-est", "lums-est"))
+    ap.add_argument("--calibrated-fold", default=None, help="a fold of calibrated_loo.py (its held-out calibrated "
+                    "camera); --heldout is then one of its test cameras and --workdir its workdir")
+    ap.add_argument("--model", default="lite0fpn", help="with --calibrated-fold: the network of that run")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--every", type=int, default=4, help="every N-th test frame (1: all)")
     ap.add_argument("--workdir", type=Path, default=ROOT / "benchmarks" / "out" / "multi_camera")
@@ -133,15 +152,25 @@ def main() -> None:
     import torch
 
     torch.set_num_threads(a.threads)
-    within, resize, store = _fold(a.workdir, a.heldout, a.seed)
+    if a.calibrated_fold:
+        within, resize, store = _calibrated_fold(a.workdir, a.calibrated_fold, a.model, a.heldout, a.seed)
+        stem = f"loo_diagnose_{a.heldout}_calibrated_{a.calibrated_fold}"
+        extra = f" --calibrated-fold {a.calibrated_fold} --model {a.model} --workdir '{a.workdir.resolve().relative_to(ROOT)}'"
+    else:
+        within, resize, store = _fold(a.workdir, a.heldout, a.seed)
+        stem, extra = f"loo_diagnose_{a.heldout}", ""
     d = diagnose(within, resize, store, max(1, a.every))
     table = render(d, a.heldout, a.seed)
+    if a.calibrated_fold:
+        table = (f"A test-only camera of calibrated_loo.py's fold `{a.calibrated_fold}` ({a.model}, trained on the other "
+                 "two calibrated cameras).\n\n" + table)
     print(table)
     res = results_dir(__file__)
-    (res / f"loo_diagnose_{a.heldout}.md").write_text(table)
-    write_json(res / f"loo_diagnose_{a.heldout}.json", {
+    (res / f"{stem}.md").write_text(table)
+    write_json(res / f"{stem}.json", {
         "headline": d, "heldout": a.heldout, "seed": a.seed, "every": a.every, "machine": machine(), "date": today(),
-        "command": f"benchmarks/other_cameras/loo_diagnose.py --heldout {a.heldout} --seed {a.seed} --every {a.every}"})
+        "command": f"benchmarks/other_cameras/loo_diagnose.py --heldout {a.heldout} --seed {a.seed} --every {a.every}"
+                   + extra})
     print(json.dumps(d))
 
 
