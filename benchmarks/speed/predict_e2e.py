@@ -106,7 +106,8 @@ def side_cpu_ms(video: Path, frames: list[np.ndarray], wd: Path) -> dict[str, fl
     """The CPU a frame costs outside the engine, per stage, as the video road spends it: decoding the
     mp4v video, and the writing thread's work (the mask and probability PNGs, the overlay's tint and
     its mp4v encoding) on a P(road) of the frame's size."""
-    from vctrain.predict.written import road_mask, tint_road, write_prediction
+    from vctrain.predict import write_prediction
+    from vctrain.predict.written import road_mask, tint_road
 
     def decode():
         cap = cv2.VideoCapture(str(video))
