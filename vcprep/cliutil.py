@@ -54,15 +54,18 @@ def ensure_parent(path: Path) -> Path:
     return Path(path)
 
 
-def check_data_folders(images: Path | None, labels: Path | None = None) -> None:
-    """--images and --labels exist, checked in that order: a missing image folder is named
-    first, and both at once when both are missing (the library checks what else they hold)."""
+def check_data_folders(images: Path | None, labels: Path | None = None,
+                       options: tuple[str, str] = ("--images", "--labels")) -> None:
+    """--images and --labels (``options``: the two options' names, e.g. --val-images and
+    --val-labels) exist, checked in that order: a missing image folder is named first, and both at
+    once when both are missing (the library checks what else they hold)."""
     missing = [p for p in (images, labels) if p is not None and not Path(p).exists()]
     if not missing:
         return
     if len(missing) == 2:
-        raise InputError("image and label folders not found", f"{images}, {labels}", "check --images and --labels")
-    kind, opt = ("image", "--images") if missing[0] == images else ("label", "--labels")
+        raise InputError("image and label folders not found", f"{images}, {labels}",
+                         f"check {options[0]} and {options[1]}")
+    kind, opt = ("image", options[0]) if missing[0] == images else ("label", options[1])
     raise InputError(f"{kind} folder not found", missing[0], f"check {opt}")
 
 

@@ -200,9 +200,7 @@ def fit_cmd(
     from ..training.rerun import rerun_plan
     pin_threads(threads)
     check_data_folders(images, labels)  # --baseline resize
-    for path, opt in ((val_images, "--val-images"), (val_labels, "--val-labels")):
-        if path is not None and not path.is_dir():
-            raise InputError("folder not found", path, f"check {opt}")
+    check_data_folders(val_images, val_labels, ("--val-images", "--val-labels"))
     for path in filter(None, (out, log)):  # runs/vc.pt: runs/ is created, as warp and predict create theirs
         ensure_parent(path)
     what, note = rerun_plan(cfg, overwrite)  # the same command resumes, or finds its run done; another's is refused

@@ -195,9 +195,12 @@ def _val_frames(cfg: TrainConfig) -> list[Sample]:
         raise InputError("--val-images needs --val-labels", cfg.val_images, "add the folder of their labels")
     if cfg.val_stores:
         raise InputError("give either --val-images or --val-store, not both", cfg.val_images, "drop one of them")
-    fmt = get_label_format(cfg.label_format)
-    return [Sample(j.id, j.image, j.label, fmt.name, source=str(cfg.val_images))
-            for j in list_dataset(cfg.val_images, cfg.val_labels, fmt)]
+    return _folder_samples(cfg.val_images, cfg.val_labels, get_label_format(cfg.label_format))
+
+
+def _folder_samples(images: str, labels: str, fmt) -> list[Sample]:
+    """The samples of an image folder and its label folder (``--images``/``--labels``, ``--val-images``)."""
+    return [Sample(j.id, j.image, j.label, fmt.name, source=str(images)) for j in list_dataset(images, labels, fmt)]
 
 
 def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str, Any]]:
@@ -218,9 +221,7 @@ def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str
                              "add --baseline resize, or train on a store built with 'vcprep warp'")
         if cfg.labels is None or cfg.label_format is None:
             raise InputError("--images needs --labels and --label-format", cfg.images, "add them")
-        fmt = get_label_format(cfg.label_format)
-        train = [Sample(j.id, j.image, j.label, fmt.name, source=str(cfg.images))
-                 for j in list_dataset(cfg.images, cfg.labels, fmt)]
+        train = _folder_samples(cfg.images, cfg.labels, get_label_format(cfg.label_format))
         if stores:
             train += _samples(stores, cfg.baseline)
     elif stores:
