@@ -8,7 +8,8 @@ the KITTI road frame (1242x375), Cityscapes cs_25xx-cs_29xx (43 frames, 256x256)
 (640x640), BDD100K sources 0a3*/0a4* (15 frames, 1280x720), IDD-Lite's held-out drives (drive % 7 ==
 3: 170 frames, 320x227). Per split: road.pt through PyTorch (the model card's route), its float graph and its int8
 graph (``vctrain export --size WxH [--int8]``, int8 calibrated on the shipped examples, never on the
-split) at the split's frame size; road IoU = sum TP / sum (TP + FP + FN) over the split, ignore
+split) at the split's frame size, the graphs in their default runtime (OpenVINO where installed, else
+onnxruntime: the JSON's ``graph_runtime``); road IoU = sum TP / sum (TP + FP + FN) over the split, ignore
 excluded (``vctrain eval``), and the share of pixels whose mask the int8 graph shares with the float
 graph. Target (issue 69): int8 within 0.5 IoU points of the float model on every split, masks
 identical on >= 99 % of pixels. Results: benchmarks/speed/results/int8_quality.json.
@@ -113,6 +114,12 @@ def split_quality(name: str, files: list[Path], labels: Path, fmt: str, wd: Path
     return row
 
 
+def _default_runtime() -> str:
+    from vctrain.deploy.runtime import graph_runtime, runtime_name
+
+    return runtime_name(graph_runtime(None))
+
+
 def held_out_quality(wd: Path) -> dict:
     rows = {name: split_quality(name, files, labels, fmt, wd) for name, files, labels, fmt in splits()}
     headline = {f"int8_minus_float_{k}": round(r["int8_minus_float"], 2) for k, r in rows.items()}
@@ -138,7 +145,8 @@ def main() -> None:
               f"{r['iou_int8_graph']:.2f} | {r['int8_minus_float']:+.2f} | {r['int8_same_mask_pct']:.2f}")
     write_json(results_dir(__file__) / "int8_quality.json",
                {"command": "python " + " ".join(["benchmarks/speed/int8_quality.py"] + sys.argv[1:]), "date": today(),
-                "machine": machine(), "threads": args.threads, "load_average": os.getloadavg()[0], **q})
+                "machine": machine(), "threads": args.threads, "load_average": os.getloadavg()[0],
+                "graph_runtime": _default_runtime(), **q})
     print(json.dumps(q["headline"]))
 
 
