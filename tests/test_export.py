@@ -257,3 +257,37 @@ def test_graph_resize_is_cv2s_in_either_layout():
         assert np.array_equal(hwc, chw.permute(1, 2, 0).numpy())
         if sw > dw:  # (enlarging: OpenCV's fixed-point weights differ by a grey level here and there)
             assert np.array_equal(hwc, cv2.resize(img, (dw, dh), interpolation=cv2.INTER_LINEAR))
+
+
+def test_a_camera_the_warp_enlarges_runs_at_its_own_pixel_density(models, tmp_path):
+    """Frames of fewer pixels than the virtual camera gives their road (Toronto at 41x23: 1.55 store
+    pixels per frame pixel, more than the training camera's 0.49 and the virtual camera's own 1) are
+    run at 1 / 1.55 of the store's size, by the library and by the graph alike, which still agree."""
+    import onnx
+
+    from vcprep.store import item_magnification
+
+    root = models
+    p = Predictor(root / "vc.pt", "cpu")
+    train = Store.open(root / "store")
+    cam_train = PRESETS["camvid"].resized(0.1)
+    assert p.data["source_magnification"] == pytest.approx(item_magnification(cam_train, cam_train.size,
+                                                                              train.virtual), abs=1e-4)
+    cam = PRESETS["toronto2020"].resized(0.04)
+    m = item_magnification(cam, cam.size, train.virtual)
+    assert m > 1.2 and p.density_scale(m) == pytest.approx(1 / m)
+    assert p.density_scale(0.9) == 1.0 and p.density_scale(None) == 1.0
+    (tmp_path / "cam.yaml").write_text(camera_to_yaml(cam))
+    frames = _frames(tmp_path / "frames", cam, [(0.0, 0.0), (0.0, 0.0)])
+    r = run_cli("export", root / "vc.pt", "--camera", tmp_path / "cam.yaml", "-o", tmp_path / "road.onnx",
+                prog="vctrain")
+    assert r.returncode == 0, r.stderr
+    import json
+
+    info = json.loads({q.key: q.value for q in onnx.load(str(tmp_path / "road.onnx")).metadata_props}["vcseg"])
+    store_w, store_h = info["store_size"]
+    assert tuple(info["work"]) == (round(store_w / m), round(store_h / m))
+    ref = _library(root / "vc.pt", tmp_path / "frames", cam, "none", tmp_path / "lib")
+    graph = OnnxPredictor(tmp_path / "road.onnx", threads=1)
+    for i, img in enumerate(frames):
+        _agree(graph.road_probability(img), ref[f"f{i}"])

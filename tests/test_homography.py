@@ -9,7 +9,7 @@ import pytest
 
 from vcprep.camera import PRESETS, Camera
 from vcprep.errors import GeometryError
-from vcprep.warp import apply_homography, check_not_folded, pose_axes, pose_from_vp, virt_H_src, \
+from vcprep.warp import apply_homography, check_not_folded, pose_axes, pose_from_vp, road_magnification, virt_H_src, \
     virtual_at_scale, vp_from_pose
 from vcprep.synthetic import ground_points
 from vcprep.warp import build_maps
@@ -102,3 +102,16 @@ def test_virtual_at_scale_keeps_square_pixels_and_pixel_centres():
     assert v8.size == (688, 350)
     assert v8.fx == v8.fy == pytest.approx(2262 / 8)
     assert v8.cx == pytest.approx(0.125 * 2750.5 - 0.5)
+
+
+@pytest.mark.parametrize("fs, hs, size", [(500.0, 1.2, (640, 480)), (160.0, 1.4, (320, 227)), (900.0, 2.4, (1280, 720))])
+def test_road_magnification_of_level_cameras_is_the_closed_form(fs, hs, size):
+    """Level cameras with the VP on the principal point: a road point (X, Z) is at u = c_x + f X / Z,
+    v = c_y + f h / Z in each, so the virtual image of the road is the source's stretched by f_v / f_s
+    across and f_v h_v / (f_s h_s) down: linear magnification (f_v / f_s) sqrt(h_v / h_s) everywhere."""
+    v = virtual_at_scale(PRESETS["virtual"], 0.125)
+    src = Camera("s", size, fs, fs, (size[0] - 1) / 2, (size[1] - 1) / 2, hs, 0.0, 0.0)
+    H = virt_H_src(src, v)
+    want = (v.fx / fs) * math.sqrt(v.height / hs)
+    assert road_magnification(H, size, vp_from_pose(src)[1]) == pytest.approx(want, rel=1e-9)
+    assert road_magnification(virt_H_src(v, v), v.size, vp_from_pose(v)[1]) == pytest.approx(1.0, rel=1e-12)

@@ -102,14 +102,21 @@ def test_predict_gives_the_studys_masks_and_iou(study_run, tmp_path, name, cond)
 @pytest.fixture(scope="module")
 def examples_run(tmp_path_factory):
     """The shipped examples: CamVid's 0016E5 and 0006R0 frames trained on, its 0001TP frame (another
-    rig, its own vehicle in the bottom 36 of 720 rows) and the KITTI frame (its calibration file) tested."""
+    rig, its own vehicle in the bottom 36 of 720 rows), the same frame at 64x48 (the warp enlarges it:
+    the network runs it at a smaller working size) and the KITTI frame (its calibration file) tested."""
     root = tmp_path_factory.mktemp("examples_study")
     cv = {"images": str(EXAMPLES / "camvid" / "images"), "labels": str(EXAMPLES / "camvid" / "labels")}
+    for sub, interp in (("images", cv2.INTER_AREA), ("labels", cv2.INTER_NEAREST)):  # 0001TP at 64x48
+        (root / "small" / sub).mkdir(parents=True)
+        img = cv2.imread(str(EXAMPLES / "camvid" / sub / "0001TP_007170.png"), cv2.IMREAD_UNCHANGED)
+        cv2.imwrite(str(root / "small" / sub / "0001TP_007170.png"), cv2.resize(img, (64, 48), interpolation=interp))
     study = {"datasets": [
         {"name": "camvid", "role": "train", "camera": "camvid", "label_format": "camvid",
          "train": {**cv, "exclude": "0001TP_*"}},
         {"name": "0001TP", "role": "test", "camera": "camvid", "label_format": "camvid", "ego": 36,
          "test": {**cv, "include": "0001TP_*"}},
+        {"name": "0001TP-small", "role": "test", "camera": "camvid", "label_format": "camvid", "ego": 36,
+         "test": {"images": str(root / "small" / "images"), "labels": str(root / "small" / "labels")}},
         {"name": "kitti", "role": "test", "camera": str(EXAMPLES / "kitti" / "calib" / "um_000000.txt"),
          "label_format": "kitti", "test": {"images": str(EXAMPLES / "kitti" / "image_2"),
                                            "labels": str(EXAMPLES / "kitti" / "gt_image_2")}}],
@@ -123,14 +130,24 @@ def examples_run(tmp_path_factory):
 
 
 @pytest.mark.parametrize("cond", CONDS)
-@pytest.mark.parametrize("name", ["0001TP", "kitti"])
+@pytest.mark.parametrize("name", ["0001TP", "0001TP-small", "kitti"])
 def test_predict_gives_the_studys_masks_and_iou_on_the_examples(examples_run, tmp_path, name, cond):
+    small = examples_run.parent / "small"
     frames = {"0001TP": [EXAMPLES / "camvid" / "images" / "0001TP_007170.png"],
+              "0001TP-small": [small / "images" / "0001TP_007170.png"],
               "kitti": [EXAMPLES / "kitti" / "image_2" / "um_000000.png"]}[name]
-    camera = "camvid" if name == "0001TP" else EXAMPLES / "kitti" / "calib" / "um_000000.txt"
-    labels, fmt = ((EXAMPLES / "camvid" / "labels", "camvid") if name == "0001TP" else
-                   (EXAMPLES / "kitti" / "gt_image_2", "kitti"))
-    ego = 18 if name == "0001TP" else 0  # ego: 36 of the preset's 720 rows, at the 360-row frame's size
+    camera = "camvid" if name.startswith("0001TP") else EXAMPLES / "kitti" / "calib" / "um_000000.txt"
+    labels, fmt = {"0001TP": (EXAMPLES / "camvid" / "labels", "camvid"), "0001TP-small": (small / "labels", "camvid"),
+                   "kitti": (EXAMPLES / "kitti" / "gt_image_2", "kitti")}[name]
+    # ego: 36 of the preset's 720 rows, at the 360-row frame's size; the same 36 at the 48-row frame's size
+    ego = {"0001TP": 18, "0001TP-small": 3, "kitti": 0}[name]
+    if name == "0001TP-small" and cond in ("between", "within"):  # the frame is enlarged: a smaller working size
+        from vctrain.predict import Predictor
+        from vctrain.predict.predictor import record_magnification
+
+        st = Store.open(examples_run / "stores" / name / "test" / cond)
+        assert Predictor(examples_run / "runs" / "_all" / cond / "model.pt", "cpu").density_scale(
+            record_magnification(next(iter(st)), st)) < 0.7
     if cond not in ("resize", "resize-vp"):
         assert _run_result(examples_run, "_all", name, cond)["test_warp"]["ego_rows"] == [ego]
     _assert_predict_gives_the_studys(examples_run, "_all", name, cond, frames, camera, labels, fmt, ego,

@@ -26,7 +26,8 @@ from ..camera.sources import FrameCameras, camera_of_image
 from ..dataset import Job
 from ..cliutil import rate_text
 from ..errors import InputError, StoreError, VCError
-from ..warp.homography import apply_homography, check_not_folded, pose_from_vp, virt_H_src, virtual_at_scale, vp_from_pose
+from ..warp.homography import (apply_homography, check_not_folded, pose_from_vp, road_magnification, virt_H_src,
+                               virtual_at_scale, vp_from_pose)
 from ..io.images import image_size_from_header, read_image, write_png
 from ..labels import LabelFormat, decode_label
 from .parallel import ItemError, run_items
@@ -151,6 +152,15 @@ def _geometry(camera: Camera, size: tuple[int, int], virtual_scaled: Camera, pan
     check_not_folded(H, cam.visible_size, cam.name)
     H.setflags(write=False)
     return cam, H
+
+
+@functools.lru_cache(maxsize=64)
+def item_magnification(camera: Camera, size: tuple[int, int], virtual_scaled: Camera) -> float:
+    """Store pixels per source pixel on the road for frames of ``size`` from ``camera`` at its average
+    pose (:func:`vcprep.warp.road_magnification` of :func:`item_geometry`'s ``H``; the canvas's extent
+    and a frame's own pose change it by a few per cent at most, so one figure stands for the camera)."""
+    cam, H = item_geometry(camera, size, virtual_scaled, None, camera.pan, camera.tilt)
+    return road_magnification(H, cam.visible_size, vp_from_pose(cam)[1])
 
 
 def sha256_file(path: Path, kind: str) -> tuple[str, bytes]:

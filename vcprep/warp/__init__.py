@@ -13,13 +13,13 @@ from .completion import (COMPLETION_VERSION, CompletionMaps, METHODS, border_ign
                          completion_maps, store_vp)
 from .completion_rays import LABEL_RIM, exit_points_rectangle, label_exit_points
 from .completion_tables import TABLE_ARC, TABLE_COLS
-from .homography import (apply_homography, check_not_folded, ground_to_image, pose_axes, pose_from_vp, virt_H_src,
-                         virtual_at_scale, vp_from_pose)
+from .homography import (apply_homography, check_not_folded, ground_to_image, pose_axes, pose_from_vp,
+                         road_magnification, virt_H_src, virtual_at_scale, vp_from_pose)
 from .remap import (OUTSIDE, RemapMaps, build_maps, maps_for, maps_from_coordinates, source_coordinates, warp_image,
                     warp_label)
 
 __all__ = ["backproject_array", "backproject_rays", "ray_clamped", "backproject_folder", "COMPLETION_VERSION", "CompletionMaps", "METHODS",
            "border_ignore", "check_method", "complete_maps", "completion_maps", "store_vp", "LABEL_RIM",
            "exit_points_rectangle", "label_exit_points", "TABLE_ARC", "TABLE_COLS", "apply_homography",
-           "check_not_folded", "ground_to_image", "pose_axes", "pose_from_vp", "virt_H_src", "virtual_at_scale",
+           "check_not_folded", "ground_to_image", "pose_axes", "pose_from_vp", "road_magnification", "virt_H_src", "virtual_at_scale",
            "vp_from_pose", "OUTSIDE", "RemapMaps", "build_maps", "maps_for", "maps_from_coordinates", "source_coordinates", "warp_image", "warp_label"]

@@ -22,7 +22,10 @@ __all__ = [
     "apply_homography",
     "check_not_folded",
     "virtual_at_scale",
+    "road_magnification",
 ]
+
+ROAD_FROM = 0.15  # road_magnification: the road region starts this share of the way from the VP row to the bottom
 
 
 def pose_axes(pan_deg: float, tilt_deg: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -117,3 +120,16 @@ def check_not_folded(H: np.ndarray, size: tuple[int, int], what: str | None = No
 def scaled_homography(H: np.ndarray, src_scale: float = 1.0, dst_scale: float = 1.0) -> np.ndarray:
     """Re-express ``H`` for a source resized by ``src_scale`` and a destination by ``dst_scale``."""
     return scale_matrix(dst_scale) @ H @ np.linalg.inv(scale_matrix(src_scale))
+
+
+def road_magnification(H: np.ndarray, size: tuple[int, int], vp_row: float, n: int = 24) -> float:
+    """Destination pixels per source pixel on the road under ``H`` (linear: ``sqrt|det J|`` of the
+    projective map, ``det J = det H / w^3``): the median over an ``n`` x ``n`` grid of the source frame
+    of ``size`` (w, h) from :data:`ROAD_FROM` of the way below ``vp_row`` to the bottom row. Above 1 the
+    warp enlarges the frame: the destination holds fewer real pixels than it has (a blurred image)."""
+    H = np.asarray(H, dtype=np.float64).reshape(3, 3)
+    w, h = int(size[0]), int(size[1])
+    y0 = min(h - 1.0, max(0.0, vp_row + ROAD_FROM * (h - 1.0 - vp_row)))
+    xs, ys = np.meshgrid(np.linspace(0.0, w - 1.0, n), np.linspace(y0, h - 1.0, n))
+    depth = H[2, 0] * xs + H[2, 1] * ys + H[2, 2]
+    return float(np.median(np.sqrt(np.abs(np.linalg.det(H) / depth ** 3))))

@@ -173,7 +173,7 @@ class RoadGraph(nn.Module):
 def _geometry(predictor, camera: Camera, vp_input: bool, pose_range: tuple[float, float]) -> dict[str, Any]:
     """Everything the graph holds for ``camera`` (at its own image size)."""
     from vcprep.warp import completion as C
-    from vcprep.store import item_geometry, item_maps, store_params
+    from vcprep.store import item_geometry, item_magnification, item_maps, store_params
     from vcprep.warp import apply_homography, vp_from_pose
     from vcprep.camera import extend_canvas
 
@@ -219,7 +219,7 @@ def _geometry(predictor, camera: Camera, vp_input: bool, pose_range: tuple[float
     _, H = item_geometry(cam, (w, h), vs, None, cam.pan, cam.tilt)
     vis = cam.visible_size
     vp_store = tuple(apply_homography(H, [vp_src])[0])
-    work = predictor.working_size(store_size)
+    work = predictor.working_size(store_size, item_magnification(cam, (w, h), vs))
     trained = store_params(virtual, float(sp["scale"]))  # the training rectangle inside the grown one: rays beyond it
     ox = float(vs.cx) - float(trained["virtual_scaled"]["cx"])
     rect = (ox, 0.0, ox + trained["store_size"][0] - 1.0, trained["store_size"][1] - 1.0)

@@ -41,7 +41,7 @@ from typing import Any, Iterable
 import numpy as np
 
 from vcprep.warp import backproject_array, backproject_rays
-from vcprep.store import item_geometry, store_params, warp_arrays
+from vcprep.store import item_geometry, item_magnification, store_params, warp_arrays
 from vcprep.camera import Camera, camera_from_dict
 from vcprep.errors import InputError
 from vcprep.warp import apply_homography, pose_from_vp, vp_from_pose
@@ -127,6 +127,8 @@ class FramePredictor:
         # the scaled camera exactly as a store holds it (Store.virtual reads this dict)
         self._virtual_scaled = camera_from_dict(params["virtual_scaled"])
         self.store_size = (int(params["store_size"][0]), int(params["store_size"][1]))
+        # store pixels per frame pixel: the network's working size shrinks where the frames are enlarged
+        self.magnification = item_magnification(self.camera, self.size, self._virtual_scaled)
 
     def _training_rect(self) -> tuple[float, float, float, float] | None:
         """The training rectangle inside the (grown) store image, in store pixel centres: where the
@@ -195,7 +197,7 @@ class FramePredictor:
         img, rec = self.warp(frame, vp)
         t1 = time.perf_counter()
         if hasattr(p, "road_probability"):
-            prob = p.road_probability(img, vp_in_store(rec), p.working_size(self.store_size))
+            prob = p.road_probability(img, vp_in_store(rec), p.working_size(self.store_size, self.magnification))
         else:  # the geometric prior: P(road) is p_g itself
             prob = p.prior
         t2 = time.perf_counter()

@@ -25,7 +25,8 @@ __all__ = ["adapt_settings", "Keys", "TEST_WARP"]
 # own vehicle, rectangle extended for every frame at its pose; frame pixels beyond the training rectangle by
 # the rays from the road VP: `--beyond hybrid`, issue 60; "as-predict-1": the network's own values there); a
 # result scored by an earlier rule is scored again
-TEST_WARP = "as-predict-2"
+# "as-predict-2": before the working size followed the frames' pixel density (Predictor.density_scale, issue 73)
+TEST_WARP = "as-predict-3"
 
 
 def _median_test_canvas(res: "Resolution", d: Dataset) -> dict[str, Any]:

@@ -28,7 +28,7 @@ _HOME = {
     "data": ("Sample", "RoadDataset", "store_samples", "resize_samples", "source_focal", "to_input", "vp_proximity",
              "vp_in_store", "ray_angles", "resize_pair", "class_frequencies", "median_frequency_weights"),
     "trainset": ("BASELINES", "MIN_SIDE", "MixedViews", "view_batches", "prepare_data", "resize_working_size",
-                 "crop_size", "epoch_order", "training_sets", "check_labels", "sequence_of", "sequence_items"),
+                 "training_magnification", "crop_size", "epoch_order", "training_sets", "check_labels", "sequence_of", "sequence_items"),
     "loop": ("fit", "evaluate", "get_lr", "resolve_device", "resolve_recipe"),
     "guard": ("score_start", "say_plan", "keeps", "verdict", "finetune_record", "settle"),
     "rerun": ("request_of", "data_stamp", "rerun_plan"),

@@ -10,7 +10,9 @@ A checkpoint is a ``torch.save`` dict (loadable with ``weights_only=True``)::
                  training store: virtual camera, scale, store_size, virtual_scaled; None for a
                  baseline trained from folders), completion, vp_channel, greyscale, vp_status
                  (per-image VP statuses seen in training), vp_rule (the VPRule of its estimated VPs, when
-                 the stores record one: predict estimates with it), train_items, val_items
+                 the stores record one: predict estimates with it), source_magnification (the most the
+                 warp enlarged a training camera's frames: predictors shrink their working size only for
+                 frames enlarged more; absent in models trained before it), train_items, val_items
     epoch, step, metrics (of this epoch), best_iou, best_epoch, history (per-epoch log rows)
     optimizer    optimizer state (for --resume)
 """

@@ -24,13 +24,14 @@ from vcprep.dataset import list_dataset
 from vcprep.errors import InputError
 from vcprep.io import image_size
 from vcprep.labels import get_label_format
-from vcprep.store import Store
+from vcprep.camera import camera_from_dict
+from vcprep.store import Store, item_magnification
 
 from .config import BALANCES, VAL_SPLITS, TrainConfig
 from .data import RoadDataset, Sample, resize_samples, store_samples
 
-__all__ = ["BASELINES", "MIN_SIDE", "MixedViews", "view_batches", "prepare_data", "resize_working_size", "crop_size",
-           "epoch_order", "training_sets", "check_labels", "sequence_of", "sequence_items"]
+__all__ = ["BASELINES", "MIN_SIDE", "MixedViews", "view_batches", "prepare_data", "resize_working_size",
+           "training_magnification", "crop_size", "epoch_order", "training_sets", "check_labels", "sequence_of", "sequence_items"]
 
 MIN_SIDE = 32  # the smallest working side: five 2x2 poolings
 # what a model is trained on (TrainConfig.baseline): 'none' the virtual camera's store items, 'resize'
@@ -198,6 +199,21 @@ def _val_frames(cfg: TrainConfig) -> list[Sample]:
     return _folder_samples(cfg.val_images, cfg.val_labels, get_label_format(cfg.label_format))
 
 
+def training_magnification(stores: Sequence[Store]) -> float | None:
+    """The most the warp enlarged any training camera's frames: the largest store-pixels-per-source-pixel
+    figure (:func:`vcprep.store.item_magnification`) over the cameras of ``stores``' items; None when no
+    item records its camera. A predictor shrinks its working size only for frames enlarged more."""
+    seen: dict[str, float] = {}
+    for st in stores:
+        for rec in st:
+            params, size = rec.get("camera_params"), rec.get("size")
+            key = json.dumps([params, size, st.params.get("virtual_scaled")], sort_keys=True)
+            if params and size and key not in seen:
+                cam = camera_from_dict(params)
+                seen[key] = item_magnification(cam, (int(size[0]), int(size[1])), st.virtual)
+    return round(max(seen.values()), 4) if seen else None
+
+
 def _folder_samples(images: str, labels: str, fmt) -> list[Sample]:
     """The samples of an image folder and its label folder (``--images``/``--labels``, ``--val-images``)."""
     return [Sample(j.id, j.image, j.label, fmt.name, source=str(images)) for j in list_dataset(images, labels, fmt)]
@@ -215,6 +231,10 @@ def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str
                             "completion": _completion(stores) if stores else "none",
                             "vp_channel": cfg.vp_channel, "greyscale": cfg.greyscale,
                             **({"ray_channels": True} if cfg.ray_channels else {})}
+    if info["mode"] == "virtual" and stores:
+        m = training_magnification(stores)
+        if m is not None:  # the reference of the predictors' density_scale
+            info["source_magnification"] = m
     if cfg.images is not None:
         if cfg.baseline != "resize":
             raise InputError("--images is for the resize baseline", cfg.images,
