@@ -165,3 +165,21 @@ def test_within_gt_is_skipped_without_given_vps(tmp_path):
 def test_bad_study_files_give_one_error_line(tmp_path, edit, needle):
     study = _study(tmp_path / "data")
     assert_bad_study_fails(study, edit, tmp_path / "out", needle)
+
+
+# the training settings a study's model keys were made of when its models were last trained; a TrainConfig
+# field added since must enter SETTINGS_ADDED with the value that trains as before, or every finished study
+# would be trained again (a fold of issue 73's calibrated leave-one-out was, for --val-images)
+KEYED = {"arch", "balance", "base_width", "batch_size", "class_weights", "color_aug", "crop", "device", "epochs",
+         "force_labels", "greyscale", "hflip", "init", "l2sp", "lr", "max_steps", "momentum", "optimizer", "pretrained",
+         "recipe", "scale_aug", "schedule", "seed", "shading_aug", "shift_aug", "val_fraction", "vp_channel",
+         "weight_decay"}
+
+
+def test_a_training_setting_added_at_its_default_keeps_the_studys_keys(tmp_path):
+    from vctrain.study import load_study
+    from vctrain.study.conditions import training_settings
+
+    settings = training_settings(load_study(_study(tmp_path / "data")))
+    new = sorted(set(settings) - KEYED)
+    assert not new, f"{new}: add them to vctrain.study.conditions.SETTINGS_ADDED with their default"

@@ -91,6 +91,23 @@ def fold_study(wd: Path, fold: str, quick: bool, epochs: int | None, model: str,
     return path
 
 
+def backfill_magnification(out: Path) -> None:
+    """Models of a study in ``out`` trained before ``vctrain fit`` recorded ``source_magnification`` get it
+    from their own training stores (the checkpoint's ``config.stores``), the figure fit records now
+    (:func:`vctrain.training.training_magnification`), so that their re-scoring follows the working-size
+    rule of :meth:`vctrain.predict.Predictor.density_scale` as a model trained today would."""
+    from vcprep.store import Store
+    from vctrain.training import load_checkpoint, save_checkpoint, training_magnification
+
+    for path in sorted(out.glob("runs/*/*/model.pt")):
+        ck = load_checkpoint(path)
+        if ck["data"].get("mode") != "virtual" or "source_magnification" in ck["data"] or not ck["config"].get("stores"):
+            continue
+        ck["data"]["source_magnification"] = training_magnification([Store.open(s) for s in ck["config"]["stores"]])
+        save_checkpoint(path, {k: v for k, v in ck.items() if k not in ("format", "version")})
+        print(f"{path}: source_magnification {ck['data']['source_magnification']} (from its training stores)", flush=True)
+
+
 def collect(wd: Path, seeds: list[int], folds: list[str]) -> tuple[dict, list[str], list[float]]:
     """multi_camera's :func:`collect` over the folds' studies: (cells {'<fold>|<cond>' and
     '<test>@<fold>|<cond>': road IoU per seed}, missing, training minutes)."""
@@ -202,6 +219,7 @@ def main() -> None:
         for seed in seeds:
             if seed != seeds[0]:
                 link_stores(wd / a.model / fold / f"seed{seed}", wd / a.model / fold / f"seed{seeds[0]}")
+            backfill_magnification(wd / a.model / fold / f"seed{seed}")
             run_study(study, wd / a.model / fold / f"seed{seed}", CONDS, seed, a.threads)
         if i < len(folds) - 1:
             report(a, wd, seeds, folds[:i + 1])  # (a cut-off run leaves the folds finished so far)
