@@ -12,7 +12,18 @@ from .efficientnet import Lite0FPN
 from .resnet import ResFPN
 from .segnet import SegNet
 
-__all__ = ["build_model", "resolve_pretrained", "fold_batchnorm"]
+__all__ = ["build_model", "resolve_pretrained", "fold_batchnorm", "encoder_modules"]
+
+ENCODER_PARTS = ("encoder", "stem", "stages", "encoders")  # lite0fpn's; resfpn's; segnet's
+
+
+def encoder_modules(model: nn.Module) -> list[nn.Module]:
+    """The network's encoder (what ImageNet features or a first training learnt; the rest is the
+    decoder): ``encoder`` (lite0fpn), ``stem`` and ``stages`` (resfpn), ``encoders`` (segnet)."""
+    parts = [getattr(model, k) for k in ENCODER_PARTS if isinstance(getattr(model, k, None), nn.Module)]
+    if not parts:
+        raise InputError(f"{type(model).__name__} has no encoder to freeze", None, "leave --freeze-encoder out")
+    return parts
 
 
 def resolve_pretrained(arch: str, asked: bool | None) -> bool:

@@ -94,6 +94,8 @@ class TrainConfig:
     init: Optional[str] = None         # start from this checkpoint's network and weights (fine-tuning, vctrain adapt)
     freeze_bn: Optional[bool] = None   # keep BatchNorm's running statistics fixed (layers in eval mode while
                                        # training); None: FINETUNE_FREEZE_BN with init, no without
+    freeze_encoder: bool = False       # train the decoder only: the encoder's weights and BatchNorm statistics stay
+                                       # the starting model's (with init; issue 72)
     average_init: Optional[float] = None  # with init: the checkpoint holds A x the init's weights + (1 - A) x the
                                        # trained ones (WiSE-FT); None: FINETUNE_AVERAGE_INIT with init, 0 without
     l2sp: Optional[float] = None       # with init: loss + l2sp/2 x the squared distance of the weights from the start's

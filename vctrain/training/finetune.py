@@ -19,9 +19,10 @@ from vcprep.errors import InputError
 from .checkpoint import load_checkpoint
 from .config import ADAPT_LR_FACTOR, FINETUNE_AVERAGE_INIT, FINETUNE_FREEZE_BN, FINETUNE_L2SP, TrainConfig
 from ..networks.args import ARCHITECTURES
+from ..networks.build import encoder_modules
 
 __all__ = ["check_init", "unset_from_checkpoints", "init_record", "anchor_weights", "averaged", "as_saved",
-           "l2sp_penalty"]
+           "l2sp_penalty", "freeze_encoder", "trainable", "train_mode"]
 
 
 def check_init(cfg: TrainConfig, init: dict[str, Any], info: dict[str, Any]) -> None:
@@ -153,3 +154,31 @@ def l2sp_penalty(model: nn.Module, cfg: TrainConfig, resume: dict[str, Any] | No
     def penalty() -> torch.Tensor:
         return 0.5 * alpha * sum(((p - p0) ** 2).sum() for p, p0 in pairs)
     return penalty
+
+
+def freeze_encoder(model: nn.Module, cfg: TrainConfig) -> None:
+    """``cfg.freeze_encoder``: the encoder's weights take no gradient (the optimizer gets only the
+    decoder's, :func:`trainable`), and :func:`train_mode` keeps its BatchNorm statistics."""
+    if not cfg.freeze_encoder:
+        return
+    if cfg.init is None and cfg.resume is None:
+        raise InputError("--freeze-encoder keeps the weights a run starts from, and this run starts from none", None,
+                         "add --init MODEL.pt, or leave --freeze-encoder out")
+    for part in encoder_modules(model):
+        part.requires_grad_(False)
+
+
+def trainable(model: nn.Module) -> list[nn.Parameter]:
+    """The parameters the optimizer updates: all but a frozen encoder's."""
+    return [p for p in model.parameters() if p.requires_grad]
+
+
+def train_mode(net: nn.Module, cfg: TrainConfig) -> None:
+    """``net`` in training mode, with the BatchNorm layers that keep their running statistics in eval
+    mode: every one with ``freeze_bn``, the encoder's with ``freeze_encoder``."""
+    net.train()
+    frozen = [net] if cfg.freeze_bn else encoder_modules(getattr(net, "module", net)) if cfg.freeze_encoder else []
+    for part in frozen:
+        for m in part.modules():
+            if isinstance(m, nn.modules.batchnorm._BatchNorm):
+                m.eval()

@@ -40,6 +40,7 @@ def say_plan(cfg: TrainConfig, info: dict[str, Any], init: dict[str, Any], row0:
     rate = f"lr {cfg.lr:g}" + (f" ({cfg.lr / own:.2g} of the model's own {own:g})" if own else "")
     extras = [x for x, on in ((f"averaged {cfg.average_init:g} with the start", cfg.average_init),
                               ("BatchNorm statistics frozen", cfg.freeze_bn),
+                              ("encoder frozen", cfg.freeze_encoder),
                               (f"L2-SP {cfg.l2sp:g}", cfg.l2sp)) if on]
     err(f"fine-tuning {cfg.init} ({init['model_args']['arch']}): recipe {cfg.recipe}, {cfg.epochs} epochs, {rate}"
         + "".join(f", {x}" for x in extras) + f", {info['train_items']} frames trained on")

@@ -62,8 +62,8 @@ from .checkpoint import last_path, load_checkpoint, model_from_checkpoint, save_
 from .config import (BALANCES, FINETUNE_VAL_FRACTION, VAL_FRACTION, DEFAULT_RECIPE, OPTIMIZERS, RECIPES, SCHEDULES,
                      TrainConfig)
 from .data import RoadDataset, class_frequencies, median_frequency_weights
-from .finetune import (anchor_weights, as_saved, averaged, check_init, init_record, l2sp_penalty,
-                       unset_from_checkpoints)
+from .finetune import (anchor_weights, as_saved, averaged, check_init, freeze_encoder, init_record, l2sp_penalty,
+                       train_mode, trainable, unset_from_checkpoints)
 from . import guard
 from .rerun import request_of
 from .trainset import MixedViews, check_labels, crop_size, epoch_order, prepare_data, training_sets, view_batches
@@ -226,9 +226,9 @@ def _class_weight(cfg: TrainConfig, train_ds: RoadDataset, info: dict[str, Any],
 
 def _optimizer(cfg: TrainConfig, model: nn.Module) -> torch.optim.Optimizer:
     if cfg.optimizer == "adamw":
-        return torch.optim.AdamW(model.parameters(), lr=cfg.lr, betas=(cfg.momentum, 0.999),
+        return torch.optim.AdamW(trainable(model), lr=cfg.lr, betas=(cfg.momentum, 0.999),
                                  weight_decay=cfg.weight_decay)
-    return torch.optim.SGD(model.parameters(), lr=cfg.lr, momentum=cfg.momentum, weight_decay=cfg.weight_decay)
+    return torch.optim.SGD(trainable(model), lr=cfg.lr, momentum=cfg.momentum, weight_decay=cfg.weight_decay)
 
 
 def _epoch_loader(train_ds: RoadDataset, cfg: TrainConfig, epoch: int, rank: int, world: int, batch: int):
@@ -267,11 +267,7 @@ class _Loop:
 def _train_epoch(loop: _Loop, loader, epoch: int, step: int, t0: float) -> tuple[float, int, int]:
     """One epoch's steps from global step ``step``; returns (loss sum, items seen, next step)."""
     cfg, opt = loop.cfg, loop.opt
-    loop.net.train()
-    if cfg.freeze_bn:  # the running statistics stay the ones the weights were learnt with
-        for m in loop.net.modules():
-            if isinstance(m, nn.modules.batchnorm._BatchNorm):
-                m.eval()
+    train_mode(loop.net, cfg)  # (frozen BatchNorm statistics stay the ones the weights were learnt with)
     loss_sum, n_seen = 0.0, 0
     bar = tqdm(loader, total=loop.steps_per_epoch, desc=f"epoch {epoch + 1}/{cfg.epochs}", unit="batch",
                disable=None if loop.show else True, leave=False, dynamic_ncols=True)
@@ -433,6 +429,7 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
     resolve_recipe(cfg, device)
     train_s, val_s, info = prepare_data(cfg)
     model, model_args = _network(cfg, resume, init, info)
+    freeze_encoder(model, cfg)  # (before DDP wraps it: only the parameters that take gradients are reduced)
     fmt, net = _placed(model, model_args, device, distributed)
     train_ds, val_ds = training_sets(cfg, train_s, val_s, info)
     check_labels(cfg, train_ds)  # labels read with a format that does not fit them: refused before training
