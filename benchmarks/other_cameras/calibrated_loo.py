@@ -157,7 +157,10 @@ def render(cells: dict, head: dict, targets: dict, a: argparse.Namespace, seeds:
              f"two calibrated cameras (balance: datasets, {steps} steps an epoch, "
              + (f"{a.epochs} epochs" if a.epochs else "the recipe's epochs") + "), tested on all frames of the held-out one "
              "and of IDD-Lite, BDD100K and LUMS (their shipped, assumed files; `-est`: their camera estimated from their "
-             "frames alone), each in its own camera."
+             "frames alone), each in its own camera. The virtual-camera network runs frames the warp enlarges more than "
+             "it did any training camera's at their own pixel density (`Predictor.density_scale`: IDD-Lite's 320x227 "
+             "frames at about half the canvas's size), as `vctrain predict` does; a model trained before `fit` recorded "
+             "`source_magnification` gets it from its own training stores."
              + (f" IDD-Lite: only its frames whose ids match `{a.idd_include}`." if a.idd_include and not a.quick else ""), "",
              "| held out | trained on | within | resize | within − resize (paired per seed) |", "|---|---|---|---|---|"]
     lines += [f"| {t} | {train(t)} | {f(head[f'loo_within_{t}'])} | {f(head[f'loo_resize_{t}'])} | "
