@@ -177,8 +177,7 @@ KEYED = {"arch", "balance", "base_width", "batch_size", "class_weights", "color_
 
 
 def test_a_training_setting_added_at_its_default_keeps_the_studys_keys(tmp_path):
-    from vctrain.study import load_study
-    from vctrain.study.conditions import training_settings
+    from vctrain.study import load_study, training_settings
 
     settings = training_settings(load_study(_study(tmp_path / "data")))
     new = sorted(set(settings) - KEYED)
