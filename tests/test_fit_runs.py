@@ -173,16 +173,16 @@ def test_fine_tuning_validates_on_the_frames_given_instead_of_a_share(frames, tm
         assert r.returncode == 1 and needle in r.stderr.strip().splitlines()[-1] and not (tmp_path / "x.pt").exists()
 
 
-def test_a_frozen_encoder_keeps_the_starting_models_encoder_and_trains_the_decoder(frames, tmp_path):
-    """--freeze-encoder: every encoder weight and BatchNorm statistic of OUT is the start's, bit for bit
-    (with BatchNorm otherwise left to learn, --no-freeze-bn), the decoder's are not; without --init it is
-    refused in one line."""
+def test_fine_tuning_keeps_the_starting_models_encoder_unless_told_otherwise(frames, tmp_path):
+    """fit --init by default (--freeze-encoder): every encoder weight and BatchNorm statistic of OUT is the
+    start's, bit for bit (with BatchNorm otherwise left to learn, --no-freeze-bn), the decoder's are not;
+    --no-freeze-encoder trains the encoder too; --freeze-encoder without a start is refused in one line."""
     from vctrain.networks.build import ENCODER_PARTS
 
     root, data = frames
-    r = run_cli("fit", *data, "--init", root / "start.pt", "--freeze-encoder", "--no-freeze-bn", "--val-fraction", "0",
-                "--batch-size", "4", "--lr", "0.01", "--epochs", "2", "--average-init", "0", "--out", tmp_path / "ft.pt",
-                prog="vctrain")
+    common = [*data, "--init", root / "start.pt", "--no-freeze-bn", "--val-fraction", "0", "--batch-size", "4", "--lr",
+              "0.01", "--epochs", "2", "--average-init", "0"]
+    r = run_cli("fit", *common, "--out", tmp_path / "ft.pt", prog="vctrain")
     assert r.returncode == 0, r.stderr
     assert "encoder frozen" in r.stderr
     start, ft = load_checkpoint(root / "start.pt")["model"], load_checkpoint(tmp_path / "ft.pt")["model"]
@@ -191,5 +191,10 @@ def test_a_frozen_encoder_keeps_the_starting_models_encoder_and_trains_the_decod
     assert enc and dec
     assert all(torch.equal(start[k], ft[k]) for k in enc)
     assert any(not torch.equal(start[k], ft[k]) for k in dec)
+    r = run_cli("fit", *common, "--no-freeze-encoder", "--out", tmp_path / "all.pt", prog="vctrain")
+    assert r.returncode == 0, r.stderr
+    assert "encoder frozen" not in r.stderr
+    every = load_checkpoint(tmp_path / "all.pt")["model"]
+    assert any(not torch.equal(start[k], every[k]) for k in enc if start[k].is_floating_point())
     r = run_cli("fit", *data, *TINY, "--freeze-encoder", "--epochs", "1", "--out", tmp_path / "x.pt", prog="vctrain")
     assert r.returncode != 0 and "--freeze-encoder" in r.stderr.strip().splitlines()[-1]

@@ -66,13 +66,19 @@ def test_the_card_states_the_measured_fine_tuning_figures():
         for key in (f"fine-tuned_n{n}_iou", f"zero-shot_n{n}_iou"):
             assert f"{h[key]:.1f}" in card, key
         assert f"{h[f'fine-tuned_minus_zero-shot_n{n}']:+.1f}" in card, n
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("results_page", ROOT / "benchmarks" / "results_page.py")
+    page = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(page)
+    signed_points = page.headline.signed_points  # (as the README writes them)
     flat = " ".join(card.split())  # fine-tuning as it runs by default (finetune_guard.py): gain and worst seed
     guard = json.loads((results / "finetune_guard.json").read_text())
     h = guard["headline"]
     assert len(guard["seeds"]) == 3
     for key in [k for k in h if "_default_n" in k and k.endswith("_gain")]:
         n = key.split("_n")[1].split("_")[0]
-        assert f"{h[key]:+.1f} (worst {h[key.replace('_gain', '_worst')]:+.1f}) with {n}" in flat, key
+        assert f"{signed_points(h[key])} (worst {signed_points(h[key.replace('_gain', '_worst')])}) with {n}" in flat, key
         assert f"({h[key.split('_default')[0] + '_zero-shot']:.1f})" in flat, key
     known = json.loads((results / "own_frames_idd_shipped.json").read_text())["headline"]
     assert f"{known['fine-tuned_minus_zero-shot_n60']:+.1f}" in card

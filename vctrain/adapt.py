@@ -242,7 +242,8 @@ def adapt(model: str | Path, images: str | Path | Iterable[str | Path] | Sequenc
                      images=None, labels=None, label_format=None, val_fraction=0.0, val_stores=[], log=None,
                      size=tuple(data.get("input_size") or size),
                      epochs=epochs, lr=lr, device=settings.device, progress=settings.progress,
-                     max_steps=settings.max_steps, workers=0, average_init=0.0, freeze_bn=False,  # adapt's measured recipe
+                     max_steps=settings.max_steps, workers=0,
+                     average_init=0.0, freeze_bn=False, freeze_encoder=False,  # adapt's measured recipe
                      vp_channel=bool(data.get("vp_channel", False)), greyscale=float(data.get("greyscale", 0.0)))
     if settings.seed is not None:
         overrides["seed"] = int(settings.seed)

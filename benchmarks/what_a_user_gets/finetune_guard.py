@@ -29,7 +29,9 @@ sequence, the trained model kept only if it beats the start there); ``before`` `
 (the screening that fitted a deadline on 2 shared cores: an epoch of 48 frames took 2-6 minutes there);
 ``daylight guard`` (dusk only) validates on 12 frames of the daylight drive 0006R0 given with
 ``--val-images`` instead of a share of the dusk frames (:func:`_daylight_guard`); ``freeze-encoder``
-``--freeze-encoder`` (the decoder trained, the encoder's weights and statistics the shipped model's).
+``--freeze-encoder`` (the decoder trained, the encoder's weights and statistics the shipped model's: the
+default since issue 72's measurement of it); ``encoder trained`` ``--no-freeze-encoder`` (every layer: the
+default before; its cells are the ones the default ran before then).
 ``zero-shot``: the model as it is.
 
 Scored by ``vctrain predict`` + ``vctrain eval`` in the frames' own pixels: road IoU % = sum TP /
@@ -63,7 +65,8 @@ VARIANTS = {"default": [], "before": ["--val-fraction", 0], "freeze-bn": ["--fre
             "lr/3": ["--lr", 0.0000667], "10 epochs": ["--epochs", 10], "no average": ["--average-init", 0],
             "4 epochs": ["--epochs", 4], "before 4 epochs": ["--val-fraction", 0, "--epochs", 4],
             "freeze-bn 4 epochs": ["--freeze-bn", "--epochs", 4], "l2sp 4 epochs": ["--l2sp", 0.1, "--epochs", 4],
-            "bn not frozen": ["--no-freeze-bn"], "daylight guard": [], "freeze-encoder": ["--freeze-encoder"]}
+            "bn not frozen": ["--no-freeze-bn"], "daylight guard": [], "freeze-encoder": ["--freeze-encoder"],
+            "encoder trained": ["--no-freeze-encoder"]}
 
 
 def _daylight_guard(frames: Path) -> list:

@@ -59,8 +59,8 @@ HELP = {  # the options whose help does not fit on their line
     "val_images": "resize baseline: validate on these frames instead of a share of the training ones "
                   "(replaces --val-fraction; with --init the start is kept unless the trained model scores higher "
                   "on them): frames of the light or drive the model will be used in",
-    "freeze_encoder": "with --init: train the decoder only (the encoder's weights and BatchNorm statistics stay the "
-                      "starting model's)",
+    "freeze_encoder": "train the decoder only: the encoder's weights and BatchNorm statistics stay the starting "
+                      "model's (default: on with --init; --no-freeze-encoder trains every layer)",
     "freeze_bn": "keep BatchNorm's running statistics fixed while training (default: on with --init, off without)",
     "average_init": "with --init: OUT holds A x the starting weights + (1 - A) x the trained ones (WiSE-FT; "
                     "validation scores that average; OUT.last.pt keeps the trained ones for --resume); default: 0.5, 0 without --init",
@@ -153,7 +153,8 @@ def fit_cmd(
     resume: Optional[Path] = typer.Option(None, "--resume", help=HELP["resume"]),
     init: Optional[Path] = typer.Option(None, "--init", help=HELP["init"]),
     freeze_bn: Optional[bool] = typer.Option(None, "--freeze-bn/--no-freeze-bn", help=HELP["freeze_bn"]),
-    freeze_encoder: bool = typer.Option(TRAIN.freeze_encoder, "--freeze-encoder", help=HELP["freeze_encoder"]),
+    freeze_encoder: Optional[bool] = typer.Option(None, "--freeze-encoder/--no-freeze-encoder",
+                                                  help=HELP["freeze_encoder"]),
     average_init: Optional[float] = typer.Option(None, "--average-init", help=HELP["average_init"]),
     balance: Optional[str] = typer.Option(None, "--balance", help=HELP["balance"]),
     l2sp: Optional[float] = typer.Option(None, "--l2sp", help=HELP["l2sp"]),

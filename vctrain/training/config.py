@@ -13,7 +13,7 @@ from typing import Any, Optional
 
 __all__ = ["TrainConfig", "TRAIN_WINDOW", "RECIPES", "DEFAULT_RECIPE", "SCHEDULES", "OPTIMIZERS", "BALANCES", "AdaptSettings", "ADAPT_EPOCHS",
            "ADAPT_LR_FACTOR", "VAL_SPLITS", "RUN_ONLY", "FINETUNE_FREEZE_BN",
-           "FINETUNE_AVERAGE_INIT", "FINETUNE_L2SP", "VAL_FRACTION", "FINETUNE_VAL_FRACTION"]
+           "FINETUNE_AVERAGE_INIT", "FINETUNE_FREEZE_ENCODER", "FINETUNE_L2SP", "VAL_FRACTION", "FINETUNE_VAL_FRACTION"]
 
 # full-height training windows of 4/9 of the working width: the measured best design (a crossval study's
 # and the cpu recipe's default; 76800 px a step at 172800-px stores)
@@ -94,8 +94,8 @@ class TrainConfig:
     init: Optional[str] = None         # start from this checkpoint's network and weights (fine-tuning, vctrain adapt)
     freeze_bn: Optional[bool] = None   # keep BatchNorm's running statistics fixed (layers in eval mode while
                                        # training); None: FINETUNE_FREEZE_BN with init, no without
-    freeze_encoder: bool = False       # train the decoder only: the encoder's weights and BatchNorm statistics stay
-                                       # the starting model's (with init; issue 72)
+    freeze_encoder: Optional[bool] = None  # train the decoder only: the encoder's weights and BatchNorm statistics
+                                       # stay the starting model's; None: FINETUNE_FREEZE_ENCODER with init, no without
     average_init: Optional[float] = None  # with init: the checkpoint holds A x the init's weights + (1 - A) x the
                                        # trained ones (WiSE-FT); None: FINETUNE_AVERAGE_INIT with init, 0 without
     l2sp: Optional[float] = None       # with init: loss + l2sp/2 x the squared distance of the weights from the start's
@@ -130,6 +130,9 @@ FINETUNE_VAL_FRACTION = 0.2  # fit --init's held-out share: the starting model i
 FINETUNE_FREEZE_BN = True  # fit --init's default for freeze_bn: issue 72's screening (finetune_guard.py, seed 0, 60 frames,
                            # 4 epochs) gained more on a camera never seen (+4.8 against +2.7) and lost less on another
                            # drive of a known one (-0.1 against -0.4); L2-SP 0.1 lost more (-0.7)
+FINETUNE_FREEZE_ENCODER = True  # fit --init's default for freeze_encoder: issue 72 (finetune_guard.py, 3 seeds): another
+                                # drive in other light -0.03 (worst -0.09) with 20 frames against -0.31 (-0.38) when the
+                                # encoder learns too; a camera never seen +6.5 (worst +6.4) with 60 frames against +7.2
 FINETUNE_L2SP = 0.0  # fit --init's default for l2sp (benchmarks/what_a_user_gets/finetune_guard.py)
 FINETUNE_AVERAGE_INIT = 0.5  # fit --init's default for average_init: WiSE-FT's (benchmarks/what_a_user_gets/own_frames.py)
 

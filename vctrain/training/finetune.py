@@ -17,7 +17,8 @@ from torch import nn
 from vcprep.errors import InputError
 
 from .checkpoint import load_checkpoint
-from .config import ADAPT_LR_FACTOR, FINETUNE_AVERAGE_INIT, FINETUNE_FREEZE_BN, FINETUNE_L2SP, TrainConfig
+from .config import (ADAPT_LR_FACTOR, FINETUNE_AVERAGE_INIT, FINETUNE_FREEZE_BN, FINETUNE_FREEZE_ENCODER, FINETUNE_L2SP,
+                     TrainConfig)
 from ..networks.args import ARCHITECTURES
 from ..networks.build import encoder_modules
 
@@ -60,6 +61,8 @@ def init_network(cfg: TrainConfig, init: dict[str, Any]) -> None:
         cfg.size = tuple(int(v) for v in data["input_size"])  # the scale the model learnt, not the frames' own
     if cfg.freeze_bn is None:
         cfg.freeze_bn = FINETUNE_FREEZE_BN
+    if cfg.freeze_encoder is None:
+        cfg.freeze_encoder = FINETUNE_FREEZE_ENCODER
     if cfg.average_init is None:
         cfg.average_init = FINETUNE_AVERAGE_INIT
     if cfg.l2sp is None:
@@ -78,7 +81,7 @@ def unset_from_checkpoints(cfg: TrainConfig, resume: dict[str, Any] | None, init
         cfg.lr = (resume.get("config") or {}).get("lr")
     if resume is not None and cfg.arch is None:  # the checkpoint's network, not the recipe's
         cfg.arch = resume["model_args"]["arch"]
-    for k in ("freeze_bn", "average_init", "val_fraction", "l2sp"):  # a resumed fine-tuning run goes on as it began
+    for k in ("freeze_bn", "freeze_encoder", "average_init", "val_fraction", "l2sp"):  # a resumed fine-tuning run goes on as it began
         if resume is not None and getattr(cfg, k) is None:
             setattr(cfg, k, (resume.get("config") or {}).get(k))
     if init is not None:

@@ -199,6 +199,11 @@ FINETUNE_CASES = {"kitti": "a camera it never saw (KITTI", "dusk": "in other lig
                   "idd": "a camera it knows (IDD-Lite"}
 
 
+def signed_points(x: float) -> str:
+    """A gain in points, signed: to a tenth, and to a hundredth below one point (-0.03, not -0.0)."""
+    return f"{x:+.2f}" if abs(x) < 1 else f"{x:+.1f}"
+
+
 def finetune_figures(guard: dict) -> list[str]:
     """Route 2's figures from finetune_guard.json: per case its start, then per frame count the mean
     gain over the model as it is and the worst seed, as the README writes them."""
@@ -209,6 +214,7 @@ def finetune_figures(guard: dict) -> list[str]:
         if not ns:
             continue
         out.append(f"{name}, {h[f'{case}_zero-shot']:.1f})")
-        out += [f"{h[f'{case}_default_n{n}_gain']:+.1f} (worst {h[f'{case}_default_n{n}_worst']:+.1f}) with {n}" for n in ns]
+        gain = lambda n, what: signed_points(h[f"{case}_default_n{n}_{what}"])
+        out += [f"{gain(n, 'gain')} (worst {gain(n, 'worst')}) with {n}" for n in ns]
     return out
 
