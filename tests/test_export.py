@@ -291,3 +291,7 @@ def test_a_camera_the_warp_enlarges_runs_at_its_own_pixel_density(models, tmp_pa
     graph = OnnxPredictor(tmp_path / "road.onnx", threads=1)
     for i, img in enumerate(frames):
         _agree(graph.road_probability(img), ref[f"f{i}"])
+    r = run_cli("predict", root / "vc.pt", tmp_path / "frames", "--camera", tmp_path / "cam.yaml", "--out",
+                tmp_path / "said", prog="vctrain")  # and the command says so
+    assert r.returncode == 0, r.stderr
+    assert f"frames enlarged {m:.2f}x by the warp, so the network runs at {1 / m:.2f} of its working size" in r.stderr

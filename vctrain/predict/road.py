@@ -332,7 +332,10 @@ def geometry_line(geo: dict[str, Any], rule_source: str = "", ego_source: str = 
     rows = "/".join(map(str, geo["ego_rows"]))
     ego = (f"own vehicle: {rows} bottom rows never warped" if geo["ego_rows"] != [0] else "own vehicle: none")
     ego += f" ({ego_source})" if ego_source else ""
-    return f"{vps}; {ego}; virtual rectangle {geo['rectangle'][0]}x{geo['rectangle'][1]}"
+    dense = geo.get("density")  # (frames the warp enlarges more than the training's: Predictor.density_scale)
+    scale = (f"; frames enlarged {dense['magnification']:.2f}x by the warp, so the network runs at "
+             f"{dense['scale']:.2f} of its working size (their own pixel density)" if dense else "")
+    return f"{vps}; {ego}; virtual rectangle {geo['rectangle'][0]}x{geo['rectangle'][1]}{scale}"
 
 
 def _road_geometry(run: "RoadRun", poses: dict, fps: dict, camera) -> dict[str, Any]:
@@ -344,9 +347,13 @@ def _road_geometry(run: "RoadRun", poses: dict, fps: dict, camera) -> dict[str, 
     statuses = Counter(poses[i].status if i in poses else ("calibrated" if per_frame else "camera") for i in run.ids)
     rules = [dict(poses[i].rule) for i in run.ids if i in poses and poses[i].rule]
     rects = {tuple(fp.virtual.size) for fp in fps.values() if fp.virtual is not None}
+    dense = [(fp.magnification, fp.predictor.density_scale(fp.magnification)) for fp in fps.values()
+             if fp.virtual is not None and hasattr(fp.predictor, "density_scale")]
+    dense = [d for d in dense if d[1] < 1.0]
     return {"vp_status": dict(sorted(statuses.items())), "vp_rule": rules[0] if rules else None,
             "ego_rows": sorted({int(k[0].ego_rows) for k in fps if k[0] is not None}) or [0],
-            "rectangle": list(rects.pop()) if len(rects) == 1 else [0, 0]}
+            "rectangle": list(rects.pop()) if len(rects) == 1 else [0, 0],
+            **({"density": {"magnification": max(dense)[0], "scale": max(dense)[1]}} if dense else {})}
 
 
 def _remove_outputs(out: Path, stem: str) -> None:
