@@ -143,11 +143,11 @@ def test_predict_gives_the_studys_masks_and_iou_on_the_examples(examples_run, tm
     ego = {"0001TP": 18, "0001TP-small": 3, "kitti": 0}[name]
     if name == "0001TP-small" and cond in ("between", "within"):  # the frame is enlarged: a smaller working size
         from vctrain.predict import Predictor
-        from vctrain.predict.predictor import record_magnification
+        from vcprep.store import record_magnification
 
         st = Store.open(examples_run / "stores" / name / "test" / cond)
         assert Predictor(examples_run / "runs" / "_all" / cond / "model.pt", "cpu").density_scale(
-            record_magnification(next(iter(st)), st)) < 0.7
+            record_magnification(next(iter(st)), st.virtual)) < 0.7
     if cond not in ("resize", "resize-vp"):
         assert _run_result(examples_run, "_all", name, cond)["test_warp"]["ego_rows"] == [ego]
     _assert_predict_gives_the_studys(examples_run, "_all", name, cond, frames, camera, labels, fmt, ego,

@@ -21,6 +21,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from ..camera.files import camera_from_dict
 from ..camera.pinhole import Camera
 from ..camera.sources import FrameCameras, camera_of_image
 from ..dataset import Job
@@ -161,6 +162,16 @@ def item_magnification(camera: Camera, size: tuple[int, int], virtual_scaled: Ca
     and a frame's own pose change it by a few per cent at most, so one figure stands for the camera)."""
     cam, H = item_geometry(camera, size, virtual_scaled, None, camera.pan, camera.tilt)
     return road_magnification(H, cam.visible_size, vp_from_pose(cam)[1])
+
+
+def record_magnification(rec: Mapping[str, Any], virtual_scaled: Camera) -> float | None:
+    """:func:`item_magnification` of a store record's camera (``camera_params``, at the record's
+    ``size``): every item of a camera gets the figure ``vctrain predict`` and an export compute for
+    its frames; None for a record without its camera's parameters."""
+    if not rec.get("camera_params") or not rec.get("size"):
+        return None
+    size = (int(rec["size"][0]), int(rec["size"][1]))
+    return item_magnification(camera_from_dict(rec["camera_params"]), size, virtual_scaled)
 
 
 def sha256_file(path: Path, kind: str) -> tuple[str, bytes]:

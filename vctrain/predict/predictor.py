@@ -31,7 +31,7 @@ import torch
 from tqdm import tqdm
 
 from vcprep.dataset import Job, collect_images
-from vcprep.store import WarpSettings, item_magnification, warp_dataset
+from vcprep.store import WarpSettings, record_magnification, warp_dataset
 from vcprep.camera import Camera, FrameCameras, camera_from_dict, scale_matrix
 from vcprep.errors import InputError
 from vcprep.io import read_image
@@ -47,15 +47,6 @@ from .bev import BevRun
 from .frames import DEFAULT_BEYOND, NEEDS_CAMERA, back_to_frame, extends, refuse_mixed, warps_frames
 from .road import RoadRun, frames_canvas, geometry_line, model_vp_rule, out_dir, run_road, virtual_within
 from .written import write_prediction
-
-def record_magnification(rec: dict[str, Any], store: Store) -> float | None:
-    """Store pixels per source pixel of a store item's camera (:func:`vcprep.store.item_magnification`,
-    at the camera's average pose: every item of a camera gets the figure ``vctrain predict`` and an
-    export compute for its frames); None for an item without its camera's parameters."""
-    if not rec.get("camera_params") or not store.params.get("virtual_scaled"):
-        return None
-    cam = camera_from_dict(rec["camera_params"])
-    return item_magnification(cam, (int(rec["size"][0]), int(rec["size"][1])), store.virtual)
 
 
 class Predictor:
@@ -191,7 +182,8 @@ class Predictor:
         vs = store.params.get("virtual_scaled") or {}
         focal = (vs["fx"], vs["fy"]) if vs.get("fx") else None
         vp = vp_in_store(rec, store)
-        size = self.working_size((img.shape[1], img.shape[0]), record_magnification(rec, store))
+        m = record_magnification(rec, store.virtual) if vs else None  # (the frames' pixel density)
+        size = self.working_size((img.shape[1], img.shape[0]), m)
         prob = self.road_probability(img, vp, size, focal)
         return back_to_frame(prob, rec, self.beyond_rule, vp, self._training_rect(store))
 

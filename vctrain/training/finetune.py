@@ -81,7 +81,8 @@ def unset_from_checkpoints(cfg: TrainConfig, resume: dict[str, Any] | None, init
         cfg.lr = (resume.get("config") or {}).get("lr")
     if resume is not None and cfg.arch is None:  # the checkpoint's network, not the recipe's
         cfg.arch = resume["model_args"]["arch"]
-    for k in ("freeze_bn", "freeze_encoder", "average_init", "val_fraction", "l2sp"):  # a resumed fine-tuning run goes on as it began
+    # a resumed fine-tuning run goes on as it began
+    for k in ("freeze_bn", "freeze_encoder", "average_init", "val_fraction", "l2sp"):
         if resume is not None and getattr(cfg, k) is None:
             setattr(cfg, k, (resume.get("config") or {}).get(k))
     if init is not None:

@@ -24,14 +24,14 @@ from vcprep.dataset import list_dataset
 from vcprep.errors import InputError
 from vcprep.io import image_size
 from vcprep.labels import get_label_format
-from vcprep.camera import camera_from_dict
-from vcprep.store import Store, item_magnification
+from vcprep.store import Store, record_magnification
 
 from .config import BALANCES, VAL_SPLITS, TrainConfig
 from .data import RoadDataset, Sample, resize_samples, store_samples
 
 __all__ = ["BASELINES", "MIN_SIDE", "MixedViews", "view_batches", "prepare_data", "resize_working_size",
-           "training_magnification", "crop_size", "epoch_order", "training_sets", "check_labels", "sequence_of", "sequence_items"]
+           "training_magnification", "crop_size", "epoch_order", "training_sets", "check_labels", "sequence_of",
+           "sequence_items"]
 
 MIN_SIDE = 32  # the smallest working side: five 2x2 poolings
 # what a model is trained on (TrainConfig.baseline): 'none' the virtual camera's store items, 'resize'
@@ -201,17 +201,17 @@ def _val_frames(cfg: TrainConfig) -> list[Sample]:
 
 def training_magnification(stores: Sequence[Store]) -> float | None:
     """The most the warp enlarged any training camera's frames: the largest store-pixels-per-source-pixel
-    figure (:func:`vcprep.store.item_magnification`) over the cameras of ``stores``' items; None when no
-    item records its camera. A predictor shrinks its working size only for frames enlarged more."""
-    seen: dict[str, float] = {}
+    figure (:func:`vcprep.store.record_magnification`) over the cameras of ``stores``' items; None when
+    no item records its camera. A predictor shrinks its working size only for frames enlarged more."""
+    seen: dict[str, float | None] = {}
     for st in stores:
+        virtual, vs = st.virtual, st.params.get("virtual_scaled")
         for rec in st:
-            params, size = rec.get("camera_params"), rec.get("size")
-            key = json.dumps([params, size, st.params.get("virtual_scaled")], sort_keys=True)
-            if params and size and key not in seen:
-                cam = camera_from_dict(params)
-                seen[key] = item_magnification(cam, (int(size[0]), int(size[1])), st.virtual)
-    return round(max(seen.values()), 4) if seen else None
+            key = json.dumps([rec.get("camera_params"), rec.get("size"), vs], sort_keys=True)
+            if key not in seen:
+                seen[key] = record_magnification(rec, virtual)
+    found = [m for m in seen.values() if m is not None]
+    return round(max(found), 4) if found else None
 
 
 def _folder_samples(images: str, labels: str, fmt) -> list[Sample]:
