@@ -52,7 +52,7 @@ from pathlib import Path
 import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
-from benchmarks.other_cameras.as_shipped import BDD, CITYSCAPES, IDD, LUMS, run_study
+from benchmarks.other_cameras.as_shipped import BDD, CITYSCAPES, IDD, KITTI_SEM, KITTI_SEM_FORMAT, LUMS, run_study
 from benchmarks.other_cameras.multi_camera import SHADING_AUG
 from benchmarks.measure.data import BIN, CS_FORMAT, DATA, KITTI, LUMS_FORMAT, ROOT, native_camera, require_data, run
 from benchmarks.measure.report import machine, results_dir, today, write_json
@@ -64,6 +64,7 @@ CS_HELD = ["cs_2[5-9]*"]
 BDD_HELD = ["0a3*", "0a4*"]
 LUMS_HELD = ["color_[0-9]_*", "color_[0-9][0-9]_*"]  # captures 1-79 (the others are >= 160)
 IDD_MOD, IDD_HELD = 7, 3
+KITTI_SEM_HELD = ["0001*"]  # kitti_semantics frames 000100-000123 (19 of its 98; each frame its own scene)
 
 
 def _idd_held() -> list[str]:
@@ -81,11 +82,12 @@ def _first(split: dict, n: int) -> dict:
 
 
 def study_file(wd: Path, quick: bool, epochs: int, model: str | None = None, pretrained: bool = True,
-               store_pixels: int | None = None) -> Path:
+               store_pixels: int | None = None, kitti_semantics: bool = False) -> Path:
     """The study: five training splits (role train), six held-out splits (role test); ``model``: every
     condition's network (study ``train: arch``; default the recipe's); ``pretrained`` False: trained
     from scratch (the control of a pretrained network); ``store_pixels``: the working resolution's pixel
-    budget of both twins (study ``store_pixels``; default 480x360's)."""
+    budget of both twins (study ``store_pixels``; default 480x360's); ``kitti_semantics``: the sixth
+    development set too (frames 000018-000099 trained on, 000100-000123 held out: KITTI_SEM_HELD)."""
     n = 3 if quick else None
     cam = str(native_camera(wd))
     cs = {"images": str(CITYSCAPES / "images"), "labels": str(CITYSCAPES / "labels")}
@@ -100,6 +102,10 @@ def study_file(wd: Path, quick: bool, epochs: int, model: str | None = None, pre
         ("bdd", str(BDD / "camera.yaml"), "bdd", {**bdd, "exclude": BDD_HELD}, {**bdd, "include": BDD_HELD}),
         ("lums", str(LUMS / "camera.yaml"), LUMS_FORMAT, {**lums, "exclude": LUMS_HELD}, {**lums, "include": LUMS_HELD}),
     ]
+    if kitti_semantics:
+        ks = {"images": str(KITTI_SEM / "images"), "labels": str(KITTI_SEM / "labels")}
+        sets.append(("kitti_semantics", str(KITTI_SEM / "camera.yaml"), KITTI_SEM_FORMAT,
+                     {**ks, "exclude": KITTI_SEM_HELD}, {**ks, "include": KITTI_SEM_HELD}))
     if quick:  # a smoke run: the first few frames each split selects
         sets = [(k, c, f, _first(tr, n), _first(te, n)) if k != "idd" else
                 (k, c, f, {**idd, "include": ["0_*"]}, {**idd, "include": _idd_held()[:1]}) for k, c, f, tr, te in sets]
@@ -118,15 +124,15 @@ def study_file(wd: Path, quick: bool, epochs: int, model: str | None = None, pre
     return path
 
 
-def collect(sd: Path, conds: list[str]) -> tuple[dict[str, dict[str, float | None]], list[str], dict[str, float],
-                                                 dict[str, float]]:
+def collect(sd: Path, conds: list[str], sets: list[str] = SETS) -> tuple[dict[str, dict[str, float | None]], list[str],
+                                                                        dict[str, float], dict[str, float]]:
     """({condition: {set: road IoU %}}, the missing '<set>|<condition>', {condition: training minutes},
     {'precision_<condition>_<set>' and 'recall_...': %}: where the errors lie, beside the IoU)."""
     cells: dict[str, dict[str, float | None]] = {}
     missing, minutes, pr = [], {}, {}
     for cond in conds:
         cells[cond] = {}
-        for t in SETS:
+        for t in sets:
             f = sd / "runs" / "_all" / cond / f"result-{t}.json"
             if not f.is_file():
                 cells[cond][t] = None
