@@ -45,6 +45,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: 
 from benchmarks.other_cameras.as_shipped import BDD, CITYSCAPES, IDD, KITTI_SEM, LUMS, run_study, share_stores
 from benchmarks.other_cameras.merged_estimated import frames_only_entry
 from benchmarks.measure.data import DATA, KITTI, ROOT, require_data
+from benchmarks.measure.page.multi_camera import r_ship_geometry
 from benchmarks.measure.report import machine, results_dir, today, write_json
 from benchmarks.what_a_user_gets.shipped_model import SETS, collect, study_file
 
@@ -104,25 +105,6 @@ def loo_targets() -> dict[str, bool | None]:
     return {f"calibrated leave-one-out: {k}": v for k, v in t.items() if "test-only" not in k}
 
 
-def render(cells: dict[str, list], head: dict, epochs: int, seeds: list[int], model: str) -> str:
-    f = lambda v: "-" if not v else (f"{np.mean(v):.1f}" + (f" ± {np.std(v, ddof=1):.1f}" if len(v) > 1 else ""))
-    g = lambda a, b: "-" if not a or not b else f"{np.mean(a) - np.mean(b):+.1f}"
-    lines = [f"Ship geometry (issue 73 item 4): `{model}` trained on the six development sets' training splits "
-             f"({epochs} epochs, seeds {', '.join(map(str, seeds))}), road IoU % on each held-out split in its own "
-             "camera; today's shipped model scored on the same test stores in the same run.", "",
-             "| held-out split | within | resize twin | shipped today | within − shipped | within − resize |",
-             "|---|---|---|---|---|---|"]
-    for t in SIX + ESTIMATED:
-        w, r, s = cells["within"].get(t), cells["resize"].get(t), cells["shipped"].get(t)
-        lines.append(f"| {t} | {f(w)} | {f(r)} | {f(s)} | {g(w, s)} | {g(w, r)} |")
-    lines += ["", "Mean over the seven held-out splits (the `-est` rows beside, not in it): " + ", ".join(
-        f"{k} {head.get(f'mean_{k}', '-')}" for k in ("within", "resize", "shipped")) + ".", "",
-        "| rule | met |", "|---|---|"]
-    lines += [f"| {k} | {'-' if v is None else ('yes' if v else 'no')} |" for k, v in head["rule"].items()]
-    lines += ["", f"Decision: {head['decision']}"]
-    return "\n".join(lines) + "\n"
-
-
 def decide(rules: dict[str, bool | None]) -> str:
     within = [v for k, v in rules.items() if k.startswith("within") or k.startswith("calibrated")]
     if any(v is None for v in within):
@@ -164,17 +146,18 @@ def main() -> None:
     head.update({f"mean_{k}": mean_over(cells, k, SIX) for k in cells})
     head["rule"] = {**rule(cells, "within"), **loo_targets(), **rule(cells, "resize")}
     head["decision"] = decide(head["rule"])
-    table = render(cells, head, a.epochs, seeds, a.model)
-    print(table)
-    res = (wd / "results") if a.quick else results_dir(__file__)
-    res.mkdir(parents=True, exist_ok=True)
-    (res / "ship_geometry.md").write_text(table)
-    write_json(res / "ship_geometry.json", {
+    result = {
         "headline": head, "cells": cells, "sets": SIX, "estimated": ESTIMATED, "epochs": a.epochs, "seeds": seeds,
         "model": a.model, "shipped": str(a.shipped.relative_to(ROOT) if a.shipped.is_relative_to(ROOT) else a.shipped),
         "threads": a.threads, "machine": machine(), "date": today(),
         "command": f"benchmarks/what_a_user_gets/ship_geometry.py --epochs {a.epochs} --seeds {a.seeds} "
-                   f"--model {a.model}" + (" --quick" if a.quick else "")})
+                   f"--model {a.model}" + (" --quick" if a.quick else "")}
+    table = "\n".join(r_ship_geometry(result)) + "\n"
+    print(table)
+    res = (wd / "results") if a.quick else results_dir(__file__)
+    res.mkdir(parents=True, exist_ok=True)
+    (res / "ship_geometry.md").write_text(table)
+    write_json(res / "ship_geometry.json", result)
     print(json.dumps({k: v for k, v in head.items() if k != "rule"}))
 
 

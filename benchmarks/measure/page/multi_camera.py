@@ -84,6 +84,31 @@ def r_shipped_screen(d: dict) -> list[str]:
     return out + table(["variant"] + list(names), [[v] + [num(ok) for ok in t.values()] for v, t in d["targets"].items()])
 
 
+def r_ship_geometry(d: dict) -> list[str]:
+    """Ship geometry if it wins (benchmarks/what_a_user_gets/ship_geometry.py): the recipe trained both ways on the
+    six development sets against today's shipped model on the same test stores; the script writes its .md with this."""
+    cells, h = d["cells"], d["headline"]
+    f = lambda v: "-" if not v else (f"{sum(v) / len(v):.1f}" + (f" ± {_sd(v):.1f}" if len(v) > 1 else ""))  # noqa: E731
+    g = lambda a, b: "-" if not a or not b else f"{sum(a) / len(a) - sum(b) / len(b):+.1f}"  # noqa: E731
+    out = [f"Ship geometry (issue 73 item 4): `{d['model']}` trained on the six development sets' training splits "
+           f"({d['epochs']} epochs, seeds {', '.join(map(str, d['seeds']))}), road IoU % on each held-out split in its "
+           "own camera; today's shipped model scored on the same test stores in the same run.", ""]
+    rows = []
+    for t in d["sets"] + d.get("estimated", []):
+        w, r, s = (cells[k].get(t) for k in ("within", "resize", "shipped"))
+        rows.append([t, f(w), f(r), f(s), g(w, s), g(w, r)])
+    out += table(["held-out split", "within", "resize twin", "shipped today", "within − shipped", "within − resize"], rows)
+    out += [f"Mean over the {len(d['sets'])} held-out splits (the `-est` rows beside, not in it): " + ", ".join(
+        f"{k} {h.get(f'mean_{k}', '-')}" for k in ("within", "resize", "shipped")) + ".", ""]
+    out += table(["rule", "met"], [[k, num(v)] for k, v in h["rule"].items()])
+    return out + [f"Decision: {h['decision']}."]
+
+
+def _sd(v: list[float]) -> float:
+    m = sum(v) / len(v)
+    return (sum((x - m) ** 2 for x in v) / (len(v) - 1)) ** 0.5
+
+
 def r_finetune(d: dict) -> list[str]:
     """Fine-tuning on 20 labelled frames of a camera the model has not seen (benchmarks/what_a_user_gets/finetune.py)."""
     c, seeds, h = d["cells"], d.get("seeds", []), d["headline"]

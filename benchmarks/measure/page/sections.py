@@ -9,7 +9,7 @@ from typing import Callable
 
 from .format import _mean_std, median3, ms, num, pct, r_generic, table
 from .multi_camera import (r_adapt_loo, r_finetune, r_merged_estimated, r_multi_camera, r_low_camera, r_own_frames,
-                           r_loo_diagnose, r_route_finetune, r_shipped_model, r_shipped_screen)
+                           r_loo_diagnose, r_route_finetune, r_ship_geometry, r_shipped_model, r_shipped_screen)
 
 
 # ---------------------------------------------------------------- one renderer per benchmark
@@ -389,7 +389,7 @@ RENDER: dict[str, Callable[[dict], list[str]]] = {
     "shipped_model": r_shipped_model, "shipped_model_e60": r_shipped_model, "finetune": r_finetune, "finetune_cityscapes": r_finetune, "adapt_loo": r_adapt_loo,
     "predict_threads": r_predict_threads, "own_frames_idd_unseen": r_own_frames, "own_frames_idd_shipped": r_own_frames,
     "own_frames_camvid_shipped": r_own_frames, "low_camera": r_low_camera, "merged_estimated": r_merged_estimated,
-    "route_finetune_idd": r_route_finetune, "route_finetune_camvid": r_route_finetune,
+    "ship_geometry": r_ship_geometry, "route_finetune_idd": r_route_finetune, "route_finetune_camvid": r_route_finetune,
     # a name ending in "_": every stem it begins (loo_diagnose_<set>, shipped_screen_e<epochs>)
     "loo_diagnose_": r_loo_diagnose, "shipped_screen_": r_shipped_screen,
 }
