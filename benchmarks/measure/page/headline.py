@@ -16,7 +16,7 @@ from .sections import AS_SHIPPED_REAL, _real_mean
 
 MAX_LINES = 12  # the headline block, the lines between the README's markers
 NAMES = {"camvid": "CamVid", "cityscapes": "Cityscapes", "idd": "IDD-Lite", "bdd": "BDD100K", "lums": "LUMS",
-         "kitti": "KITTI"}
+         "kitti": "KITTI", "kitti_semantics": "KITTI"}
 HEADER = ["regime", "what wins", "by how much (road IoU points; mean ± std over seeds)",
           "on which cameras (held out of training)"]
 TWIN = {"within": "virtual-camera twin", "resize": "resize twin"}
@@ -93,7 +93,7 @@ def calibrated_merged(c: dict, stem: str = "calibrated_loo_lite0fpn") -> Row:
     """Each calibrated camera held out in turn, trained on the other two (benchmarks/other_cameras/calibrated_loo.py)."""
     h, folds = c["headline"], c["held_out"]
     fig = f"{h['loo_within_minus_resize']:+.1f} ± {h['loo_within_minus_resize_std']:.1f}"
-    per = sorted((h[f"loo_within_minus_resize_{f}"], NAMES.get(f.split("_")[0], f)) for f in folds)
+    per = sorted((h[f"loo_within_minus_resize_{f}"], NAMES.get(f, f)) for f in folds)
     return Row("several calibrated cameras", f"several calibrated cameras merged ({len(folds)}, `{c['model']}`)",
                _winner(fig), f"within − resize **{fig}** ({_seeds(c['seeds'])})",
                f"each held out in turn, trained on the other {len(folds) - 1}; best {per[-1][1]} {per[-1][0]:+.1f}, "
@@ -146,8 +146,9 @@ def render(data: dict[str, dict]) -> str:
               f"- **When the virtual camera pays**: a model trained on one camera and used on others "
               f"({one.figure} IoU points over resize)" + (f", or on several calibrated cameras ({cal[0].figure})" if cal else "")
               + ": your labelled frames, each camera described by a file (calibrated, or `--camera estimate`, which beat "
-              "a guessed file on a camera new to the model), trained with `vcprep warp` + `vctrain fit`; with guessed cameras merged, train the resize "
-              "twin (`--baseline resize`); camera by camera: [docs/training.md](docs/training.md#which-model-for-which-camera).",
+              "a guessed file on a camera new to the model), trained with `vcprep warp` + `vctrain fit`; with guessed "
+              "cameras merged, train the resize twin (`--baseline resize`); camera by camera: "
+              "[docs/training.md](docs/training.md#which-model-for-which-camera).",
               "- **Every figure**, with the script and the results file it comes from: [docs/results.md](docs/results.md)."]
     return "\n".join(lines)
 

@@ -88,7 +88,7 @@ def r_ship_geometry(d: dict) -> list[str]:
     """Ship geometry if it wins (benchmarks/what_a_user_gets/ship_geometry.py): the recipe trained both ways on the
     six development sets against today's shipped model on the same test stores; the script writes its .md with this."""
     cells, h = d["cells"], d["headline"]
-    f = lambda v: "-" if not v else (f"{sum(v) / len(v):.1f}" + (f" ± {_sd(v):.1f}" if len(v) > 1 else ""))  # noqa: E731
+    f = lambda v: "-" if not v else (_mean_std(v) if len(v) > 1 else f"{v[0]:.1f}")  # noqa: E731
     g = lambda a, b: "-" if not a or not b else f"{sum(a) / len(a) - sum(b) / len(b):+.1f}"  # noqa: E731
     out = [f"Ship geometry (issue 73 item 4): `{d['model']}` trained on the six development sets' training splits "
            f"({d['epochs']} epochs, seeds {', '.join(map(str, d['seeds']))}), road IoU % on each held-out split in its "
@@ -102,11 +102,6 @@ def r_ship_geometry(d: dict) -> list[str]:
         f"{k} {h.get(f'mean_{k}', '-')}" for k in ("within", "resize", "shipped")) + ".", ""]
     out += table(["rule", "met"], [[k, num(v)] for k, v in h["rule"].items()])
     return out + [f"Decision: {h['decision']}."]
-
-
-def _sd(v: list[float]) -> float:
-    m = sum(v) / len(v)
-    return (sum((x - m) ** 2 for x in v) / (len(v) - 1)) ** 0.5
 
 
 def r_finetune(d: dict) -> list[str]:
