@@ -82,12 +82,15 @@ def _first(split: dict, n: int) -> dict:
 
 
 def study_file(wd: Path, quick: bool, epochs: int, model: str | None = None, pretrained: bool = True,
-               store_pixels: int | None = None, kitti_semantics: bool = False) -> Path:
+               store_pixels: int | None = None, kitti_semantics: bool = False,
+               train_on: list[str] | None = None) -> Path:
     """The study: five training splits (role train), six held-out splits (role test); ``model``: every
     condition's network (study ``train: arch``; default the recipe's); ``pretrained`` False: trained
     from scratch (the control of a pretrained network); ``store_pixels``: the working resolution's pixel
     budget of both twins (study ``store_pixels``; default 480x360's); ``kitti_semantics``: the sixth
-    development set too (frames 000018-000099 trained on, 000100-000123 held out: KITTI_SEM_HELD)."""
+    development set too (frames 000018-000099 trained on, 000100-000123 held out: KITTI_SEM_HELD);
+    ``train_on``: only these sets' training splits are trained on (default: every set's), every held-out
+    split is still tested."""
     n = 3 if quick else None
     cam = str(native_camera(wd))
     cs = {"images": str(CITYSCAPES / "images"), "labels": str(CITYSCAPES / "labels")}
@@ -110,7 +113,7 @@ def study_file(wd: Path, quick: bool, epochs: int, model: str | None = None, pre
         sets = [(k, c, f, _first(tr, n), _first(te, n)) if k != "idd" else
                 (k, c, f, {**idd, "include": ["0_*"]}, {**idd, "include": _idd_held()[:1]}) for k, c, f, tr, te in sets]
     datasets = [{"name": f"{k}-train", "role": "train", "camera": c, "label_format": f, "train": tr}
-                for k, c, f, tr, _ in sets]
+                for k, c, f, tr, _ in sets if train_on is None or k in train_on]
     datasets += [{"name": k, "role": "test", "camera": c, "label_format": f, "test": te} for k, c, f, _, te in sets]
     datasets.append({"name": "kitti", "role": "test", "camera": str(KITTI / "calib"), "label_format": "kitti",
                      "test": {"images": str(KITTI / "image_2"), "labels": str(KITTI / "gt_image_2")}})

@@ -1,0 +1,241 @@
+"""The shipped model's recipe judged on cameras held out of training (issue 82): candidate data mixes,
+each dataset held out in turn, trained on the rest of the candidate's datasets.
+
+    .venv/bin/python benchmarks/other_cameras/ship_loo.py [--candidates today,four,six] [--seeds 0,1]
+                                                          [--held-out kitti_semantics,camvid,cityscapes,idd]
+                                                          [--epochs 10] [--threads 2] [--quick] [--collect]
+                                                          [--workdir benchmarks/out/ship_loo]
+
+**Candidates** (:data:`CANDIDATES`; every one the shipped recipe otherwise: ``lite0fpn`` from ImageNet,
+``balance: datasets``, lens-shading 0.4, the LOO step budget of 35 steps an epoch, the frames read as
+they are: condition ``resize``, the network the project ships):
+
+| candidate | datasets |
+|---|---|
+| ``today`` | CamVid, Cityscapes, IDD-Lite, BDD100K, LUMS (the model shipped until issue 82) |
+| ``four`` | CamVid, Cityscapes, ``kitti_semantics``, IDD-Lite (the issue's four-dataset run) |
+| ``six`` | all six: ``today`` with ``kitti_semantics``, or ``four`` with BDD100K and LUMS |
+
+``four`` against ``six`` isolates BDD100K and LUMS (27 dashcams' drivable areas and a low campus
+camera, two fifths of every epoch of ``today``); ``today`` against ``six`` isolates ``kitti_semantics``.
+
+**Folds** (``--held-out``): ``kitti_semantics``, CamVid (train + val, 468 frames), Cityscapes (400) and
+IDD-Lite (1,403), each held out whole in turn. A held-out dataset that is one of the candidate's is
+``role: both`` (crossval trains a model on the candidate's other datasets: ``runs/<fold>/resize``); one that
+is not (``kitti_semantics`` for ``today``) is ``role: test``, scored by the model trained on all of the
+candidate's datasets (``runs/_all/resize``): for every candidate each fold's model never saw the camera it
+is scored on. BDD100K and LUMS, where a candidate has them, are trained on in every fold (``role:
+train``): their cameras' held-out figures are in ``shipped_model.py``'s splits, not here.
+
+One ``vctrain crossval`` study per candidate and seed (WORKDIR/<candidate>/seed<k>/, resumable; the stores of
+a candidate are built once and shared by its seeds). Scores: road IoU, precision and recall over the
+held-out dataset's frames in its own camera (sum over the set, ignore excluded).
+
+**Baseline**: ``today`` (the shipped recipe) in the same run, same folds, seeds and budget.
+
+**Targets** (issue 82, checked, not asserted): a candidate's mean road IoU over the folds >= ``today``'s + 3,
+its precision up, no fold below ``today``'s by more than 1.
+
+Outputs: benchmarks/other_cameras/results/ship_loo.{md,json} (rewritten after every study; ``--quick``: a
+smoke run, a few frames, 2 steps, into WORKDIR/quick/results). ``--collect`` runs nothing and reports what
+is finished. The last stdout line is one JSON object: ``<candidate>_<fold>`` (road IoU %, the mean over
+seeds), ``<candidate>_precision_<fold>``, ``<candidate>_recall_<fold>``, ``<candidate>_mean`` (the folds'
+mean, per seed then averaged; ``_std`` over seeds), ``<candidate>_minus_today`` (paired per seed),
+``minutes_per_model``, ``seeds``, ``missing``.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
+from benchmarks.other_cameras.as_shipped import BDD, CITYSCAPES, IDD, KITTI_SEM, LUMS, link_stores, run_study
+from benchmarks.other_cameras.multi_camera import study_file
+from benchmarks.measure.data import DATA, ROOT, require_data
+from benchmarks.measure.report import machine, results_dir, today, write_json
+from benchmarks.measure.stats import seed_stats
+
+CANDIDATES = {
+    "today": ["camvid", "cityscapes", "idd", "bdd", "lums"],
+    "four": ["camvid", "cityscapes", "kitti_semantics", "idd"],
+    "six": ["camvid", "cityscapes", "kitti_semantics", "idd", "bdd", "lums"],
+}
+FOLDS = ["kitti_semantics", "camvid", "cityscapes", "idd"]
+BASELINE = "today"
+COND = "resize"
+TARGET_GAIN, TARGET_WORST = 3.0, -1.0
+
+
+def candidate_study(wd: Path, cand: str, quick: bool, epochs: int | None) -> Path:
+    """WORKDIR/<cand>/study.yaml: the candidate's datasets (a fold ``both``, its others ``train``), the folds
+    it does not train on ``test``."""
+    sets = CANDIDATES[cand]
+    names = sets + [f for f in FOLDS if f not in sets]
+    path = study_file(wd / cand, quick, epochs, names=names)
+    study = yaml.safe_load(path.read_text())
+    for d in study["datasets"]:
+        if d["name"] not in sets:
+            d["role"] = "test"
+            del d["train"]
+        elif d["name"] not in FOLDS:
+            d["role"] = "train"
+            del d["test"]
+    study["train"]["arch"] = "lite0fpn"
+    path.write_text(yaml.safe_dump(study, sort_keys=False))
+    return path
+
+
+def same_model(cand: str, fold: str) -> str:
+    """The first candidate whose model for ``fold`` trains on the very same datasets as ``cand``'s (same recipe,
+    seed and stores: the same model; ``six`` without ``kitti_semantics`` is ``today``): ``cand`` itself if none."""
+    trained = lambda c: set(CANDIDATES[c]) - {fold}
+    return next(c for c in CANDIDATES if trained(c) == trained(cand))
+
+
+def result_file(wd: Path, seed: int, cand: str, fold: str) -> Path:
+    """Where crossval writes the fold's score in one seed's study of ``cand`` (or of the candidate that trains
+    the same model: :func:`same_model`)."""
+    cand = same_model(cand, fold)
+    sd = wd / cand / f"seed{seed}"
+    if fold in CANDIDATES[cand]:
+        return sd / "runs" / fold / COND / "result.json"
+    return sd / "runs" / "_all" / COND / f"result-{fold}.json"
+
+
+def collect(wd: Path, cands: list[str], folds: list[str], seeds: list[int]) -> tuple[dict, list[str], list[float]]:
+    """(cells {'<cand>|<fold>|<iou|precision|recall>': % per seed, None where missing}, missing, minutes)."""
+    cells: dict[str, list] = {}
+    missing, minutes = [], {}
+    for cand in cands:
+        for i, seed in enumerate(seeds):
+            for fold in folds:
+                f = result_file(wd, seed, cand, fold)
+                keys = {k: cells.setdefault(f"{cand}|{fold}|{k}", [None] * len(seeds)) for k in ("iou", "precision", "recall")}
+                if not f.is_file():
+                    missing.append(f"{cand}|{fold}|seed{seed}")
+                    continue
+                row = json.loads(f.read_text())
+                for k, cell in keys.items():
+                    cell[i] = round(100 * row[k], 2) if row.get(k) is not None else None
+                minutes[(cand, seed, row.get("run", fold))] = row["train_seconds"] / 60
+    return cells, missing, list(minutes.values())
+
+
+def headline(cells: dict, cands: list[str], folds: list[str], seeds: list[int]) -> dict:
+    """Per candidate and fold the mean over seeds; the folds' mean per seed (seeds with every fold) and
+    each candidate's gain over ``today`` paired per seed."""
+    r2 = lambda x: None if x is None else round(float(x), 2)
+    mean = lambda v: r2(np.mean([x for x in v if x is not None])) if any(x is not None for x in v) else None
+    head: dict = {}
+    per_seed: dict[str, list] = {}
+    for cand in cands:
+        for fold in folds:
+            head[f"{cand}_{fold}"] = mean(cells[f"{cand}|{fold}|iou"])
+            for k in ("precision", "recall"):
+                head[f"{cand}_{k}_{fold}"] = mean(cells[f"{cand}|{fold}|{k}"])
+        per_seed[cand] = [None if any(cells[f"{cand}|{f}|iou"][i] is None for f in folds)
+                          else float(np.mean([cells[f"{cand}|{f}|iou"][i] for f in folds])) for i in range(len(seeds))]
+        s = [x for x in per_seed[cand] if x is not None]
+        head[f"{cand}_mean"] = r2(np.mean(s)) if s else None
+        head[f"{cand}_mean_std"] = r2(seed_stats(s)["std"] or 0.0) if len(s) > 1 else None
+        head[f"{cand}_precision_mean"] = mean([head[f"{cand}_precision_{f}"] for f in folds])
+    for cand in cands if BASELINE in cands else []:
+        d = [a - b for a, b in zip(per_seed[cand], per_seed[BASELINE]) if a is not None and b is not None]
+        head[f"{cand}_minus_{BASELINE}"] = r2(np.mean(d)) if d else None
+        worst = [None if head[f"{cand}_{f}"] is None or head[f"{BASELINE}_{f}"] is None
+                 else head[f"{cand}_{f}"] - head[f"{BASELINE}_{f}"] for f in folds]
+        head[f"{cand}_worst_fold_minus_{BASELINE}"] = None if None in worst else r2(min(worst))
+    return head
+
+
+def targets(head: dict, cands: list[str]) -> dict:
+    """Issue 82's rule for every candidate but the baseline."""
+    out = {}
+    for cand in [c for c in cands if c != BASELINE and BASELINE in cands]:
+        gain, worst = head[f"{cand}_minus_{BASELINE}"], head[f"{cand}_worst_fold_minus_{BASELINE}"]
+        p, p0 = head[f"{cand}_precision_mean"], head[f"{BASELINE}_precision_mean"]
+        out[f"{cand}: mean >= {BASELINE} + {TARGET_GAIN:g}"] = None if gain is None else gain >= TARGET_GAIN
+        out[f"{cand}: precision up"] = None if p is None or p0 is None else p > p0
+        out[f"{cand}: no fold below {BASELINE} - {-TARGET_WORST:g}"] = None if worst is None else worst >= TARGET_WORST
+    return out
+
+
+def render(head: dict, tg: dict, cands: list[str], folds: list[str], seeds: list[int], epochs: int | None,
+           missing: list[str]) -> str:
+    """The markdown table: a row per candidate, a column per held-out dataset (IoU, P / R)."""
+    f = lambda v, s="": "-" if v is None else f"{v:{s}.1f}"
+    lines = [f"Issue 82: candidate data mixes for the shipped model, each dataset held out whole in turn and scored "
+             f"by a model that never saw its camera (`resize`, lite0fpn, balance: datasets, 35 steps an epoch, "
+             f"{epochs} epochs; seeds {seeds}; a model trained on the same datasets as another candidate's is that one). Road IoU % (precision / recall %).", "",
+             "| candidate | trained on | " + " | ".join(f"held out {x}" for x in folds) + " | mean | − today |",
+             "|---|---|" + "---|" * (len(folds) + 2)]
+    for cand in cands:
+        row = [f"{f(head[f'{cand}_{x}'])} ({f(head[f'{cand}_precision_{x}'])} / {f(head[f'{cand}_recall_{x}'])})"
+               for x in folds]
+        sd = head[f"{cand}_mean_std"]
+        lines.append(f"| `{cand}` | {', '.join(CANDIDATES[cand])} | " + " | ".join(row) + f" | {f(head[f'{cand}_mean'])}"
+                     + (f" ± {sd:.1f}" if sd is not None else "") + f" | {f(head.get(f'{cand}_minus_{BASELINE}'), '+')} |")
+    if missing:
+        lines += ["", f"Missing (not finished): {', '.join(missing)}."]
+    lines += ["", "| target (issue 82) | met |", "|---|---|"] + [
+        f"| {k} | {'not measured' if v is None else 'yes' if v else 'no'} |" for k, v in tg.items()]
+    return "\n".join(lines) + "\n"
+
+
+def report(a: argparse.Namespace, wd: Path, cands: list[str], folds: list[str], seeds: list[int]) -> dict:
+    cells, missing, minutes = collect(wd, cands, folds, seeds)
+    head = headline(cells, cands, folds, seeds)
+    tg = targets(head, cands)
+    head.update({"minutes_per_model": round(float(np.mean(minutes)), 2) if minutes else None, "seeds": seeds,
+                 "missing": missing})
+    table = render(head, tg, cands, folds, seeds, a.epochs, missing)
+    rd = wd / "results" if a.quick else results_dir(__file__)
+    (rd / "ship_loo.md").parent.mkdir(parents=True, exist_ok=True)
+    (rd / "ship_loo.md").write_text(table)
+    write_json(rd / "ship_loo.json", {
+        "headline": head, "targets": tg, "cells": cells, "candidates": {c: CANDIDATES[c] for c in cands},
+        "held_out": folds, "seeds": seeds, "epochs": a.epochs, "steps_per_epoch": 2 if a.quick else 35,
+        "condition": COND, "arch": "lite0fpn", "issue": 82, "threads": a.threads, "machine": machine(), "date": today(),
+        "command": "benchmarks/other_cameras/ship_loo.py " + " ".join(sys.argv[1:])})
+    print(table, flush=True)
+    return head
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--candidates", default=",".join(CANDIDATES))
+    ap.add_argument("--seeds", default="0,1")
+    ap.add_argument("--held-out", default=",".join(FOLDS))
+    ap.add_argument("--epochs", type=int, default=10, help="epochs of 35 steps (default 10: 350 steps a model)")
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--workdir", type=Path, default=ROOT / "benchmarks" / "out" / "ship_loo")
+    ap.add_argument("--quick", action="store_true", help="smoke run: a few frames, 2 steps, seed 0")
+    ap.add_argument("--collect", action="store_true", help="run nothing: report what is finished")
+    a = ap.parse_args()
+    cands = [c for c in a.candidates.split(",") if c]
+    folds = [f for f in a.held_out.split(",") if f]
+    if set(cands) - set(CANDIDATES) or set(folds) - set(FOLDS) or not cands or not folds:
+        raise SystemExit(f"candidates are {', '.join(CANDIDATES)}; folds {', '.join(FOLDS)}")
+    seeds = [0] if a.quick else [int(s) for s in a.seeds.split(",") if s]
+    require_data(DATA, CITYSCAPES, KITTI_SEM, IDD, BDD, LUMS)
+    wd = a.workdir / "quick" if a.quick else a.workdir
+    for seed in seeds if not a.collect else []:  # seed by seed: a cut-off run has every candidate on its first seeds
+        for cand in cands:
+            study = candidate_study(wd, cand, a.quick, a.epochs)
+            sd = wd / cand / f"seed{seed}"
+            if seed != seeds[0]:
+                link_stores(sd, wd / cand / f"seed{seeds[0]}")
+            own = [f for f in folds if same_model(cand, f) == cand]  # (the others are an earlier candidate's model)
+            if own:
+                run_study(study, sd, [COND], seed, a.threads, heldout=own)
+            report(a, wd, cands, folds, seeds)
+    print(json.dumps(report(a, wd, cands, folds, seeds)))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,124 @@
+"""A candidate data mix for the shipped model trained at the shipped budget (issue 82, item 3): its own
+held-out splits (what a user of its training cameras keeps) against today's shipped model, same run.
+
+    .venv/bin/python benchmarks/what_a_user_gets/ship_mix.py [--candidate four] [--epochs 30] [--seeds 0]
+                                                             [--threads 2] [--shipped models/road-multicamera/road.pt]
+                                                             [--workdir benchmarks/out/ship_mix] [--quick] [--collect]
+
+**Study** (``shipped_model.study_file``: the splits never by frame): the candidate's datasets
+(``ship_loo.CANDIDATES``) trained on their training splits (role ``train``), the held-out splits of all
+six development sets and the KITTI road frame tested (role ``test``; the sets the candidate does not
+train on are cameras new to it). The shipped recipe otherwise: ``resize`` (the frames read as they
+are), ``lite0fpn`` from ImageNet, ``balance: datasets``, lens shading 0.4, ``--epochs`` of 35 steps (the
+shipped model: 30), the checkpoint chosen on the training splits' validation share.
+
+**Baseline in the same run**: today's shipped model (``--shipped``) scored on the very same test stores by
+``vctrain.study.evaluate_heldout``, the function that scores the study's own models.
+
+The held-out-camera verdict is ``benchmarks/other_cameras/ship_loo.py``'s; this script says what the
+candidate keeps or loses on the cameras it trains on. Outputs:
+benchmarks/what_a_user_gets/results/ship_mix_<candidate>.{md,json}; the model at
+WORKDIR/<candidate>/epochs<N>/seed<k>/runs/_all/resize/model.pt. Last stdout line: one JSON object
+(``<who>_<set>``, ``<who>_precision_<set>``, ``<who>_recall_<set>``, ``mean_<who>``).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
+from benchmarks.other_cameras.as_shipped import BDD, CITYSCAPES, IDD, KITTI_SEM, LUMS, run_study, share_stores
+from benchmarks.other_cameras.ship_loo import CANDIDATES
+from benchmarks.measure.data import DATA, KITTI, ROOT, require_data
+from benchmarks.measure.report import machine, results_dir, today, write_json
+from benchmarks.what_a_user_gets.shipped_model import SETS, collect, study_file
+
+SPLITS = [t for t in SETS if t != "kitti"] + ["kitti_semantics", "kitti"]
+KEYS = ("iou", "precision", "recall")
+
+
+def shipped_scores(model: Path, sd: Path, sets: list[str]) -> dict[str, dict]:
+    """{set: {iou, precision, recall} %} of ``model`` on each resize test store of the study ``sd`` (cached
+    in sd/shipped/)."""
+    from vctrain.study import CONDITIONS, evaluate_heldout
+
+    out = {}
+    for t in sets:
+        cache, store = sd / "shipped" / f"result-{t}.json", sd / "stores" / t / "test" / CONDITIONS["resize"][0]
+        if not cache.is_file() and store.is_dir():
+            write_json(cache, {**evaluate_heldout(model, store), "model": str(model)})
+        if cache.is_file():
+            row = json.loads(cache.read_text())
+            out[t] = {k: round(100 * row[k], 2) for k in KEYS if row.get(k) is not None}
+    return out
+
+
+def render(head: dict, cand: str, a: argparse.Namespace) -> str:
+    f = lambda v: "-" if v is None else f"{v:.1f}"
+    cell = lambda who, t: (f"{f(head.get(f'{who}_{t}'))} ({f(head.get(f'{who}_precision_{t}'))} / "
+                           f"{f(head.get(f'{who}_recall_{t}'))})")
+    new = lambda t: "" if t == "kitti" or t in CANDIDATES[cand] else " (new to it)"
+    lines = [f"Issue 82: candidate `{cand}` ({', '.join(CANDIDATES[cand])}) trained at the shipped budget ({a.epochs} "
+             f"epochs of 35 steps, seeds {a.seeds}, resize, lite0fpn) against today's shipped model on the same "
+             "held-out splits. Road IoU % (precision / recall %).", "",
+             f"| held-out split | `{cand}` | today's shipped model | difference |", "|---|---|---|---|"]
+    for t in SPLITS:
+        d = None if head.get(f"{cand}_{t}") is None or head.get(f"shipped_{t}") is None else head[f"{cand}_{t}"] - head[f"shipped_{t}"]
+        lines.append(f"| {t}{new(t)} | {cell(cand, t)} | {cell('shipped', t)} | {'-' if d is None else f'{d:+.1f}'} |")
+    lines.append(f"| mean | {f(head.get(f'mean_{cand}'))} | {f(head.get('mean_shipped'))} | |")
+    return "\n".join(lines) + "\n"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--candidate", default="four", choices=sorted(CANDIDATES))
+    ap.add_argument("--epochs", type=int, default=30)
+    ap.add_argument("--seeds", default="0")
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--shipped", type=Path, default=ROOT / "models" / "road-multicamera" / "road.pt")
+    ap.add_argument("--workdir", type=Path, default=ROOT / "benchmarks" / "out" / "ship_mix")
+    ap.add_argument("--quick", action="store_true", help="smoke run: a few frames, 2 steps")
+    ap.add_argument("--collect", action="store_true", help="train nothing: report what is finished")
+    a = ap.parse_args()
+    seeds, cand = [int(s) for s in a.seeds.split(",")], a.candidate
+    require_data(DATA, CITYSCAPES, IDD, BDD, LUMS, KITTI, KITTI_SEM)
+    wd = (a.workdir / cand / f"epochs{a.epochs}" / ("quick" if a.quick else "")).resolve()
+    wd.mkdir(parents=True, exist_ok=True)
+    cells: dict[str, list] = {}
+    for seed in seeds:
+        sd = wd / f"seed{seed}"
+        if not a.collect:
+            share_stores(wd, seed, seeds[0])
+            study = study_file(wd, a.quick, a.epochs, "lite0fpn", kitti_semantics=True, train_on=CANDIDATES[cand])
+            run_study(study, sd, ["resize"], seed, a.threads)
+        iou, _, _, pr = collect(sd, ["resize"], SPLITS)
+        for t in SPLITS:
+            cells.setdefault(f"{cand}_{t}", []).append(iou["resize"][t])
+            for k in ("precision", "recall"):
+                cells.setdefault(f"{cand}_{k}_{t}", []).append(pr.get(f"{k}_resize_{t}"))
+    for t, row in shipped_scores(a.shipped, wd / f"seed{seeds[0]}", SPLITS).items():
+        for k, v in row.items():
+            cells[f"shipped_{t}" if k == "iou" else f"shipped_{k}_{t}"] = [v]
+    head = {k: round(float(np.mean([x for x in v if x is not None])), 2) if any(x is not None for x in v) else None
+            for k, v in cells.items()}
+    for who in (cand, "shipped"):
+        v = [head.get(f"{who}_{t}") for t in SPLITS]
+        head[f"mean_{who}"] = None if None in v else round(float(np.mean(v)), 2)
+    table = render(head, cand, a)
+    print(table)
+    res = (wd / "results") if a.quick else results_dir(__file__)
+    (res / f"ship_mix_{cand}.md").parent.mkdir(parents=True, exist_ok=True)
+    (res / f"ship_mix_{cand}.md").write_text(table)
+    write_json(res / f"ship_mix_{cand}.json", {
+        "headline": head, "cells": cells, "candidate": cand, "datasets": CANDIDATES[cand], "splits": SPLITS,
+        "epochs": a.epochs, "seeds": seeds, "shipped": str(a.shipped), "threads": a.threads, "machine": machine(),
+        "date": today(), "issue": 82, "command": "benchmarks/what_a_user_gets/ship_mix.py " + " ".join(sys.argv[1:])})
+    print(json.dumps(head))
+
+
+if __name__ == "__main__":
+    main()
