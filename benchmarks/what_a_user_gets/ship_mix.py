@@ -18,7 +18,8 @@ shipped model: 30), the checkpoint chosen on the training splits' validation sha
 The held-out-camera verdict is ``benchmarks/other_cameras/ship_loo.py``'s; this script says what the
 candidate keeps or loses on the cameras it trains on. Outputs:
 benchmarks/what_a_user_gets/results/ship_mix_<candidate>.{md,json}; the model at
-WORKDIR/<candidate>/epochs<N>/seed<k>/runs/_all/resize/model.pt. Last stdout line: one JSON object
+WORKDIR/<candidate>/epochs<N>/seed<k>/runs/_all/resize/model.pt (``--ship DIR``: DIR/road.pt, the first seed's,
+less the optimizer state, and DIR/results.json). Last stdout line: one JSON object
 (``<who>_<set>``, ``<who>_precision_<set>``, ``<who>_recall_<set>``, ``mean_<who>``).
 """
 from __future__ import annotations
@@ -35,7 +36,7 @@ from benchmarks.other_cameras.as_shipped import BDD, CITYSCAPES, IDD, KITTI_SEM,
 from benchmarks.other_cameras.ship_loo import CANDIDATES
 from benchmarks.measure.data import DATA, KITTI, ROOT, require_data
 from benchmarks.measure.report import machine, results_dir, today, write_json
-from benchmarks.what_a_user_gets.shipped_model import SETS, collect, study_file
+from benchmarks.what_a_user_gets.shipped_model import SETS, collect, ship_checkpoint, study_file
 
 SPLITS = [t for t in SETS if t != "kitti"] + ["kitti_semantics", "kitti"]
 KEYS = ("iou", "precision", "recall")
@@ -83,6 +84,8 @@ def main() -> None:
     ap.add_argument("--workdir", type=Path, default=ROOT / "benchmarks" / "out" / "ship_mix")
     ap.add_argument("--quick", action="store_true", help="smoke run: a few frames, 2 steps")
     ap.add_argument("--collect", action="store_true", help="train nothing: report what is finished")
+    ap.add_argument("--ship", type=Path, default=None, help="copy the first seed's model here (road.pt, less the "
+                    "optimizer state) with results.json")
     a = ap.parse_args()
     seeds, cand = [int(s) for s in a.seeds.split(",")], a.candidate
     require_data(DATA, CITYSCAPES, IDD, BDD, LUMS, KITTI, KITTI_SEM)
@@ -117,6 +120,11 @@ def main() -> None:
         "headline": head, "cells": cells, "candidate": cand, "datasets": CANDIDATES[cand], "splits": SPLITS,
         "epochs": a.epochs, "seeds": seeds, "shipped": str(a.shipped), "threads": a.threads, "machine": machine(),
         "date": today(), "issue": 82, "command": "benchmarks/what_a_user_gets/ship_mix.py " + " ".join(sys.argv[1:])})
+    model = wd / f"seed{seeds[0]}" / "runs" / "_all" / "resize" / "model.pt"
+    if a.ship and model.is_file():
+        a.ship.mkdir(parents=True, exist_ok=True)
+        ship_checkpoint(model, a.ship / "road.pt")
+        write_json(a.ship / "results.json", json.loads((res / f"ship_mix_{cand}.json").read_text()))
     print(json.dumps(head))
 
 
