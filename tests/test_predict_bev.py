@@ -93,7 +93,9 @@ def test_folder_bev_equals_the_library_on_predicts_own_masks(scene, tmp_path):
     records = _lines(r.stdout)
     assert [x["id"] for x in records] == ["road_0", "road_1"]  # one line a frame, in order, nothing else
     for x in records:  # the keys and their types
-        assert set(x) == {"id", "free_m", "width_m", "area_m2", "pose"}
+        assert set(x) == {"id", "free_m", "width_m", "area_m2", "pose", "free_to_edge", "free_stop", "start_m",
+                          "start_why", "edges_m", "others_m"}
+        assert isinstance(x["free_to_edge"], bool)
         assert x["free_m"] is None or isinstance(x["free_m"], float)
         assert set(x["width_m"]) == {"10", "20", "30"}
         assert all(w is None or isinstance(w, float) for w in x["width_m"].values())

@@ -20,6 +20,7 @@ from ..dataset import Job
 from ..errors import InputError
 from ..io.images import read_image, write_png
 from ..labels import LabelFormat, decode_label
+from .border import camera_ego_rows, frame_hidden, label_border_rows
 from .frames import frame_views
 from .grid import KITTI_GRID, BevGrid
 from .maps import bev_maps, to_bev
@@ -75,7 +76,8 @@ def bev_folder(jobs: list[Job], source: BevSource, out: Path, settings: BevSetti
                on_image: Callable[[int], None] | None = None) -> Iterator[dict[str, Any]]:
     """Every frame of ``jobs`` onto ``settings.grid``, its PNGs written to ``out`` (module docstring);
     yields, for each frame with a label or a mask, ``{"id", "from": "mask"|"label", "free_m",
-    "width_m", "area_m2", "pose"}`` (:func:`road_in_metres`; the mask's where both are given)."""
+    "width_m", "area_m2", "pose", ...}`` (:func:`road_in_metres`; the mask's where both are given;
+    the own vehicle's rows of the camera and a label's border rows, :mod:`.border`, hidden)."""
     views = frame_views(jobs, source, settings.within, on_image=on_image, roll=settings.roll)
     grid = settings.grid
     for job in jobs:
@@ -84,15 +86,17 @@ def bev_folder(jobs: list[Job], source: BevSource, out: Path, settings: BevSetti
         Path(out / job.id).parent.mkdir(parents=True, exist_ok=True)
         if settings.images:
             write_png(out / f"{job.id}_image.png", to_bev(read_image(job.image).array, maps, "image"))
-        road, what = None, None
+        road, what, border = None, None, 0
         if job.label is not None and settings.label_format is not None:
             label = decode_label(read_image(job.label, label=True).array, settings.label_format, job.label)
             if (label.shape[1], label.shape[0]) != tuple(view.size):
                 raise InputError(f"label is {label.shape[1]}x{label.shape[0]} but its frame is {view.size[0]}x"
                                  f"{view.size[1]}", job.label, "give each frame's own label, at the frame's size")
-            road, what = to_bev(label, maps, "label"), "label"
+            road, what, border = to_bev(label, maps, "label"), "label", label_border_rows(label)
             write_png(out / f"{job.id}_label.png", road, "mask")
         if masks is not None and job.id in masks:
-            road, what = _mask_bev(*masks[job.id], maps, view.size, out, job.id), "mask"
+            road, what, border = _mask_bev(*masks[job.id], maps, view.size, out, job.id), "mask", 0
         if road is not None:
-            yield {"id": job.id, "from": what, **road_in_metres(road, grid, view, settings.corridor)}
+            hidden, why = frame_hidden(maps, view.size, camera_ego_rows(source.camera, view.size), border)
+            yield {"id": job.id, "from": what, **road_in_metres(road, grid, view, settings.corridor, hidden=hidden,
+                                                                hidden_why=why)}

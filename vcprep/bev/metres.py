@@ -3,92 +3,198 @@
 Input: a BEV label or mask on a :class:`~vcprep.bev.grid.BevGrid` (0 not road, 1 road, 255 unseen
 or ignore; far row first). Distances are along the road plane from the camera's foot (the grid's
 z minus the view's ``origin_z``: 0 for a camera, the road frame's offset for a KITTI calibration).
+``hidden`` (given: a bool BEV array, :func:`vcprep.bev.border.hidden_cells`) marks cells that show
+no road scene (the own vehicle, a label's border rows): they count as unseen, and say why the
+corridor starts where it does.
 
 - ``free_m``: how far ahead the corridor of the vehicle (``corridor`` metres wide, centred on
   x = 0: the cells whose centre lies within it, at least the one column nearest 0; along z, the
-  road's direction under a VP pose, the camera's heading under a nominal or calibrated one) is road. From
-  the nearest row the camera sees in full (or the first with a not-road cell), rows are taken
-  outwards until one holds a not-road (0) or unknown (255) cell; ``free_m`` is that row's near
-  edge: where the road stops being free, or where the view stops vouching for it. Every row road:
-  the grid's far edge. None where the camera sees no corridor cell.
-- ``width_m``: {"10": w, "20": w, "30": w}: the road cells of the row that holds that distance
-  (the drivable width: a car on the road is not counted) times the cell size; None where the row
-  lies outside the grid, is unseen, or its road reaches the grid's side or an unseen cell (the
-  width is not all in view).
+  road's direction under a VP pose, the camera's heading under a nominal or calibrated one) is
+  road. From the nearest row the camera sees in full (or the first with a not-road cell), the
+  corridor's not-road and unseen cells are grouped into 8-connected blobs (their extent inside the
+  corridor); a blob smaller than ``MIN_BLOCK`` (0.5 m) both across and along the road (a lane arrow,
+  noise) is passed over, any other (a barrier, the road's end, the view's end) stops the corridor,
+  as does any blob at the grid's far row. ``free_m`` is the near edge of the nearest stopping blob;
+  the grid's far edge when none stops it (``free_to_edge`` true); None where the camera sees no
+  corridor cell. ``free_stop``: 'not road', 'unseen' or 'edge'.
+- ``start_m``: where the corridor starts (the near edge of that first row); ``start_why``: None
+  where the grid's first corridor row is road, else why not: the ``hidden`` reason (own vehicle,
+  label border), 'not road' or 'unseen'.
+- ``width_m``: {"10": w, "20": w, "30": w}: the width of the road region the vehicle stands on,
+  in the row that holds that distance. A row's road cells are joined across gaps narrower than
+  ``MIN_BLOCK`` (a lane line, an arrow); of the runs this gives, the one under the corridor (most of
+  its cells; a tie: nearest x = 0), else the nearest run of the 2-D road region (4-connected, on the
+  joined rows) that holds the corridor's first road; 0.0 where that region has no road in the row.
+  None where the row lies outside the grid, is unseen, or the run reaches the grid's side or an
+  unseen cell (not all in view). ``edges_m``: that run's left and right edge (x, metres);
+  ``others_m``: the widths of the row's other runs of at least ``MIN_BLOCK`` (a pavement, the
+  opposite carriageway beyond a gap), left to right.
 - ``area_m2``: road cells times the cell area.
 """
 from __future__ import annotations
 
 from typing import Any
 
+import cv2
 import numpy as np
 
 from ..errors import InputError
 from .grid import BevGrid
 from .view import GroundView
 
-__all__ = ["road_in_metres", "CORRIDOR", "DISTANCES"]
+__all__ = ["road_in_metres", "free_distance", "road_widths", "join_gaps", "CORRIDOR", "DISTANCES", "MIN_BLOCK"]
 
 CORRIDOR = 1.8               # metres: the vehicle's corridor (a car's width)
 DISTANCES = (10, 20, 30)     # metres ahead where width_m is measured
+MIN_BLOCK = 0.5              # metres: a blob or gap smaller than this both ways does not end the road
 UNSEEN = 255
+_EPS = 1e-9
 
 
 def _corridor_cols(grid: BevGrid, corridor: float) -> np.ndarray:
     x = grid.x_min + (np.arange(grid.shape[1]) + 0.5) * grid.res
-    cols = np.flatnonzero(np.abs(x) <= corridor / 2 + 1e-9)
+    cols = np.flatnonzero(np.abs(x) <= corridor / 2 + _EPS)
     if cols.size == 0:
         cols = np.array([int(np.argmin(np.abs(x)))])
     return cols
 
 
-def free_distance(bev: np.ndarray, grid: BevGrid, corridor: float = CORRIDOR, origin_z: float = 0.0) -> float | None:
-    """``free_m`` (module docstring)."""
-    c = bev[:, _corridor_cols(grid, corridor)][::-1]  # near row first
-    blocked = (c == 0).any(axis=1)
-    unknown = (c == UNSEEN).any(axis=1)
-    start = np.flatnonzero(blocked | ~unknown)
-    if start.size == 0:
-        return None
-    stops = np.flatnonzero((blocked | unknown)[start[0]:])
+def _cells(metres: float, res: float) -> int:
+    """The fewest whole cells that span at least ``metres``."""
+    return max(1, int(np.ceil(metres / res - 1e-6)))
+
+
+def free_distance(bev: np.ndarray, grid: BevGrid, corridor: float = CORRIDOR, origin_z: float = 0.0,
+                  hidden: np.ndarray | None = None, min_block: float = MIN_BLOCK) -> dict[str, Any]:
+    """``{"free_m", "free_to_edge", "free_stop", "start_m", "start_why"}`` (module docstring)."""
+    cols = _corridor_cols(grid, corridor)
+    c = bev[:, cols][::-1].copy()  # near row first
+    hid = hidden[:, cols][::-1] if hidden is not None else np.zeros(c.shape, bool)
+    c[hid] = UNSEEN
     rows = grid.shape[0]
-    if stops.size == 0:
-        return round(float(grid.z_max - origin_z), 6)
-    near_first = start[0] + stops[0]
-    return round(float(grid.z_max - rows * grid.res + near_first * grid.res - origin_z), 6)
+    near_edge = grid.z_max - rows * grid.res - origin_z  # the grid's first row's near edge, from the camera
+    first = c[0]
+    why = None
+    if not (first == 1).all():
+        why = "hidden" if hid[0].any() else "not road" if (first == 0).any() else "unseen"
+    out = {"free_m": None, "free_to_edge": False, "free_stop": None, "start_m": None, "start_why": why}
+    start = np.flatnonzero((c == 0).any(axis=1) | ~(c == UNSEEN).any(axis=1))
+    if start.size == 0:
+        return out
+    s = int(start[0])
+    out["start_m"] = round(float(near_edge + s * grid.res), 6)
+    sub = c[s:]
+    n, lab, stats, _ = cv2.connectedComponentsWithStats((sub != 1).astype(np.uint8), connectivity=8)
+    k = _cells(min_block, grid.res)
+    top, hgt, wid = stats[1:, cv2.CC_STAT_TOP], stats[1:, cv2.CC_STAT_HEIGHT], stats[1:, cv2.CC_STAT_WIDTH]
+    stops = (hgt >= k) | (wid >= k) | (top + hgt >= sub.shape[0])
+    if not stops.any():
+        out.update(free_m=round(float(grid.z_max - origin_z), 6), free_to_edge=True, free_stop="edge")
+        return out
+    row = int(top[stops].min())
+    blobs = np.flatnonzero(stops) + 1
+    in_row = np.isin(lab[row], blobs)
+    out["free_m"] = round(float(near_edge + (s + row) * grid.res), 6)
+    out["free_stop"] = "not road" if (sub[row][in_row] == 0).any() else "unseen"
+    return out
 
 
-def road_width(bev: np.ndarray, grid: BevGrid, distance: float, origin_z: float = 0.0) -> float | None:
-    """The road's width ``distance`` metres ahead (``width_m``, module docstring)."""
-    row = grid.row_at(origin_z + distance)
-    if row is None:
+def join_gaps(road: np.ndarray, cells: int) -> np.ndarray:
+    """``road`` (bool, rows x cols) with each row's gaps narrower than ``cells`` between two road
+    cells filled (a gap at the row's ends is never filled)."""
+    cols = np.arange(road.shape[1])
+    left = np.maximum.accumulate(np.where(road, cols, -1), axis=1)
+    right = np.minimum.accumulate(np.where(road, cols, road.shape[1])[:, ::-1], axis=1)[:, ::-1]
+    gap = (left >= 0) & (right < road.shape[1]) & (right - left - 1 < cells)
+    return road | gap
+
+
+def _runs(row: np.ndarray) -> list[tuple[int, int]]:
+    """(first, last) column of each run of True in ``row``, left to right."""
+    d = np.diff(np.concatenate([[0], row.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(d == 1).tolist(), (np.flatnonzero(d == -1) - 1).tolist()))
+
+
+def _vehicle_region(joined: np.ndarray, cols: np.ndarray) -> np.ndarray | None:
+    """The 4-connected region of ``joined`` (far row first) that holds the corridor's nearest road."""
+    near = np.flatnonzero(joined[:, cols].any(axis=1))
+    if near.size == 0:
         return None
-    r = bev[row]
-    if not (r != UNSEEN).any():
+    _, lab = cv2.connectedComponents(joined.astype(np.uint8), connectivity=4)
+    ids, counts = np.unique(lab[near[-1], cols][lab[near[-1], cols] > 0], return_counts=True)
+    return lab == ids[np.argmax(counts)]
+
+
+def _pick_run(runs: list[tuple[int, int]], cols: np.ndarray, centre: float,
+              region_row: np.ndarray | None) -> tuple[int, int] | None:
+    """The run under the corridor (most cells; tie: nearest ``centre``), else the region's nearest."""
+    lo, hi = int(cols[0]), int(cols[-1])
+    overlap = [max(0, min(b, hi) - max(a, lo) + 1) for a, b in runs]
+    dist = [0.0 if a <= centre <= b else min(abs(a - centre), abs(b - centre)) for a, b in runs]
+    if runs and max(overlap) > 0:
+        return min(range(len(runs)), key=lambda i: (-overlap[i], dist[i]))
+    if region_row is None:
         return None
-    road = np.flatnonzero(r == 1)
-    if road.size == 0:
-        return 0.0
-    last = r.size - 1
-    left, right = road - 1, road + 1
-    clipped = (road == 0).any() or (road == last).any()
-    clipped = clipped or (r[left[left >= 0]] == UNSEEN).any() or (r[right[right <= last]] == UNSEEN).any()
-    return None if clipped else round(float(road.size * grid.res), 6)
+    mine = [i for i, (a, b) in enumerate(runs) if region_row[a:b + 1].any()]
+    return min(mine, key=lambda i: dist[i]) if mine else None
+
+
+def road_widths(bev: np.ndarray, grid: BevGrid, distances: tuple[float, ...] = DISTANCES, origin_z: float = 0.0,
+                corridor: float = CORRIDOR, hidden: np.ndarray | None = None,
+                min_block: float = MIN_BLOCK) -> dict[str, dict[str, Any]]:
+    """``{"width_m", "edges_m", "others_m"}``, each keyed by distance (module docstring)."""
+    b = bev if hidden is None else np.where(hidden, UNSEEN, bev)
+    cols = _corridor_cols(grid, corridor)
+    k = _cells(min_block, grid.res)
+    joined = join_gaps(b == 1, k)
+    region = _vehicle_region(joined, cols)
+    centre = (0.0 - grid.x_min) / grid.res - 0.5  # x = 0 in column units
+    width, edges, others = {}, {}, {}
+    for d in distances:
+        key, row = f"{d:g}", grid.row_at(origin_z + d)
+        width[key], edges[key], others[key] = None, None, None
+        if row is None or not (b[row] != UNSEEN).any():
+            continue
+        runs = _runs(joined[row])
+        pick = _pick_run(runs, cols, centre, region[row] if region is not None else None)
+        others[key] = [round((bb - a + 1) * grid.res, 6) for i, (a, bb) in enumerate(runs)
+                       if i != pick and bb - a + 1 >= k]
+        if pick is None:
+            width[key] = 0.0
+            continue
+        a, z = runs[pick]
+        last = b.shape[1] - 1
+        if a == 0 or z == last or b[row, a - 1] == UNSEEN or b[row, z + 1] == UNSEEN:
+            continue  # not all of it in view
+        width[key] = round(float((z - a + 1) * grid.res), 6)
+        edges[key] = [round(float(grid.x_min + a * grid.res), 6), round(float(grid.x_min + (z + 1) * grid.res), 6)]
+    return {"width_m": width, "edges_m": edges, "others_m": others}
 
 
 def road_in_metres(bev: np.ndarray, grid: BevGrid, view: GroundView | None = None, corridor: float = CORRIDOR,
-                   distances: tuple[float, ...] = DISTANCES) -> dict[str, Any]:
-    """``{"free_m", "width_m": {"10", "20", "30"}, "area_m2", "pose"}`` of a BEV road mask
-    (module docstring); ``pose`` is ``view``'s :meth:`~GroundView.pose_dict` (None without a view)."""
+                   distances: tuple[float, ...] = DISTANCES, hidden: np.ndarray | None = None,
+                   hidden_why: str | None = None) -> dict[str, Any]:
+    """``{"free_m", "free_to_edge", "free_stop", "start_m", "start_why", "width_m", "edges_m",
+    "others_m", "area_m2", "pose"}`` of a BEV road mask (module docstring); ``pose`` is ``view``'s
+    :meth:`~GroundView.pose_dict` (None without a view); ``hidden_why`` names the ``hidden`` cells."""
     if bev.shape != grid.shape:
         raise InputError(f"BEV mask is {bev.shape[1]}x{bev.shape[0]} cells but the grid is "
                          f"{grid.shape[1]}x{grid.shape[0]}", None, "map the mask onto the same grid")
     if not corridor > 0:
         raise InputError(f"corridor width {corridor:g} m", None, "give a corridor width > 0 m (a car's: 1.8)")
+    if hidden is not None and not hidden.any():
+        hidden = None
     oz = view.origin_z if view is not None else 0.0
+    free = free_distance(bev, grid, corridor, oz, hidden)
+    if free["start_why"] == "hidden":
+        free["start_why"] = hidden_why or "hidden"
+    widths = road_widths(bev, grid, distances, oz, corridor, hidden)
     return {
-        "free_m": free_distance(bev, grid, corridor, oz),
-        "width_m": {f"{d:g}": road_width(bev, grid, d, oz) for d in distances},
+        "free_m": free["free_m"],
+        "width_m": widths["width_m"],
         "area_m2": round(float(np.count_nonzero(bev == 1)) * grid.res ** 2, 4),
         "pose": view.pose_dict() if view is not None else None,
+        **{k: free[k] for k in ("free_to_edge", "free_stop", "start_m", "start_why")},
+        "edges_m": widths["edges_m"],
+        "others_m": widths["others_m"],
     }

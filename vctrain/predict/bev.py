@@ -9,8 +9,8 @@ For a frame written as ``<stem>_mask.png`` / ``<stem>_prob.png``, :meth:`BevRun.
   value for a cell the camera does not see), byte for byte what ``vcprep bev --masks`` writes from
   the ``_mask.png`` with the same pose;
 
-and hands ``{"id", "free_m", "width_m", "area_m2", "pose"}`` (:func:`vcprep.bev.road_in_metres` of
-that BEV mask; a video's frames also ``"frame"``) to the options' ``emit`` (the CLI: one JSON line on
+and hands ``{"id", "free_m", "width_m", "area_m2", "pose", ...}`` (:func:`vcprep.bev.road_in_metres` of
+that BEV mask, the camera's own-vehicle rows hidden; a video's frames also ``"frame"``) to the options' ``emit`` (the CLI: one JSON line on
 stdout). An overlay gets a small inset of the BEV in its top right corner (:func:`draw_inset`): the
 road, the corridor up to the free distance, the free distance in metres.
 
@@ -34,6 +34,7 @@ import numpy as np
 
 from vcprep.bev import CORRIDOR, KITTI_GRID, BevGrid, BevSource, GroundView, bev_maps, road_in_metres, to_bev, \
     within_rule
+from vcprep.bev.border import camera_ego_rows, frame_hidden
 from vcprep.errors import InputError
 from vcprep.io import write_png
 
@@ -135,7 +136,8 @@ class BevRun:
         (out / stem).parent.mkdir(parents=True, exist_ok=True)
         write_png(out / f"{stem}_bev_prob.png", to_bev(p8, maps, "prob"))
         write_png(out / f"{stem}_bev_mask.png", mask, kind="mask")
-        road = road_in_metres(mask, grid, view, self.options.corridor)
+        hidden, why = frame_hidden(maps, view.size, camera_ego_rows(self.source.camera, view.size))
+        road = road_in_metres(mask, grid, view, self.options.corridor, hidden=hidden, hidden_why=why)
         if self.options.emit is not None:
             self.options.emit({"id": stem, **extra, **road})
         return lambda img: draw_inset(img, mask, grid, road, self.options.corridor, view.origin_z)
