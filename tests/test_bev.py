@@ -149,6 +149,9 @@ def test_vcprep_bev_cli_prints_the_road_in_metres(tmp_path):
     assert r.returncode == 0, r.stderr
     rec = json.loads(r.stdout)
     assert rec["id"] == "um_000000" and set(rec["width_m"]) == {"10", "20", "30"} and rec["pose"]["source"] == "kitti"
+    # the label's bottom 4 pixel rows (no road across the frame) are its border: hidden, named, and the
+    # corridor runs on past them (before issue 80 they stopped free_m at the grid's first row)
+    assert rec["start_why"].startswith("label border (its bottom 4 pixel rows") and rec["free_m"] > 10
     label = cv2.imread(str(out / "um_000000_label.png"), cv2.IMREAD_UNCHANGED)
     assert label.shape == GRID.shape and set(np.unique(label)) <= {0, 1, 255}
     assert rec["area_m2"] == pytest.approx(DEVKIT["road_cells"] * GRID.res ** 2)

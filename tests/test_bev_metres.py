@@ -134,3 +134,44 @@ def test_label_border_rows_are_the_bottom_rows_without_road():
 def test_join_gaps_fills_inner_gaps_only():
     row = np.array([[0, 1, 0, 0, 1, 0, 0, 0, 1, 0]], bool)
     assert join_gaps(row, 3).astype(int).tolist() == [[0, 1, 1, 1, 1, 0, 0, 0, 1, 0]]
+
+
+def _synthetic_frame(tmp_path, holes=True):
+    """A 1280x720 camera 1.6 m high, level (a camera file), one frame and its label drawn from the
+    road plane: a road x in [-3.5, 3.5) with a 0.3 x 0.3 m hole (a lane arrow the labeller left out)
+    10 m ahead in the corridor, 1 m of not road, a pavement strip x in [4.5, 6.0) labelled road (the frame sees 6.4 m to the right 10 m ahead)."""
+    import cv2
+
+    from vcprep.camera import Camera, camera_to_yaml
+    from vcprep.synthetic import RoadScene, ground_points, render_road
+
+    cam = Camera("synthetic", (1280, 720), 1000.0, 1000.0, 639.5, 359.5, 1.6, 0.0)
+    (tmp_path / "cam.yaml").write_text(camera_to_yaml(cam))
+    for d in ("images", "labels"):
+        (tmp_path / d).mkdir()
+    x, z, hit = ground_points(cam)
+    road = hit & (((x >= -3.5) & (x < 3.5)) | ((x >= 4.5) & (x < 6.0)))
+    if holes:
+        road &= ~((x >= -0.15) & (x < 0.15) & (z >= 10.0) & (z < 10.3))
+    cv2.imwrite(str(tmp_path / "images" / "f.png"), render_road(cam, RoadScene(width=7.0), supersample=1)[0])
+    cv2.imwrite(str(tmp_path / "labels" / "f.png"), road.astype(np.uint8))
+    return tmp_path
+
+
+def test_vcprep_bev_labels_on_a_synthetic_road_arrow_pavement_and_free_edge(tmp_path):
+    import json
+
+    from conftest import run_cli
+
+    d = _synthetic_frame(tmp_path)
+    r = run_cli("bev", "--camera", str(d / "cam.yaml"), "--images", str(d / "images"), "--labels", str(d / "labels"),
+                "--label-format", "values:road=1;ignore=255", "--within", "none", "--out", str(d / "out"), "--quiet")
+    assert r.returncode == 0, r.stderr
+    rec = json.loads(r.stdout)
+    # the hole (0.3 m) does not end the corridor: the road is free to the grid's far edge, and says so
+    assert rec["free_m"] == 46.0 and rec["free_to_edge"] is True and rec["free_stop"] == "edge"
+    assert rec["start_why"] is None and rec["start_m"] == 6.0
+    # the width is the vehicle's road, 7 m; the pavement beyond the 1 m gap is reported apart (1.5 m)
+    for dist in ("10", "20", "30"):  # within a BEV cell and a pixel (0.03 m at 30 m) of each edge
+        assert abs(rec["width_m"][dist] - 7.0) <= 0.1, rec["width_m"]
+        assert len(rec["others_m"][dist]) == 1 and abs(rec["others_m"][dist][0] - 1.5) <= 0.1, rec["others_m"]

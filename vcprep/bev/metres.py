@@ -10,16 +10,18 @@ corridor starts where it does.
 - ``free_m``: how far ahead the corridor of the vehicle (``corridor`` metres wide, centred on
   x = 0: the cells whose centre lies within it, at least the one column nearest 0; along z, the
   road's direction under a VP pose, the camera's heading under a nominal or calibrated one) is
-  road. From the nearest row the camera sees in full (or the first with a not-road cell), the
-  corridor's not-road and unseen cells are grouped into 8-connected blobs (their extent inside the
+  road. From the nearest row the camera sees in full (a row partly unseen or hidden is not yet the
+  corridor's start: the old rule, 'or the first with a not-road cell', let a hidden border's last
+  row stop it), the corridor's not-road and unseen cells are grouped into 8-connected blobs (their extent inside the
   corridor); a blob smaller than ``MIN_BLOCK`` (0.5 m) both across and along the road (a lane arrow,
   noise) is passed over, any other (a barrier, the road's end, the view's end) stops the corridor,
   as does any blob at the grid's far row. ``free_m`` is the near edge of the nearest stopping blob;
   the grid's far edge when none stops it (``free_to_edge`` true); None where the camera sees no
   corridor cell. ``free_stop``: 'not road', 'unseen' or 'edge'.
 - ``start_m``: where the corridor starts (the near edge of that first row); ``start_why``: None
-  where the grid's first corridor row is road, else why not: the ``hidden`` reason (own vehicle,
-  label border), 'not road' or 'unseen'.
+  where it starts at the grid's first row and that row is road, else why not: the ``hidden`` reason
+  (own vehicle, label border) where hidden cells lie before the start, else 'not road' (the first
+  row holds not-road cells) or 'unseen' (the camera sees the corridor from ``start_m`` on).
 - ``width_m``: {"10": w, "20": w, "30": w}: the width of the road region the vehicle stands on,
   in the row that holds that distance. A row's road cells are joined across gaps narrower than
   ``MIN_BLOCK`` (a lane line, an arrow); of the runs this gives, the one under the corridor (most of
@@ -73,15 +75,15 @@ def free_distance(bev: np.ndarray, grid: BevGrid, corridor: float = CORRIDOR, or
     c[hid] = UNSEEN
     rows = grid.shape[0]
     near_edge = grid.z_max - rows * grid.res - origin_z  # the grid's first row's near edge, from the camera
-    first = c[0]
+    start = np.flatnonzero(~(c == UNSEEN).any(axis=1))
+    s = int(start[0]) if start.size else rows
+    before = slice(0, max(s, 1))  # the rows before the start (the first row where the corridor starts there)
     why = None
-    if not (first == 1).all():
-        why = "hidden" if hid[0].any() else "not road" if (first == 0).any() else "unseen"
+    if not (s == 0 and (c[0] == 1).all()):
+        why = "hidden" if hid[before].any() else "not road" if (c[before] == 0).any() else "unseen"
     out = {"free_m": None, "free_to_edge": False, "free_stop": None, "start_m": None, "start_why": why}
-    start = np.flatnonzero((c == 0).any(axis=1) | ~(c == UNSEEN).any(axis=1))
     if start.size == 0:
         return out
-    s = int(start[0])
     out["start_m"] = round(float(near_edge + s * grid.res), 6)
     sub = c[s:]
     n, lab, stats, _ = cv2.connectedComponentsWithStats((sub != 1).astype(np.uint8), connectivity=8)
