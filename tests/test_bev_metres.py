@@ -83,6 +83,15 @@ def test_width_is_the_vehicles_road_a_pavement_beyond_a_gap_is_reported_apart():
     assert r["area_m2"] == pytest.approx((7.0 - 0.15 + 2.0 + 2.0) * 40.0)
 
 
+def test_a_car_on_the_road_is_not_counted_and_a_later_junction_does_not_merge_a_pavement():
+    bev = _box(_road(), -1.0, 1.0, 18.0, 22.0, 0)  # a car 2 m wide in the corridor, 18..22 m
+    _box(bev, 4.5, 6.5, 6.0, 46.0, 1)  # a pavement beyond a 1 m gap ...
+    _box(bev, 3.5, 4.5, 35.0, 37.0, 1)  # ... joined to the road 35 m ahead (a driveway)
+    r = road_in_metres(bev, GRID)
+    assert r["width_m"]["20"] == 5.0 and r["edges_m"]["20"] == [-3.5, 3.5]  # the drivable width, the car left out
+    assert r["others_m"]["20"] == [2.0] and r["width_m"]["10"] == 7.0 and r["free_m"] == 18.0
+
+
 def test_width_follows_the_vehicles_region_where_the_road_leaves_the_corridor():
     bev = np.zeros(GRID.shape, np.uint8)
     _box(bev, -3.5, 3.5, 6.0, 22.0, 1)   # the vehicle's road ...

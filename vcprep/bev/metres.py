@@ -22,15 +22,16 @@ corridor starts where it does.
   where it starts at the grid's first row and that row is road, else why not: the ``hidden`` reason
   (own vehicle, label border) where hidden cells lie before the start, else 'not road' (the first
   row holds not-road cells) or 'unseen' (the camera sees the corridor from ``start_m`` on).
-- ``width_m``: {"10": w, "20": w, "30": w}: the width of the road region the vehicle stands on,
-  in the row that holds that distance. A row's road cells are joined across gaps narrower than
-  ``MIN_BLOCK`` (a lane line, an arrow); of the runs this gives, the one under the corridor (most of
-  its cells; a tie: nearest x = 0), else the nearest run of the 2-D road region (4-connected, on the
-  joined rows) that holds the corridor's first road; 0.0 where that region has no road in the row.
-  None where the row lies outside the grid, is unseen, or the run reaches the grid's side or an
-  unseen cell (not all in view). ``edges_m``: that run's left and right edge (x, metres);
-  ``others_m``: the widths of the row's other runs of at least ``MIN_BLOCK`` (a pavement, the
-  opposite carriageway beyond a gap), left to right.
+- ``width_m``: {"10": w, "20": w, "30": w}: the width of the road the vehicle drives on, in the
+  row that holds that distance. A row's road cells are joined across gaps narrower than
+  ``MIN_BLOCK`` (a lane line, an arrow the model left out); of the runs this gives, those with a
+  cell in the corridor (one, or two beside a car in it: the car is not counted), else, where the
+  road has left the corridor, the nearest run on each side of the 2-D road region (4-connected, on
+  the joined rows) that holds the corridor's nearest road; 0.0 where that region has no road in the
+  row. None where the row lies outside the grid, is unseen, or a run taken reaches the grid's side
+  or an unseen cell (not all in view). ``edges_m``: the left and right edge of the runs taken (x,
+  metres); ``others_m``: the widths of the row's other runs of at least ``MIN_BLOCK`` (a pavement,
+  the opposite carriageway beyond a gap), left to right.
 - ``area_m2``: road cells times the cell area.
 """
 from __future__ import annotations
@@ -127,18 +128,17 @@ def _vehicle_region(joined: np.ndarray, cols: np.ndarray) -> np.ndarray | None:
     return lab == ids[np.argmax(counts)]
 
 
-def _pick_run(runs: list[tuple[int, int]], cols: np.ndarray, centre: float,
-              region_row: np.ndarray | None) -> tuple[int, int] | None:
-    """The run under the corridor (most cells; tie: nearest ``centre``), else the region's nearest."""
+def _pick_runs(runs: list[tuple[int, int]], cols: np.ndarray, region_row: np.ndarray | None) -> list[int]:
+    """The runs under the corridor (every run with a cell in it: a car in the corridor splits the
+    road, the road beside it is still the vehicle's), else the region's nearest run on each side."""
     lo, hi = int(cols[0]), int(cols[-1])
-    overlap = [max(0, min(b, hi) - max(a, lo) + 1) for a, b in runs]
-    dist = [0.0 if a <= centre <= b else min(abs(a - centre), abs(b - centre)) for a, b in runs]
-    if runs and max(overlap) > 0:
-        return min(range(len(runs)), key=lambda i: (-overlap[i], dist[i]))
-    if region_row is None:
-        return None
+    under = [i for i, (a, b) in enumerate(runs) if a <= hi and b >= lo]
+    if under or region_row is None:
+        return under
     mine = [i for i, (a, b) in enumerate(runs) if region_row[a:b + 1].any()]
-    return min(mine, key=lambda i: dist[i]) if mine else None
+    left = [i for i in mine if runs[i][1] < lo]
+    right = [i for i in mine if runs[i][0] > hi]
+    return ([left[-1]] if left else []) + ([right[0]] if right else [])
 
 
 def road_widths(bev: np.ndarray, grid: BevGrid, distances: tuple[float, ...] = DISTANCES, origin_z: float = 0.0,
@@ -150,7 +150,6 @@ def road_widths(bev: np.ndarray, grid: BevGrid, distances: tuple[float, ...] = D
     k = _cells(min_block, grid.res)
     joined = join_gaps(b == 1, k)
     region = _vehicle_region(joined, cols)
-    centre = (0.0 - grid.x_min) / grid.res - 0.5  # x = 0 in column units
     width, edges, others = {}, {}, {}
     for d in distances:
         key, row = f"{d:g}", grid.row_at(origin_z + d)
@@ -158,18 +157,19 @@ def road_widths(bev: np.ndarray, grid: BevGrid, distances: tuple[float, ...] = D
         if row is None or not (b[row] != UNSEEN).any():
             continue
         runs = _runs(joined[row])
-        pick = _pick_run(runs, cols, centre, region[row] if region is not None else None)
-        others[key] = [round((bb - a + 1) * grid.res, 6) for i, (a, bb) in enumerate(runs)
-                       if i != pick and bb - a + 1 >= k]
-        if pick is None:
+        picked = _pick_runs(runs, cols, region[row] if region is not None else None)
+        others[key] = [round((z - a + 1) * grid.res, 6) for i, (a, z) in enumerate(runs)
+                       if i not in picked and z - a + 1 >= k]
+        if not picked:
             width[key] = 0.0
             continue
-        a, z = runs[pick]
+        spans = [runs[i] for i in picked]
         last = b.shape[1] - 1
-        if a == 0 or z == last or b[row, a - 1] == UNSEEN or b[row, z + 1] == UNSEEN:
+        if any(a == 0 or z == last or b[row, a - 1] == UNSEEN or b[row, z + 1] == UNSEEN for a, z in spans):
             continue  # not all of it in view
-        width[key] = round(float((z - a + 1) * grid.res), 6)
-        edges[key] = [round(float(grid.x_min + a * grid.res), 6), round(float(grid.x_min + (z + 1) * grid.res), 6)]
+        width[key] = round(float(sum(z - a + 1 for a, z in spans) * grid.res), 6)
+        edges[key] = [round(float(grid.x_min + spans[0][0] * grid.res), 6),
+                      round(float(grid.x_min + (spans[-1][1] + 1) * grid.res), 6)]
     return {"width_m": width, "edges_m": edges, "others_m": others}
 
 
