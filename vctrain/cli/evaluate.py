@@ -27,6 +27,11 @@ def eval_cmd(
     camera: Optional[str] = typer.Option(None, "--camera", "-c", help="with --bev: the frames' camera (preset, file, "
                                          "or folder of per-frame calibration files: KITTI calib/ gives the devkit's "
                                          "transform2BEV), at its nominal or calibrated pose"),
+    within: str = typer.Option("auto", "--within", help="with --bev: each frame's pose: auto (the pose 'vctrain "
+                               "predict --bev' gave it, kept in predict.json: its road VP by default; the camera's "
+                               "nominal pose where none is kept) or none (the camera's nominal pose); said on stderr"),
+    run: Optional[int] = typer.Option(None, "--run", min=1, help="score the frames of this predict run alone (1, 2, "
+                                      "...: a folder that holds several runs' frames names them)"),
     grid_range: Optional[str] = range_option("with --bev: "),
     res: float = res_option("with --bev: "),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar"),
@@ -60,7 +65,8 @@ def eval_cmd(
 
     fmt, share, notes = get_label_format(label_format), RoadShare(), []
     result, n = evaluate_folder(pred_dir, labels, fmt, progress=not quiet, road_share=share, notes=notes,
-                                bev=_bev_maps_of(camera, grid_range, res) if bev else None)
+                                bev=_bev_maps_of(camera, grid_range, res, pred_dir, within, notes) if bev else None,
+                                run=run)
     warning = share.warning(fmt, labels)
     for line in notes + ([warning] if warning else []):  # a wrong label format or mixed runs: said under --quiet too
         err(line)
@@ -78,13 +84,28 @@ def eval_cmd(
         err(f"{pred_dir}: {count(n, 'image')} evaluated")
 
 
-def _bev_maps_of(camera: Optional[str], grid_range: Optional[str], res: float):
-    """--bev: a frame's stem and size -> its BEV maps (:func:`vcprep.bev.bev_maps`) through --camera."""
+def _bev_maps_of(camera: Optional[str], grid_range: Optional[str], res: float, pred_dir: Path, within: str,
+                 notes: list):
+    """--bev: a frame's stem and size -> its BEV maps (:func:`vcprep.bev.bev_maps`) through --camera, at
+    the pose predict --bev kept for it (``within`` 'auto') or the camera's nominal pose; which, said in ``notes``."""
     from vcprep.bev import BevSource, bev_maps, parse_range
-    from vcprep.errors import InputError
+    from vcprep.errors import InputError, one_of
+
+    from ..evaluate import recorded_poses
+    from ..predict.bev import poses_rule
 
     if camera is None:
         raise InputError("--bev needs the frames' camera", None, "add --camera (a preset, a camera file, or the "
                          "folder of per-frame calibration files, e.g. KITTI's calib/)")
+    if within not in ("auto", "none"):
+        raise InputError(f"--within '{within}'", None, one_of(within, ("auto", "none")))
     grid, source = parse_range(grid_range, res), BevSource.from_spec(camera)
-    return lambda stem, size: bev_maps(source.view(Path(stem + ".png"), size), grid, stem)
+    poses = recorded_poses(Path(pred_dir)) if within == "auto" and not source.calibrated else {}
+    notes.append(f"{pred_dir}: {poses_rule(poses, source.calibrated, within)}")
+
+    def maps(stem: str, size):
+        pose = poses.get(stem) or poses.get(stem.rpartition("/")[2]) or {}
+        vp = tuple(pose["vp"]) if pose.get("source") == "vp" and pose.get("vp") else None
+        return bev_maps(source.view(Path(stem + ".png"), size, vp, pose.get("vp_status") if vp else None), grid, stem)
+
+    return maps

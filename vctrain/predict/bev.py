@@ -40,7 +40,7 @@ from vcprep.io import write_png
 
 from .written import prob_u8
 
-__all__ = ["BevOptions", "BevRun", "draw_inset", "BEV_NEEDS_CAMERA"]
+__all__ = ["BevOptions", "BevRun", "draw_inset", "BEV_NEEDS_CAMERA", "recording", "poses_line", "poses_rule"]
 
 BEV_NEEDS_CAMERA = ("add --camera (a preset, a calibration file, or 'estimate' from these frames): its height and "
                     "pose put the road in metres")
@@ -141,3 +141,48 @@ class BevRun:
         if self.options.emit is not None:
             self.options.emit({"id": stem, **extra, **road})
         return lambda img: draw_inset(img, mask, grid, road, self.options.corridor, view.origin_z)
+
+
+def recording(options: BevOptions, poses: dict[str, dict[str, Any]]) -> BevOptions:
+    """``options`` whose ``emit`` also keeps each frame's pose in ``poses`` (id -> its ``pose``), for
+    ``predict.json``: ``vctrain eval --bev`` then takes the same poses."""
+    from dataclasses import replace
+
+    emit = options.emit
+
+    def keep(record: dict[str, Any]) -> None:
+        poses[str(record["id"])] = record.get("pose") or {}
+        if emit is not None:
+            emit(record)
+
+    return replace(options, emit=keep)
+
+
+POSE_WORDS = {"vp": "its road VP", "nominal": "the camera's nominal pose", "calibration": "its calibration file",
+              "kitti": "its KITTI calibration (the devkit's transform)"}
+
+
+def poses_line(poses: dict[str, dict[str, Any]]) -> str:
+    """What stderr says of ``--bev``'s poses: 'BEV poses: each frame's road VP (12 frames) ...'."""
+    from collections import Counter
+
+    from vcprep.cliutil import count
+
+    by = Counter(str(p.get("source", "nominal")) for p in poses.values())
+    parts = [f"{POSE_WORDS.get(src, src)} ({count(n, 'frame')})" for src, n in by.most_common()]
+    return ("BEV poses: each frame's pose from " + ", ".join(parts) + "; kept in predict.json, where 'vctrain eval "
+            "--bev' takes them (--within none: the camera's nominal pose)")
+
+
+def poses_rule(poses: dict[str, dict[str, Any]], calibrated: bool, within: str) -> str:
+    """What ``vctrain eval --bev`` says of its poses: the ones ``predict --bev`` kept (``poses``), the
+    frames' calibration, or the camera's nominal pose (and why)."""
+    if calibrated:
+        return "BEV poses: each frame's calibration (as 'vctrain predict --bev' takes it)"
+    if within == "none":
+        return "BEV poses: the camera's nominal pose (--within none)"
+    if not poses:
+        return ("BEV poses: the camera's nominal pose (predict.json keeps no frame poses: 'vctrain predict --bev' "
+                "keeps each frame's road-VP pose for eval to take)")
+    return poses_line(poses).replace("; kept in predict.json, where 'vctrain eval --bev' takes them",
+                                     ", as 'vctrain predict --bev' found them (predict.json)")

@@ -107,7 +107,11 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
         from .frames import refuse_mixed
 
         refuse_mixed(predictor)
-    existed = Path(out).exists()
+    existed, poses = Path(out).exists(), {}
+    if bev is not None:  # each frame's BEV pose, kept in predict.json for eval --bev
+        from .bev import recording
+
+        bev = recording(bev, poses)
     try:
         result = _predict_all(predictor, prior, images, videos, out, camera_for, store, keep_store, within, overlay,
                               mask_video, ego, progress, vp_range, vp_smooth, vp_sequences, say, bev)
@@ -121,7 +125,12 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
     elif result.written:
         from ..evaluate import record_predictions
 
-        record_predictions(Path(out), prior if prior is not None else checkpoint, result.masks, engine_used)
+        record_predictions(Path(out), prior if prior is not None else checkpoint, result.masks, engine_used,
+                           inputs=[str(p) for p in [*videos, *images, *([store] if store else [])]], poses=poses)
+        if poses and say is not None:
+            from .bev import poses_line
+
+            say(poses_line(poses))
     return result
 
 
@@ -174,7 +183,8 @@ def _predict_all(predictor, prior, images, videos, out, camera_for, store, keep_
         written = predict_store(predictor, opened, out, progress=progress, overlay=overlay,
                                 bev=_store_bev(bev, opened, camera_for, within))
         n_images = len(written)
-    failed, masks = [], list(written) if store is not None else []
+    failed, masks = [], [p for p in written if Path(p).name.endswith("_mask.png")]  # a video's frames
+    masks = list(written) if store is not None else masks
     if images:
         run = _predict_image_files(predictor, images, out, camera_for, keep_store, within, overlay, progress,
                                    ego, rule, say, bev)
