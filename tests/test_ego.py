@@ -626,6 +626,28 @@ def test_a_missed_own_vehicle_is_a_warning_even_under_quiet(tiny_model, drive, t
 
 # -- the own vehicle cut by a model that reads frames as they are (issue 60: the shipped model) ------------
 
+def test_a_camera_file_that_states_no_own_vehicle_is_not_searched_nor_warned(tiny_model, drive, tmp_path):
+    """'ego_rows: 0' written in the camera file says the frames show no own vehicle (a KITTI rig): no
+    search, no warning, the summary line names the camera's ego_rows; it survives a YAML round trip
+    and leaves the camera's identity (equality, records) as it was (issue 80)."""
+    from vcprep.camera import read_camera_yaml
+
+    cam = replace(PRESETS["camvid"].for_image_size(drive[0].shape[1::-1]), name="rig")
+    (tmp_path / "cam.yaml").write_text(camera_to_yaml(cam) + "ego_rows: 0\n")
+    stated = read_camera_yaml(tmp_path / "cam.yaml")
+    assert stated.ego_stated and stated == cam and stated.to_dict() == cam.to_dict()
+    (tmp_path / "again.yaml").write_text(camera_to_yaml(stated))
+    assert read_camera_yaml(tmp_path / "again.yaml").ego_stated
+    (tmp_path / "f").mkdir()
+    for i, f in enumerate(drive):  # frames without a vehicle: the search would find none and warn
+        cv2.imwrite(str(tmp_path / "f" / f"f_{i:03d}.png"), f)
+    proc = run_cli("predict", tiny_model, "--camera", tmp_path / "cam.yaml", tmp_path / "f", "--out", tmp_path / "o",
+                   "--within", "none", prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    assert "warning" not in proc.stderr and "none found" not in proc.stderr, proc.stderr
+    assert proc.stderr.count("own vehicle") == 1 and "own vehicle: none (the camera's ego_rows)" in proc.stderr
+
+
 @pytest.fixture(scope="module")
 def resize_model(tiny_model, tmp_path_factory):
     """The tiny model's resize twin (width 4, 2 epochs), trained from its training store."""

@@ -91,7 +91,7 @@ def camera_from_dict(d: Any, file: str | Path | None = None, default_name: str =
     if not isinstance(name, str) or not name:
         raise InputError(f"key 'name' must be a non-empty string, got {name!r}", file, "write e.g. 'name: mycam'")
     return Camera(name=name, size=(int(w), int(h)), fx=fx, fy=fy, cx=cx, cy=cy, height=height, tilt=tilt, pan=pan,
-                  ego_rows=int(ego))
+                  ego_rows=int(ego), ego_stated="ego_rows" in d)
 
 
 def read_camera_yaml(path: str | Path) -> Camera:
@@ -140,6 +140,8 @@ def camera_to_yaml(cam: Camera) -> str:
     ]
     if cam.ego_rows:
         lines.append(f"ego_rows: {cam.ego_rows}   # bottom rows (at image_size) showing the rig's own vehicle")
+    elif cam.ego_stated:
+        lines.append("ego_rows: 0   # the frames show no own vehicle (none is searched for)")
     return "\n".join(lines) + "\n"
 
 

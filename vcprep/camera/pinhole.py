@@ -19,7 +19,7 @@ K and pose, source size ``visible_size`` = (w, h - ego_rows) (:meth:`Camera.with
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -57,6 +57,9 @@ class Camera:
     tilt: float = 0.0
     pan: float = 0.0
     ego_rows: int = 0
+    # the camera file states its ego_rows (an explicit 'ego_rows: 0': it shows no own vehicle, none is
+    # searched for); not part of the camera's identity (equality, records, store keys)
+    ego_stated: bool = field(default=False, compare=False, repr=False)
 
     @property
     def K(self) -> np.ndarray:

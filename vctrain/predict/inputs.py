@@ -324,7 +324,7 @@ def _predict_image_files(predictor, images: Sequence[Path], out: Path, camera_fo
         ego_source = f"--ego {ego}" if ego != "auto" else "the camera's ego_rows" if cam and cam.ego_rows else ""
     elif reads_road_vps(predictor) and isinstance(cam, Camera):  # one camera's frames: its own vehicle, as a video's
         ego = ego or "auto"
-        stated = cam.ego_rows
+        stated = cam.ego_rows or cam.ego_stated  # (an explicit 'ego_rows: 0': none, and no search)
         cam = folder_ego_camera(cam, files, ego, tell, warn)
         ego_source = (f"--ego {ego}" if ego not in ("auto", "none") else "the camera's ego_rows" if stated
                       else "found from the frames" if cam.ego_rows else "")

@@ -251,7 +251,8 @@ def _resize_ego_rows(predictor, camera: Camera | None, info: VideoInfo, ego: str
     say = (lambda msg: tqdm.write(f"{info.path}: {msg}", file=sys.stderr)) if progress else None
     return ego_rows(info.size[1], camera.ego_rows if camera is not None else 0, info.path, ego, say,
                     lambda: ego_rows_from_frames(sample_frames(info), info.path),
-                    lambda msg: tqdm.write(f"{info.path}: warning: {msg}", file=sys.stderr))
+                    lambda msg: tqdm.write(f"{info.path}: warning: {msg}", file=sys.stderr),
+                    known=bool(camera is not None and camera.ego_stated))
 
 
 def _out_folder(out: str | Path, stem: str, mask_video: bool) -> Path:
