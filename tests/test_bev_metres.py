@@ -148,7 +148,8 @@ def test_join_gaps_fills_inner_gaps_only():
 def _synthetic_frame(tmp_path, holes=True):
     """A 1280x720 camera 1.6 m high, level (a camera file), one frame and its label drawn from the
     road plane: a road x in [-3.5, 3.5) with a 0.3 x 0.3 m hole (a lane arrow the labeller left out)
-    10 m ahead in the corridor, 1 m of not road, a pavement strip x in [4.5, 6.0) labelled road (the frame sees 6.4 m to the right 10 m ahead)."""
+    10 m ahead in the corridor, 1 m of not road, a pavement strip x in [4.5, 6.0) labelled road (the
+    frame sees 6.4 m to the right 10 m ahead)."""
     import cv2
 
     from vcprep.camera import Camera, camera_to_yaml

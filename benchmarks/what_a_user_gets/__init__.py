@@ -36,6 +36,12 @@ docs/development.md or the results JSON records it, else "unknown".
   ``train.json``. Time: about 8 min a model, two models (its docstring; train.json: fits of 301 and
   309 s).
 
+* ``bev_metres.py`` -- the road in metres a planner gets (issue 80): ``free_m`` and ``width_m`` (10,
+  20 m) from a model's masks (``--model``, default the shipped one) against the same from the labels,
+  the rules before issue 80 against today's, on the 98 kitti_semantics frames (each frame's VP pose
+  and the nominal one) and the KITTI road frame. Results: ``bev_metres[_<tag>].{md,json}``. Time:
+  about 35 s (one thread; the masks cached in ``benchmarks/out/bev_metres/``).
+
 ``shipped_model.py`` and ``finetune.py`` build their studies with
 ``benchmarks/other_cameras/as_shipped.py``'s, and ``user_route.py`` compares with its
 ``as_shipped.json``.

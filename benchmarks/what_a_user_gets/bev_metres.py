@@ -146,7 +146,8 @@ def measure_set(name: str, preds: Path, pose: str) -> list[dict]:
         bev_mask = to_bev((mask != 0).astype(np.uint8), maps, "label")
         hidden, why = frame_hidden(maps, view.size, 0, label_border_rows(label))
         rows.append({"id": job.id,
-                     "before": {"label": old_rules(bev_label, view.origin_z), "model": old_rules(bev_mask, view.origin_z)},
+                     "before": {"label": old_rules(bev_label, view.origin_z),
+                                "model": old_rules(bev_mask, view.origin_z)},
                      "after": {"label": new_rules(bev_label, view, hidden, why), "model": new_rules(bev_mask, view)}})
     return rows
 
@@ -166,8 +167,8 @@ def summary(rows: list[dict]) -> dict:
                                        for ru in ("before", "after") for w in ("label", "model"))]
         for rule in ("before", "after"):
             e = [abs(_value(r, rule, "label", key, dist) - _value(r, rule, "model", key, dist)) for r in both]
-            e_all = [abs(_value(r, rule, "label", key, dist) - _value(r, rule, "model", key, dist)) for r in rows
-                     if _value(r, rule, "label", key, dist) is not None and _value(r, rule, "model", key, dist) is not None]
+            pairs = [(_value(r, rule, "label", key, dist), _value(r, rule, "model", key, dist)) for r in rows]
+            e_all = [abs(a - b) for a, b in pairs if a is not None and b is not None]
             out[rule][what] = {"median_abs_err": round(float(np.median(e)), 3) if e else None,
                                "mean_abs_err": round(float(np.mean(e)), 3) if e else None, "n": len(e),
                                "median_abs_err_all": round(float(np.median(e_all)), 3) if e_all else None,
@@ -210,18 +211,21 @@ def main() -> None:
             detail[f"{name}/{pose}"] = rows
     lines = table(results)
     print(f"model {model} (sha256 {sha256(model)[:12]}); grid x -10..10, z 6..46 m, 0.05 m; corridor {CORRIDOR} m; "
-          "median |model - label| in metres over the frames where both rules give both numbers (n), and where this rule does (all)")
+          "median |model - label| in metres over the frames where both rules give both numbers (n), and where this "
+          "rule does (all)")
     print("\n".join(lines))
     stem = "bev_metres" + (f"_{args.tag}" if args.tag else "")
     command = "python " + " ".join(["benchmarks/what_a_user_gets/bev_metres.py"] + sys.argv[1:])
-    doc = {"headline": {k: {r: {m: v[r][m]["median_abs_err"] for m in ("free_m", "width_10", "width_20")}
-                            for r in ("before", "after")} for k, v in results.items()},
+    headline = {f"{k} {m} {r}": v[r][m]["median_abs_err"] for k, v in results.items()
+                for m in ("free_m", "width_10", "width_20") for r in ("before", "after")}
+    doc = {"headline": headline,
            "command": command, "date": today(), "machine": machine(), "model": str(model),
            "model_sha256": sha256(model), "threads": 1, "results": results, "detail": detail}
     write_json(results_dir(__file__) / f"{stem}.json", doc)
     (results_dir(__file__) / f"{stem}.md").write_text(
         f"# The road in metres: the model's against the labels' ({today()})\n\n`{command}`; model `{model.name}` "
-        f"(sha256 {sha256(model)[:12]}). Median absolute error in metres (n: the frames where both rules give both numbers; all: where this rule does).\n\n"
+        f"(sha256 {sha256(model)[:12]}). Median absolute error in metres (n: the frames where both rules give both "
+        "numbers; all: where this rule does).\n\n"
         + "\n".join(lines) + "\n")
     print(json.dumps(doc["headline"]))
 

@@ -9,9 +9,9 @@ For a frame written as ``<stem>_mask.png`` / ``<stem>_prob.png``, :meth:`BevRun.
   value for a cell the camera does not see), byte for byte what ``vcprep bev --masks`` writes from
   the ``_mask.png`` with the same pose;
 
-and hands ``{"id", "free_m", "width_m", "area_m2", "pose", ...}`` (:func:`vcprep.bev.road_in_metres` of
-that BEV mask, the camera's own-vehicle rows hidden; a video's frames also ``"frame"``) to the options' ``emit`` (the CLI: one JSON line on
-stdout). An overlay gets a small inset of the BEV in its top right corner (:func:`draw_inset`): the
+and hands ``{"id", "free_m", "width_m", "area_m2", "pose", ...}`` (:func:`vcprep.bev.road_in_metres`
+of that BEV mask, the camera's own-vehicle rows hidden; a video's frames also ``"frame"``) to the
+options' ``emit`` (the CLI: one JSON line on stdout). An overlay gets a small inset of the BEV in its top right corner (:func:`draw_inset`): the
 road, the corridor up to the free distance, the free distance in metres.
 
 The pose each frame is projected with (:meth:`BevRun.view`): its own road VP by default (``vctrain
