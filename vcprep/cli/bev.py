@@ -45,8 +45,11 @@ def bev_cmd(
     devkit's exact transform. Writes OUT/<id>_image.png (bilinear), <id>_label.png and
     <id>_mask.png (0 not road, 1 road, 255 unseen or ignore: cells the camera does not see are
     never guessed) and <id>_prob.png (0-255, unseen 0). With --labels or --masks it prints one
-    JSON line per frame: free_m (how far the --corridor ahead is road, from the camera), width_m
-    (the road's width 10, 20 and 30 m ahead, null where not all in view), area_m2 and pose;
+    JSON line per frame: free_m (how far the --corridor ahead is road, from the camera; a hole or
+    object under 0.5 m both ways does not end it; free_to_edge, free_stop; start_m, start_why: why
+    the corridor starts past the grid's first row, e.g. the label's border rows), width_m (the
+    width of the road the vehicle drives on 10, 20 and 30 m ahead, gaps under 0.5 m joined, null
+    where not all in view; edges_m, and others_m: the separate road beside it), area_m2 and pose;
     without, it prints OUT.
 
     \b

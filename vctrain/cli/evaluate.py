@@ -50,7 +50,10 @@ def eval_cmd(
     x -10..10 m, z 6..46 m by default), where every cell is the same area of road: the KITTI road
     benchmark's BEV evaluation (MaxF, AP, PRE, REC, FPR, FNR, its threshold sweep) with KITTI
     calibration files (exactly the devkit's transform2BEV), the same metrics in the BEV of any
-    other --camera. Cells the camera does not see are left out.
+    other --camera, each frame at the pose 'vctrain predict --bev' gave it (kept in predict.json:
+    its road VP by default, the rule of predict --bev and vcprep bev; the camera's nominal pose
+    where none is kept, or with --within none), said on stderr. Cells the camera does not see are
+    left out. A folder holding several predict runs' frames: --run N scores one.
 
     \b
     Example:
@@ -63,10 +66,12 @@ def eval_cmd(
 
     from ..evaluate import evaluate_folder
 
-    fmt, share, notes = get_label_format(label_format), RoadShare(), []
+    fmt, share, notes, said = get_label_format(label_format), RoadShare(), [], []
     result, n = evaluate_folder(pred_dir, labels, fmt, progress=not quiet, road_share=share, notes=notes,
-                                bev=_bev_maps_of(camera, grid_range, res, pred_dir, within, notes) if bev else None,
+                                bev=_bev_maps_of(camera, grid_range, res, pred_dir, within, said) if bev else None,
                                 run=run)
+    for line in said if not quiet else ():  # which BEV poses
+        err(line)
     warning = share.warning(fmt, labels)
     for line in notes + ([warning] if warning else []):  # a wrong label format or mixed runs: said under --quiet too
         err(line)
