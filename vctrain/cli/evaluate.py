@@ -26,7 +26,7 @@ def eval_cmd(
                              "KITTI road benchmark's BEV evaluation; needs --camera"),
     camera: Optional[str] = typer.Option(None, "--camera", "-c", help="with --bev: the frames' camera (preset, file, "
                                          "or folder of per-frame calibration files: KITTI calib/ gives the devkit's "
-                                         "transform2BEV), at its nominal or calibrated pose"),
+                                         "transform2BEV), at the pose of --within (calibrated frames: their calibration)"),
     within: str = typer.Option("auto", "--within", help="with --bev: each frame's pose: auto (the pose 'vctrain "
                                "predict --bev' gave it, kept in predict.json: its road VP by default; the camera's "
                                "nominal pose where none is kept) or none (the camera's nominal pose); said on stderr"),
