@@ -108,10 +108,7 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
 
         refuse_mixed(predictor)
     existed, poses = Path(out).exists(), {}
-    if bev is not None:  # each frame's BEV pose, kept in predict.json for eval --bev
-        from .bev import recording
-
-        bev = recording(bev, poses)
+    bev = _keeping_poses(bev, poses)
     try:
         result = _predict_all(predictor, prior, images, videos, out, camera_for, store, keep_store, within, overlay,
                               mask_video, ego, progress, vp_range, vp_smooth, vp_sequences, say, bev)
@@ -132,6 +129,15 @@ def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]],
 
             say(poses_line(poses))
     return result
+
+
+def _keeping_poses(bev, poses: dict):
+    """``--bev``'s options, each frame's BEV pose also kept in ``poses`` (for predict.json: eval --bev takes them)."""
+    if bev is None:
+        return None
+    from .bev import recording
+
+    return recording(bev, poses)
 
 
 def _set_beyond(predictor: Any, beyond: str, path: Path) -> None:
