@@ -2,8 +2,8 @@
 
 Every mask here is drawn cell by cell from metres (a road x in [-3.5, 3.5), a hole of 0.45 m, a
 barrier at 25 m, a pavement beyond a 1 m gap), so each expected value is exact: the free distance is
-the near edge of the first blob of at least 0.5 m, the width the extent of the road run under the
-corridor with gaps under 0.5 m joined. The same rules through `vcprep bev --labels` on a rendered
+the near edge of the first blob of at least 0.5 m, the width that of the road runs under the corridor,
+holes under 0.5 m both ways filled. The same rules through `vcprep bev --labels` on a rendered
 road: tests/test_bev.py.
 """
 from __future__ import annotations
@@ -13,7 +13,7 @@ import pytest
 
 from vcprep.bev import BevGrid, road_in_metres
 from vcprep.bev.border import bottom_rows_why, label_border_rows
-from vcprep.bev.metres import join_gaps
+from vcprep.bev.metres import fill_small_holes
 
 GRID = BevGrid()  # x -10..10, z 6..46 m, 0.05 m cells
 X = GRID.x_centres()[None, :]
@@ -42,7 +42,7 @@ def test_a_hole_under_half_a_metre_does_not_end_the_corridor_one_of_half_a_metre
     arrow = _box(_road(), -0.2, 0.25, 20.0, 20.45, 0)  # 9 x 9 cells: 0.45 m both ways
     r = road_in_metres(arrow, GRID)
     assert r["free_to_edge"] is True and r["free_m"] == 46.0
-    assert r["width_m"]["20"] == 7.0  # the gap is joined: the road is as wide there
+    assert r["width_m"]["20"] == 7.0  # the hole is filled: the road is as wide there
     noise = _road()
     for z in np.arange(8.0, 44.0, 2.0):  # a speck every 2 m, inside the corridor
         _box(noise, 0.3, 0.6, z, z + 0.3, 0)
@@ -76,11 +76,17 @@ def test_the_view_ending_stops_the_corridor_as_unseen():
 def test_width_is_the_vehicles_road_a_pavement_beyond_a_gap_is_reported_apart():
     bev = _box(_road(), 4.5, 6.5, 6.0, 46.0, 1)  # pavement 4.5..6.5 m right, 1 m of not road between
     bev = _box(bev, -6.0, -4.0, 6.0, 46.0, 1)  # the opposite carriageway's lane beyond a 0.5 m median
-    bev = _box(bev, 1.7, 1.85, 6.0, 46.0, 0)  # a lane line left out by the model: 0.15 m, joined
+    for z in (9.8, 19.8, 29.8):  # specks left out (0.3 x 0.3 m) in the rows measured: holes, filled
+        _box(bev, 1.5, 1.8, z, z + 0.3, 0)
     r = road_in_metres(bev, GRID)
     assert r["width_m"] == {"10": 7.0, "20": 7.0, "30": 7.0}
     assert r["others_m"]["10"] == [2.0, 2.0] and r["edges_m"]["20"] == [-3.5, 3.5]
-    assert r["area_m2"] == pytest.approx((7.0 - 0.15 + 2.0 + 2.0) * 40.0)
+    assert r["area_m2"] == pytest.approx((7.0 + 2.0 + 2.0) * 40.0 - 3 * 0.3 * 0.3)
+    kerb = _box(_road(-3.5, 6.0), 3.5, 3.8, 6.0, 46.0, 0)  # a pavement beyond a 0.3 m kerb: narrow, but long
+    r = road_in_metres(kerb, GRID)
+    assert r["width_m"]["20"] == 7.0 and r["others_m"]["20"] == [2.2]
+    line = _box(_road(), 1.7, 1.85, 6.0, 46.0, 0)  # a lane line the model left out separates too: the own lane
+    assert road_in_metres(line, GRID)["width_m"]["10"] == 5.2
 
 
 def test_a_car_on_the_road_is_not_counted_and_a_later_junction_does_not_merge_a_pavement():
@@ -140,9 +146,13 @@ def test_label_border_rows_are_the_bottom_rows_without_road():
     assert label_border_rows(tall) == 0  # half the frame is no border
 
 
-def test_join_gaps_fills_inner_gaps_only():
-    row = np.array([[0, 1, 0, 0, 1, 0, 0, 0, 1, 0]], bool)
-    assert join_gaps(row, 3).astype(int).tolist() == [[0, 1, 1, 1, 1, 0, 0, 0, 1, 0]]
+def test_fill_small_holes_fills_blobs_under_the_size_both_ways_only():
+    road = np.ones((40, 40), bool)
+    road[5:8, 5:8] = False   # 3 x 3: filled
+    road[20:24, 5:7] = False  # 4 long: stays at 4 cells
+    road[:, 30] = False       # a line the whole way: stays
+    got = fill_small_holes(road, 4)
+    assert got[5:8, 5:8].all() and not got[20:24, 5:7].any() and not got[:, 30].any()
 
 
 def _synthetic_frame(tmp_path, holes=True):

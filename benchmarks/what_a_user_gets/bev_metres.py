@@ -17,7 +17,7 @@ nominal pose; the KITTI frame: its calibration); only the rules that read metres
            unseen cell; width_m counts every road cell of the row (null where any reaches the grid's
            side or an unseen cell)
   after    vcprep.bev.road_in_metres: blobs under 0.5 m passed over, the corridor starting past a
-           label's border rows; width_m the road run under the corridor, gaps under 0.5 m joined
+           label's border rows; width_m the road runs under the corridor, holes under 0.5 m filled
 
 Reported: the median absolute error (metres) of the model's value against the label's, over the
 frames where both rules give both numbers (n: the same frames before and after), and after "all"

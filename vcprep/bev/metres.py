@@ -23,15 +23,16 @@ corridor starts where it does.
   (own vehicle, label border) where hidden cells lie before the start, else 'not road' (the first
   row holds not-road cells) or 'unseen' (the camera sees the corridor from ``start_m`` on).
 - ``width_m``: {"10": w, "20": w, "30": w}: the width of the road the vehicle drives on, in the
-  row that holds that distance. A row's road cells are joined across gaps narrower than
-  ``MIN_BLOCK`` (a lane line, an arrow the model left out); of the runs this gives, those with a
-  cell in the corridor (one, or two beside a car in it: the car is not counted), else, where the
-  road has left the corridor, the nearest run on each side of the 2-D road region (4-connected, on
-  the joined rows) that holds the corridor's nearest road; 0.0 where that region has no road in the
-  row. None where the row lies outside the grid, is unseen, or a run taken reaches the grid's side
-  or an unseen cell (not all in view). ``edges_m``: the left and right edge of the runs taken (x,
-  metres); ``others_m``: the widths of the row's other runs of at least ``MIN_BLOCK`` (a pavement,
-  the opposite carriageway beyond a gap), left to right.
+  row that holds that distance. Holes in the road smaller than ``MIN_BLOCK`` both ways (a lane
+  arrow or a speck left out: ``free_m``'s rule) count as road; of the row's runs of road this
+  gives, those with a cell in the corridor (one, or two beside a car in it: the car is not
+  counted), else, where the road has left the corridor, the nearest run on each side of the 2-D
+  road region (4-connected) that holds the corridor's nearest road; 0.0 where that region has no
+  road in the row. A kerb, a strip of grass or a lane line left out by the model (long gaps, however
+  narrow) separates. None where the row lies outside the grid, is unseen, or a run taken reaches
+  the grid's side or an unseen cell (not all in view). ``edges_m``: the left and right edge of the
+  runs taken (x, metres); ``others_m``: the widths of the row's other runs of at least
+  ``MIN_BLOCK`` (a pavement, the opposite carriageway beyond a gap), left to right.
 - ``area_m2``: road cells times the cell area.
 """
 from __future__ import annotations
@@ -45,7 +46,8 @@ from ..errors import InputError
 from .grid import BevGrid
 from .view import GroundView
 
-__all__ = ["road_in_metres", "free_distance", "road_widths", "join_gaps", "CORRIDOR", "DISTANCES", "MIN_BLOCK"]
+__all__ = ["road_in_metres", "free_distance", "road_widths", "fill_small_holes", "CORRIDOR", "DISTANCES",
+           "MIN_BLOCK"]
 
 CORRIDOR = 1.8               # metres: the vehicle's corridor (a car's width)
 DISTANCES = (10, 20, 30)     # metres ahead where width_m is measured
@@ -102,14 +104,13 @@ def free_distance(bev: np.ndarray, grid: BevGrid, corridor: float = CORRIDOR, or
     return out
 
 
-def join_gaps(road: np.ndarray, cells: int) -> np.ndarray:
-    """``road`` (bool, rows x cols) with each row's gaps narrower than ``cells`` between two road
-    cells filled (a gap at the row's ends is never filled)."""
-    cols = np.arange(road.shape[1])
-    left = np.maximum.accumulate(np.where(road, cols, -1), axis=1)
-    right = np.minimum.accumulate(np.where(road, cols, road.shape[1])[:, ::-1], axis=1)[:, ::-1]
-    gap = (left >= 0) & (right < road.shape[1]) & (right - left - 1 < cells)
-    return road | gap
+def fill_small_holes(road: np.ndarray, cells: int) -> np.ndarray:
+    """``road`` (bool) with every 8-connected blob of other cells narrower than ``cells`` both across
+    and along the road (a lane arrow or a speck left out) filled: ``free_m``'s rule for what does not
+    count. A long thin gap (a kerb, a lane line the model left out) stays."""
+    _, lab, stats, _ = cv2.connectedComponentsWithStats((~road).astype(np.uint8), connectivity=8)
+    small = np.flatnonzero((stats[1:, cv2.CC_STAT_WIDTH] < cells) & (stats[1:, cv2.CC_STAT_HEIGHT] < cells)) + 1
+    return road | np.isin(lab, small) if small.size else road
 
 
 def _runs(row: np.ndarray) -> list[tuple[int, int]]:
@@ -118,12 +119,12 @@ def _runs(row: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(np.flatnonzero(d == 1).tolist(), (np.flatnonzero(d == -1) - 1).tolist()))
 
 
-def _vehicle_region(joined: np.ndarray, cols: np.ndarray) -> np.ndarray | None:
-    """The 4-connected region of ``joined`` (far row first) that holds the corridor's nearest road."""
-    near = np.flatnonzero(joined[:, cols].any(axis=1))
+def _vehicle_region(road: np.ndarray, cols: np.ndarray) -> np.ndarray | None:
+    """The 4-connected region of ``road`` (far row first) that holds the corridor's nearest road."""
+    near = np.flatnonzero(road[:, cols].any(axis=1))
     if near.size == 0:
         return None
-    _, lab = cv2.connectedComponents(joined.astype(np.uint8), connectivity=4)
+    _, lab = cv2.connectedComponents(road.astype(np.uint8), connectivity=4)
     ids, counts = np.unique(lab[near[-1], cols][lab[near[-1], cols] > 0], return_counts=True)
     return lab == ids[np.argmax(counts)]
 
@@ -148,15 +149,15 @@ def road_widths(bev: np.ndarray, grid: BevGrid, distances: tuple[float, ...] = D
     b = bev if hidden is None else np.where(hidden, UNSEEN, bev)
     cols = _corridor_cols(grid, corridor)
     k = _cells(min_block, grid.res)
-    joined = join_gaps(b == 1, k)
-    region = _vehicle_region(joined, cols)
+    filled = fill_small_holes(b == 1, k)
+    region = _vehicle_region(filled, cols)
     width, edges, others = {}, {}, {}
     for d in distances:
         key, row = f"{d:g}", grid.row_at(origin_z + d)
         width[key], edges[key], others[key] = None, None, None
         if row is None or not (b[row] != UNSEEN).any():
             continue
-        runs = _runs(joined[row])
+        runs = _runs(filled[row])
         picked = _pick_runs(runs, cols, region[row] if region is not None else None)
         others[key] = [round((z - a + 1) * grid.res, 6) for i, (a, z) in enumerate(runs)
                        if i not in picked and z - a + 1 >= k]

@@ -48,7 +48,7 @@ def bev_cmd(
     JSON line per frame: free_m (how far the --corridor ahead is road, from the camera; a hole or
     object under 0.5 m both ways does not end it; free_to_edge, free_stop; start_m, start_why: why
     the corridor starts past the grid's first row, e.g. the label's border rows), width_m (the
-    width of the road the vehicle drives on 10, 20 and 30 m ahead, gaps under 0.5 m joined, null
+    width of the road the vehicle drives on 10, 20 and 30 m ahead, holes under 0.5 m filled, null
     where not all in view; edges_m, and others_m: the separate road beside it), area_m2 and pose;
     without, it prints OUT.
 
