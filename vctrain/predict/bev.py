@@ -75,7 +75,8 @@ def draw_inset(image: np.ndarray, bev_mask: np.ndarray, grid: BevGrid, road: dic
                corridor: float = CORRIDOR, origin_z: float = 0.0) -> np.ndarray:
     """``image`` (BGR, changed in place and returned) with the BEV mask ``bev_mask`` (0/1/255) drawn
     small in its top right corner: road green, not road grey, unseen black, far row up; the
-    corridor (yellow) up to ``road['free_m']`` (a red bar) and that distance written below it."""
+    corridor (yellow) up to ``road['free_m']`` (a red bar) and that distance written below it ('46.0+ m':
+    free to the grid's far edge)."""
     h, w = image.shape[:2]
     rows, cols = grid.shape
     ih = max(24, int(h * INSET_SHARE))
@@ -89,7 +90,7 @@ def draw_inset(image: np.ndarray, bev_mask: np.ndarray, grid: BevGrid, road: dic
         y = int(round((grid.z_max - free - origin_z) * sy))
         cv2.rectangle(small, (x0, y), (x1, ih - 1), CORRIDOR_YELLOW, 1)
         cv2.line(small, (max(0, x0 - 3), y), (min(iw - 1, x1 + 3), y), FREE_RED, 2)
-    text = "free " + (f"{free:.1f} m" if free is not None else "-")
+    text = "free " + (f"{free:.1f}{'+' if road.get('free_to_edge') else ''} m" if free is not None else "-")
     m = max(4, h // 100)
     y0, x0 = m, w - m - iw
     if x0 < 0 or y0 + ih >= h:
