@@ -194,7 +194,8 @@ def read_kitti_calib(path: str | Path, image_size: tuple[int, int] = (1242, 375)
         # R2 = (sin a sin b, cos b, cos a sin b); with pan 0: tilt b = atan2(R2_z, R2_y)
         tilt = math.degrees(math.atan2(n[2], n[1]))
     d = {"name": path.stem, "image_size": list(image_size), "fx": float(fx), "fy": float(fy),
-         "cx": float(cx), "cy": float(cy), "height": height, "tilt": tilt}
+         "cx": float(cx), "cy": float(cy), "height": height, "tilt": tilt,
+         "ego_rows": 0}  # KITTI's rectified frames (a roof-mounted rig) show no own vehicle: stated, not searched
     return camera_from_dict(d, path)
 
 

@@ -176,3 +176,4 @@ PRESETS: dict[str, Camera] = {
                  height=r[7], tilt=r[8])
     for r in _PRESET_ROWS
 }
+PRESETS["kitti"] = replace(PRESETS["kitti"], ego_stated=True)  # KITTI's frames show no own vehicle (roof rig)
