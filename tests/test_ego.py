@@ -638,6 +638,13 @@ def test_a_camera_file_that_states_no_own_vehicle_is_not_searched_nor_warned(tin
     assert stated.ego_stated and stated == cam and stated.to_dict() == cam.to_dict()
     (tmp_path / "again.yaml").write_text(camera_to_yaml(stated))
     assert read_camera_yaml(tmp_path / "again.yaml").ego_stated
+    import pathlib
+
+    from vcprep.camera.files import read_kitti_calib
+
+    kitti = pathlib.Path(__file__).resolve().parent.parent / "examples" / "kitti" / "calib" / "um_000000.txt"
+    assert PRESETS["kitti"].ego_stated and read_kitti_calib(kitti).ego_stated  # KITTI's rig shows none
+    assert not PRESETS["camvid"].ego_stated
     (tmp_path / "f").mkdir()
     for i, f in enumerate(drive):  # frames without a vehicle: the search would find none and warn
         cv2.imwrite(str(tmp_path / "f" / f"f_{i:03d}.png"), f)
