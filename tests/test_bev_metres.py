@@ -151,8 +151,32 @@ def test_fill_small_holes_fills_blobs_under_the_size_both_ways_only():
     road[5:8, 5:8] = False   # 3 x 3: filled
     road[20:24, 5:7] = False  # 4 long: stays at 4 cells
     road[:, 30] = False       # a line the whole way: stays
-    got = fill_small_holes(road, 4)
+    got = fill_small_holes(road, 1.0, 4.0)
     assert got[5:8, 5:8].all() and not got[20:24, 5:7].any() and not got[:, 30].any()
+
+
+def test_a_hole_of_one_pixel_row_far_ahead_is_judged_by_what_the_pixel_can_tell():
+    """20 m ahead of a 480x270 camera 70 degrees wide, 1.5 m high, one pixel row covers 0.78 m of road:
+    a hole of one pixel row (6 pixels, 0.35 m, across) may be anything up to that long, so with the
+    frame's view it does not end the corridor; three rows (2.3 m) do. Without a view, cells are exact."""
+    from vcprep.bev import bev_maps, camera_view, to_bev
+    from vcprep.bev.metres import pixel_footprint
+    from vcprep.camera import Camera
+
+    w, h = 480, 270
+    f = (w / 2) / np.tan(np.radians(35.0))
+    cam = Camera("c", (w, h), f, f, (w - 1) / 2, (h - 1) / 2, 1.5, 0.0)
+    view, grid = camera_view(cam), BevGrid(-4.0, 4.0, 6.0, 30.0, 0.05)
+    maps = bev_maps(view, grid)
+    v20 = int(round(cam.cy + f * 1.5 / 20.0))  # the pixel row 20 m ahead
+    foot_z = pixel_footprint(view, grid)[0][grid.row_at(20.0)]
+    assert foot_z == pytest.approx(20.0 ** 2 / (f * 1.5), rel=0.05)  # z^2 / (f h)
+    for rows, ends in ((1, False), (3, True)):
+        label = np.ones((h, w), np.uint8)
+        label[v20 - rows + 1:v20 + 1, 237:243] = 0
+        bev = to_bev(label, maps, "label")
+        assert (road_in_metres(bev, grid, view)["free_to_edge"] is False) == ends, rows
+        assert road_in_metres(bev, grid)["free_to_edge"] is False  # cell-exact: 0.78 m along the road ends it
 
 
 def _synthetic_frame(tmp_path, holes=True):

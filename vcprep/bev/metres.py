@@ -15,7 +15,10 @@ corridor starts where it does.
   row stop it), the corridor's not-road and unseen cells are grouped into 8-connected blobs (their extent inside the
   corridor); a blob smaller than ``MIN_BLOCK`` (0.5 m) both across and along the road (a lane arrow,
   noise) is passed over, any other (a barrier, the road's end, the view's end) stops the corridor,
-  as does any blob at the grid's far row. ``free_m`` is the near edge of the nearest stopping blob;
+  as does any blob at the grid's far row. With a view, a blob of not-road cells must reach
+  ``MIN_BLOCK`` plus the road one pixel of the frame covers at its far end (:func:`pixel_footprint`,
+  at most ``MAX_FOOTPRINT``): far ahead a hole of one pixel row spans more than 0.5 m of road on the
+  grid whatever its size in the scene. ``free_m`` is the near edge of the nearest stopping blob;
   the grid's far edge when none stops it (``free_to_edge`` true); None where the camera sees no
   corridor cell. ``free_stop``: 'not road', 'unseen' or 'edge'.
 - ``start_m``: where the corridor starts (the near edge of that first row); ``start_why``: None
@@ -46,12 +49,13 @@ from ..errors import InputError
 from .grid import BevGrid
 from .view import GroundView
 
-__all__ = ["road_in_metres", "free_distance", "road_widths", "fill_small_holes", "CORRIDOR", "DISTANCES",
-           "MIN_BLOCK"]
+__all__ = ["road_in_metres", "free_distance", "road_widths", "fill_small_holes", "pixel_footprint", "CORRIDOR",
+           "DISTANCES", "MIN_BLOCK"]
 
 CORRIDOR = 1.8               # metres: the vehicle's corridor (a car's width)
 DISTANCES = (10, 20, 30)     # metres ahead where width_m is measured
 MIN_BLOCK = 0.5              # metres: a blob or gap smaller than this both ways does not end the road
+MAX_FOOTPRINT = 1.0          # metres: the most a frame's pixel may widen a blob's tolerance (pixel_footprint)
 UNSEEN = 255
 _EPS = 1e-9
 
@@ -69,8 +73,44 @@ def _cells(metres: float, res: float) -> int:
     return max(1, int(np.ceil(metres / res - 1e-6)))
 
 
+def pixel_footprint(view: GroundView | None, grid: BevGrid) -> tuple[np.ndarray, np.ndarray] | None:
+    """Per grid row (far row first): the road length (along z) and width (along x) that one pixel of
+    ``view``'s image covers at x = 0, in metres (at most :data:`MAX_FOOTPRINT`): how far a blob's
+    size on the grid may stray from the size of what the frame shows. None without a view."""
+    if view is None:
+        return None
+    H, z, eps = view.image_H_ground, grid.z_centres(), 1e-3
+
+    def pixel(dx: float, dz: float) -> np.ndarray:
+        p = H @ np.stack([np.full_like(z, dx), z + dz, np.ones_like(z)])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return p[:2] / p[2]
+
+    at, along, across = pixel(0.0, 0.0), pixel(0.0, eps), pixel(eps, 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        foot_z = eps / np.hypot(*(along - at))
+        foot_x = eps / np.hypot(*(across - at))
+    clean = lambda a: np.clip(np.nan_to_num(a, nan=MAX_FOOTPRINT, posinf=MAX_FOOTPRINT), 0.0, MAX_FOOTPRINT)
+    return clean(foot_z), clean(foot_x)
+
+
+def _large(stats: np.ndarray, far_rows: np.ndarray, res: float, min_block: float,
+           footprint: tuple[np.ndarray, np.ndarray] | None, exact: np.ndarray) -> np.ndarray:
+    """Which blobs (``stats`` of :func:`cv2.connectedComponentsWithStats`, background dropped) reach
+    ``min_block`` along or across the road; a blob of not-road cells alone (``exact`` False) may be a
+    pixel's footprint larger on the grid than in the frame, so it must reach ``min_block`` plus the
+    footprint at its far row (grid row ``far_rows``) to count."""
+    along, across = stats[:, cv2.CC_STAT_HEIGHT] * res, stats[:, cv2.CC_STAT_WIDTH] * res
+    slack_z = slack_x = np.zeros(len(stats))
+    if footprint is not None:
+        slack_z = np.where(exact, 0.0, footprint[0][far_rows])
+        slack_x = np.where(exact, 0.0, footprint[1][far_rows])
+    return (along >= min_block + slack_z - 1e-6) | (across >= min_block + slack_x - 1e-6)
+
+
 def free_distance(bev: np.ndarray, grid: BevGrid, corridor: float = CORRIDOR, origin_z: float = 0.0,
-                  hidden: np.ndarray | None = None, min_block: float = MIN_BLOCK) -> dict[str, Any]:
+                  hidden: np.ndarray | None = None, min_block: float = MIN_BLOCK,
+                  footprint: tuple[np.ndarray, np.ndarray] | None = None) -> dict[str, Any]:
     """``{"free_m", "free_to_edge", "free_stop", "start_m", "start_why"}`` (module docstring)."""
     cols = _corridor_cols(grid, corridor)
     c = bev[:, cols][::-1].copy()  # near row first
@@ -90,9 +130,11 @@ def free_distance(bev: np.ndarray, grid: BevGrid, corridor: float = CORRIDOR, or
     out["start_m"] = round(float(near_edge + s * grid.res), 6)
     sub = c[s:]
     n, lab, stats, _ = cv2.connectedComponentsWithStats((sub != 1).astype(np.uint8), connectivity=8)
-    k = _cells(min_block, grid.res)
-    top, hgt, wid = stats[1:, cv2.CC_STAT_TOP], stats[1:, cv2.CC_STAT_HEIGHT], stats[1:, cv2.CC_STAT_WIDTH]
-    stops = (hgt >= k) | (wid >= k) | (top + hgt >= sub.shape[0])
+    top, hgt = stats[1:, cv2.CC_STAT_TOP], stats[1:, cv2.CC_STAT_HEIGHT]
+    unseen = np.zeros(n, bool)
+    unseen[np.unique(lab[sub == UNSEEN])] = True
+    far_rows = rows - 1 - (s + top + hgt - 1)
+    stops = _large(stats[1:], far_rows, grid.res, min_block, footprint, unseen[1:]) | (top + hgt >= sub.shape[0])
     if not stops.any():
         out.update(free_m=round(float(grid.z_max - origin_z), 6), free_to_edge=True, free_stop="edge")
         return out
@@ -104,12 +146,18 @@ def free_distance(bev: np.ndarray, grid: BevGrid, corridor: float = CORRIDOR, or
     return out
 
 
-def fill_small_holes(road: np.ndarray, cells: int) -> np.ndarray:
-    """``road`` (bool) with every 8-connected blob of other cells narrower than ``cells`` both across
-    and along the road (a lane arrow or a speck left out) filled: ``free_m``'s rule for what does not
-    count. A long thin gap (a kerb, a lane line the model left out) stays."""
-    _, lab, stats, _ = cv2.connectedComponentsWithStats((~road).astype(np.uint8), connectivity=8)
-    small = np.flatnonzero((stats[1:, cv2.CC_STAT_WIDTH] < cells) & (stats[1:, cv2.CC_STAT_HEIGHT] < cells)) + 1
+def fill_small_holes(road: np.ndarray, res: float, min_block: float = MIN_BLOCK,
+                     footprint: tuple[np.ndarray, np.ndarray] | None = None,
+                     unseen: np.ndarray | None = None) -> np.ndarray:
+    """``road`` (bool, a grid's rows far first, cells ``res`` metres) with every 8-connected blob of
+    other cells smaller than ``min_block`` both across and along the road (a lane arrow or a speck
+    left out) filled: ``free_m``'s rule for what does not count (``footprint``, ``unseen``: as
+    :func:`free_distance` takes them). A long thin gap (a kerb, a lane line left out) stays."""
+    n, lab, stats, _ = cv2.connectedComponentsWithStats((~road).astype(np.uint8), connectivity=8)
+    exact = np.zeros(n, bool)
+    if unseen is not None:
+        exact[np.unique(lab[unseen])] = True
+    small = np.flatnonzero(~_large(stats[1:], stats[1:, cv2.CC_STAT_TOP], res, min_block, footprint, exact[1:])) + 1
     return road | np.isin(lab, small) if small.size else road
 
 
@@ -143,13 +191,13 @@ def _pick_runs(runs: list[tuple[int, int]], cols: np.ndarray, region_row: np.nda
 
 
 def road_widths(bev: np.ndarray, grid: BevGrid, distances: tuple[float, ...] = DISTANCES, origin_z: float = 0.0,
-                corridor: float = CORRIDOR, hidden: np.ndarray | None = None,
-                min_block: float = MIN_BLOCK) -> dict[str, dict[str, Any]]:
+                corridor: float = CORRIDOR, hidden: np.ndarray | None = None, min_block: float = MIN_BLOCK,
+                footprint: tuple[np.ndarray, np.ndarray] | None = None) -> dict[str, dict[str, Any]]:
     """``{"width_m", "edges_m", "others_m"}``, each keyed by distance (module docstring)."""
     b = bev if hidden is None else np.where(hidden, UNSEEN, bev)
     cols = _corridor_cols(grid, corridor)
     k = _cells(min_block, grid.res)
-    filled = fill_small_holes(b == 1, k)
+    filled = fill_small_holes(b == 1, grid.res, min_block, footprint, b == UNSEEN)
     region = _vehicle_region(filled, cols)
     width, edges, others = {}, {}, {}
     for d in distances:
@@ -188,10 +236,11 @@ def road_in_metres(bev: np.ndarray, grid: BevGrid, view: GroundView | None = Non
     if hidden is not None and not hidden.any():
         hidden = None
     oz = view.origin_z if view is not None else 0.0
-    free = free_distance(bev, grid, corridor, oz, hidden)
+    foot = pixel_footprint(view, grid)
+    free = free_distance(bev, grid, corridor, oz, hidden, footprint=foot)
     if free["start_why"] == "hidden":
         free["start_why"] = hidden_why or "hidden"
-    widths = road_widths(bev, grid, distances, oz, corridor, hidden)
+    widths = road_widths(bev, grid, distances, oz, corridor, hidden, footprint=foot)
     return {
         "free_m": free["free_m"],
         "width_m": widths["width_m"],
