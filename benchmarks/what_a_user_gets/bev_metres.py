@@ -180,6 +180,20 @@ def summary(rows: list[dict]) -> dict:
     return out
 
 
+COLUMNS = [f"{who}_{rule}_{what}" for rule in ("before", "after") for who in ("label", "model")
+           for what in ("free_m", "width_10", "width_20")]
+
+
+def compact(rows: list[dict]) -> dict:
+    """Each frame's numbers as one line 'id v v ...' (columns: :data:`COLUMNS`; '-': null)."""
+    def line(r: dict) -> str:
+        vals = [_value(r, rule, who, key, dist) for rule in ("before", "after") for who in ("label", "model")
+                for key, dist in (("free_m", None), ("width_m", "10"), ("width_m", "20"))]
+        return " ".join([r["id"]] + ["-" if v is None else f"{v:g}" for v in vals])
+
+    return {"columns": ["id"] + COLUMNS, "frames": [line(r) for r in rows]}
+
+
 def table(results: dict) -> list[str]:
     lines = ["| set | pose | frames | rule | free_m | width_m 10 m | width_m 20 m | label free_m in the first 0.3 m |",
              "|---|---|---|---|---|---|---|---|"]
@@ -208,7 +222,7 @@ def main() -> None:
         for pose in (("calibration",) if name == "kitti_road" else ("vp", "nominal")):
             rows = measure_set(name, preds, pose)
             results[f"{name}/{pose}"] = summary(rows)
-            detail[f"{name}/{pose}"] = rows
+            detail[f"{name}/{pose}"] = compact(rows)
     lines = table(results)
     print(f"model {model} (sha256 {sha256(model)[:12]}); grid x -10..10, z 6..46 m, 0.05 m; corridor {CORRIDOR} m; "
           "median |model - label| in metres over the frames where both rules give both numbers (n), and where this "

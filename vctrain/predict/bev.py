@@ -11,8 +11,10 @@ For a frame written as ``<stem>_mask.png`` / ``<stem>_prob.png``, :meth:`BevRun.
 
 and hands ``{"id", "free_m", "width_m", "area_m2", "pose", ...}`` (:func:`vcprep.bev.road_in_metres`
 of that BEV mask, the camera's own-vehicle rows hidden; a video's frames also ``"frame"``) to the
-options' ``emit`` (the CLI: one JSON line on stdout). An overlay gets a small inset of the BEV in its top right corner (:func:`draw_inset`): the
-road, the corridor up to the free distance, the free distance in metres.
+options' ``emit`` (the CLI: one JSON line on stdout). An overlay gets a small inset of the BEV in
+its top right corner (:func:`draw_inset`): the road, the corridor up to the free distance, the free
+distance in metres. Each frame's pose is kept (:func:`recording`) for ``predict.json``, where
+``vctrain eval --bev`` takes it (:func:`poses_rule`).
 
 The pose each frame is projected with (:meth:`BevRun.view`): its own road VP by default (``vctrain
 predict --within auto`` or ``estimate``: ``vcprep bev``'s rule, :func:`vcprep.bev.within_rule`; the
@@ -163,16 +165,21 @@ POSE_WORDS = {"vp": "its road VP", "nominal": "the camera's nominal pose", "cali
               "kitti": "its KITTI calibration (the devkit's transform)"}
 
 
-def poses_line(poses: dict[str, dict[str, Any]]) -> str:
-    """What stderr says of ``--bev``'s poses: 'BEV poses: each frame's road VP (12 frames) ...'."""
+def _poses_said(poses: dict[str, dict[str, Any]]) -> str:
+    """'BEV poses: each frame's pose from its road VP (12 frames), the camera's nominal pose (1 frame)'."""
     from collections import Counter
 
     from vcprep.cliutil import count
 
     by = Counter(str(p.get("source", "nominal")) for p in poses.values())
-    parts = [f"{POSE_WORDS.get(src, src)} ({count(n, 'frame')})" for src, n in by.most_common()]
-    return ("BEV poses: each frame's pose from " + ", ".join(parts) + "; kept in predict.json, where 'vctrain eval "
-            "--bev' takes them (--within none: the camera's nominal pose)")
+    return "BEV poses: each frame's pose from " + ", ".join(f"{POSE_WORDS.get(src, src)} ({count(n, 'frame')})"
+                                                            for src, n in by.most_common())
+
+
+def poses_line(poses: dict[str, dict[str, Any]]) -> str:
+    """What ``vctrain predict --bev`` says of its poses on stderr."""
+    return (_poses_said(poses) + "; kept in predict.json, where 'vctrain eval --bev' takes them (--within none: "
+            "the camera's nominal pose)")
 
 
 def poses_rule(poses: dict[str, dict[str, Any]], calibrated: bool, within: str) -> str:
@@ -185,5 +192,5 @@ def poses_rule(poses: dict[str, dict[str, Any]], calibrated: bool, within: str) 
     if not poses:
         return ("BEV poses: the camera's nominal pose (predict.json keeps no frame poses: 'vctrain predict --bev' "
                 "keeps each frame's road-VP pose for eval to take)")
-    return poses_line(poses).replace("; kept in predict.json, where 'vctrain eval --bev' takes them",
-                                     ", as 'vctrain predict --bev' found them (predict.json)")
+    return _poses_said(poses) + ", as 'vctrain predict --bev' found them (predict.json; --within none: the camera's " \
+        "nominal pose)"
