@@ -401,7 +401,7 @@ def bev_figure(frame: np.ndarray, label: np.ndarray | None, bev_image: np.ndarra
                grid, road: dict, height: int = 400, corridor: float = 1.8, origin_z: float = 0.0) -> np.ndarray:
     """Frame (road in green) | its bird's-eye view (far row up; road in green, unseen dark), with
     the corridor up to ``road['free_m']`` in yellow, the free distance as a red line and the
-    widths of ``road['width_m']`` as white ticks. ``grid`` a :class:`vcprep.bev.BevGrid`;
+    widths of ``road['width_m']`` as white ticks (and the span ``road['edges_m']`` measured, a white line). ``grid`` a :class:`vcprep.bev.BevGrid`;
     ``origin_z`` the camera's foot in the grid's z (:attr:`vcprep.bev.GroundView.origin_z`)."""
     s = height / bev_image.shape[0]
     bev = cv2.resize(overlay_label(bev_image, bev_label), None, fx=s, fy=s, interpolation=cv2.INTER_AREA)
@@ -420,6 +420,9 @@ def bev_figure(frame: np.ndarray, label: np.ndarray | None, bev_image: np.ndarra
     for d, w in road.get("width_m", {}).items():
         y = px(0, float(d) + oz)[1]
         cv2.line(bev, (0, y), (6, y), (255, 255, 255), 1)
+        edges = (road.get("edges_m") or {}).get(d)
+        if edges:  # the span width_m measured
+            cv2.line(bev, (px(edges[0], 0)[0], y), (px(edges[1], 0)[0], y), (255, 255, 255), 1, cv2.LINE_AA)
         cv2.putText(bev, f"{d} m: {'-' if w is None else f'{w:.1f} m'}", (8, y + 4), cv2.FONT_HERSHEY_SIMPLEX, 0.38,
                     (255, 255, 255), 1, cv2.LINE_AA)
     left = _fit(overlay_label(frame, label), int(round(frame.shape[1] * height / frame.shape[0] * 0.5)), height)

@@ -32,6 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: 
 from benchmarks.measure.report import machine, results_dir, today, write_json
 from benchmarks.speed.warp import timed
 from vcprep.bev import BevGrid, bev_maps, camera_view, clear_cache, kitti_view, road_in_metres, to_bev
+from vcprep.bev.border import frame_hidden, label_border_rows
 from vcprep.camera import Camera
 from vcprep.figures import bev_figure
 from vcprep.io import write_png
@@ -46,11 +47,12 @@ def figure(out: Path) -> dict:
     kitti = ROOT / "examples" / "kitti"
     frame = cv2.imread(str(kitti / "image_2" / "um_000000.png"))
     label = decode_label(cv2.imread(str(kitti / "gt_image_2" / "um_road_000000.png")), get_label_format("kitti"))
-    grid = BevGrid(z_min=6.5)  # the label's bottom 5 rows (z < 6.3 m) are marked not road: they would stop free_m there
+    grid = BevGrid()  # the benchmark's; the label's bottom 4 rows (6.0-6.3 m) are its border, hidden (start_why)
     view = kitti_view(kitti / "calib" / "um_000000.txt", (frame.shape[1], frame.shape[0]))
     maps = bev_maps(view, grid)
     bev_label = to_bev(label, maps, "label")
-    road = road_in_metres(bev_label, grid, view)
+    hidden, why = frame_hidden(maps, view.size, 0, label_border_rows(label))
+    road = road_in_metres(bev_label, grid, view, hidden=hidden, hidden_why=why)
     fig = bev_figure(frame, label, to_bev(frame, maps, "image"), bev_label, grid, road, height=360,
                      origin_z=view.origin_z)
     write_png(out, (fig >> 3) << 3, level=9)  # 32 levels a channel: the PNG stays under 200 KB
