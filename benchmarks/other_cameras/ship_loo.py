@@ -224,15 +224,15 @@ def main() -> None:
     seeds = [0] if a.quick else [int(s) for s in a.seeds.split(",") if s]
     require_data(DATA, CITYSCAPES, KITTI_SEM, IDD, BDD, LUMS)
     wd = a.workdir / "quick" if a.quick else a.workdir
-    for seed in seeds if not a.collect else []:  # seed by seed: a cut-off run has every candidate on its first seeds
-        for cand in cands:
-            study = candidate_study(wd, cand, a.quick, a.epochs)
-            sd = wd / cand / f"seed{seed}"
-            if seed != seeds[0]:
-                link_stores(sd, wd / cand / f"seed{seeds[0]}")
-            own = [f for f in folds if same_model(cand, f) == cand]  # (the others are an earlier candidate's model)
-            if own:
-                run_study(study, sd, [COND], seed, a.threads, heldout=own)
+    # seed by seed, fold by fold, every candidate in turn: a cut-off run leaves folds that every candidate has
+    for seed in seeds if not a.collect else []:
+        for fold in folds:
+            for cand in [c for c in cands if same_model(c, fold) == c]:  # (the others: an earlier candidate's model)
+                study = candidate_study(wd, cand, a.quick, a.epochs)
+                sd = wd / cand / f"seed{seed}"
+                if seed != seeds[0]:
+                    link_stores(sd, wd / cand / f"seed{seeds[0]}")
+                run_study(study, sd, [COND], seed, a.threads, heldout=[fold])
             report(a, wd, cands, folds, seeds)
     print(json.dumps(report(a, wd, cands, folds, seeds)))
 
