@@ -95,6 +95,39 @@ def test_rerun_does_no_work_and_changes_redo_exactly_the_affected_items(dataset,
     assert len(_records(out)) == 3
 
 
+def test_warp_into_a_store_of_frames_says_what_it_held_and_names_both_cameras(dataset, tmp_path):
+    """Issue 80: another day's frames warped into the training store by mistake printed only "49 items: 49
+    built". Now the summary says how many items the store held before, and frames of another camera than
+    its own (both YAMLs named after their file: 'camera') get one warning naming both, even under -q."""
+    root, images, labels = dataset
+    out = tmp_path / "store"
+    day1, day2 = tmp_path / "day1", tmp_path / "day2"
+    for day, height in ((day1, 1.21), (day2, 1.5)):
+        (day / "images").mkdir(parents=True)
+        (day / "labels").mkdir()
+        for p in images.iterdir():
+            shutil.copy(p, day / "images" / f"{day.name}_{p.name}")
+            shutil.copy(labels / p.name, day / "labels" / f"{day.name}_{p.name}")
+        from vcprep.camera import camera_from_dict
+        (day / "camera.yaml").write_text(camera_to_yaml(camera_from_dict({**PRESETS["camvid"].to_dict(),
+                                                                           "name": "camera", "height": height})))
+
+    def warp(day, *extra):
+        return run_cli("warp", "--camera", day / "camera.yaml", "--images", day / "images", "--labels", day / "labels",
+                       "--label-format", "camvid", "--out", out, *PAPER_STORE, *extra)
+
+    proc = warp(day1)
+    assert proc.returncode == 0 and "held" not in proc.stderr and "warning" not in proc.stderr, proc.stderr
+    proc = warp(day2, "-q")
+    assert proc.returncode == 0 and proc.stdout.strip() == str(out)
+    (line,) = proc.stderr.strip().splitlines()
+    assert line.startswith(f"warning: {out}: the store held 3 items of camera 'camera' (fx ") and "height 1.21 m" in line
+    assert "these 3 frames are of camera 'camera' (fx " in line and "height 1.5 m" in line
+    proc = warp(day1)  # frames of its own camera again: no warning, and the summary says what it held
+    assert proc.returncode == 0 and "warning" not in proc.stderr and "0 built, 3 up to date" in proc.stderr
+    assert "the store held 6 items before" in proc.stderr, proc.stderr
+
+
 def test_backproject_cli_inverts_the_warp(dataset, tmp_path):
     _, images, labels = dataset
     out = tmp_path / "store"

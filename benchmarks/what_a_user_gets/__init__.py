@@ -31,6 +31,10 @@ docs/development.md or the results JSON records it, else "unknown".
 * ``finetune.py`` -- fine-tuning on a camera the model has not seen: 20 labelled frames of it
   (issue 34: the learning-rate rule; before fit --init's issue-60 defaults). Results:
   ``finetune.{md,json}`` (LUMS), ``finetune_<set>.{md,json}``. Time: unknown.
+* ``label_check.py`` -- labels read as the wrong class (issue 80): ``vctrain fit``'s label check on the
+  seven real label sets with their right formats, as frames and as stores of the README's route (none
+  refused), and on CamVid's labels read with ``values:road=1;ignore=255`` (building as road: refused).
+  Results: ``label_check.{md,json}``. Time: about 3 min on 2 shared cores.
 * ``train.py`` -- CamVid train -> val in its own camera: the virtual-camera model against the resize
   baseline at the same budget (the pipeline and the budget, not the cross-camera gain). Results:
   ``train.json``. Time: about 8 min a model, two models (its docstring; train.json: fits of 301 and

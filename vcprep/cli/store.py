@@ -128,9 +128,20 @@ def warp_cmd(
     settings = WarpSettings(camera=cam, virtual=virt, scale=scale, label_format=fmt, completion=complete, poses=poses,
                             workers=jobs or default_jobs(), shard=part, keep_going=keep_going, progress=not quiet)
     store, summary = warp_dataset(items, out, settings)
+    _say_other_camera(out, summary)
     _keep_estimate(out, estimate, quiet)
     finish(out, summary, quiet, f" (store {store.store_size[0]}x{store.store_size[1]}{design}"
                                  f"{f', shard {part}' if part else ''}{vps})")
+
+
+def _say_other_camera(out: Path, summary) -> None:
+    """Frames of another camera warped into a store that held frames (issue 80: a day's frames warped
+    into another day's training store by mistake): both cameras named, on stderr even under --quiet."""
+    new = [c for c in summary.cameras if c not in summary.held_cameras]
+    if summary.held and new:
+        err(f"warning: {out}: the store held {count(summary.held, 'item')} of camera {', '.join(summary.held_cameras)}; "
+            f"these {count(summary.total, 'frame')} are of camera {', '.join(new)}, and it now holds both (a store of "
+            "several cameras may; if they were meant for a store of their own, give another --out)")
 
 
 def _keep_estimate(out: Path, estimate, quiet: bool) -> None:

@@ -32,7 +32,7 @@ from ..warp.homography import (apply_homography, check_not_folded, pose_from_vp,
 from ..io.images import image_size_from_header, read_image, write_png
 from ..labels import LabelFormat, decode_label
 from .parallel import ItemError, run_items
-from .record import ItemRecord, completion_fields, same_source, source_path, valid_path
+from .record import ItemRecord, camera_words, completion_fields, same_source, source_path, valid_path
 from .layout import STAMP, Shard, Store, store_lock, temp_files
 from ..warp.completion import border_ignore, check_method, completion_maps
 from ..warp.remap import warp_image, warp_label
@@ -71,11 +71,16 @@ class BuildSummary:
     notes: list[str] = field(default_factory=list)  # per-item remarks for the user, each with its verdict
     off_vp: dict[str, int] = field(default_factory=lambda: {"fine": 0, "check": 0})  # see off_vp_note
     seconds: float = 0.0  # wall-clock time of the loop
+    held: int = 0  # items the store held before this build (vcprep warp)
+    held_cameras: list[str] = field(default_factory=list)  # their cameras, in words (record.camera_words)
+    cameras: list[str] = field(default_factory=list)  # the cameras of this build's items, in words
 
     def line(self, detail: str = "") -> str:
         """The summary: counts, ``detail`` (e.g. " (store 688x350)"), items completed off their VP."""
         text = (f"{self.total} item{'' if self.total == 1 else 's'}: {self.built} built, {self.up_to_date} up to date, "
                 f"{len(self.failed)} failed{detail}")
+        if self.held:
+            text += f"; the store held {self.held} item{'' if self.held == 1 else 's'} before"
         if any(self.off_vp.values()):
             text += (f"; VP outside the covered region: {self.off_vp['fine']} fine as is (completion rays start "
                      f"within {OFF_VP_FINE:.0%} of the width from it), {self.off_vp['check']} to check "
@@ -452,7 +457,10 @@ def warp_dataset(jobs: list[Job], out: str | Path, settings: WarpSettings) -> tu
         ctx = _WarpContext(store.root, settings.camera, store.virtual, store.params, settings.label_format,
                            settings.completion, settings.unlabelled_completion)
         tasks = [_WarpTask(j, poses.get(j.id), store.items.get(j.id)) for j in jobs]
+        held = (len(store.items), sorted({camera_words(r) for r in store.items.values()}))
         summary = build_loop(store, LoopStep(build_item, ctx, "warp"), tasks, [j.id for j in jobs], settings)
+    summary.held, summary.held_cameras = held
+    summary.cameras = sorted({camera_words(store.items[j.id]) for j in jobs if j.id in store.items})
     return store, summary
 
 

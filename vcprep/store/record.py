@@ -22,7 +22,7 @@ from ..warp.completion import COMPLETION_VERSION
 from .layout import VALID_PREFIX
 
 __all__ = ["WARP_ALGORITHM", "ItemRecord", "record_key", "valid_path", "completion_key_part", "completion_fields",
-           "source_path", "same_source"]
+           "source_path", "same_source", "camera_words"]
 
 WARP_ALGORITHM = "warp-v1"  # bump when stored outputs of identical inputs would change
 STORE_KEY_PARAMS = ("virtual", "scale", "store_size")  # the store parameters an item key depends on
@@ -159,3 +159,14 @@ class ItemRecord:
 def record_key(rec: dict[str, Any], params: dict[str, Any], completion: str) -> str:
     """The item key of a stored record for another ``completion`` (``vcprep complete``)."""
     return ItemRecord.from_dict(rec).key_for(params, completion)
+
+
+def camera_words(rec: dict[str, Any]) -> str:
+    """The camera of a store record in words that tell two cameras apart even where both are named
+    after their file (``camera.yaml`` -> 'camera'): its name, focal length, height, tilt and pan (a crop
+    keeps them; the image size is left out); a frame of per-frame calibration by its folder's name."""
+    cp = rec.get("camera_params")
+    if not cp or rec.get("camera_file"):
+        return f"'{rec.get('camera')}' (per-frame calibration)"
+    return (f"'{cp.get('name', rec.get('camera'))}' (fx {cp['fx']:.1f} px, height {cp['height']:g} m, "
+            f"tilt {cp.get('tilt', 0):g} deg, pan {cp.get('pan', 0):g} deg)")

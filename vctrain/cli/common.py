@@ -3,6 +3,7 @@ defaults of fit's and adapt's options as the library declares them, help texts a
 command that writes one file. Commands live in one module per group (:mod:`vctrain.cli`)."""
 from __future__ import annotations
 
+import time
 from pathlib import Path
 from typing import Any, Optional
 
@@ -18,6 +19,24 @@ from ..training.config import AdaptSettings, TrainConfig
 app = typer.Typer(rich_markup_mode=None, pretty_exceptions_enable=False, add_completion=False, no_args_is_help=True,
                   help="Train, predict and evaluate road segmentation in the virtual-camera domain.\n\n"
                        "Add --debug to any command to see a traceback on error.")
+
+
+_STARTED: list[float] = []  # the perf_counter() at which each command of this process started
+
+
+def start_clock(loaded: float) -> None:
+    """Start the clock of the command about to run (:func:`command_seconds`): at ``loaded``, when the
+    commands' code began to load, for the first command of a process (what a user's ``vctrain ...``
+    is: its imports are part of its time); now for any later one (tests run several in one process)."""
+    _STARTED.append(time.perf_counter() if _STARTED else loaded)
+
+
+def command_seconds() -> float:
+    """The wall clock of the running command so far, from :func:`start_clock` (the interpreter's own
+    start before it, about 0.1 s, is not counted); from the first call when no clock was started."""
+    if not _STARTED:
+        _STARTED.append(time.perf_counter())
+    return time.perf_counter() - _STARTED[-1]
 
 
 def _version(value: bool):

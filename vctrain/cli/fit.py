@@ -11,7 +11,8 @@ from vcprep.cliutil import check_data_folders, count, ensure_parent, err
 from vcprep.errors import InputError
 
 from ..training.config import TrainConfig
-from .common import LABEL_FORMAT_HELP, TRAIN, app, model_arg, parse_size, path_or_json, pin_threads, threads_option
+from .common import (LABEL_FORMAT_HELP, TRAIN, app, command_seconds, model_arg, parse_size, path_or_json, pin_threads,
+                     threads_option)
 
 RECIPE_HELP = ("defaults of every setting below: 'cpu' (resfpn, AdamW, cosine, augmentation, full-height windows of "
                "4/9 of the width; 305 CamVid frames in about 3 min on 2 cores at the default store's 638x271), "
@@ -53,9 +54,9 @@ HELP = {  # the options whose help does not fit on their line
     "val_fraction": "share of the training items held out for validation (default: 0.1; with --init 0.2, the frames "
                     "the start must be beaten on; 0: every frame trains and the last epoch is kept)",
     "val_split": "which items --val-fraction holds out: 'random', 'block' (the last share of each folder or store in "
-                 "name order), 'sequence' (whole sequences where the names show three or more, 0001TP_006690 -> "
-                 "0001TP; the last stretch of each where one or two; else random) or 'auto' (sequence with --init, "
-                 "else random)",
+                 "name order), 'sequence' (whole sequences where the names show five or more, 0001TP_006690 -> "
+                 "0001TP; by frame where fewer, e.g. KITTI's um_/umm_/uu_ or one drive: the last stretch of each; "
+                 "random where every name is its own) or 'auto' (sequence with --init, else random)",
     "val_images": "resize baseline: validate on these frames instead of a share of the training ones "
                   "(replaces --val-fraction; with --init the start is kept unless the trained model scores higher "
                   "on them): frames of the light or drive the model will be used in",
@@ -208,7 +209,7 @@ def fit_cmd(
     for path in filter(None, (out, log)):  # runs/vc.pt: runs/ is created, as warp and predict create theirs
         ensure_parent(path)
     what, note = rerun_plan(cfg, overwrite)  # the same command resumes, or finds its run done; another's is refused
-    if note and not quiet:
+    if note and (what == "aside" or not quiet):  # (where a model of other data went is said even under --quiet)
         err(note)
     if what == "done":
         path_or_json(out, {"out": str(out), "done": True}, as_json)
@@ -217,6 +218,7 @@ def fit_cmd(
         summary = fit(cfg)
     except KeyboardInterrupt:  # Ctrl-C: the epochs done are in OUT.last.pt, and the same command goes on from there
         raise Interrupted(f"the epochs finished are saved ({last_path(out)})") from None
+    summary["command_seconds"] = command_seconds()  # the command's wall clock: imports, data, scoring, saves
     if not quiet:
         err(_fit_line(out, summary))
         if summary.get("finetune"):
@@ -225,9 +227,12 @@ def fit_cmd(
 
 
 def _fit_line(out: Path, summary: dict[str, Any]) -> str:
-    """The one line on stderr that sums up a training run."""
-    best = summary["best_val_iou"]
+    """The one line on stderr that sums up a training run; each time the wall clock of what it names
+    (issue 80: "in all" had been the training steps alone, 35 s of a 3-minute command)."""
+    best, val = summary["best_val_iou"], summary["val_seconds"]
+    start = f", scoring the start {summary['start_seconds']:.1f} s" if summary.get("start_seconds") else ""
     return (f"{out}: {summary['model_args']['arch']}, {count(summary['epochs'], 'epoch')}, "
-            f"{summary['seconds_per_epoch']:.1f} s/epoch, {summary['train_images_per_s']:.1f} img/s, "
-            f"{summary['seconds']:.1f} s in all"
+            f"training {summary['seconds_per_epoch']:.1f} s/epoch ({summary['train_images_per_s']:.1f} img/s)"
+            + (f", validation {summary['val_seconds_per_epoch']:.1f} s/epoch" if val else "") + start
+            + f", {summary['command_seconds']:.1f} s in all (the command's wall clock)"
             + (f", best val IoU {best:.4f} (epoch {summary['best_epoch']})" if best is not None else ""))

@@ -1,16 +1,17 @@
 """A training run, in the order it happens: the recipe, the data, the loop, the checkpoint.
 
-==========  ==========================================================================================
-config      :class:`TrainConfig` (every setting declared once, ``None`` = the recipe's), the recipes,
-            :class:`AdaptSettings`
-data        the training items: reading a store item or a resized frame, decoding, augmenting
-trainset    a run's data: its stores, samples, validation split, working size, window, epoch order
-loop        :func:`fit`: the loop (nanoGPT style), validation, resume, fine-tuning, torchrun
-finetune    starting from a checkpoint: what --init and --resume take from it, the average with the start, L2-SP
-guard       fine-tuning never worse than its start: the held-out frames, the start's score, what --out keeps
-rerun       runs never lost: the same command resumes or says it is done; another run's --out is refused
-checkpoint  self-describing checkpoints: everything predict and eval need to rebuild the model
-==========  ==========================================================================================
+===========  ==========================================================================================
+config       :class:`TrainConfig` (every setting declared once, ``None`` = the recipe's), the recipes,
+             :class:`AdaptSettings`
+data         the training items: reading a store item or a resized frame, decoding, augmenting
+trainset     a run's data: its stores, samples, validation split, working size, window, epoch order
+loop         :func:`fit`: the loop (nanoGPT style), validation, resume, fine-tuning, torchrun
+finetune     starting from a checkpoint: what --init and --resume take from it, the average with the start, L2-SP
+guard        fine-tuning never worse than its start: the held-out frames, the start's score, what --out keeps
+distributed  torchrun: ranks, BatchNorm statistics averaged over processes, the group's clean end
+rerun        runs never lost: the same command resumes, says it is done, or keeps a model of other data aside
+checkpoint   self-describing checkpoints: everything predict and eval need to rebuild the model
+===========  ==========================================================================================
 
 The networks it trains are :mod:`vctrain.networks`; ``vctrain fit`` is its command.
 """
@@ -28,11 +29,11 @@ _HOME = {
     "data": ("Sample", "RoadDataset", "store_samples", "resize_samples", "source_focal", "to_input", "vp_proximity",
              "vp_in_store", "ray_angles", "resize_pair", "class_frequencies", "median_frequency_weights"),
     "trainset": ("BASELINES", "MIN_SIDE", "MixedViews", "view_batches", "prepare_data", "resize_working_size",
-                 "training_magnification", "crop_size", "epoch_order", "training_sets", "check_labels", "sequence_of",
-                 "sequence_items"),
+                 "training_magnification", "crop_size", "epoch_order", "training_sets", "label_shares", "check_labels",
+                 "sequence_of", "sequence_items"),
     "loop": ("fit", "evaluate", "get_lr", "resolve_device", "resolve_recipe"),
     "guard": ("score_start", "say_plan", "keeps", "verdict", "finetune_record", "settle"),
-    "rerun": ("request_of", "data_stamp", "rerun_plan"),
+    "rerun": ("request_of", "data_files", "data_stamp", "data_change", "keep_aside", "log_path", "rerun_plan"),
     "checkpoint": ("CKPT_FORMAT", "CKPT_VERSION", "save_checkpoint", "load_checkpoint", "model_from_checkpoint",
                    "last_path"),
 }

@@ -69,6 +69,8 @@ class Sample:
     the coordinates of ``image`` (None: unknown, only needed for the VP and ray channels); ``focal``
     the camera's focal lengths in its pixels (ray channels). ``source`` is the
     store (or image folder) it comes from: the group ``balance: datasets`` draws equally often.
+    ``warped_from``: a store label's, the label format its source label was read with when it was warped
+    (the record's ``label_format``; what a label check names).
     """
 
     id: str
@@ -78,6 +80,7 @@ class Sample:
     vp: tuple[float, float] | None = None
     source: str = ""
     focal: tuple[float, float] | None = None  # (f_x, f_y) in the pixels of ``image`` (ray channels)
+    warped_from: str | None = None  # a store label: the format its source label was read with
 
 
 def vp_in_store(record: dict[str, Any], store: Store | None = None) -> tuple[float, float]:
@@ -106,7 +109,7 @@ def store_samples(store: Store) -> list[Sample]:
         if not rec.get("label"):
             continue
         out.append(Sample(rec["id"], store.path(rec["image"]), store.path(rec["label"]), None, vp_in_store(rec, store),
-                          str(store.root), focal))
+                          str(store.root), focal, rec.get("label_format")))
     return out
 
 

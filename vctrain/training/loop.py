@@ -41,10 +41,8 @@ across processes; rank 0 alone writes checkpoints and logs.
 """
 from __future__ import annotations
 
-import gc
 import json
 import math
-import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -65,7 +63,8 @@ from .data import RoadDataset, class_frequencies, median_frequency_weights
 from .finetune import (anchor_weights, as_saved, averaged, check_init, freeze_encoder, init_record, l2sp_penalty,
                        train_mode, trainable, unset_from_checkpoints)
 from . import guard
-from .rerun import request_of
+from .distributed import average_buffers, import_before_group, leave_group, ranks
+from .rerun import log_path, request_of
 from .trainset import MixedViews, check_labels, crop_size, epoch_order, prepare_data, training_sets, view_batches
 from ..metrics import RoadMetrics
 from ..networks.args import ARCHITECTURES, model_args_for
@@ -152,20 +151,6 @@ def evaluate(model: nn.Module, loader, device: torch.device, weight: torch.Tenso
 
 
 # -- the loop ------------------------------------------------------------------------------------
-def _dist() -> tuple[int, int, int]:
-    """(rank, world size, local rank) from torchrun's environment."""
-    return int(os.environ.get("RANK", 0)), int(os.environ.get("WORLD_SIZE", 1)), int(os.environ.get("LOCAL_RANK", 0))
-
-
-def _average_buffers(model: nn.Module, world: int) -> None:
-    """Average BatchNorm running statistics over processes (DDP syncs gradients, not these;
-    SyncBatchNorm needs GPUs), so every replica evaluates and saves the same model."""
-    for b in model.buffers():
-        if b.is_floating_point():
-            torch.distributed.all_reduce(b, op=torch.distributed.ReduceOp.SUM)
-            b.div_(world)
-
-
 def _write_log(path: Path, row: dict[str, Any]) -> None:
     with open(path, "a") as f:
         f.write(json.dumps(row) + "\n")
@@ -206,9 +191,11 @@ def _network(cfg: TrainConfig, resume: dict[str, Any] | None, init: dict[str, An
 
 def _validate(row: dict[str, Any], model: nn.Module, loader, device: torch.device, weight: torch.Tensor | None,
               best_iou: float) -> bool:
-    """Add the validation metrics to the epoch's ``row``; whether its road IoU beats ``best_iou``."""
+    """Add the validation metrics and their wall clock (``val_seconds``) to the epoch's ``row``; whether
+    its road IoU beats ``best_iou``."""
+    t0 = time.perf_counter()
     vm = evaluate(model, loader, device, weight)
-    row.update({f"val_{k}": v for k, v in vm.items()})
+    row.update({f"val_{k}": v for k, v in vm.items()}, val_seconds=time.perf_counter() - t0)
     return vm["iou"] > best_iou
 
 
@@ -319,41 +306,9 @@ def _say_epoch(row: dict[str, Any], epochs: int, improved: bool) -> None:
     from vcprep.cliutil import err
 
     val = f", val IoU {row['val_iou']:.4f}" if "val_iou" in row else ""
-    err(f"epoch {row['epoch']}/{epochs}: loss {row['train_loss']:.4f}{val}, {row['seconds']:.1f} s "
-        f"({row['images_per_s']:.1f} img/s){' *' if improved and val else ''}")
-
-
-def _import_before_group() -> None:
-    """Import ``torch.distributed.nn.functional`` before the process group exists. Its functions
-    take ``group=group.WORLD`` as a default argument, bound when the module is first imported;
-    the optimiser imports it (through torch._dynamo) on first use, and imported after
-    init_process_group it holds the group for good: destroy_process_group then leaves gloo's
-    threads running, and about 1 exit in 40 aborted ("terminate called without an active
-    exception", SIGABRT; torch 2.13)."""
-    import torch.distributed.nn.functional  # noqa: F401
-
-
-def _leave_group(loop: _Loop, model: nn.Module, world: int) -> bool:
-    """The end of a multi-process run: the DDP wrapper dropped and collected (it sits in a
-    reference cycle that holds the process group, so that destroy_process_group ends gloo's
-    threads here, not at interpreter exit); then :func:`_replicas_identical`."""
-    loop.net = model
-    gc.collect()
-    return _replicas_identical(model, world)
-
-
-def _replicas_identical(model: nn.Module, world: int) -> bool:
-    """Whether every process ends with the same weights (DDP keeps them in lockstep); then the
-    process group is torn down."""
-    flat = torch.cat([t.detach().float().reshape(-1) for t in model.state_dict().values()])
-    copies = [torch.empty_like(flat) for _ in range(world)]
-    torch.distributed.all_gather(copies, flat)
-    same = all(torch.equal(copies[0], c) for c in copies[1:])
-    torch.distributed.barrier()
-    # tear the process group down here, not at interpreter exit, where gloo's threads can
-    # abort the process ("terminate called without an active exception")
-    torch.distributed.destroy_process_group()
-    return same
+    took = f", validation {row['val_seconds']:.1f} s" if "val_seconds" in row else ""
+    err(f"epoch {row['epoch']}/{epochs}: loss {row['train_loss']:.4f}{val}, training {row['seconds']:.1f} s "
+        f"({row['images_per_s']:.1f} img/s){took}{' *' if improved and val else ''}")
 
 
 def _steps_per_epoch(cfg: TrainConfig, train_ds: Any, world: int) -> tuple[int, int]:
@@ -369,15 +324,15 @@ def _steps_per_epoch(cfg: TrainConfig, train_ds: Any, world: int) -> tuple[int, 
 def _start(cfg: TrainConfig) -> tuple[int, int, torch.device, Path, Path]:
     """(rank, world size, device, checkpoint path, log path) of a run; the process group joined
     when launched by torchrun; a missing output folder refused."""
-    rank, world, local_rank = _dist()
+    rank, world, local_rank = ranks()
     device = resolve_device(cfg.device, local_rank)
     if world > 1 and not torch.distributed.is_initialized():
-        _import_before_group()
+        import_before_group()
         torch.distributed.init_process_group("nccl" if device.type == "cuda" else "gloo")
     out = Path(cfg.out)
     if rank == 0 and not out.parent.is_dir():
         raise InputError("output folder does not exist", out.parent, "create it first")
-    return rank, world, device, out, Path(cfg.log) if cfg.log else out.with_name(out.stem + ".log.jsonl")
+    return rank, world, device, out, log_path(cfg)
 
 
 def _open_log(log_path: Path, history: list[dict[str, Any]] | None) -> None:
@@ -401,7 +356,10 @@ def _start_of_fine_tuning(cfg: TrainConfig, info: dict[str, Any], init: dict[str
                           device: torch.device, weight: torch.Tensor | None, master: bool) -> dict[str, Any] | None:
     """A fine-tuning run's epoch 0: the starting weights scored on the held-out frames (None: none held
     out), and the plan said before the first epoch (guard.py)."""
+    t0 = time.perf_counter()
     row0 = guard.score_start(model, val_loader, device, weight, evaluate) if len(val_loader.dataset) else None
+    if row0 is not None:
+        row0["val_seconds"] = time.perf_counter() - t0
     if master and cfg.progress:
         guard.say_plan(cfg, info, init, row0)
     return row0
@@ -418,7 +376,8 @@ def _record_start(row0: dict, history: list, master: bool, log_path: Path, out: 
 
 
 def fit(cfg: TrainConfig) -> dict[str, Any]:
-    """Train according to ``cfg``; returns a summary (best val IoU, timings, paths)."""
+    """Train according to ``cfg``; returns a summary (best val IoU, timings, paths: :func:`_summary`)."""
+    started = time.perf_counter()
     request = request_of(cfg)  # the run as asked, before the defaults fill it (rerun.py)
     rank, world, device, out, log_path = _start(cfg)
     distributed, master = world > 1, rank == 0
@@ -445,7 +404,7 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
     anchor, share = anchor_weights(cfg, model, resume, init), float(cfg.average_init or 0.0)
     loop = _Loop(net, opt, cfg, device, fmt, weight, world, steps_per_epoch, total_steps, cfg.progress and master,
                  l2sp_penalty(model, cfg, resume, init))
-    del net  # the loop holds it (and _leave_group drops it)
+    del net  # the loop holds it (and leave_group drops it)
     guarded = init_from is not None and len(val_ds) > 0  # fine-tuning, never worse than its start (guard.py)
 
     def checkpoint(epoch: int, metrics: dict[str, Any]) -> dict[str, Any]:
@@ -461,13 +420,13 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
     if row0 is not None:  # the starting weights are what --out holds unless the trained ones beat them
         best_iou, best_epoch = row0["val_iou"], 0
         _record_start(row0, history, master, log_path, out, checkpoint)
-    seconds, images = 0.0, 0
+    seconds, val_seconds, images = 0.0, 0.0, 0
     for epoch in range(start_epoch, cfg.epochs):
         loader = _epoch_loader(train_ds, cfg, epoch, rank, world, per_rank_batch)
         t0 = time.perf_counter()
         loss_sum, n_seen, step = _train_epoch(loop, loader, epoch, step, t0)
         if distributed:
-            _average_buffers(model, world)
+            average_buffers(model, world)
         dt = time.perf_counter() - t0
         seconds, images = seconds + dt, images + n_seen * world
         row: dict[str, Any] = {"epoch": epoch + 1, "step": step, "lr": get_lr(step, total_steps, cfg),
@@ -476,6 +435,7 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
         improved = _validate(row, as_saved(model, saved, anchor), val_loader, device, weight, best_iou) \
             if len(val_ds) else True
         improved = guard.keeps(cfg, epoch + 1, improved) if guarded else improved  # (guarded: the last epoch or none)
+        val_seconds += row.get("val_seconds", 0.0)
         if improved:
             best_iou, best_epoch = row.get("val_iou", -1.0), epoch + 1
         history.append(row)
@@ -487,11 +447,25 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
                 save_checkpoint(out, ck if anchor is None else {**ck, "model": saved, "average_init": share})
             if cfg.progress:
                 _say_epoch(row, cfg.epochs, improved)
-    replicas_identical = _leave_group(loop, model, world) if distributed else None
-    return {"replicas_identical": replicas_identical, "world_size": world,
-            "finetune": guard.settle(out, history, best_epoch, cfg.epochs) if guarded and master else None,
+    replicas_identical = leave_group(loop, model, world) if distributed else None
+    fine = guard.settle(out, history, best_epoch, cfg.epochs) if guarded and master else None
+    return {"replicas_identical": replicas_identical, "world_size": world, "finetune": fine,
             "out": str(out), "last": str(last_path(out)), "log": str(log_path), "epochs": cfg.epochs,
-            "best_val_iou": best_iou if best_iou >= 0 else None, "best_epoch": best_epoch,
-            "seconds": seconds, "seconds_per_epoch": seconds / max(cfg.epochs - start_epoch, 1),
-            "train_images_per_s": images / max(seconds, 1e-9), "model_args": model_args,
+            "best_val_iou": best_iou if best_iou >= 0 else None, "best_epoch": best_epoch, "model_args": model_args,
+            **_times(seconds, val_seconds, images, cfg.epochs - start_epoch, row0, started),
             "data": {k: v for k, v in info.items() if k != "store_params"}}
+
+
+def _times(seconds: float, val_seconds: float, images: int, epochs: int, row0: dict[str, Any] | None,
+           started: float) -> dict[str, float | None]:
+    """A run's times, each the wall clock of what it names: ``seconds`` the training steps of this
+    invocation's ``epochs`` (``seconds_per_epoch``, ``train_images_per_s``), ``val_seconds`` their
+    validation (``val_seconds_per_epoch``), ``start_seconds`` the starting model's score (``row0``, epoch 0 of
+    a fine-tuning run scored in this invocation; else None),
+    ``fit_seconds`` all of :func:`fit` from its first line (data, checkpoints and the final save too;
+    the command's own total, its imports included, is ``vctrain fit``'s to say)."""
+    return {"seconds": seconds, "seconds_per_epoch": seconds / max(epochs, 1),
+            "train_images_per_s": images / max(seconds, 1e-9), "val_seconds": val_seconds,
+            "val_seconds_per_epoch": val_seconds / max(epochs, 1),
+            "start_seconds": row0.get("val_seconds") if row0 else None,
+            "fit_seconds": time.perf_counter() - started}

@@ -30,13 +30,16 @@ from .config import BALANCES, VAL_SPLITS, TrainConfig
 from .data import RoadDataset, Sample, resize_samples, store_samples
 
 __all__ = ["BASELINES", "MIN_SIDE", "MixedViews", "view_batches", "prepare_data", "resize_working_size",
-           "training_magnification", "crop_size", "epoch_order", "training_sets", "check_labels", "sequence_of",
-           "sequence_items"]
+           "training_magnification", "crop_size", "epoch_order", "training_sets", "label_shares", "check_labels",
+           "sequence_of", "sequence_items"]
 
 MIN_SIDE = 32  # the smallest working side: five 2x2 poolings
 # what a model is trained on (TrainConfig.baseline): 'none' the virtual camera's store items, 'resize'
 # the original images simply resized, 'mixed' both views of every frame (:class:`MixedViews`)
 BASELINES = ("none", "resize", "mixed")
+# the 'sequence' split holds out whole sequences only where the names show at least this many: with fewer
+# (KITTI road's um_/umm_/uu_, one drive) a single one is a third of the frames or more, not a fifth (issue 80)
+MIN_SEQUENCES = 5
 
 
 class MixedViews(torch.utils.data.Dataset):
@@ -133,28 +136,58 @@ def sequence_of(item_id: str) -> str:
 
 
 def sequence_items(ids: list[str], sources: list[str], fraction: float, seed: int) -> tuple[set[int], str]:
-    """('sequence' split) the indices held out and how they were chosen: whole sequences (a seeded
-    draw of them, about ``fraction`` of the frames) where the names show three or more; the last share
-    of each in name order (a stretch, not the neighbours of training frames) where they show one or
-    two; a seeded share where every name is its own (no sequence)."""
+    """('sequence' split) the indices held out and how they were chosen (the words ``fit`` prints):
+    whole sequences (a seeded draw of them, about ``fraction`` of the frames) where the names show
+    :data:`MIN_SEQUENCES` or more; by frame where they show fewer (KITTI's um_/umm_/uu_, one drive): the
+    last share of each sequence in name order (a stretch of each, not the neighbours of training frames),
+    since whole ones would hold out a third of the frames or more; a seeded share where every name is
+    its own (no sequence)."""
     groups: dict[tuple[str, str], list[int]] = {}
     for i, (name, src) in enumerate(zip(ids, sources)):
         groups.setdefault((src, sequence_of(name)), []).append(i)
-    names = sorted({g[1] or "(unnamed)" for g in groups})
     if all(len(m) == 1 for m in groups.values()):
         held = validation_items(ids, sources, fraction, "random", seed)
         return held, f"a seeded {fraction:.0%} (the frames' names show no sequence)"
-    if len(groups) < 3:
-        held = validation_items(ids, sources, fraction, "block", seed)
-        return held, f"the last {fraction:.0%} in name order of sequence {', '.join(names)}"
-    target, held, chosen = max(1, int(round(fraction * len(ids)))), set(), []
+    if len(groups) >= MIN_SEQUENCES:
+        held, chosen = _whole_sequences(groups, len(ids), fraction, seed)
+        if chosen:
+            return held, f"whole sequences {', '.join(sorted(chosen))} of {len(groups)}"
+    names = sorted({g[1] or "(unnamed)" for g in groups})
+    held = _stretches(ids, list(groups.values()), fraction)
+    few = f"fewer than {MIN_SEQUENCES}" if len(groups) < MIN_SEQUENCES else "too unequal"
+    return held, (f"by frame: the last {fraction:.0%} in name order of each of the {len(groups)} sequences "
+                  f"{', '.join(names[:6])}{', ...' if len(names) > 6 else ''} ({few} to hold out whole ones)")
+
+
+def _whole_sequences(groups: dict[tuple[str, str], list[int]], n: int, fraction: float,
+                     seed: int) -> tuple[set[int], list[str]]:
+    """Whole sequences drawn in a seeded order until about ``fraction`` of the ``n`` frames are held out:
+    one that would take the share past 1.5 times it is passed over, never every sequence; none chosen
+    (an empty list) where they reach less than half of it."""
+    target, held, chosen = max(1, int(round(fraction * n))), set(), []
     keys = sorted(groups)
     for k in np.random.default_rng(seed).permutation(len(keys)):
         if len(held) >= target or len(chosen) == len(keys) - 1:
             break
-        held.update(groups[keys[k]])
-        chosen.append(keys[k][1] or "(unnamed)")
-    return held, f"whole sequences {', '.join(sorted(chosen))} of {len(keys)}"
+        if len(held) + len(groups[keys[k]]) <= max(1.5 * target, 1):
+            held.update(groups[keys[k]])
+            chosen.append(keys[k][1] or "(unnamed)")
+    return (held, chosen) if len(held) >= target / 2 else (set(), [])
+
+
+def _stretches(ids: list[str], groups: list[list[int]], fraction: float) -> set[int]:
+    """Of each group (a sequence) the last ``fraction`` of its items in name order; at least one item
+    in all (the last of the largest group), never every item."""
+    held: set[int] = set()
+    for members in groups:
+        k = int(round(fraction * len(members)))
+        held.update(sorted(members, key=lambda i: ids[i])[len(members) - k:] if k else [])
+    if not held:
+        held.add(max(max(groups, key=len), key=lambda i: ids[i]))
+    if len(held) >= len(ids):
+        raise InputError(f"{len(ids)} items are too few to hold out {fraction:g} of each sequence", None,
+                         "add items, or use --val-split random / --val-fraction 0 / --val-store")
+    return held
 
 
 def validation_items(ids: list[str], sources: list[str], fraction: float, split: str, seed: int) -> set[int]:
@@ -404,17 +437,47 @@ def training_sets(cfg: TrainConfig, train_s: list, val_s: list, info: dict[str, 
     return MixedViews(tv, tr), MixedViews(vv, vr)
 
 
-def check_labels(cfg: TrainConfig, train_ds: Any, samples: int = 48) -> None:
-    """Refuse labels read with a format that does not fit them (vctrain eval's check,
-    :class:`vcprep.labels.RoadShare`) before training: up to ``samples`` of the items decoded from a
-    label format, spread over the set; ``cfg.force_labels`` trains on them anyway."""
+def label_shares(train_ds: Any, samples: int = 48) -> list[tuple[str, str, bool, Any]]:
+    """Where road lies in the labels of every source of ``train_ds`` (a label folder, a store):
+    ``(source, label format, whether a store's labels, RoadShare)`` of up to ``samples`` items spread
+    over it, each at the working size, un-augmented. A store's labels (decoded when it was warped)
+    count under the format they were warped with, their horizon the row of each item's road vanishing
+    point (in the virtual camera it lies near the top of the image, not in the middle); frames
+    without a known VP take their middle row (:class:`vcprep.labels.RoadShare`)."""
     from vcprep.labels import RoadShare
 
-    coded = [i for i, s in enumerate(train_ds.samples) if s.label_format is not None]
-    if cfg.force_labels or not coded:
+    out = []
+    for (source, spec, warped), members in _label_sources(train_ds.samples).items():
+        share = RoadShare()
+        for k in sorted({int(round(k)) for k in np.linspace(0, len(members) - 1, min(samples, len(members)))}):
+            _, label, vp = train_ds.item(members[k])
+            share.add(label, vp[1] if vp is not None else None)
+        out.append((source, spec, warped, share))
+    return out
+
+
+def check_labels(cfg: TrainConfig, train_ds: Any, samples: int = 48) -> None:
+    """Refuse labels read with a format that does not fit them before training (:func:`label_shares`:
+    no road, nearly all road, or most of it above the horizon), naming the source and the format;
+    ``cfg.force_labels`` trains on them anyway."""
+    if cfg.force_labels:
         return
-    share = RoadShare()
-    for k in sorted({int(round(k)) for k in np.linspace(0, len(coded) - 1, min(samples, len(coded)))}):
-        share.add(train_ds.item(coded[k])[1])
-    first = train_ds.samples[coded[0]]
-    share.refuse(get_label_format(first.label_format), cfg.labels or first.label.parent, "add --force-labels")
+    for source, spec, warped, share in label_shares(train_ds, samples):
+        if warped:
+            share.refuse(get_label_format(spec), source, "add --force-labels",
+                         f", then warp the store again with it (vcprep warp ... --out {source})")
+            continue
+        folder = cfg.labels if cfg.labels and source == cfg.images else \
+            next(s.label.parent for s in train_ds.samples if s.source == source and s.label is not None)
+        share.refuse(get_label_format(spec), folder, "add --force-labels")
+
+
+def _label_sources(samples: Sequence[Any]) -> dict[tuple[str, str, bool], list[int]]:
+    """The items of each label source: (source, label format, whether a store's decoded labels) ->
+    indices in ``samples``; items with no known format (a store of an older version) are left out."""
+    groups: dict[tuple[str, str, bool], list[int]] = {}
+    for i, s in enumerate(samples):
+        spec = s.label_format or s.warped_from
+        if spec is not None and s.label is not None:
+            groups.setdefault((s.source, spec, s.label_format is None), []).append(i)
+    return groups
