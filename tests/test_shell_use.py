@@ -288,7 +288,8 @@ def test_every_run_ends_with_one_summary_line_without_a_terminal(trained, tmp_pa
     how fast."""
 
     cwd, fit = trained
-    assert re.search(r"runs/mine\.pt: \w+, 1 epoch, [\d.]+ s/epoch, [\d.]+ img/s, [\d.]+ s in all", fit.stderr)
+    assert re.search(r"runs/mine\.pt: \w+, 1 epoch, training [\d.]+ s/epoch \([\d.]+ img/s\), [\d.]+ s in all "
+                     r"\(the command's wall clock\)", fit.stderr), fit.stderr  # (--val-fraction 0: no validation)
     proc = run_cli("predict", "runs/mine.pt", "--camera", KITTI / "calib/um_000000.txt", KITTI / "image_2",
                    "--out", "preds2", prog="vctrain", cwd=cwd)
     last = proc.stderr.strip().splitlines()[-1]

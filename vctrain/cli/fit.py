@@ -34,7 +34,9 @@ HELP = {  # the options whose help does not fit on their line
     "out": "the checkpoint: the best epoch by validation road IoU (the last without validation; with --init the "
            "start, unless the last epoch -- averaged with the start, --average-init -- scores higher); the latest "
            "epoch goes beside it, for --resume: runs/vc.pt -> runs/vc.last.pt. The same command again resumes an "
-           "interrupted run or says a finished one is done; a model of another run is refused (--overwrite)",
+           "interrupted run or says a finished one is done; where its frames, labels or stores changed since, the "
+           "model there is kept as runs/vc.old1.pt (its log beside it) and the run trains afresh; a model of "
+           "another run is refused (--overwrite)",
     "resume": "continue from the latest epoch's checkpoint (runs/vc.last.pt for --out runs/vc.pt) up to --epochs",
     "baseline": "'resize': the paper's baseline, the same network on the original images simply resized (no virtual "
                 "camera); 'mixed': both views of every store frame, one network",
@@ -67,10 +69,12 @@ HELP = {  # the options whose help does not fit on their line
                     "validation scores that average; OUT.last.pt keeps the trained ones for --resume); default: 0.5, 0 without --init",
     "l2sp": "with --init: add L2SP/2 x the squared distance of the weights from the starting ones to the loss (L2-SP); "
             "default: 0",
-    "force_labels": "train on labels whose road makes no sense under --label-format (none, nearly all, or mostly in "
-                    "the frames' upper half: vctrain eval's check), which are refused otherwise",
-    "overwrite": "replace a model of another run at --out (refused otherwise; the same command again resumes an "
-                 "interrupted run, or says a finished one is done)",
+    "force_labels": "train on labels whose road makes no sense under --label-format, or under the format a store's "
+                    "labels were warped with (none, nearly all, or mostly above the horizon: each item's road VP row "
+                    "where known, else the frame's middle), which are refused otherwise",
+    "overwrite": "replace a model of another run at --out (refused otherwise), or of this run on data changed since "
+                 "(kept aside as OUT-stem.old1.pt otherwise; the same command again resumes an interrupted run, or "
+                 "says a finished one is done)",
     "balance": "several stores: 'items' (each item once an epoch) or 'datasets' (each store equally often); default: "
                "the recipe's (multicamera: datasets; cpu, paper: items)",
 }
@@ -180,9 +184,14 @@ def fit_cmd(
     given wins. The checkpoint describes itself (model, config, virtual camera, scale, completion,
     metrics), so predict and eval need no repeated flags. Prints the checkpoint path; OUT's folder
     is created. The same command again resumes an interrupted run, or says a finished one is done;
-    a model of another run at OUT is refused (--overwrite). --init (fine-tuning) holds out a fifth
-    of the frames, scores the starting model on them first and keeps it unless the trained one
-    scores higher there. Labels whose road makes no sense under --label-format are refused. 'torchrun --nproc-per-node N vctrain fit ...' trains data-parallel. Time (cpu
+    where the frames, labels or stores changed since, the model at OUT and its log are kept beside it
+    (runs/vc.old1.pt, the name printed) and the run trains afresh; a model of another run at OUT is
+    refused (--overwrite). --init (fine-tuning) holds out a fifth of the frames (whole sequences
+    where the names show five or more, else by frame), scores the starting model on them first and
+    keeps it unless the trained one scores higher there. Labels whose road makes no sense under
+    --label-format (a store's: the format it was warped with) are refused. 'torchrun
+    --nproc-per-node N vctrain fit ...' trains data-parallel. Each epoch's line gives its training
+    and validation times apart; the closing line's total is the command's wall clock. Time (cpu
     recipe, 2 cores): about 3 minutes for 305 CamVid frames at the default store's 638x271.
 
     \b
