@@ -81,12 +81,15 @@ def request_of(cfg: TrainConfig) -> dict[str, Any]:
             "data_files": files}
 
 
-def _kind(role: str, rel: str) -> str:
-    """What a file of a data folder is, in a user's words: a store's images/ are frames, labels/ labels."""
-    if role.endswith("store"):
-        top = rel.split(os.sep, 1)[0]
-        return {"images": "frames", "labels": "labels"}.get(top, "other files" if top != "valid" else "masks")
-    return role.rsplit(" ", 1)[-1]
+def _kind(role: str, rel: str) -> str | None:
+    """What a file of a data folder is, in a user's words: a store's images/ are frames, labels/ labels,
+    its manifest and parameters its records; None for what follows from them (valid masks, the lock)."""
+    if not role.endswith("store"):
+        return role.rsplit(" ", 1)[-1]
+    top = rel.split(os.sep, 1)[0]
+    if top in ("valid", "store.lock"):
+        return None
+    return {"images": "frames", "labels": "labels"}.get(top, "records")
 
 
 def data_change(cfg: TrainConfig, theirs: dict[str, Any], ours: dict[str, Any]) -> str:
@@ -98,13 +101,16 @@ def data_change(cfg: TrainConfig, theirs: dict[str, Any], ours: dict[str, Any]) 
     said = []
     for role, top in _data_folders(cfg):
         a, b = old.get(top, {}), new.get(top, {})
-        counts: dict[str, list[int]] = {}
+        counts: dict[str | None, list[int]] = {}
         for rel in set(a) | set(b):
             if a.get(rel) != b.get(rel):
                 c = counts.setdefault(_kind(role, rel), [0, 0, 0])
                 c[0 if rel not in a else 1 if rel not in b else 2] += 1
-        parts = [f"{n} {kind if n != 1 else kind[:-1]} {what}" for kind, c in sorted(counts.items()) if kind != "masks"
+        named = sorted((kind, c) for kind, c in counts.items() if kind not in (None, "records"))
+        parts = [f"{n} {kind if n != 1 else kind[:-1]} {what}" for kind, c in named
                  for n, what in zip(c, ("added", "removed", "changed")) if n]
+        if not parts and counts.get("records"):
+            parts = ["its records changed"]
         if parts:
             said.append(f"{role} {top}: {', '.join(parts)}")
     return "; ".join(said) or "the frames or labels changed"
@@ -141,7 +147,7 @@ def keep_aside(cfg: TrainConfig) -> tuple[Path, Path]:
 def _shown(k: str, v: Any, resolved: Any) -> str:
     """A setting as a user gave it; one left out as the default it took (``resolved``), never None."""
     if v is None:
-        return f"{_shown(k, resolved, None)} (the default)" if resolved is not None else "the default"
+        return f"{_shown(k, resolved, None)} (the default)" if resolved is not None else "not given"
     if isinstance(v, (list, tuple)):
         return " ".join(str(x) for x in v) if v else "none"
     return str(v)
@@ -186,6 +192,8 @@ def rerun_plan(cfg: TrainConfig, overwrite: bool) -> tuple[str, str | None]:
             raise InputError(f"a model of another run is there ({_differences(cfg, ours, theirs, ck.get('config') or {})})",
                              path, fix)
         if theirs.get("data_stamp") != ours["data_stamp"]:
+            if int(os.environ.get("RANK", 0)) != 0:  # torchrun: rank 0 alone moves the files
+                return "train", None
             change = data_change(cfg, theirs, ours)
             kept, kept_log = keep_aside(cfg)
             return "aside", (f"{out}: {change} since it was trained: that model is kept as {kept} (its log "
