@@ -47,8 +47,10 @@ def say_plan(cfg: TrainConfig, info: dict[str, Any], init: dict[str, Any], row0:
     if row0 is None:
         err("nothing held out (--val-fraction 0): the last epoch is kept whatever it scores")
         return
+    took = f" ({row0['val_seconds']:.1f} s)" if "val_seconds" in row0 else ""
     err(f"held out: {info['val_items']} frames, {info.get('held_out') or 'the validation stores'}; the starting "
-        f"model scores road IoU {row0['val_iou']:.4f} on them, and the trained one is kept only if it scores higher")
+        f"model scores road IoU {row0['val_iou']:.4f} on them{took}, and the trained one is kept only if it scores "
+        "higher")
 
 
 def keeps(cfg: TrainConfig, epoch: int, better: bool) -> bool:
