@@ -88,6 +88,23 @@ def test_kitti_road_names_hold_out_a_fifth_by_frame_not_whole_prefixes():
 
 
 
+def test_a_fine_tune_on_kitti_road_names_holds_out_a_fifth_and_says_which_rule(frames, tmp_path):
+    """The README's fine-tune on 60 frames named as KITTI road's (20 each of um_, umm_, uu_): 12 held out,
+    by frame (issue 80: 34, the prefixes um and uu whole), and the line before the first epoch says so."""
+    root, data = frames
+    for sub in ("images", "labels"):
+        (tmp_path / sub).mkdir()
+        src = sorted(Path(data[3 if sub == "images" else 5]).iterdir())
+        for k, name in enumerate(f"{cat}_{i:06d}" for cat in ("um", "umm", "uu") for i in range(20)):
+            shutil.copy(src[k % len(src)], tmp_path / sub / f"{name}.png")
+    r = run_cli("fit", "--baseline", "resize", "--images", tmp_path / "images", "--labels", tmp_path / "labels",
+                "--label-format", "camvid", "--init", root / "start.pt", "--epochs", "1", "--out", tmp_path / "ft.pt",
+                prog="vctrain")
+    assert r.returncode == 0, r.stderr
+    assert "held out: 12 frames, by frame: the last 20% in name order of each of the 3 sequences um, umm, uu" in r.stderr
+    assert load_checkpoint(tmp_path / "ft.pt")["data"]["train_items"] == 48
+
+
 def test_fine_tuning_that_scores_lower_keeps_the_starting_weights(frames, tmp_path):
     """A fine-tune that wrecks the model (lr 1, three epochs) scores below the start on the held-out
     frames: OUT holds the starting weights, the run says so with both figures and exits 0. Before issue
