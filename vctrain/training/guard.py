@@ -1,7 +1,8 @@
 """Fine-tuning that is never worse than where it started (``fit --init``, issue 72).
 
 Part of the user's frames is held out (:func:`vctrain.training.trainset.sequence_items`: whole
-sequences where the names show them, else a stretch of the one drive, else a seeded share); the
+sequences where the names show five or more, else by frame, the last stretch of each (KITTI road's
+um_/umm_/uu_, one drive), else a seeded share); the
 starting model is scored on them before the first epoch (:func:`score_start`, the log's first row,
 ``"epoch": 0, "init": true``), and ``--out`` holds it unless the trained model -- the last epoch, as
 ``--out`` would hold it (averaged with the start: ``--average-init``) -- scores higher there
