@@ -204,7 +204,7 @@ def label_stem_for(image: Path, fmt: LabelFormat) -> str:
 # frame's middle row otherwise (frames of a camera with its horizon near the middle). Measured on the seven
 # real label sets of ../shared/data with their right formats (issue 80): road above the VP row 0.0-1.8 %
 # of it in stores of the designed and of a shared virtual camera, in the upper half of the raw frames
-# 0.0-16 % (LUMS); CamVid's buildings (values:road=1): 70-83 % above the VP row in stores, 76-85 % in
+# 0.0-16 % (LUMS); CamVid's buildings (values:road=1): 70-84 % above the VP row in stores, 76-85 % in
 # the frames' upper half (56 % in the worst 24 frames in a row), so the rule sits far from both.
 NO_ROAD = 0.005       # road below this share of the labelled pixels over a set: none
 ALL_ROAD = 0.95       # above this share: nearly all
