@@ -54,6 +54,7 @@ store pixel -> source pixel.
 from __future__ import annotations
 
 import hashlib
+import sys
 import threading
 from collections import OrderedDict
 from functools import cached_property
@@ -67,7 +68,7 @@ from .completion_tables import (_CACHE_MAX, BAND_ROWS, TABLE_ARC, TABLE_COLS, An
                                 _angle_index, _build_angle_index, _lru, _rays)
 from ..errors import GeometryError, InputError, one_of
 from ..labels import IGNORE
-from .remap import RemapMaps, maps_for
+from .remap import RemapMaps, is_bgr8, maps_for
 
 __all__ = ["METHODS", "COMPLETION_VERSION", "LABEL_RIM", "CompletionMaps", "check_method", "border_ignore",
            "completion_maps", "complete_maps", "clear_cache", "exit_points_rectangle", "label_exit_points", "store_vp"]
@@ -142,7 +143,8 @@ class CompletionMaps:
     def remap_image(self, img: np.ndarray) -> np.ndarray:
         if self.fill is None:
             return (self._full or self.base).remap_image(img)
-        return self._fused(img, self.base.linear, cv2.INTER_LINEAR, 0, self.fill.image_x, self.fill.image_y)
+        return self._fused(img, (self.base.map_x, self.base.map_y), cv2.INTER_LINEAR, 0,
+                           self.fill.image_x, self.fill.image_y)
 
     def remap_label(self, label: np.ndarray, border_value: int) -> np.ndarray:
         if self.fill is None:
@@ -151,26 +153,59 @@ class CompletionMaps:
                            self.fill.label_x, self.fill.label_y)
 
     def _fused(self, src, maps, interp, border_value, table_x, table_y) -> np.ndarray:
-        # 8-bit BGR goes through BGRA so that the fill copies one 32-bit word per pixel (~1.5x
-        # faster than 3 bytes); the conversions cost less than that saves
-        packed = src.dtype == np.uint8 and src.ndim == 3 and src.shape[2] == 3
-        if packed:
-            src = cv2.cvtColor(src, cv2.COLOR_BGR2BGRA)
+        """The two passes, chunk by chunk of rows (:meth:`AngleIndex.chunks`): every pixel looked
+        up in the table (:func:`_fill`), then the covered ones remapped over it (float maps,
+        bilinear; ``BORDER_TRANSPARENT`` leaves the uncovered ones, at :data:`OUTSIDE`, alone)."""
+        # 8-bit BGR goes through BGRA: the covered remap has SIMD for 4 channels only and the fill
+        # copies one 32-bit word per pixel; a chunk's BGRA rows stay in cache until converted back
+        packed = is_bgr8(src)
         W, H = self.size
-        out = _scratch((H, W, 4)) if packed else np.empty((H, W) + src.shape[2:], dtype=src.dtype)
+        out = np.empty((H, W) + ((3,) if packed else src.shape[2:]), dtype=src.dtype)
+        if packed:  # BGRA with a replicated 1 px rim: the table's points lie on the edge, where
+            # OpenCV's border path is 2x slower than its interior path (same values)
+            src = _bgra_with_rim(src)
+            table = cv2.remap(src, table_x + np.float32(1), table_y + np.float32(1), interp,
+                              borderMode=cv2.BORDER_REPLICATE).view(np.int32)[..., 0]
+            src = src[1:-1, 1:-1]
+        else:
+            table = cv2.remap(src, table_x, table_y, interp, borderMode=cv2.BORDER_REPLICATE)
         m1, m2 = maps
-        for y0, y1, x0, x1 in self.angles.covered_rects:
-            cv2.remap(src, m1[y0:y1, x0:x1], None if m2 is None else m2[y0:y1, x0:x1], interp,
-                      dst=out[y0:y1, x0:x1], borderMode=cv2.BORDER_CONSTANT, borderValue=border_value)
-        table = cv2.remap(src, table_x, table_y, interp, borderMode=cv2.BORDER_REPLICATE)
-        dst = out
-        if packed:
-            dst, table = out.view(np.int32)[..., 0], table.view(np.int32)[..., 0]
-        index = self.angles.index
-        for y0, y1, x0, x1 in self.angles.fill_rects:
-            cv2.remap(table, index[y0:y1, x0:x1], None, cv2.INTER_NEAREST, dst=dst[y0:y1, x0:x1],
-                      borderMode=cv2.BORDER_TRANSPARENT)
-        return cv2.cvtColor(out, cv2.COLOR_BGRA2BGR) if packed else out
+        for r0, r1, rects in self.angles.chunks(packed):
+            work = _scratch((r1 - r0, W, 4)) if packed else out[r0:r1]
+            _fill(table, self.angles, r0, r1, work.view(np.int32)[..., 0] if packed else work)
+            for y0, y1, x0, x1 in rects:
+                cv2.remap(src, m1[y0:y1, x0:x1], None if m2 is None else m2[y0:y1, x0:x1], interp,
+                          dst=work[y0 - r0:y1 - r0, x0:x1], borderMode=cv2.BORDER_TRANSPARENT)
+            if packed:
+                cv2.cvtColor(work, cv2.COLOR_BGRA2BGR, dst=out[r0:r1])
+        return out
+
+
+def _bgra_with_rim(img: np.ndarray) -> np.ndarray:
+    """8-bit BGR ``img`` as BGRA, (h + 2, w + 2), its edge pixels repeated once around it."""
+    h, w = img.shape[:2]
+    out = np.empty((h + 2, w + 2, 4), dtype=np.uint8)
+    cv2.cvtColor(img, cv2.COLOR_BGR2BGRA, dst=out[1:-1, 1:-1])
+    out[0], out[-1] = out[1], out[-2]
+    out[:, 0], out[:, -1] = out[:, 1], out[:, -2]
+    return out
+
+
+def _fill(table: np.ndarray, angles: AngleIndex, r0: int, r1: int, dst: np.ndarray) -> None:
+    """Rows r0..r1 of ``dst`` from the fill ``table``, each pixel its angle's entry (covered pixels
+    get any entry; the covered pass overwrites them). An int32 table (packed BGRA) with torch
+    already imported (training, predict) goes through ``torch.index_select`` (~2x a nearest
+    ``cv2.remap``, the same values); vcprep alone does not import torch for this."""
+    torch = sys.modules.get("torch") if table.dtype == np.int32 else None
+    if torch is not None and _FILL_TORCH:
+        flat = angles.flat[r0:r1].reshape(-1)
+        torch.index_select(torch.from_numpy(table.reshape(-1)), 0, torch.from_numpy(flat),
+                           out=torch.from_numpy(dst.reshape(-1)))
+        return
+    cv2.remap(table, angles.index[r0:r1], None, cv2.INTER_NEAREST, dst=dst, borderMode=cv2.BORDER_CONSTANT)
+
+
+_FILL_TORCH = True  # benchmarks switch it off to time the cv2 gather
 
 
 def check_method(method: str) -> str:
@@ -203,10 +238,9 @@ def store_vp(H: np.ndarray, vp_src: tuple[float, float]) -> tuple[float, float]:
 def _finish(map_x, map_y, lab_x, lab_y, valid) -> RemapMaps:
     map_x = np.ascontiguousarray(map_x, dtype=np.float32)
     map_y = np.ascontiguousarray(map_y, dtype=np.float32)
-    linear = cv2.convertMaps(map_x, map_y, cv2.CV_16SC2)
     nearest = cv2.convertMaps(np.ascontiguousarray(lab_x, dtype=np.float32),
                               np.ascontiguousarray(lab_y, dtype=np.float32), cv2.CV_16SC2, nninterpolation=True)[0]
-    return RemapMaps(map_x, map_y, linear, nearest, valid)
+    return RemapMaps(map_x, map_y, nearest, valid)
 
 
 def complete_maps(base: RemapMaps, dst_H_src: np.ndarray, src_size: tuple[int, int], method: str,
@@ -290,8 +324,8 @@ _SCRATCH = threading.local()
 
 
 def _scratch(shape: tuple[int, int, int]) -> np.ndarray:
-    """A reused uint8 work buffer of ``shape`` for this thread (the packed BGRA image, which never
-    leaves :meth:`CompletionMaps._fused`): a fresh one costs page faults, ~5 ms at 5500x2800."""
+    """A reused uint8 work buffer of ``shape`` for this thread (a chunk of the packed BGRA image,
+    which never leaves :meth:`CompletionMaps._fused`): a fresh one costs page faults."""
     buf = getattr(_SCRATCH, "buf", None)
     if buf is None or buf.shape != shape:
         buf = _SCRATCH.buf = np.empty(shape, dtype=np.uint8)

@@ -15,6 +15,7 @@ from .completion_rays import _build_rays, _Rays
 TABLE_ARC = 0.5        # px: angular step of the fill table, as arc length at the farthest store pixel
 TABLE_COLS = 4096      # the fill table's row length (remap coordinates must fit in int16)
 BAND_ROWS = 48         # rows per band of the fused pass (see _bands): fewer calls on small stores, tight bands on large
+CHUNK_PIXELS = 1 << 18  # pixels per chunk of the fused pass on packed (BGRA) images: 1 MiB, stays in cache
 _CACHE_MAX = 4  # entries each LRU cache keeps
 
 
@@ -47,6 +48,31 @@ class AngleIndex:
         out[:self.n] = values
         out[self.n:] = values[-1] if self.n else 0
         return out.reshape(r, c)
+
+    def chunks(self, packed: bool) -> tuple[tuple[int, int, tuple], ...]:
+        """(r0, r1, covered rects in rows r0..r1) for the fused pass: the whole store in one chunk,
+        or, for ``packed`` images larger than 2 ``CHUNK_PIXELS``, whole bands of about
+        ``CHUNK_PIXELS`` (the covered rects are band-aligned, so each lies in one chunk)."""
+        H, W = self.index.shape[:2]
+        rows = H if not packed or H * W <= 2 * CHUNK_PIXELS else max(1, CHUNK_PIXELS // (W * BAND_ROWS)) * BAND_ROWS
+        key = f"_chunks_{rows}"  # cached on the (frozen) instance
+        hit = self.__dict__.get(key)
+        if hit is None:
+            hit = self.__dict__[key] = tuple(
+                (r0, min(H, r0 + rows), tuple(r for r in self.covered_rects if r0 <= r[0] < r0 + rows))
+                for r0 in range(0, H, rows))
+        return hit
+
+    @property
+    def flat(self) -> np.ndarray:
+        """(H, W) int32 table position of every pixel (0 for covered ones), built on first use:
+        the index of a flat gather (:func:`vcprep.warp.completion._fill`)."""
+        hit = self.__dict__.get("_flat")
+        if hit is None:
+            ix = self.index.view(np.int32)[..., 0]
+            k = (self.index[..., 0].astype(np.int32) + self.index[..., 1].astype(np.int32) * TABLE_COLS)
+            hit = self.__dict__["_flat"] = np.where(ix == -1, np.int32(0), k)
+        return hit
 
     def k(self, uncovered: np.ndarray) -> np.ndarray:
         """The table angle index of every pixel of the boolean mask ``uncovered``."""
@@ -89,6 +115,7 @@ def _bands(valid: np.ndarray) -> tuple[tuple, tuple]:
     """Row bands covering every covered pixel (covered_rects) and every uncovered one (fill_rects).
 
     Per band of ``BAND_ROWS``-ish rows: the covered pixels lie in [first covered column, last + 1)
+    of the band's rows that have any
     and, as the covered region meets every row in one run (the image of a rectangle is convex),
     the uncovered ones left of the largest first column or right of the smallest last column.
     Checked, not assumed: if a band's fill rectangles miss an uncovered pixel the band is filled
@@ -107,7 +134,8 @@ def _bands(valid: np.ndarray) -> tuple[tuple, tuple]:
             fill.append((y0, y1, 0, W))
             continue
         f, l_ = first[y0:y1][a], last[y0:y1][a]
-        covered.append((y0, y1, int(f.min()), int(l_.max()) + 1))
+        rows_in = np.flatnonzero(a)  # the band's rows that hold covered pixels (a band can overhang the region)
+        covered.append((y0 + int(rows_in[0]), y0 + int(rows_in[-1]) + 1, int(f.min()), int(l_.max()) + 1))
         if not a.all():
             fill.append((y0, y1, 0, W))
             continue
