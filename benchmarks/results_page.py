@@ -9,7 +9,8 @@ the question it answers), and tests/test_docs.py fails when the committed page o
 what this script makes of the committed JSON. The page is deterministic (files in name order, fixed
 number formats, no clock, no git): first where each figure the README states comes from (script and
 results file), then one section per JSON: the command, date and machine where the JSON records them
-(else the script's documented run line and "not recorded"), then its figures as tables. A JSON this
+(else the script's documented run line and "not recorded"), a "versions" line where it was measured on
+an older OpenCV, numpy or torch than another result here (issue 81), then its figures as tables. A JSON this
 script has no table for gets a generic table of its ``headline`` (or top-level) values, so a new
 benchmark shows up without touching this file. The headline itself: benchmarks/measure/page/headline.py.
 The history of what was tried lives in git and in the benchmark scripts' docstrings, not here.
@@ -95,7 +96,45 @@ def link(p: Path) -> str:
     return f"[`{rel(p)}`](../{rel(p)})"
 
 
-def run_facts(path: Path, d: dict) -> list[list[str]]:
+LIBRARIES = {"OpenCV": ("cv2", "opencv"), "numpy": ("numpy",), "torch": ("torch",)}  # name: the JSON keys it goes by
+
+
+def recorded_versions(d: dict) -> dict[str, str]:
+    """The library versions a result records (top level or headline), by :data:`LIBRARIES` name."""
+    head = d["headline"] if isinstance(d.get("headline"), dict) else {}
+    out = {}
+    for name, keys in LIBRARIES.items():
+        val = next((d.get(k, head.get(k)) for k in keys if d.get(k, head.get(k)) is not None), None)
+        if isinstance(val, str) and val[:1].isdigit():
+            out[name] = val
+    return out
+
+
+def version_key(v: str) -> tuple[int, ...]:
+    """'5.1.0' -> (5, 1, 0); a local tag ('2.13.0+cpu') is dropped."""
+    return tuple(int(x) for x in re.findall(r"\d+", v.split("+")[0])[:3])
+
+
+def newest_versions(data: dict[str, dict]) -> dict[str, str]:
+    """Per library, the newest version any of the results records: what a fresh install measured last."""
+    seen: dict[str, str] = {}
+    for d in data.values():
+        for name, v in recorded_versions(d if isinstance(d, dict) else {}).items():
+            if name not in seen or version_key(v) > version_key(seen[name]):
+                seen[name] = v
+    return seen
+
+
+def version_note(d: dict, newest: dict[str, str]) -> str | None:
+    """A sentence when ``d`` was measured on an older library than other results here (issue 81: a
+    speed ratio can move with the library, e.g. OpenCV 5.1's warpPerspective is 2.5x 5.0's)."""
+    older = [f"{name} {v} (newest in these results: {newest[name]})" for name, v in recorded_versions(d).items()
+             if name in newest and version_key(v) < version_key(newest[name])]
+    return ("measured on " + ", ".join(older) + ": its figures may differ on the newer version; rerun the "
+            "script before comparing") if older else None
+
+
+def run_facts(path: Path, d: dict, newest: dict[str, str] | None = None) -> list[list[str]]:
     stem, script = path.stem, script_for(path)
     if "command" in d:
         command = f"`{d['command']}`"
@@ -113,7 +152,7 @@ def run_facts(path: Path, d: dict) -> list[list[str]]:
     date = d.get("date") or f"not recorded in the JSON (`git log -1 -- {rel(path)}` says when it was committed)"
     head = d["headline"] if isinstance(d.get("headline"), dict) else {}
     machine = []
-    for key in ("machine", "cores", "threads", "python", "cv2", "opencv"):
+    for key in ("machine", "cores", "threads", "python", "cv2", "opencv", "numpy", "torch", "commit"):
         val = d.get(key, head.get(key))
         if val is not None:
             machine.append(str(val) if key == "machine" else f"{key} {val}")
@@ -121,6 +160,9 @@ def run_facts(path: Path, d: dict) -> list[list[str]]:
     rows = [["file", link(path)], ["script", link(script) if script else "not found"],
             ["command", command], ["date", date],
             ["machine", "; ".join(machine) if machine else "not recorded in the JSON"]]
+    note = version_note(d, newest or {})
+    if note:
+        rows.append(["versions", note])
     if data:
         rows.append(["data", str(data).replace("/work/shared/data", "../shared/data")])
     if path.with_suffix(".png").exists():
@@ -156,12 +198,13 @@ def render_page(folders: list[Path] = RESULTS) -> str:
     data = {stem: json.loads(p.read_text()) for stem, p in files.items()}
     if all(k in data for k in ("as_shipped", "multi_camera_median", "shipped_model")):
         out += readme_sources(files, data)
+    newest = newest_versions(data)
     for stem, p in files.items():
         d = data[stem]
         if not isinstance(d, dict):  # a bare list or value: say what it is
             d = {"headline": {"entries": len(d) if isinstance(d, list) else d}}
         out += [f"## {stem}", ""]
-        out += table(["", ""], run_facts(p, d))
+        out += table(["", ""], run_facts(p, d, newest))
         out += renderer(stem)(d)
     return "\n".join(out).rstrip("\n") + "\n"
 

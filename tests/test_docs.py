@@ -183,6 +183,19 @@ def test_results_page_generator_is_deterministic_and_generic(tmp_path):
     assert "| date | 2026-01-02 |" in page and "`benchmarks/speed/newbench.py --x 1`" in page and "x86_64, 2 cores" in page
 
 
+def test_results_page_says_when_a_figure_was_measured_on_an_older_library(tmp_path):
+    """Issue 81: a ratio measured on OpenCV 5.0 sat on the page beside 5.1 figures without a word;
+    a result on an older OpenCV / numpy / torch than another result here now says so."""
+    rp = _results_page()
+    (tmp_path / "old.json").write_text('{"headline": {"ratio": 1.05}, "cv2": "5.0.0", "numpy": "2.4.6"}')
+    (tmp_path / "new.json").write_text('{"headline": {"ratio": 2.1}, "opencv": "5.1.0", "torch": "2.13.0+cpu"}')
+    page = rp.render_page([tmp_path])
+    new, old = page.split("## new")[1].split("## old")  # (files in name order)
+    assert "| versions | measured on OpenCV 5.0.0 (newest in these results: 5.1.0)" in old
+    assert "versions" not in new and "numpy" not in old.split("| versions |")[1].split("\n")[0]
+    assert rp.version_key("2.13.0+cpu") == (2, 13, 0) and rp.version_key("4.14.0") < rp.version_key("5.1.0")
+
+
 # ---------------------------------------------------------------- command lines in the docs
 
 

@@ -32,17 +32,20 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
+import subprocess
 import sys
 import time
 from pathlib import Path
 
 import cv2
 import numpy as np
+import torch  # its gather is timed too (ours_torch); vcprep alone never imports it
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.measure.data import DATA as CAMVID
-from benchmarks.measure.report import results_dir
+from benchmarks.measure.report import results_dir, today
 from vcprep.warp import completion, remap as warp
 from vcprep.warp import backproject_array
 from vcprep.camera import PRESETS
@@ -69,17 +72,68 @@ def frames(n: int):
     return [("synthetic", img, lab)], f"{CAMVID} absent: one synthetic render_road frame (480x360)"
 
 
-def timeit(fn, repeats: int) -> dict:
-    fn()  # warm-up (allocations, caches)
-    ts = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        fn()
-        ts.append((time.perf_counter() - t) * 1000)
+def stats(ts: list[float]) -> dict:
     a = np.array(ts)
     return {"median_ms": float(np.median(a)), "p10_ms": float(np.percentile(a, 10)),
             "p90_ms": float(np.percentile(a, 90)), "min_ms": float(a.min()), "max_ms": float(a.max()),
-            "repeats": repeats}
+            "repeats": len(ts)}
+
+
+def interleaved(fns: dict, repeats: int) -> dict:
+    """Each of ``fns`` once per round, in turn (A, B, C, A, B, C ...), ``repeats`` rounds after one
+    warm-up round: {name: stats}; a load burst then hits every candidate alike."""
+    for fn in fns.values():
+        fn()
+    ts = {k: [] for k in fns}
+    for _ in range(repeats):
+        for k, fn in fns.items():
+            t = time.perf_counter()
+            fn()
+            ts[k].append((time.perf_counter() - t) * 1000)
+    return {k: stats(v) for k, v in ts.items()}
+
+
+def gather(use_torch: bool, fn):
+    """``fn`` with the completion's fill gathering through torch (as in vctrain, where torch is
+    loaded) or through cv2 (as ``vcprep`` runs it: it does not import torch)."""
+    def run():
+        completion._FILL_TORCH = use_torch
+        try:
+            return fn()
+        finally:
+            completion._FILL_TORCH = True
+    return run
+
+
+def bench_frame(img, lab, H, cam, size, vp, repeats: int, cold_repeats: int) -> dict:
+    ign = border_ignore(lab)
+    maps = completion_maps(H, cam.size, size, "projective", vp, ign)
+    t = interleaved({
+        "bare": lambda: cv2.warpPerspective(img, H, size, flags=cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
+                                            borderValue=0),
+        "ours": gather(False, lambda: warp_image(img, maps)),
+        "ours_torch": gather(True, lambda: warp_image(img, maps))}, repeats)
+    ours_label = interleaved({"l": lambda: warp_label(lab, maps, maps.label_border)}, repeats)["l"] \
+        if lab is not None else None
+
+    def cold():
+        completion.clear_cache()
+        warp.clear_cache()
+        warp_image(img, completion_maps(H, cam.size, size, "projective", vp, ign))
+
+    ours_cold = interleaved({"c": cold}, cold_repeats)["c"]
+    # back-projection of a store-sized probability map to the source camera
+    prob = cv2.GaussianBlur(warp_image(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), maps), (5, 5), 0)
+    rec = {"H": H.ravel().tolist(), "store_size": list(size), "size": list(cam.size), "id": "frame"}
+    b = interleaved({"back": lambda: backproject_array(prob, rec, "prob"),
+                     "bare_back": lambda: cv2.warpPerspective(prob, H, cam.size,
+                                                              flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
+                                                              borderMode=cv2.BORDER_CONSTANT, borderValue=0)}, repeats)
+    bare = t["bare"]["median_ms"]
+    return {**t, "ours_label": ours_label, "ours_cold": ours_cold, **b, "ignore_cut": ign is not None,
+            "ratio": t["ours"]["median_ms"] / bare, "ratio_torch": t["ours_torch"]["median_ms"] / bare,
+            "cold_ratio": ours_cold["median_ms"] / bare,
+            "back_ratio": b["back"]["median_ms"] / b["bare_back"]["median_ms"]}
 
 
 def bench_scale(scale: float, data, repeats: int, cold_repeats: int) -> dict:
@@ -87,38 +141,25 @@ def bench_scale(scale: float, data, repeats: int, cold_repeats: int) -> dict:
     v = virtual_at_scale(PRESETS["virtual"], scale)
     H = virt_H_src(cam, v)
     vp = store_vp(H, vp_from_pose(cam))
-    size = v.size
-    rows = []
-    for name, img, lab in data:
-        ign = border_ignore(lab)
-        maps = completion_maps(H, cam.size, size, "projective", vp, ign)
-        bare = timeit(lambda: cv2.warpPerspective(img, H, size, flags=cv2.INTER_LINEAR,
-                                                  borderMode=cv2.BORDER_CONSTANT, borderValue=0), repeats)
-        ours = timeit(lambda: warp_image(img, maps), repeats)
-        ours_label = timeit(lambda: warp_label(lab, maps, maps.label_border), repeats) if lab is not None else None
-
-        def cold():
-            completion.clear_cache()
-            warp.clear_cache()
-            warp_image(img, completion_maps(H, cam.size, size, "projective", vp, ign))
-
-        ours_cold = timeit(cold, cold_repeats)
-        # back-projection of a store-sized probability map to the source camera
-        prob = cv2.GaussianBlur(warp_image(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), maps), (5, 5), 0)
-        rec = {"H": H.ravel().tolist(), "store_size": list(size), "size": list(cam.size), "id": name}
-        backproject_array(prob, rec, "prob")  # warm-up
-        back = timeit(lambda: backproject_array(prob, rec, "prob"), repeats)
-        bare_back = timeit(lambda: cv2.warpPerspective(prob, H, cam.size, flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
-                                                       borderMode=cv2.BORDER_CONSTANT, borderValue=0), repeats)
-        rows.append({"frame": name, "bare": bare, "ours": ours, "ours_label": ours_label, "ours_cold": ours_cold,
-                     "back": back, "bare_back": bare_back, "ignore_cut": ign is not None,
-                     "ratio": ours["median_ms"] / bare["median_ms"],
-                     "cold_ratio": ours_cold["median_ms"] / bare["median_ms"],
-                     "back_ratio": back["median_ms"] / bare_back["median_ms"]})
+    rows = [{"frame": name, **bench_frame(img, lab, H, cam, v.size, vp, repeats, cold_repeats)}
+            for name, img, lab in data]
     med = lambda k: float(np.median([r[k] for r in rows]))  # noqa: E731
-    return {"scale": scale, "store_size": list(size), "source_size": list(cam.size), "frames": rows,
-            "ratio": med("ratio"), "cold_ratio": med("cold_ratio"), "back_ratio": med("back_ratio"),
+    return {"scale": scale, "store_size": list(v.size), "source_size": list(cam.size), "frames": rows,
+            "ratio": med("ratio"), "ratio_torch": med("ratio_torch"), "cold_ratio": med("cold_ratio"),
+            "back_ratio": med("back_ratio"),
             "ratio_spread": [float(min(r["ratio"] for r in rows)), float(max(r["ratio"] for r in rows))]}
+
+
+def versions() -> dict:
+    """What the figures depend on: the libraries, the commit, the machine, the date, the load."""
+    try:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                                cwd=Path(__file__).parent).stdout.strip() or None
+    except OSError:
+        commit = None
+    return {"cv2": cv2.__version__, "numpy": np.__version__, "torch": torch.__version__, "commit": commit,
+            "machine": platform.platform(), "cores": os.cpu_count(), "date": today(),
+            "loadavg_1min": round(os.getloadavg()[0], 2)}
 
 
 def main() -> None:
@@ -129,28 +170,34 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=results_dir(__file__) / "completion.json")
     args = ap.parse_args()
     cv2.setNumThreads(1)
+    torch.set_num_threads(1)
     data, source = frames(args.frames)
-    print(f"data: {source}; threads: cv2.setNumThreads(1)", file=sys.stderr)
+    print(f"data: {source}; threads: cv2.setNumThreads(1), torch.set_num_threads(1)", file=sys.stderr)
     eighth = bench_scale(0.125, data, args.repeats_eighth, max(3, args.repeats_eighth // 10))
     full = bench_scale(1.0, data, args.repeats_full, 2)
-    print(f"{'scale':>6} {'store':>10} {'bare ms':>9} {'ours ms':>9} {'ratio':>6} {'cold ms':>9} {'cold x':>7} "
-          f"{'back ms':>8} {'bare_back':>9} {'back x':>6}")
+    print(f"{'scale':>6} {'store':>10} {'bare ms':>9} {'ours ms':>9} {'ratio':>6} {'torch x':>7} {'cold ms':>9} "
+          f"{'cold x':>7} {'back ms':>8} {'bare_back':>9} {'back x':>6}")
     for res in (eighth, full):
         for r in res["frames"]:
             print(f"{res['scale']:>6g} {res['store_size'][0]:>5}x{res['store_size'][1]:<4} "
                   f"{r['bare']['median_ms']:>9.2f} {r['ours']['median_ms']:>9.2f} {r['ratio']:>6.2f} "
-                  f"{r['ours_cold']['median_ms']:>9.1f} {r['cold_ratio']:>7.2f} {r['back']['median_ms']:>8.2f} "
-                  f"{r['bare_back']['median_ms']:>9.2f} {r['back_ratio']:>6.2f}   {r['frame']}")
-    result = {"benchmark": "completion", "data": source, "threads": 1, "cv2": cv2.__version__,
-              "machine": platform.platform(), "eighth": eighth, "full": full}
+                  f"{r['ratio_torch']:>7.2f} {r['ours_cold']['median_ms']:>9.1f} {r['cold_ratio']:>7.2f} "
+                  f"{r['back']['median_ms']:>8.2f} {r['bare_back']['median_ms']:>9.2f} {r['back_ratio']:>6.2f}   "
+                  f"{r['frame']}")
+    result = {"benchmark": "completion", "data": source, "threads": 1,
+              "command": "python benchmarks/speed/completion.py " + " ".join(sys.argv[1:]),
+              **versions(), "eighth": eighth, "full": full}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(result, indent=1) + "\n")
     print(f"wrote {args.out}", file=sys.stderr)
     print(json.dumps({"ratio_full": round(full["ratio"], 3), "ratio_eighth": round(eighth["ratio"], 3),
+                      "ratio_torch_full": round(full["ratio_torch"], 3),
+                      "ratio_torch_eighth": round(eighth["ratio_torch"], 3),
                       "backproject_ratio": round(eighth["back_ratio"], 3),
                       "backproject_ratio_full": round(full["back_ratio"], 3),
                       "cold_ratio_full": round(full["cold_ratio"], 3), "cold_ratio_eighth": round(eighth["cold_ratio"], 3),
-                      "targets": {"ratio": 1.3, "backproject_ratio": 1.1}, "data": source.split(" (")[0]}))
+                      "targets": {"ratio": 1.3, "backproject_ratio": 1.1}, "cv2": cv2.__version__,
+                      "numpy": np.__version__, "data": source.split(" (")[0]}))
 
 
 if __name__ == "__main__":

@@ -28,10 +28,14 @@ def r_completion(d: dict) -> list[str]:
     for k in ("eighth", "full"):
         v = d[k]
         lo, hi = v["ratio_spread"]
-        rows.append([num(v["store_size"]), num(v["source_size"]), num(len(v["frames"])),
-                     f"{v['ratio']:.2f} ({lo:.2f}–{hi:.2f})", num(v["back_ratio"]), num(v["cold_ratio"], 1)])
-    return table(["store size", "source size", "frames", "warp + completion / bare warp (spread)",
-                  "back-projection / bare", "cold maps / bare"], rows)
+        bare = statistics.median(f["bare"]["median_ms"] for f in v["frames"])
+        rows.append([num(v["store_size"]), num(v["source_size"]), num(len(v["frames"])), num(bare, 2),
+                     f"{v['ratio']:.2f} ({lo:.2f}–{hi:.2f})", num(v["ratio_torch"]) if "ratio_torch" in v else "-",
+                     num(v["back_ratio"]), num(v["cold_ratio"], 1)])
+    return table(["store size", "source size", "frames", "bare warp ms", "warp + completion / bare warp (spread)",
+                  "the same, torch loaded", "back-projection / bare", "cold maps / bare"], rows) + [
+        "Warp + completion as `vcprep` runs it (its fill gathers with cv2) and with torch loaded (vctrain: "
+        "`torch.index_select`); one thread; medians, the candidates interleaved. Target <= 1.3 (issue 81).", ""]
 
 
 def r_store(d: dict) -> list[str]:
