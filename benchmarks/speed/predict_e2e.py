@@ -3,6 +3,7 @@ overlay) beside the network-only time of the same engine, measured in the same r
 
     .venv/bin/python benchmarks/speed/predict_e2e.py [--frames 60] [--threads 2] [--sizes 1280x720,960x720]
                                                      [--engines torch,onnx,openvino,graph,graph-ov,int8,int8-ov] [--quality]
+                                                     [--only inprocess|whole] [--whole-frames 60,240]
 
 Model: models/road-multicamera/road.pt (the shipped resize model, lite0fpn, 480x360 working size).
 Frames: the first ``--frames`` CamVid val frames (../shared/data/camvid/val, 480x360, real), enlarged
@@ -42,7 +43,22 @@ frame (1242x375), Cityscapes cs_25xx-cs_29xx (43 frames, 256x256); each split pr
 (PyTorch: the card's numbers), its float graph and its int8 graph at the split's size; road IoU
 (vctrain eval) and the share of pixels whose mask is the float graph's.
 
-Results: benchmarks/speed/results/predict_e2e.json; the last stdout line is one JSON object.
+The whole command (issue 81; ``--only whole`` runs just this part): ``vctrain predict MODEL VIDEO --out
+DIR [--overlay] [--engine E]`` as a user types it, a fresh process per run (imports, model load, the
+OpenVINO compile, the video decoded, every mask PNG and the overlay video written), timed by its wall
+clock at two video lengths (``--whole-frames``, default 60 and 240 frames: the same frames cycled).
+The difference gives the steady-state rate, ``fps_steady`` = (n2 - n1) / (t2 - t1), with everything
+paid once counted once; the rest is the start-up, ``startup_s`` = t1 - n1 / fps_steady (imports,
+model load, graph compilation, first frames), reported apart, and ``fps_whole`` = n2 / t2 is what
+the longer run gave a user. Sizes (``--whole-sizes``): 1280x720 (CamVid val, enlarged, as above) and
+KITTI's 1242x375 (``../shared/data/kitti_semantics/images``, 98 frames); each with and without
+``--overlay``; engines (``--whole-engines``): ``torch`` (predict's default), ``auto`` (OpenVINO,
+else onnxruntime) and ``int8`` (the int8 graph of ``vctrain export --int8 --size WxH``, exported
+once per size, its export not timed); threads: the command's own defaults (what a user gets); the
+load average before and after is recorded, a loaded machine says so there.
+
+Results: benchmarks/speed/results/predict_e2e.json (in process) and predict_e2e.whole.json (the whole
+command); the last stdout line is one JSON object (both headlines).
 """
 from __future__ import annotations
 
@@ -218,6 +234,103 @@ def speed(args, wd: Path) -> list[dict]:
     return rows
 
 
+WHOLE_ENGINES = ("torch", "auto", "int8")
+
+
+def whole_frames(n: int, size: tuple[int, int]) -> list[np.ndarray]:
+    """Frames for a ``size`` video: KITTI's (kitti_semantics) at 1242x375, else CamVid's (:func:`frames_at`)."""
+    kitti = sorted((DATA.parent / "kitti_semantics" / "images").glob("*.jpg"))
+    if size == (1242, 375) and kitti:
+        return [cv2.resize(cv2.imread(str(f)), size, interpolation=cv2.INTER_AREA) for f in kitti[:n]]
+    return frames_at(n, size)
+
+
+def write_video(frames: list[np.ndarray], n: int, path: Path) -> Path:
+    """An mp4v video at 30 frames/s of ``n`` frames: ``frames`` cycled."""
+    h, w = frames[0].shape[:2]
+    vw = cv2.VideoWriter(str(path), cv2.VideoWriter_fourcc(*"mp4v"), 30.0, (w, h))
+    for i in range(n):
+        vw.write(frames[i % len(frames)])
+    vw.release()
+    return path
+
+
+def run_predict(model: Path, video: Path, out: Path, overlay: bool, engine: str | None) -> float:
+    """Wall seconds of one ``vctrain predict`` in a fresh process (the console script beside this Python)."""
+    import shutil
+    import subprocess
+
+    shutil.rmtree(out, ignore_errors=True)
+    exe = Path(sys.executable).with_name("vctrain")
+    cmd = [str(exe) if exe.exists() else "vctrain", "predict", str(model), str(video), "--out", str(out)]
+    cmd += (["--overlay"] if overlay else []) + (["--engine", engine] if engine else [])
+    t0 = time.perf_counter()
+    env = {k: v for k, v in os.environ.items() if k not in ("OMP_NUM_THREADS", "MKL_NUM_THREADS")}  # its defaults
+    proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    secs = time.perf_counter() - t0
+    if proc.returncode != 0:
+        raise SystemExit(f"{' '.join(cmd)} failed:\n{proc.stderr[-2000:]}")
+    return secs
+
+
+def whole_command(args, wd: Path) -> list[dict]:
+    """The rows of the whole-command part (module docstring): per size, engine and overlay, the
+    wall time at both lengths (the fastest of ``--whole-repeats`` runs each), the steady-state rate
+    and the start-up."""
+    from vctrain.deploy import export_onnx
+
+    n1, n2 = args.whole_frames
+    rows = []
+    for size in args.whole_sizes:
+        tag = f"{size[0]}x{size[1]}"
+        frames = whole_frames(max(n1, 1), size)
+        videos = {n: write_video(frames, n, wd / f"whole_{tag}_{n}.mp4") for n in (n1, n2)}
+        for engine in args.whole_engines:
+            model, flag = MODEL, engine
+            if engine == "int8":
+                model, flag = wd / f"road_{tag}_int8.onnx", None
+                if not model.exists():
+                    export_onnx(MODEL, None, model, size=size, int8=True)
+            for overlay in (False, True):
+                t = {n: min(run_predict(model, videos[n], wd / "whole_out", overlay, flag)
+                            for _ in range(args.whole_repeats)) for n in (n1, n2)}
+                fps = (n2 - n1) / (t[n2] - t[n1]) if t[n2] > t[n1] else float("inf")
+                rows.append({"size": tag, "engine": engine, "overlay": overlay, "frames": [n1, n2],
+                             "wall_s": [t[n1], t[n2]], "fps_steady": fps, "startup_s": t[n1] - n1 / fps,
+                             "fps_whole": n2 / t[n2]})
+                r = rows[-1]
+                print(f"whole {tag} {engine:5s} overlay={overlay!s:5s} {n1} frames {t[n1]:6.1f} s, {n2} frames "
+                      f"{t[n2]:6.1f} s: steady {fps:5.1f} frames/s, start-up {r['startup_s']:5.1f} s, "
+                      f"whole {r['fps_whole']:5.1f} frames/s", file=sys.stderr)
+    return rows
+
+
+def whole_headline(rows: list[dict]) -> dict:
+    head = {}
+    for r in rows:
+        key = f"{r['size']}_{r['engine']}{'_overlay' if r['overlay'] else ''}"
+        head[f"fps_steady_{key}"] = round(r["fps_steady"], 1)
+        head[f"startup_s_{key}"] = round(r["startup_s"], 1)
+        head[f"fps_whole_{key}"] = round(r["fps_whole"], 1)
+    return head
+
+
+def run_whole(args) -> dict:
+    """The whole-command part: rows, predict_e2e.whole.json, its headline."""
+    load0 = os.getloadavg()[0]
+    with tempfile.TemporaryDirectory(prefix="predict_e2e_whole-") as tmp:
+        rows = whole_command(args, args.workdir or Path(tmp))
+    head = whole_headline(rows)
+    write_json(results_dir(__file__) / "predict_e2e.whole.json",
+               {"command": "python " + " ".join(["benchmarks/speed/predict_e2e.py"] + sys.argv[1:]), "date": today(),
+                "machine": machine(), "threads": "the command's defaults", "load_average": [load0, os.getloadavg()[0]],
+                "cv2": cv2.__version__, "numpy": np.__version__,
+                "data": "1280x720: CamVid val (../shared/data/camvid/val), enlarged; 1242x375: "
+                        "../shared/data/kitti_semantics/images; frames cycled to each length",
+                "headline": head, "rows": rows})
+    return head
+
+
 def main() -> None:
     from vctrain.threads import use_threads
 
@@ -228,9 +341,21 @@ def main() -> None:
     ap.add_argument("--engines", default=",".join(ENGINES))
     ap.add_argument("--quality", action="store_true", help="also the int8 graph's IoU on held-out splits")
     ap.add_argument("--workdir", type=Path, default=None)
+    ap.add_argument("--only", choices=("inprocess", "whole"), default=None, help="run one part (default: both)")
+    ap.add_argument("--whole-frames", default="60,240", help="the whole command's two video lengths")
+    ap.add_argument("--whole-sizes", default="1280x720,1242x375")
+    ap.add_argument("--whole-engines", default=",".join(WHOLE_ENGINES))
+    ap.add_argument("--whole-repeats", type=int, default=1, help="runs per length (the fastest is kept)")
     args = ap.parse_args()
     args.sizes = [tuple(int(v) for v in s.split("x")) for s in args.sizes.split(",")]
     args.engines = args.engines.split(",")
+    args.whole_frames = tuple(int(v) for v in args.whole_frames.split(","))
+    args.whole_sizes = [tuple(int(v) for v in s.split("x")) for s in args.whole_sizes.split(",")]
+    args.whole_engines = args.whole_engines.split(",")
+    whole = run_whole(args) if args.only in (None, "whole") else {}
+    if args.only == "whole":
+        print(json.dumps(whole))
+        return
     use_threads(args.threads)
     load0 = os.getloadavg()[0]
     with tempfile.TemporaryDirectory(prefix="predict_e2e-") as tmp:
@@ -271,7 +396,7 @@ def main() -> None:
                 "machine": machine(), "threads": args.threads, "load_average": [load0, load1],
                 "frames": args.frames, "data": "CamVid val (../shared/data/camvid/val), first frames, enlarged",
                 "headline": headline, "targets": targets, "rows": rows, "quality": quality})
-    print(json.dumps(headline))
+    print(json.dumps({**headline, **whole}))
 
 
 if __name__ == "__main__":
