@@ -103,6 +103,7 @@ class CompletionMaps:
         self.centre, self.vp_inside = centre, vp_inside
         self.valid = base.valid
         self._full, self.angles, self.fill = full, angles, fill
+        self._shift_cache: dict = {}  # the covered pass's shifted maps, built on first use
 
     @property
     def size(self) -> tuple[int, int]:
@@ -143,69 +144,93 @@ class CompletionMaps:
     def remap_image(self, img: np.ndarray) -> np.ndarray:
         if self.fill is None:
             return (self._full or self.base).remap_image(img)
-        return self._fused(img, (self.base.map_x, self.base.map_y), cv2.INTER_LINEAR, 0,
-                           self.fill.image_x, self.fill.image_y)
+        return self._fused(img, self.base.linear, cv2.INTER_LINEAR, self.fill.image_x, self.fill.image_y)
 
     def remap_label(self, label: np.ndarray, border_value: int) -> np.ndarray:
         if self.fill is None:
             return (self._full or self.base).remap_label(label, border_value)
-        return self._fused(label, (self.base.nearest, None), cv2.INTER_NEAREST, border_value,
-                           self.fill.label_x, self.fill.label_y)
+        return self._fused(label, (self.base.nearest, None), cv2.INTER_NEAREST, self.fill.label_x, self.fill.label_y)
 
-    def _fused(self, src, maps, interp, border_value, table_x, table_y) -> np.ndarray:
-        """The two passes, chunk by chunk of rows (:meth:`AngleIndex.chunks`): every pixel looked
-        up in the table (:func:`_fill`), then the covered ones remapped over it (float maps,
-        bilinear; ``BORDER_TRANSPARENT`` leaves the uncovered ones, at :data:`OUTSIDE`, alone)."""
-        # 8-bit BGR goes through BGRA: the covered remap has SIMD for 4 channels only and the fill
-        # copies one 32-bit word per pixel; a chunk's BGRA rows stay in cache until converted back
+    def _fused(self, src, maps, interp, table_x, table_y) -> np.ndarray:
+        """The two passes, chunk by chunk of rows (:meth:`AngleIndex.chunks`). With torch loaded
+        (vctrain) every pixel is first looked up in the table (``torch.index_select``, ~1.5x a
+        nearest ``cv2.remap``) and the covered ones are remapped over it (``BORDER_TRANSPARENT``
+        leaves the uncovered ones, at :data:`OUTSIDE`, alone); else (vcprep) the covered pixels are
+        remapped first and the uncovered ones looked up after (a nearest ``cv2.remap`` through the
+        angle index; covered pixels hold (-1, -1), which ``BORDER_TRANSPARENT`` leaves alone). Both
+        remap the covered pixels with the bare warp's fixed-point maps: the same values."""
+        # 8-bit BGR goes through BGRA: the fill copies one 32-bit word per pixel (~1.5x 3 bytes), the
+        # covered remap is faster on 4 channels too, and a chunk's BGRA rows stay in cache until
+        # converted back
         packed = is_bgr8(src)
         W, H = self.size
         out = np.empty((H, W) + ((3,) if packed else src.shape[2:]), dtype=src.dtype)
-        if packed:  # BGRA with a replicated 1 px rim: the table's points lie on the edge, where
-            # OpenCV's border path is 2x slower than its interior path (same values)
-            src = _bgra_with_rim(src)
-            table = cv2.remap(src, table_x + np.float32(1), table_y + np.float32(1), interp,
-                              borderMode=cv2.BORDER_REPLICATE).view(np.int32)[..., 0]
-            src = src[1:-1, 1:-1]
-        else:
-            table = cv2.remap(src, table_x, table_y, interp, borderMode=cv2.BORDER_REPLICATE)
-        m1, m2 = maps
-        for r0, r1, rects in self.angles.chunks(packed):
+        torch = sys.modules.get("torch") if packed and _FILL_TORCH else None
+        rim = None
+        if torch is not None:
+            rim = _with_rim(src)
+            src = rim[1:-1, 1:-1]
+        elif packed:
+            src = cv2.cvtColor(src, cv2.COLOR_BGR2BGRA)
+        table = cv2.remap(src, table_x, table_y, interp, borderMode=cv2.BORDER_REPLICATE)
+        if packed:
+            table = table.view(np.int32)[..., 0]
+        for r0, r1, rects, fills in self.angles.chunks(packed):
             work = _scratch((r1 - r0, W, 4)) if packed else out[r0:r1]
-            _fill(table, self.angles, r0, r1, work.view(np.int32)[..., 0] if packed else work)
-            for y0, y1, x0, x1 in rects:
-                cv2.remap(src, m1[y0:y1, x0:x1], None if m2 is None else m2[y0:y1, x0:x1], interp,
-                          dst=work[y0 - r0:y1 - r0, x0:x1], borderMode=cv2.BORDER_TRANSPARENT)
+            fill_dst = work.view(np.int32)[..., 0] if packed else work
+            if torch is not None:
+                _gather(torch, table, self.angles.flat[r0:r1], fill_dst)
+                self._covered(rim, maps, interp, rects, r0, work, transparent=True)
+            else:
+                self._covered(src, maps, interp, rects, r0, work, transparent=False)
+                for y0, y1, x0, x1 in fills:
+                    cv2.remap(table, self.angles.index[y0:y1, x0:x1], None, cv2.INTER_NEAREST,
+                              dst=fill_dst[y0 - r0:y1 - r0, x0:x1], borderMode=cv2.BORDER_TRANSPARENT)
             if packed:
                 cv2.cvtColor(work, cv2.COLOR_BGRA2BGR, dst=out[r0:r1])
         return out
 
+    def _covered(self, src, maps, interp, rects, r0: int, work: np.ndarray, transparent: bool) -> None:
+        """The covered pass over ``rects`` into ``work`` (rows from ``r0``). ``transparent``: from
+        the source with its rim (``src``) through maps moved by 1 px (:meth:`_shifted`): OpenCV's
+        fixed-point remap leaves a transparent pixel whose taps reach past the edge unwritten, even
+        at weight 0; with the rim the values are the same."""
+        if transparent:
+            (bx, by), m1, m2 = self._shifted(maps)
+        else:
+            (bx, by), (m1, m2) = (0, 0), maps
+        for y0, y1, x0, x1 in rects:
+            box = slice(y0 - by, y1 - by), slice(x0 - bx, x1 - bx)
+            cv2.remap(src, m1[box], None if m2 is None else m2[box], interp, dst=work[y0 - r0:y1 - r0, x0:x1],
+                      borderMode=cv2.BORDER_TRANSPARENT if transparent else cv2.BORDER_CONSTANT, borderValue=0)
 
-def _bgra_with_rim(img: np.ndarray) -> np.ndarray:
-    """8-bit BGR ``img`` as BGRA, (h + 2, w + 2), its edge pixels repeated once around it."""
-    h, w = img.shape[:2]
-    out = np.empty((h + 2, w + 2, 4), dtype=np.uint8)
-    cv2.cvtColor(img, cv2.COLOR_BGR2BGRA, dst=out[1:-1, 1:-1])
-    out[0], out[-1] = out[1], out[-2]
-    out[:, 0], out[:, -1] = out[:, 1], out[:, -2]
-    return out
+    def _shifted(self, maps) -> tuple[tuple[int, int], np.ndarray, np.ndarray | None]:
+        """((x0, y0), map1, map2): the fixed-point ``maps`` over the box of the covered rects (from
+        (x0, y0)), their integer source coordinates + 1 for the source with its rim; built once."""
+        key = id(maps[0])
+        hit = self._shift_cache.get(key)
+        if hit is None:
+            rects = self.angles.covered_rects
+            x0, y0 = min(r[2] for r in rects), min(r[0] for r in rects)
+            x1, y1 = max(r[3] for r in rects), max(r[1] for r in rects)
+            m1 = maps[0][y0:y1, x0:x1] + np.int16(1)  # OUTSIDE (-64) stays outside
+            hit = self._shift_cache[key] = ((x0, y0), m1, None if maps[1] is None else maps[1][y0:y1, x0:x1])
+        return hit
 
 
-def _fill(table: np.ndarray, angles: AngleIndex, r0: int, r1: int, dst: np.ndarray) -> None:
-    """Rows r0..r1 of ``dst`` from the fill ``table``, each pixel its angle's entry (covered pixels
-    get any entry; the covered pass overwrites them). An int32 table (packed BGRA) with torch
-    already imported (training, predict) goes through ``torch.index_select`` (~2x a nearest
-    ``cv2.remap``, the same values); vcprep alone does not import torch for this."""
-    torch = sys.modules.get("torch") if table.dtype == np.int32 else None
-    if torch is not None and _FILL_TORCH:
-        flat = angles.flat[r0:r1].reshape(-1)
-        torch.index_select(torch.from_numpy(table.reshape(-1)), 0, torch.from_numpy(flat),
-                           out=torch.from_numpy(dst.reshape(-1)))
-        return
-    cv2.remap(table, angles.index[r0:r1], None, cv2.INTER_NEAREST, dst=dst, borderMode=cv2.BORDER_CONSTANT)
+def _with_rim(img: np.ndarray) -> np.ndarray:
+    """8-bit BGR ``img`` as BGRA with its edge pixels repeated once around it, (h + 2, w + 2, 4)."""
+    return cv2.copyMakeBorder(cv2.cvtColor(img, cv2.COLOR_BGR2BGRA), 1, 1, 1, 1, cv2.BORDER_REPLICATE)
 
 
-_FILL_TORCH = True  # benchmarks switch it off to time the cv2 gather
+def _gather(torch, table: np.ndarray, flat: np.ndarray, dst: np.ndarray) -> None:
+    """``dst`` (int32, contiguous) = ``table`` at ``flat`` (the same shape): ``torch.index_select``
+    on the arrays' memory; only where torch is already imported (vcprep does not import it)."""
+    torch.index_select(torch.from_numpy(table.reshape(-1)), 0, torch.from_numpy(flat.reshape(-1)),
+                       out=torch.from_numpy(dst.reshape(-1)))
+
+
+_FILL_TORCH = True  # with torch loaded, gather with it (benchmarks switch it off to time the cv2 path)
 
 
 def check_method(method: str) -> str:
@@ -238,9 +263,10 @@ def store_vp(H: np.ndarray, vp_src: tuple[float, float]) -> tuple[float, float]:
 def _finish(map_x, map_y, lab_x, lab_y, valid) -> RemapMaps:
     map_x = np.ascontiguousarray(map_x, dtype=np.float32)
     map_y = np.ascontiguousarray(map_y, dtype=np.float32)
+    linear = cv2.convertMaps(map_x, map_y, cv2.CV_16SC2)
     nearest = cv2.convertMaps(np.ascontiguousarray(lab_x, dtype=np.float32),
                               np.ascontiguousarray(lab_y, dtype=np.float32), cv2.CV_16SC2, nninterpolation=True)[0]
-    return RemapMaps(map_x, map_y, nearest, valid)
+    return RemapMaps(map_x, map_y, linear, nearest, valid)
 
 
 def complete_maps(base: RemapMaps, dst_H_src: np.ndarray, src_size: tuple[int, int], method: str,

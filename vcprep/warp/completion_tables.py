@@ -49,17 +49,20 @@ class AngleIndex:
         out[self.n:] = values[-1] if self.n else 0
         return out.reshape(r, c)
 
-    def chunks(self, packed: bool) -> tuple[tuple[int, int, tuple], ...]:
-        """(r0, r1, covered rects in rows r0..r1) for the fused pass: the whole store in one chunk,
-        or, for ``packed`` images larger than 2 ``CHUNK_PIXELS``, whole bands of about
-        ``CHUNK_PIXELS`` (the covered rects are band-aligned, so each lies in one chunk)."""
+    def chunks(self, packed: bool) -> tuple[tuple[int, int, tuple, tuple], ...]:
+        """(r0, r1, covered rects, fill rects) in rows r0..r1, for the fused pass: the whole store in
+        one chunk, or, for ``packed`` images larger than 2 ``CHUNK_PIXELS``, whole bands of about
+        ``CHUNK_PIXELS`` rows (the covered rects are band-aligned, so each lies in one chunk; the
+        fill rects are cut at the chunk's rows)."""
         H, W = self.index.shape[:2]
         rows = H if not packed or H * W <= 2 * CHUNK_PIXELS else max(1, CHUNK_PIXELS // (W * BAND_ROWS)) * BAND_ROWS
         key = f"_chunks_{rows}"  # cached on the (frozen) instance
         hit = self.__dict__.get(key)
         if hit is None:
             hit = self.__dict__[key] = tuple(
-                (r0, min(H, r0 + rows), tuple(r for r in self.covered_rects if r0 <= r[0] < r0 + rows))
+                (r0, min(H, r0 + rows), tuple(r for r in self.covered_rects if r0 <= r[0] < r0 + rows),
+                 tuple((max(y0, r0), min(y1, r0 + rows), x0, x1) for y0, y1, x0, x1 in self.fill_rects
+                       if y0 < r0 + rows and y1 > r0))
                 for r0 in range(0, H, rows))
         return hit
 

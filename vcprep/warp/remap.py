@@ -27,13 +27,14 @@ OUTSIDE = -64.0  # map value for destination pixels that have no source pixel
 class RemapMaps:
     """Precomputed inverse maps for one homography and one (source, destination) size pair.
 
-    ``map_x``/``map_y`` float32 source coordinates (clamped / OUTSIDE as described above), what
-    the bilinear image warp uses; ``nearest`` rounded maps for labels; ``valid`` uint8 (1 where a
-    source pixel landed).
+    ``map_x``/``map_y`` float32 source coordinates (clamped / OUTSIDE as described above);
+    ``linear`` fixed-point maps for bilinear remap; ``nearest`` rounded maps for labels;
+    ``valid`` uint8 (1 where a source pixel landed).
     """
 
     map_x: np.ndarray
     map_y: np.ndarray
+    linear: tuple[np.ndarray, np.ndarray]
     nearest: np.ndarray
     valid: np.ndarray
 
@@ -52,22 +53,14 @@ class RemapMaps:
             return (0, 0, 0, 0)
         return int(cols[0]), int(rows[0]), int(cols[-1]) + 1, int(rows[-1]) + 1
 
-    @cached_property
-    def linear(self) -> tuple[np.ndarray, np.ndarray]:
-        """Fixed-point maps (``cv2.convertMaps``, CV_16SC2 + CV_16UC1), built on first use. The
-        image warp no longer uses them: OpenCV >= 4.11 and 5.x have SIMD kernels for float maps
-        that are 1.3-3x faster than this path, and exact where it rounds weights to 1/32 px
-        (``benchmarks/speed/completion.py``, docs/warp.md)."""
-        return cv2.convertMaps(self.map_x, self.map_y, cv2.CV_16SC2)
-
     @property
     def exact_maps(self) -> "RemapMaps":
         """The maps with float source coordinates for every pixel (these maps themselves)."""
         return self
 
     def remap_image(self, img: np.ndarray) -> np.ndarray:
-        """Bilinear warp with the float maps (see :func:`warp_image`)."""
-        return _remap(img, self, self.map_x, self.map_y, cv2.INTER_LINEAR, 0)
+        """Bilinear warp with the fixed-point maps (see :func:`warp_image`)."""
+        return _remap(img, self, self.linear[0], self.linear[1], cv2.INTER_LINEAR, 0)
 
     def remap_label(self, label: np.ndarray, border_value: int) -> np.ndarray:
         """Nearest-neighbour warp (see :func:`warp_label`)."""
@@ -110,8 +103,9 @@ def maps_from_coordinates(x: np.ndarray, y: np.ndarray, valid: np.ndarray, src_s
     w, h = src_size
     map_x = np.where(valid, np.clip(x, 0, w - 1), OUTSIDE).astype(np.float32)
     map_y = np.where(valid, np.clip(y, 0, h - 1), OUTSIDE).astype(np.float32)
+    linear = cv2.convertMaps(map_x, map_y, cv2.CV_16SC2)
     nearest = cv2.convertMaps(map_x, map_y, cv2.CV_16SC2, nninterpolation=True)[0]
-    return RemapMaps(map_x, map_y, nearest, valid.astype(np.uint8))
+    return RemapMaps(map_x, map_y, linear, nearest, valid.astype(np.uint8))
 
 
 _CACHE: "OrderedDict[tuple, RemapMaps]" = OrderedDict()
@@ -141,29 +135,23 @@ def clear_cache() -> None:
     _CACHE.clear()
 
 
-def is_bgr8(img: np.ndarray) -> bool:
-    """8-bit 3-channel: bilinear remaps of these run through BGRA (:func:`_remap`)."""
-    return img.dtype == np.uint8 and img.ndim == 3 and img.shape[2] == 3
-
-
 def _remap(img: np.ndarray, maps: RemapMaps, m1, m2, interp: int, border_value) -> np.ndarray:
     """cv2.remap restricted to ``maps.roi`` (the rest is ``border_value``): a physical camera
-    usually covers a fraction of the virtual view, so this skips most of the work. 8-bit BGR
-    with float maps goes through BGRA: OpenCV 5.1's float-map kernel has SIMD for 4 channels
-    only (~2x faster than 3, same values: channels are interpolated independently)."""
+    usually covers a fraction of the virtual view, so this skips most of the work."""
     W, H = maps.size
     x0, y0, x1, y1 = maps.roi
+    if (x0, y0, x1, y1) == (0, 0, W, H):
+        return cv2.remap(img, m1, m2, interp, borderMode=cv2.BORDER_CONSTANT, borderValue=border_value)
     out = np.full((H, W) + img.shape[2:], border_value, dtype=img.dtype)
-    if x1 <= x0 or y1 <= y0:
-        return out
-    mx, my = m1[y0:y1, x0:x1], None if m2 is None else m2[y0:y1, x0:x1]
-    if is_bgr8(img) and interp == cv2.INTER_LINEAR and m1.dtype == np.float32:
-        four = cv2.remap(cv2.cvtColor(img, cv2.COLOR_BGR2BGRA), mx, my, interp, borderMode=cv2.BORDER_CONSTANT,
-                         borderValue=border_value)
-        cv2.cvtColor(four, cv2.COLOR_BGRA2BGR, dst=out[y0:y1, x0:x1])
-        return out
-    cv2.remap(img, mx, my, interp, dst=out[y0:y1, x0:x1], borderMode=cv2.BORDER_CONSTANT, borderValue=border_value)
+    if x1 > x0 and y1 > y0:
+        cv2.remap(img, m1[y0:y1, x0:x1], None if m2 is None else m2[y0:y1, x0:x1], interp,
+                  dst=out[y0:y1, x0:x1], borderMode=cv2.BORDER_CONSTANT, borderValue=border_value)
     return out
+
+
+def is_bgr8(img: np.ndarray) -> bool:
+    """8-bit 3-channel (the fused completion pass runs these through BGRA)."""
+    return img.dtype == np.uint8 and img.ndim == 3 and img.shape[2] == 3
 
 
 def warp_image(img: np.ndarray, maps: RemapMaps, exact: bool = False) -> np.ndarray:
