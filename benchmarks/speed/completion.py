@@ -10,23 +10,38 @@ Data: the first ``--frames`` images of ``../shared/data/camvid/train`` (SegNet r
 camvid camera scaled by 1/2) with their labels from ``trainannot`` (id 11 = ignore); when that
 folder is absent, a synthetic ``render_road`` frame through the same camera (the script says so).
 
-Timed, per frame, median over repeats (spread = 10th..90th percentile and min..max):
+Timed, per frame, interleaved (bare, ours, ours_torch, bare, ...), median over repeats (spread = 10th..90th
+percentile and min..max), by the wall clock and by this thread's CPU time (``cpu``: steadier on a
+loaded machine, where the wall clock also counts the time other processes held the core):
 
 * ``bare``: ``cv2.warpPerspective(img, H, store_size, INTER_LINEAR, BORDER_CONSTANT)``;
 * ``ours``: ``vcprep.warp.warp_image`` with the cached warp + projective-completion maps (what
   every image of a camera costs in between-camera mode, where H and the VP are shared): one
   pass, covered pixels remapped from the source, uncovered ones looked up in the per-image
-  angle table (see ``vcprep.warp.completion.CompletionMaps``);
+  angle table (see ``vcprep.warp.completion.CompletionMaps``), as ``vcprep`` runs it (no torch:
+  the table lookup is a nearest ``cv2.remap``); ``ours_torch``: the same with torch loaded, as in
+  ``vctrain`` (the lookup is ``torch.index_select``; the same bytes);
 * ``ours_cold``: building those maps from scratch + the remap (one-off per camera; per image in
   within-camera mode, where H differs per image), reported, not a target;
 * ``back``: ``vcprep.warp.backproject.backproject_array`` of a store-sized probability map to the
   source size (maps cached), vs ``bare_back``: ``cv2.warpPerspective`` of the same map with
   ``WARP_INVERSE_MAP`` to the same size.
 
-Targets (issue 4): ours / bare <= 1.3 at full 5500x2800 and at 1/8 (688x350); back / bare_back
-<= 1.1. Results: ``benchmarks/speed/results/completion.json``; the last stdout line is one JSON object
+Targets (issues 4, 81): ours / bare <= 1.3 at full 5500x2800 and at 1/8 (688x350); back / bare_back
+<= 1.1. Results: ``benchmarks/speed/results/completion.json`` (with the OpenCV, numpy and torch
+versions, the commit, the machine, the date and the load); the last stdout line is one JSON object
 with ``ratio_full``, ``ratio_eighth`` and ``backproject_ratio`` (the latter at 1/8, the store
-scale training uses; ``backproject_ratio_full`` is given too).
+scale training uses; ``backproject_ratio_full`` is given too), their ``_cpu`` and ``_torch`` twins.
+
+Why the ratio rose from ~1.1 to ~2.6 (issue 81): the baseline got faster, not we slower. OpenCV
+5.x's ``warpPerspective`` is a new SIMD kernel (callgrind, 1/8, one frame: 2.15 M instructions on
+5.1.0 against 19.4 M on 4.14.0; wall 0.28 ms against 1.5-1.7 ms); our pass costs about the same on
+both (6.5-7.8 M). OpenCV 5's float-map ``remap`` has such kernels too, its fixed-point path (the
+``cv2.convertMaps`` CV_16SC2 maps the warp uses) does not: float maps would cut the covered pass
+by a quarter to a third, but they interpolate exactly where the fixed-point maps round the weights
+to 1/32 px, so the store image would change (up to 4 grey levels on ~9 % of the covered pixels)
+and the exported graph, which reproduces the fixed-point arithmetic, would no longer agree with
+predict (docs/warp.md "Speed").
 """
 from __future__ import annotations
 
@@ -81,16 +96,20 @@ def stats(ts: list[float]) -> dict:
 
 def interleaved(fns: dict, repeats: int) -> dict:
     """Each of ``fns`` once per round, in turn (A, B, C, A, B, C ...), ``repeats`` rounds after one
-    warm-up round: {name: stats}; a load burst then hits every candidate alike."""
+    warm-up round: {name: wall-clock stats, with "cpu": this thread's CPU time stats}; a load burst
+    then hits every candidate alike, and the CPU time leaves out the time other processes held the
+    core (on a loaded machine the steadier of the two)."""
     for fn in fns.values():
         fn()
     ts = {k: [] for k in fns}
+    cs = {k: [] for k in fns}
     for _ in range(repeats):
         for k, fn in fns.items():
-            t = time.perf_counter()
+            t, c = time.perf_counter(), time.thread_time()
             fn()
+            cs[k].append((time.thread_time() - c) * 1000)
             ts[k].append((time.perf_counter() - t) * 1000)
-    return {k: stats(v) for k, v in ts.items()}
+    return {k: {**stats(ts[k]), "cpu": stats(cs[k])} for k in fns}
 
 
 def gather(use_torch: bool, fn):
@@ -129,9 +148,11 @@ def bench_frame(img, lab, H, cam, size, vp, repeats: int, cold_repeats: int) -> 
                      "bare_back": lambda: cv2.warpPerspective(prob, H, cam.size,
                                                               flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP,
                                                               borderMode=cv2.BORDER_CONSTANT, borderValue=0)}, repeats)
-    bare = t["bare"]["median_ms"]
+    bare, bare_cpu = t["bare"]["median_ms"], t["bare"]["cpu"]["median_ms"]
     return {**t, "ours_label": ours_label, "ours_cold": ours_cold, **b, "ignore_cut": ign is not None,
             "ratio": t["ours"]["median_ms"] / bare, "ratio_torch": t["ours_torch"]["median_ms"] / bare,
+            "ratio_cpu": t["ours"]["cpu"]["median_ms"] / bare_cpu,
+            "ratio_torch_cpu": t["ours_torch"]["cpu"]["median_ms"] / bare_cpu,
             "cold_ratio": ours_cold["median_ms"] / bare,
             "back_ratio": b["back"]["median_ms"] / b["bare_back"]["median_ms"]}
 
@@ -145,7 +166,8 @@ def bench_scale(scale: float, data, repeats: int, cold_repeats: int) -> dict:
             for name, img, lab in data]
     med = lambda k: float(np.median([r[k] for r in rows]))  # noqa: E731
     return {"scale": scale, "store_size": list(v.size), "source_size": list(cam.size), "frames": rows,
-            "ratio": med("ratio"), "ratio_torch": med("ratio_torch"), "cold_ratio": med("cold_ratio"),
+            "ratio": med("ratio"), "ratio_torch": med("ratio_torch"), "ratio_cpu": med("ratio_cpu"),
+            "ratio_torch_cpu": med("ratio_torch_cpu"), "cold_ratio": med("cold_ratio"),
             "back_ratio": med("back_ratio"),
             "ratio_spread": [float(min(r["ratio"] for r in rows)), float(max(r["ratio"] for r in rows))]}
 
@@ -185,7 +207,7 @@ def main() -> None:
                   f"{r['back']['median_ms']:>8.2f} {r['bare_back']['median_ms']:>9.2f} {r['back_ratio']:>6.2f}   "
                   f"{r['frame']}")
     result = {"benchmark": "completion", "data": source, "threads": 1,
-              "command": "python benchmarks/speed/completion.py " + " ".join(sys.argv[1:]),
+              "command": " ".join(["python", "benchmarks/speed/completion.py", *sys.argv[1:]]),
               **versions(), "eighth": eighth, "full": full}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(result, indent=1) + "\n")
@@ -193,6 +215,9 @@ def main() -> None:
     print(json.dumps({"ratio_full": round(full["ratio"], 3), "ratio_eighth": round(eighth["ratio"], 3),
                       "ratio_torch_full": round(full["ratio_torch"], 3),
                       "ratio_torch_eighth": round(eighth["ratio_torch"], 3),
+                      "ratio_cpu_full": round(full["ratio_cpu"], 3), "ratio_cpu_eighth": round(eighth["ratio_cpu"], 3),
+                      "ratio_torch_cpu_full": round(full["ratio_torch_cpu"], 3),
+                      "ratio_torch_cpu_eighth": round(eighth["ratio_torch_cpu"], 3),
                       "backproject_ratio": round(eighth["back_ratio"], 3),
                       "backproject_ratio_full": round(full["back_ratio"], 3),
                       "cold_ratio_full": round(full["cold_ratio"], 3), "cold_ratio_eighth": round(eighth["cold_ratio"], 3),

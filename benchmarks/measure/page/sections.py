@@ -29,13 +29,29 @@ def r_completion(d: dict) -> list[str]:
         v = d[k]
         lo, hi = v["ratio_spread"]
         bare = statistics.median(f["bare"]["median_ms"] for f in v["frames"])
+        cpu = [num(v[c]) if c in v else "-" for c in ("ratio_cpu", "ratio_torch_cpu")]
         rows.append([num(v["store_size"]), num(v["source_size"]), num(len(v["frames"])), num(bare, 2),
-                     f"{v['ratio']:.2f} ({lo:.2f}–{hi:.2f})", num(v["ratio_torch"]) if "ratio_torch" in v else "-",
-                     num(v["back_ratio"]), num(v["cold_ratio"], 1)])
-    return table(["store size", "source size", "frames", "bare warp ms", "warp + completion / bare warp (spread)",
-                  "the same, torch loaded", "back-projection / bare", "cold maps / bare"], rows) + [
+                     f"{v['ratio']:.2f} ({lo:.2f}–{hi:.2f})", *cpu, num(v["back_ratio"]), num(v["cold_ratio"], 1)])
+    load = f" 1-minute load average at the end: {num(d['loadavg_1min'])}." if "loadavg_1min" in d else ""
+    return table(["store size", "source size", "frames", "bare warp ms", "warp + completion / bare warp, wall (spread)",
+                  "the same, CPU time", "torch loaded, CPU time", "back-projection / bare", "cold maps / bare"],
+                 rows) + [
         "Warp + completion as `vcprep` runs it (its fill gathers with cv2) and with torch loaded (vctrain: "
-        "`torch.index_select`); one thread; medians, the candidates interleaved. Target <= 1.3 (issue 81).", ""]
+        "`torch.index_select`); one thread; medians, the candidates interleaved; the CPU time leaves out the "
+        f"time other processes held the core. Target <= 1.3 (issue 81).{load}", ""]
+
+
+def r_predict_whole(d: dict) -> list[str]:
+    rows = [[r["size"] + (f" (decoded {r['decoded']})" if r.get("decoded", r["size"]) != r["size"] else ""),
+             r["engine"], "yes" if r["overlay"] else "no", " / ".join(num(t, 1) for t in r["wall_s"]),
+             "-" if r["fps_steady"] is None else num(r["fps_steady"], 1),
+             "-" if r["startup_s"] is None else num(r["startup_s"], 1), num(r["fps_whole"], 1)] for r in d["rows"]]
+    n1, n2 = d["rows"][0]["frames"] if d["rows"] else ("?", "?")
+    return table(["size", "engine", "overlay", f"wall s ({n1} / {n2} frames)", "steady frames/s", "start-up s",
+                  f"frames/s of the {n2}-frame run"], rows) + [
+        "`vctrain predict MODEL VIDEO` as typed, a fresh process per run; steady = the difference of the two "
+        "lengths, start-up = the rest. Load average before / after: "
+        + " / ".join(num(x, 1) for x in d.get("load_average", [])) + ".", ""]
 
 
 def r_store(d: dict) -> list[str]:
@@ -387,7 +403,7 @@ def r_predict_threads(d: dict) -> list[str]:
 
 
 RENDER: dict[str, Callable[[dict], list[str]]] = {
-    "warp": r_warp, "video": r_video, "completion": r_completion, "deploy": r_deploy, "store": r_store, "store.zlib": r_store, "png_deflate": r_png_deflate, "stages": r_stages, "train": r_train,
+    "warp": r_warp, "video": r_video, "completion": r_completion, "predict_e2e.whole": r_predict_whole, "deploy": r_deploy, "store": r_store, "store.zlib": r_store, "png_deflate": r_png_deflate, "stages": r_stages, "train": r_train,
     "camera_estimate": r_camera_estimate, "focal_from_verticals": r_focal_from_verticals, "as_shipped": r_as_shipped, "vp": r_vp, "vp.dev": r_vp, "cross_camera": r_cross_camera, "real_cameras": r_real_cameras,
     "real_cameras_within_seq_fallback": r_real_cameras, "multi_camera": r_multi_camera, "multi_camera_median": r_multi_camera,
     "shipped_model": r_shipped_model, "shipped_model_e60": r_shipped_model, "finetune": r_finetune, "finetune_cityscapes": r_finetune, "adapt_loo": r_adapt_loo,
