@@ -9,7 +9,12 @@ records it, else "unknown".
 * ``warp.py`` -- our store warp (one remap, cached maps) against a bare ``cv2.warpPerspective`` of the
   same frames, at 1/8 and full resolution. Results: ``warp.json``. Time: unknown. (``make bench``.)
 * ``completion.py`` -- warp + projective completion, and back-projection, against a bare warp of the
-  same image to the same size (issue 4). Results: ``completion.json``. Time: unknown.
+  same image to the same size, wall clock and CPU time, with and without torch loaded (issues 4, 81).
+  Results: ``completion.json``. Time: about 4 min on 2 loaded cores.
+* ``predict_e2e.py`` -- ``vctrain predict`` end to end beside the engine's network alone, in process
+  (issue 69), and the whole command in a fresh process at two video lengths: steady-state frames/s
+  and start-up apart (issue 81, ``--only whole``). Results: ``predict_e2e.json``,
+  ``predict_e2e.whole.json``. Time: unknown (the whole-command part: 20 min on 2 loaded cores).
 * ``store.py`` -- building a store (``vcprep warp``) with 1 and 2 worker processes against plain PNG
   decode + encode of the same frames. Results: ``store.json``. Time: unknown.
 * ``png_deflate.py`` -- the PNG writer with each deflate candidate (zlib, zlib-ng, libdeflate) on a
