@@ -36,8 +36,9 @@ scale training uses; ``backproject_ratio_full`` is given too), their ``_cpu`` an
 Why the ratio rose from ~1.1 to ~2.6 (issue 81): the baseline got faster, not we slower. OpenCV
 5.x's ``warpPerspective`` is a new SIMD kernel (callgrind, 1/8, one frame: 2.15 M instructions on
 5.1.0 against 19.4 M on 4.14.0; wall 0.28 ms against 1.5-1.7 ms); our pass costs about the same on
-both (6.9 M on 4.14.0, 7.8 M on 5.1.0 before issue 81, 7.4 M after). OpenCV 5's float-map ``remap`` has such kernels too, its fixed-point path (the
-``cv2.convertMaps`` CV_16SC2 maps the warp uses) does not: float maps would cut the covered pass
+both (6.9 M on 4.14.0, 7.8 M on 5.1.0 before issue 81, 7.4 M after). OpenCV 5's float-map
+``remap`` has such kernels too, its fixed-point path (the ``cv2.convertMaps`` CV_16SC2 maps the warp
+uses) does not: float maps would cut the covered pass
 by a quarter to a third, but they interpolate exactly where the fixed-point maps round the weights
 to 1/32 px, so the store image would change (up to 4 grey levels on ~9 % of the covered pixels)
 and the exported graph, which reproduces the fixed-point arithmetic, would no longer agree with
