@@ -195,3 +195,28 @@ def test_every_import_names_a_module_that_exists():
                 continue
             missing.append(f"{path.relative_to(ROOT)}: {mod}")
     assert missing == []
+
+
+def _is_cli(mod: str) -> bool:
+    """A module of the command layer: ``vcprep.cli*`` and ``vctrain.cli*`` (``vcprep.cliutil`` too)."""
+    return any(mod == f"{top}.cli" or mod.startswith((f"{top}.cli.", f"{top}.cliutil")) for top in TOPS)
+
+
+def test_library_modules_never_import_the_cli():
+    """The library does the work, the commands call it (docs/development.md): no module outside
+    ``vcprep/cli``, ``vctrain/cli`` and ``vcprep/cliutil.py`` imports one of them, at the top or
+    inside a function."""
+    bad = []
+    for name, path in _modules().items():
+        if _is_cli(name):
+            continue
+        for mod, names in _imports(path):
+            targets = [mod] + [f"{mod}.{n}" for n in names]
+            bad += [f"{path.relative_to(ROOT)}: {t}" for t in targets if _is_cli(t)]
+    assert bad == []
+
+
+def test_the_cli_finder_knows_the_cli():
+    """The check above would notice: the command modules are told from library modules of like names."""
+    assert _is_cli("vcprep.cliutil") and _is_cli("vctrain.cli.common") and _is_cli("vcprep.cli")
+    assert not _is_cli("vctrain.client") and not _is_cli("vcprep.progress")

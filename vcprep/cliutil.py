@@ -16,25 +16,10 @@ from pathlib import Path
 from typing import Any
 
 from .errors import InputError, VCError
+from .progress import count, err, rate_text  # (re-exported: the commands' chatter is the library's)
 
-__all__ = ["run_app", "emit_json", "err", "count", "ensure_parent", "check_data_folders", "range_option", "res_option",
+__all__ = ["run_app", "emit_json", "err", "count", "rate_text", "ensure_parent", "check_data_folders", "range_option", "res_option",
            "corridor_option"]
-
-
-def err(msg: str) -> None:
-    """Chatter for humans: stderr."""
-    print(msg, file=sys.stderr, flush=True)
-
-
-def count(n: int, noun: str) -> str:
-    """A count for a summary line: '1 image', '3 images' (the noun given in the singular)."""
-    return f"{n} {noun}" if n == 1 else f"{n} {noun}s"
-
-
-def rate_text(n: int, seconds: float, noun: str) -> str:
-    """How long a run took and how fast, for its summary line: '12.3 s, 4.1 images/s'."""
-    rate = n / seconds if seconds > 0 else 0.0
-    return f"{seconds:.1f} s, {rate:.1f} {noun}s/s"
 
 
 def emit_json(obj: Any) -> None:

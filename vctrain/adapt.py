@@ -42,7 +42,7 @@ from vcprep.errors import InputError, one_of
 from vcprep.io import read_image, write_png
 from vcprep.labels import IGNORE, ROAD
 from vcprep.prior import check_prior_fits, check_thresholds, meta_path, read_prior, surrogate_labels
-from vcprep.cliutil import err
+from vcprep.progress import err
 from vcprep.store import Store, store_lock
 
 from .training.checkpoint import load_checkpoint, save_checkpoint

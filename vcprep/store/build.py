@@ -25,7 +25,7 @@ from ..camera.files import camera_from_dict
 from ..camera.pinhole import Camera
 from ..camera.sources import FrameCameras, camera_of_image
 from ..dataset import Job
-from ..cliutil import rate_text
+from ..progress import rate_text
 from ..errors import InputError, StoreError, VCError
 from ..warp.homography import (apply_homography, check_not_folded, pose_from_vp, road_magnification, virt_H_src,
                                virtual_at_scale, vp_from_pose)

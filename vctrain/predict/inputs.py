@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Optional, Sequence
 
-from vcprep.cliutil import count, rate_text
+from vcprep.progress import count, rate_text
 from vcprep.errors import InputError, one_of
 
 __all__ = ["CameraFor", "Predicted", "predict_inputs"]
@@ -301,7 +301,7 @@ def _predict_image_files(predictor, images: Sequence[Path], out: Path, camera_fo
     :func:`vctrain.predict.predictor.predict_frames` (the one road for a frame) with ``vp_rule``
     (None: the model's); ``say`` hears what the frames were warped with; ``bev``: as run_road takes it."""
     from vcprep.camera import Camera
-    from vcprep.cliutil import err
+    from vcprep.progress import err
     from vcprep.dataset import collect_images
 
     from .frames import NEEDS_CAMERA, reads_road_vps, warps_frames

@@ -198,7 +198,7 @@ def sources_ego_rows(files: list[Path], say: Callable[[str], None] | None = None
     file -> (rows, at height) for the sources searched; the rule and each source's rows said through
     ``say``, a source found without one or not searched (too few frames) through ``warn``. None: one source."""
     from vcprep.camera import GROUP_MIN_DISTINCT, ego_rows_per_source, source_groups
-    from vcprep.cliutil import count
+    from vcprep.progress import count
     from vcprep.io import EGO_SAMPLES
 
     if len(source_groups(files)[1]) < 2:

@@ -35,7 +35,7 @@ def score_start(model: nn.Module, loader, device: torch.device, weight: torch.Te
 def say_plan(cfg: TrainConfig, info: dict[str, Any], init: dict[str, Any], row0: dict[str, Any] | None) -> None:
     """Before the first epoch (stderr): the recipe, the starting model, the learning rate, what is
     held out and the starting model's score on it."""
-    from vcprep.cliutil import err
+    from vcprep.progress import err
 
     own = (init.get("config") or {}).get("lr")
     rate = f"lr {cfg.lr:g}" + (f" ({cfg.lr / own:.2g} of the model's own {own:g})" if own else "")

@@ -303,7 +303,7 @@ def _step(net: nn.Module, opt: torch.optim.Optimizer, x: torch.Tensor, y: torch.
 
 
 def _say_epoch(row: dict[str, Any], epochs: int, improved: bool) -> None:
-    from vcprep.cliutil import err
+    from vcprep.progress import err
 
     val = f", val IoU {row['val_iou']:.4f}" if "val_iou" in row else ""
     took = f", validation {row['val_seconds']:.1f} s" if "val_seconds" in row else ""
