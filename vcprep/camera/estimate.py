@@ -56,7 +56,7 @@ from ..errors import InputError
 from ..warp.homography import pose_from_vp
 
 __all__ = ["ASSUMED_HFOV", "ASSUMED_HEIGHT", "MIN_FRAMES", "ROAD_WIDTH", "Value", "CameraEstimate",
-           "estimate_camera", "exif_focal_35mm", "estimate_to_yaml", "road_widths"]
+           "estimate_camera", "exif_focal_35mm", "estimate_to_yaml", "road_widths", "estimated_line"]
 
 ASSUMED_HFOV = 60.0     # degrees: a typical dashcam / phone main camera in landscape (CamVid 58, BDD ~65)
 ASSUMED_HEIGHT = 1.4    # metres: a car-mounted camera (CamVid 1.21, Cityscapes 1.22, KITTI 1.65)
@@ -386,3 +386,10 @@ def estimate_to_yaml(est: CameraEstimate) -> str:
     for k in ("horizon_row", "roll"):
         lines.append(f"# {k}: {v[k].value:g}   # {v[k].note()}")
     return "\n".join(lines) + "\n"
+
+
+def estimated_line(est: CameraEstimate, source: str) -> str:
+    """The one line that says a camera was ESTIMATED (from ``source``) and what was assumed."""
+    v = est.values
+    return (f"camera ESTIMATED from {source}: tilt {v['tilt'].value:g} deg, pan {v['pan'].value:g} deg; "
+            + "; ".join(f"assumed {w}" for w in est.warnings))

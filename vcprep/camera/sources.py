@@ -167,3 +167,43 @@ def load_cameras(spec: str | Path, sample_image: str | Path | None = None,
         except OSError:
             size = None
     return load_camera(s, image_size=size)
+
+
+def camera_from_spec(spec: "str | Path | Camera", sample_image: str | Path | None = None, per_frame: bool = True,
+                     frames=None, needed: bool = True, say=None) -> "Camera | FrameCameras | None":
+    """Whatever ``--camera`` takes, loaded (:func:`load_cameras`): a :class:`Camera` as it is, a
+    preset, a camera file (calibration files carry no image size: ``sample_image``'s is used), a
+    folder of per-frame calibration files where ``per_frame`` (:class:`FrameCameras`), or
+    ``estimate``: the camera estimated from ``frames`` (image files, videos (a sample of their
+    frames) or decoded arrays; :mod:`vcprep.camera.estimate`), said through ``say`` (given).
+    ``needed`` False: the spec is only checked (a file or preset must load; nothing is estimated)
+    and None is returned."""
+    if isinstance(spec, Camera):
+        return spec if needed else None
+    if str(spec) != "estimate":
+        cam = load_cameras(spec, sample_image, per_frame=per_frame)
+        return cam if needed else None
+    if not needed:
+        return None
+    if frames is None:
+        raise InputError("this command cannot estimate a camera", None,
+                         "run 'vcprep camera estimate FRAMES -o cam.yaml' and give --camera cam.yaml")
+    import tempfile
+
+    from ..io.images import write_png
+    from ..io.video import frames_of, is_video
+    from ..progress import count
+    from .estimate import estimate_camera, estimated_line
+
+    with tempfile.TemporaryDirectory(prefix="vcprep-frames-") as tmp:
+        arrays = [f for f in frames if not isinstance(f, (str, Path))]
+        for i, f in enumerate(arrays):  # decoded frames: estimated from lossless files of them
+            write_png(Path(tmp) / f"frame_{i:06d}.png", f)
+        files = frames_of([f for f in frames if isinstance(f, (str, Path))], tmp) + \
+            [Path(tmp) / f"frame_{i:06d}.png" for i in range(len(arrays))]
+        est = estimate_camera(files, name="estimated")
+    videos = [Path(f).name for f in frames if isinstance(f, (str, Path)) and is_video(f)]
+    what = count(len(files), "frame") + (f" sampled from {', '.join(videos)}" if videos else "")
+    if say is not None:
+        say(estimated_line(est, what) + " (write it out with 'vcprep camera estimate')")
+    return est.camera

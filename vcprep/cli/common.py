@@ -3,7 +3,6 @@ take alike (a camera from ``--camera``, image arguments, the labels check, the e
 build). Commands live in one module per group (:mod:`vcprep.cli`)."""
 from __future__ import annotations
 
-import tempfile
 from collections import Counter
 from pathlib import Path
 from typing import List
@@ -12,13 +11,12 @@ import typer
 
 from vcprep import __version__
 from ..camera.pinhole import PRESETS
-from ..camera.sources import load_cameras
-from ..camera.estimate import estimate_camera
+from ..camera.sources import camera_from_spec
+from ..camera.estimate import estimated_line  # noqa: F401 (the commands' name for it)
 from ..cliutil import count, ensure_parent, err
 from ..dataset import collect_images
 from ..errors import InputError, StoreError
 from ..io.images import write_png
-from ..io.video import frames_of, is_video
 from ..labels import LABEL_FORMAT_HELP, LABEL_FORMATS
 
 app = typer.Typer(rich_markup_mode=None, pretty_exceptions_enable=False, add_completion=False, no_args_is_help=True,
@@ -70,37 +68,11 @@ def save_figure(out: Path, fig) -> None:
     print(out)
 
 
-def estimated_line(est, source: str) -> str:
-    """The one line that says a camera was ESTIMATED (from ``source``) and what was assumed."""
-    v = est.values
-    return (f"camera ESTIMATED from {source}: tilt {v['tilt'].value:g} deg, pan {v['pan'].value:g} deg; "
-            + "; ".join(f"assumed {w}" for w in est.warnings))
-
-
 def camera_for(spec: str, sample_image: Path | None = None, per_frame: bool = True,
                frames: "list[Path] | None" = None, quiet: bool = False, needed: bool = True):
-    """Load ``spec`` (:func:`vcprep.camera.load_cameras`): calibration files (.txt/.json) carry
-    no image size, so it is taken from a frame; a folder is per-frame calibration
-    (:class:`~vcprep.camera.FrameCameras`) where ``per_frame``, else an error. ``estimate``:
-    the camera estimated from ``frames`` (image files, or videos: a sample of their frames;
-    :mod:`vcprep.camera.estimate`; said on stderr). ``needed`` False: the spec is only checked
-    (a file or preset must load; nothing is estimated) and None is returned."""
-    if spec == "estimate":
-        if not needed:
-            return None
-        if frames is None:
-            raise InputError("this command cannot estimate a camera", None,
-                             "run 'vcprep camera estimate FRAMES -o cam.yaml' and give --camera cam.yaml")
-        with tempfile.TemporaryDirectory(prefix="vcprep-frames-") as tmp:
-            files = frames_of(frames, tmp)
-            est = estimate_camera(files, name="estimated")
-        videos = [Path(f).name for f in frames if is_video(f)]
-        what = count(len(files), "frame") + (f" sampled from {', '.join(videos)}" if videos else "")
-        if not quiet:
-            err(estimated_line(est, what) + " (write it out with 'vcprep camera estimate')")
-        return est.camera
-    cam = load_cameras(spec, sample_image, per_frame=per_frame)
-    return cam if needed else None
+    """``--camera`` (:func:`vcprep.camera.sources.camera_from_spec`): an estimated camera said on
+    stderr unless ``quiet``."""
+    return camera_from_spec(spec, sample_image, per_frame, frames, needed, None if quiet else err)
 
 
 def image_files(paths: List[Path], unique: "tuple[str, str] | None" = None) -> list[Path]:

@@ -10,11 +10,11 @@ from __future__ import annotations
 
 from .cache import VP_CACHE, VPCache
 from .estimate import VPConfig, VPResult, estimate_vp, is_reliable, score_vps
-from .reliability import (VPRule, apply_reliability, estimate_files, format_vp_csv, read_vp_csv, sequence_key, smooth_sequences,
+from .reliability import (VPRule, apply_reliability, estimate_arrays, estimate_files, format_vp_csv, read_vp_csv, sequence_key, smooth_sequences,
                           vps_for_items, write_vp_csv)
-from .poses import ItemPose, frame_poses
+from .poses import ItemPose, array_poses, frame_poses
 from .segments import detect_segments, prior_window, refine_segments, to_gray
 
-__all__ = ["VPCache", "VP_CACHE", "ItemPose", "frame_poses", "VPRule", "VPConfig", "VPResult", "estimate_vp", "is_reliable", "score_vps", "apply_reliability", "estimate_files",
+__all__ = ["VPCache", "VP_CACHE", "ItemPose", "frame_poses", "array_poses", "estimate_arrays", "VPRule", "VPConfig", "VPResult", "estimate_vp", "is_reliable", "score_vps", "apply_reliability", "estimate_files",
            "format_vp_csv", "read_vp_csv", "sequence_key", "smooth_sequences", "vps_for_items", "write_vp_csv",
            "detect_segments", "prior_window", "refine_segments", "to_gray"]

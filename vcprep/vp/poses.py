@@ -13,10 +13,10 @@ from typing import Any, Callable, Mapping
 from ..camera.pinhole import Camera
 from ..camera.sources import FrameCameras
 from ..dataset import Job
-from ..errors import VCError
-from .reliability import VPRule, vps_for_items
+from ..errors import InputError, VCError
+from .reliability import VPRule, estimate_arrays, vps_for_items
 
-__all__ = ["ItemPose", "frame_poses"]
+__all__ = ["ItemPose", "frame_poses", "array_poses"]
 
 
 @dataclass(frozen=True)
@@ -56,3 +56,21 @@ def frame_poses(jobs: list[Job], camera: Camera | FrameCameras, within: str, rul
                             cache)
     tag = rule.to_dict() if within == "estimate" else None
     return {j.id: ItemPose((r.vp[0], r.vp[1]), r.status, tag) for j, r in zip(jobs, results) if r is not None}, results
+
+
+def array_poses(frames: list[Any], camera: Camera, within: str, rule: Any = None,
+                ids: list[str] | None = None) -> dict[str, ItemPose]:
+    """:func:`frame_poses` of decoded frames (numpy arrays, one camera), keyed by ``ids`` (default
+    ``frame_000000``, ...: one sequence, in order): {} for ``within`` 'none', each frame's road VP by
+    ``rule`` for 'estimate' (:func:`vcprep.vp.reliability.estimate_arrays`: the numbers of the
+    frames' files). Given VPs have no file here: the caller passes them itself."""
+    if within == "none":
+        return {}
+    if within != "estimate":
+        raise InputError(f"within '{within}' is a table of VPs by file id; frames in memory have no file", within,
+                         "give within='estimate' or 'none', or each frame's VP (u, v) yourself")
+    rule = rule or VPRule()
+    ids = list(ids) if ids is not None else [f"frame_{i:06d}" for i in range(len(frames))]
+    results = estimate_arrays(frames, camera, rule.config(), rule.smooth, ids)
+    tag = rule.to_dict()
+    return {i: ItemPose((r.vp[0], r.vp[1]), r.status, tag) for i, r in zip(ids, results)}

@@ -260,6 +260,24 @@ def estimate_files(images: Sequence[str | Path], camera: Camera, cfg: VPConfig =
         kept.append(i)
         if on_image is not None:
             on_image(i)
+    return _sequence_rules(results, cams, ids, kept, smooth)
+
+
+def estimate_arrays(frames: Sequence[np.ndarray], camera: Camera, cfg: VPConfig = VPConfig(), smooth: int = 0,
+                    ids: Sequence[str] | None = None) -> list[VPResult]:
+    """:func:`estimate_files` on decoded frames (BGR or grey, any size the camera rescales to):
+    the detector on each, then the reliability rule and ``smooth`` over ``ids`` (default
+    ``frame_000000``, ... : one sequence, in order). The same numbers as on the frames' files."""
+    ids = list(ids) if ids is not None else [f"frame_{i:06d}" for i in range(len(frames))]
+    cams = [camera.for_image_size((f.shape[1], f.shape[0])) for f in frames]
+    results = [estimate_vp(f, c, cfg) for f, c in zip(frames, cams)]
+    return _sequence_rules(results, cams, ids, list(range(len(frames))), smooth)
+
+
+def _sequence_rules(results: list[VPResult], cams: list[Camera], ids: Sequence[str], kept: list[int],
+                    smooth: int) -> list[VPResult | None]:
+    """The detector's ``results`` of the frames ``kept`` (indices into ``ids``) after the reliability
+    rule and ``smooth``; None for a frame not kept."""
     kept_ids = [ids[i] for i in kept]
     results = apply_reliability(results, cams, kept_ids)
     if smooth > 0:
