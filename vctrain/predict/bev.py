@@ -42,7 +42,7 @@ from vcprep.io import write_png
 
 from .written import prob_u8
 
-__all__ = ["BevOptions", "BevRun", "draw_inset", "BEV_NEEDS_CAMERA", "recording", "poses_line", "poses_rule"]
+__all__ = ["BevOptions", "BevRun", "BevMeasure", "draw_inset", "BEV_NEEDS_CAMERA"]
 
 BEV_NEEDS_CAMERA = ("add --camera (a preset, a calibration file, or 'estimate' from these frames): its height and "
                     "pose put the road in metres")
@@ -127,70 +127,40 @@ class BevRun:
             vp, status = None, None
         return self.source.view(image, size, vp, status)
 
-    def write(self, out: Path, stem: str, prob: np.ndarray, image: str | Path, vp: tuple[float, float] | None = None,
-              status: str | None = None, **extra: Any) -> Callable[[np.ndarray], np.ndarray]:
-        """Write ``stem``'s BEV PNGs into ``out``, emit its record (``extra`` fields after ``id``) and
-        return what draws its inset on an overlay."""
+    def measure(self, prob: np.ndarray, image: str | Path, vp: tuple[float, float] | None = None,
+                status: str | None = None) -> "BevMeasure":
+        """The bird's-eye view of a frame's P(road) ``prob`` (its file ``image``, at the pose of
+        ``vp``: :meth:`view`) and its road in metres, in memory: what :meth:`write` writes."""
         grid = self.options.grid
         view = self.view(image, (prob.shape[1], prob.shape[0]), vp, status)
         maps = bev_maps(view, grid, image)
         mask = to_bev((prob >= 0.5).astype(np.uint8), maps, "label")
-        p8 = prob_u8(prob)  # the _prob.png's values
+        road = road_in_metres(mask, grid, view, self.options.corridor)
+        return BevMeasure(to_bev(prob_u8(prob), maps, "prob"), mask, road, grid, view)
+
+    def write(self, out: Path, stem: str, prob: np.ndarray, image: str | Path, vp: tuple[float, float] | None = None,
+              status: str | None = None, **extra: Any) -> Callable[[np.ndarray], np.ndarray]:
+        """Write ``stem``'s BEV PNGs into ``out``, emit its record (``extra`` fields after ``id``) and
+        return what draws its inset on an overlay."""
+        m = self.measure(prob, image, vp, status)
         (out / stem).parent.mkdir(parents=True, exist_ok=True)
-        write_png(out / f"{stem}_bev_prob.png", to_bev(p8, maps, "prob"))
-        write_png(out / f"{stem}_bev_mask.png", mask, kind="mask")
-        hidden, why = frame_hidden(maps, view.size, camera_ego_rows(self.source.camera, view.size))
-        road = road_in_metres(mask, grid, view, self.options.corridor, hidden=hidden, hidden_why=why)
+        write_png(out / f"{stem}_bev_prob.png", m.prob)
+        write_png(out / f"{stem}_bev_mask.png", m.mask, kind="mask")
         if self.options.emit is not None:
-            self.options.emit({"id": stem, **extra, **road})
-        return lambda img: draw_inset(img, mask, grid, road, self.options.corridor, view.origin_z)
+            self.options.emit({"id": stem, **extra, **m.metres})
+        return lambda img: draw_inset(img, m.mask, m.grid, m.metres, self.options.corridor, m.view.origin_z)
 
 
-def recording(options: BevOptions, poses: dict[str, dict[str, Any]]) -> BevOptions:
-    """``options`` whose ``emit`` also keeps each frame's pose in ``poses`` (id -> its ``pose``), for
-    ``predict.json``: ``vctrain eval --bev`` then takes the same poses."""
-    from dataclasses import replace
+@dataclass(frozen=True)
+class BevMeasure:
+    """A frame's road in a bird's-eye view: ``prob`` (uint8 0-255, P(road) on the grid, unseen 0: the
+    ``_bev_prob.png``), ``mask`` (uint8: 0 not road, 1 road, 255 unseen: the ``_bev_mask.png``), far
+    row first, on ``grid``; ``metres`` (``free_m``, ``width_m``, ``area_m2``, ``pose``:
+    :func:`vcprep.bev.road_in_metres`, the JSON line of ``predict --bev``) and the ``view`` it was
+    projected with."""
 
-    emit = options.emit
-
-    def keep(record: dict[str, Any]) -> None:
-        poses[str(record["id"])] = record.get("pose") or {}
-        if emit is not None:
-            emit(record)
-
-    return replace(options, emit=keep)
-
-
-POSE_WORDS = {"vp": "its road VP", "nominal": "the camera's nominal pose", "calibration": "its calibration file",
-              "kitti": "its KITTI calibration (the devkit's transform)"}
-
-
-def _poses_said(poses: dict[str, dict[str, Any]]) -> str:
-    """'BEV poses: each frame's pose from its road VP (12 frames), the camera's nominal pose (1 frame)'."""
-    from collections import Counter
-
-    from vcprep.cliutil import count
-
-    by = Counter(str(p.get("source", "nominal")) for p in poses.values())
-    return "BEV poses: each frame's pose from " + ", ".join(f"{POSE_WORDS.get(src, src)} ({count(n, 'frame')})"
-                                                            for src, n in by.most_common())
-
-
-def poses_line(poses: dict[str, dict[str, Any]]) -> str:
-    """What ``vctrain predict --bev`` says of its poses on stderr."""
-    return (_poses_said(poses) + "; kept in predict.json, where 'vctrain eval --bev' takes them (--within none: "
-            "the camera's nominal pose)")
-
-
-def poses_rule(poses: dict[str, dict[str, Any]], calibrated: bool, within: str) -> str:
-    """What ``vctrain eval --bev`` says of its poses: the ones ``predict --bev`` kept (``poses``), the
-    frames' calibration, or the camera's nominal pose (and why)."""
-    if calibrated:
-        return "BEV poses: each frame's calibration (as 'vctrain predict --bev' takes it)"
-    if within == "none":
-        return "BEV poses: the camera's nominal pose (--within none)"
-    if not poses:
-        return ("BEV poses: the camera's nominal pose (predict.json keeps no frame poses: 'vctrain predict --bev' "
-                "keeps each frame's road-VP pose for eval to take)")
-    return _poses_said(poses) + ", as 'vctrain predict --bev' found them (predict.json; --within none: the camera's " \
-        "nominal pose)"
+    prob: np.ndarray
+    mask: np.ndarray
+    metres: dict[str, Any]
+    grid: BevGrid
+    view: GroundView

@@ -25,9 +25,10 @@ stays for stores that exist already (``--store``) and for ``--keep-store``.
 from __future__ import annotations
 
 import time
+from contextlib import closing
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable
+from typing import Any, Callable, Iterable, Iterator
 
 import cv2
 import numpy as np
@@ -41,13 +42,15 @@ from vcprep.vp import frame_poses as poses_of
 from vcprep.warp import pose_from_vp
 
 from .frames import NEEDS_CAMERA, FramePredictor, extends, warps_frames
+from .vehicle import MISSED_VEHICLE, ego_rows, folder_ego_camera, frames_ego_rows, own_vehicle, rows_at, \
+    sources_ego_rows  # noqa: F401 (the road's own vehicle, importable from here)
 from .pipeline import DEPTH, Prefetch, Writer
 from .written import write_prediction
 
 __all__ = ["own_vehicle", "ego_rows", "frames_ego_rows", "sources_ego_rows",
            "rows_at", "folder_ego_camera", "RoadRun", "skipped_lines", "within_rule", "virtual_within",
-           "model_vp_rule", "frame_poses", "rectangle_views", "frames_canvas", "geometry_line", "run_road",
-           "out_dir"]
+           "model_vp_rule", "frame_poses", "rectangle_views", "views_of", "frames_canvas", "geometry_line", "run_road",
+           "out_dir", "Road", "RoadPlan", "plan_files", "plan_arrays", "road_files"]
 
 
 @dataclass
@@ -114,156 +117,6 @@ def virtual_within(data: dict[str, Any], within: str, camera: Camera | FrameCame
     return within
 
 
-# said (through ``warn``, even under --quiet) when the search from frames finds no own vehicle: it misses a
-# bonnet that reflects the road and one seen from several mounts (Cityscapes': its edge changes sign and
-# place from frame to frame; docs/cameras.md), and a missed bonnet is warped as road
-MISSED_VEHICLE = ("the search misses a bonnet that reflects the road or sits at several places (frames of "
-                  "several mounts), as Cityscapes' does: if the frames show your own vehicle give --ego N (its bottom "
-                  "rows) or ego_rows in the camera file; --ego 0 or 'ego_rows: 0' in the camera file says there is "
-                  "none and ends this warning")
-
-
-def own_vehicle(cam: Camera, source: str | Path, ego: str, say: Callable[[str], None] | None,
-                estimate: Callable[[], Any], warn: Callable[[str], None] | None = None) -> Camera:
-    """``cam`` with its own vehicle's rows (``ego_rows``), one rule for a video and a folder of one
-    camera's frames. ``ego``: 'auto' (the camera's ``ego_rows`` when it states them, else found by
-    ``estimate()`` -> :class:`vcprep.camera.EgoEstimate` from frames, said through ``say``; too few
-    distinct frames: none, also said), 'none' (the camera as given, no search) or a whole number of
-    rows at the camera's size (0: no own vehicle). A search that finds none is a warning
-    (``warn``, given: the caller's even under --quiet; else ``say``) with :data:`MISSED_VEHICLE`."""
-    from dataclasses import replace
-
-    return replace(cam, ego_rows=ego_rows(cam.size[1], cam.ego_rows, source, ego, say, estimate, warn,
-                                          known=cam.ego_stated))
-
-
-def ego_rows(height: int, stated: int, source: str | Path, ego: str, say: Callable[[str], None] | None,
-             estimate: Callable[[], Any], warn: Callable[[str], None] | None = None, known: bool = False) -> int:
-    """The own vehicle's bottom rows of frames ``height`` rows high by :func:`own_vehicle`'s rule
-    (``stated``: the camera's ``ego_rows``, 0 where none is stated; ``known``: the camera file states
-    them, an explicit 'ego_rows: 0' too: no search, nothing said)."""
-    from vcprep.camera import rows_at_height
-
-    if ego == "none" or (ego == "auto" and (stated or known)):
-        return int(stated)
-    if ego != "auto":
-        try:
-            rows = int(ego)
-        except ValueError:
-            rows = -1
-        if not 0 <= rows < height:
-            raise InputError(f"--ego '{ego}' is not auto, none or a number of rows below the frames' "
-                             f"{height}", source, "give e.g. --ego 40, --ego 0 or --ego none")
-        return rows
-    say = say or (lambda _msg: None)
-    try:
-        est = estimate()
-    except InputError as e:
-        say(f"own vehicle: not looked for ({e.problem}); set ego_rows in the camera file, or --ego N")
-        return int(stated)
-    if est.rows:
-        say(f"own vehicle: {est.rows} rows found from the frames ({est.describe()}); set ego_rows in the "
-            f"camera file to override")
-    else:
-        (warn or say)(f"own vehicle: none found from the frames ({est.describe()}); {MISSED_VEHICLE}")
-    return rows_at_height(est, height)
-
-
-def frames_ego_rows(camera: Camera | None, files: list[Path], ego: str, say: Callable[[str], None] | None = None,
-                    warn: Callable[[str], None] | None = None) -> tuple[int, int] | dict[Path, tuple[int, int]]:
-    """(rows, frame height) of the own vehicle in a folder of one camera's frames, for a model that
-    reads frames as they are: with a camera, :func:`folder_ego_camera`'s; without, by the same rule
-    at the first frame's size (``ego`` 'auto' looks in up to :data:`vcprep.io.EGO_SAMPLES` frames
-    spread over the folder). Frames of several sources (``ego`` 'auto', no rows stated; a folder per
-    drive, BDD100K- or CamVid-style names): each source's own, file -> (rows, height) (:func:`sources_ego_rows`)."""
-    if ego == "auto" and not (camera is not None and (camera.ego_rows or camera.ego_stated)):
-        per_source = sources_ego_rows(files, say, warn)
-        if per_source is not None:
-            return per_source
-    if camera is not None:
-        cam = folder_ego_camera(camera, files, ego, say, warn)
-        return cam.ego_rows, cam.size[1]
-    from vcprep.camera import ego_rows_from_frame_files
-
-    files = [Path(f) for f in files]
-    height = image_size(files[0])[1]
-    rows = ego_rows(height, 0, files[0].parent, ego, say,
-                    lambda: ego_rows_from_frame_files(_spread(files), files[0].parent), warn)
-    return rows, height
-
-
-def sources_ego_rows(files: list[Path], say: Callable[[str], None] | None = None,
-                     warn: Callable[[str], None] | None = None) -> dict[Path, tuple[int, int]] | None:
-    """Each source's own vehicle in frames of several sources (:func:`vcprep.camera.ego_rows_per_source`):
-    file -> (rows, at height) for the sources searched; the rule and each source's rows said through
-    ``say``, a source found without one or not searched (too few frames) through ``warn``. None: one source."""
-    from vcprep.camera import GROUP_MIN_DISTINCT, ego_rows_per_source, source_groups
-    from vcprep.progress import count
-    from vcprep.io import EGO_SAMPLES
-
-    if len(source_groups(files)[1]) < 2:
-        return None
-    rule, sources = ego_rows_per_source(files, EGO_SAMPLES)
-    say, warn = say or (lambda _m: None), warn or say or (lambda _m: None)
-    say(f"own vehicle: {count(len(sources), 'source')} grouped by {rule}, each searched alone")
-    for s in sources:
-        if s.estimate is not None and s.estimate.rows:
-            say(f"own vehicle of {s.name} ({count(len(s.files), 'frame')}): {s.estimate.rows} rows found from the "
-                f"frames ({s.estimate.describe()})")
-        elif s.estimate is not None:
-            warn(f"own vehicle of {s.name}: none found ({s.estimate.describe()}); {MISSED_VEHICLE}")
-    left = [s for s in sources if s.estimate is None]
-    if left:
-        names = ", ".join(s.name for s in left[:6]) + (", ..." if len(left) > 6 else "")
-        warn(f"own vehicle not searched in {count(len(left), 'source')} of {len(sources)} ({names}; "
-             f"{count(sum(len(s.files) for s in left), 'frame')}): fewer than {GROUP_MIN_DISTINCT} distinct frames "
-             "each (a single frame cannot show which edge stays put), so nothing is cut there; give --ego N if "
-             "they show your own vehicle")
-    return {f: (s.estimate.rows, s.estimate.size[1]) for s in sources if s.estimate is not None for f in s.files}
-
-
-def _spread(files: list[Path]) -> list[Path]:
-    """Up to :data:`vcprep.io.EGO_SAMPLES` of ``files``, spread evenly over them (first and last included)."""
-    from vcprep.camera import spread
-    from vcprep.io import EGO_SAMPLES
-
-    return spread(files, EGO_SAMPLES)
-
-
-def rows_at(vehicle: tuple[int, int] | None, height: int) -> int:
-    """The own vehicle's rows ``vehicle`` = (rows, at height) in a frame ``height`` rows high (rounded up)."""
-    if not vehicle or not vehicle[0]:
-        return 0
-    rows, at = vehicle
-    return min(height, int(np.ceil(height * rows / at - 1e-9)))
-
-
-def folder_ego_camera(camera: Camera, files: list[Path], ego: str = "auto",
-                      say: Callable[[str], None] | None = None, warn: Callable[[str], None] | None = None) -> Camera:
-    """``camera`` at the frames' size with its own vehicle's rows (:func:`own_vehicle`: 'auto' looks
-    in up to :data:`vcprep.io.EGO_SAMPLES` frames spread over the folder, as a video's are). The
-    frames' size is the most common among those sampled that the camera takes (a frame of another
-    size, or one that cannot be read, is left to the road, which skips and names it); none: the
-    first frame's error."""
-    from collections import Counter
-
-    from vcprep.camera import ego_rows_from_frame_files
-
-    picks = _spread([Path(f) for f in files])
-    sizes: dict[Path, tuple[int, int]] = {}
-    for f in picks:
-        try:
-            sizes[f] = camera.for_image_size(image_size(f), f).size
-        except VCError:
-            continue
-    if not sizes:
-        return camera.for_image_size(image_size(picks[0]), picks[0])  # raises: no frame of this camera
-    size = Counter(sizes.values()).most_common(1)[0][0]
-    cam = camera.for_image_size(size)
-    same = [f for f in picks if sizes.get(f) == size]
-    return own_vehicle(cam, picks[0].parent, ego, say, lambda: ego_rows_from_frame_files(same, picks[0].parent), warn)
-
-
 def model_vp_rule(data: dict[str, Any], override: Any = None) -> tuple[Any, str]:
     """(the :class:`~vcprep.vp.VPRule` frames are estimated with, where it comes from): ``override``
     (given), else the rule the model's training VPs were found with, else the detector's defaults
@@ -298,7 +151,7 @@ def rectangle_views(jobs: list[Job], camera: Camera | FrameCameras, poses: dict,
     predicted whole, at the training's pixels per degree. The one rectangle rule of ``vctrain
     predict`` (a folder, a video: :class:`~vctrain.predict.frames.FramePredictor`) and a study's
     test stores."""
-    views, seen = [], set()
+    pairs = []
     for j in jobs:
         try:
             cam = camera_of_image(camera, j.image, image_size(j.image))
@@ -307,7 +160,16 @@ def rectangle_views(jobs: list[Job], camera: Camera | FrameCameras, poses: dict,
                 raise
             on_error(j, e)
             continue
-        at = pose_from_vp(cam, poses[j.id].vp) if j.id in poses else (cam.pan, cam.tilt)
+        pairs.append((cam, poses[j.id].vp if j.id in poses else None))
+    return views_of(pairs)
+
+
+def views_of(pairs: Iterable[tuple[Camera, tuple[float, float] | None]]) -> list[tuple[Camera, float, float]]:
+    """:func:`rectangle_views` of frames given as (their camera at their size, the VP they are warped
+    with or None: the camera's average pose)."""
+    views, seen = [], set()
+    for cam, vp in pairs:
+        at = pose_from_vp(cam, vp) if vp is not None else (cam.pan, cam.tilt)
         for pan, tilt in ((cam.pan, cam.tilt), at):
             key = (cam, round(pan, 3), round(tilt, 3))
             if key not in seen:
@@ -373,23 +235,117 @@ def _read(jobs: list[Job]):
             yield job, None, e
 
 
-def _predict_one(fps: dict, predictor: Any, job: Job, img: np.ndarray, camera, views, vp,
-                 vehicle: tuple[int, int] | dict | None = None) -> np.ndarray:
-    """P(road) of ``job``'s decoded image ``img`` (its FramePredictor made once per camera, size and own
-    vehicle; ``vehicle`` a dict: per source, file -> (rows, height))."""
-    size = (img.shape[1], img.shape[0])
-    if hasattr(predictor, "check_frame_size"):  # a graph takes frames of its own size only
-        predictor.check_frame_size(size, job.image)
-    cam = camera_of_image(camera, job.image, size) if camera is not None else None
-    rows = rows_at(vehicle.get(job.image) if isinstance(vehicle, dict) else vehicle, size[1])  # dict: per source
-    fp = fps.get((cam, size, rows))
-    if fp is None:
-        fp = fps[(cam, size, rows)] = FramePredictor(predictor, cam, size, views=views, ego_rows=rows)
-    return fp.predict(img, vp)
+class Road:
+    """P(road) of frames on the one road: one :class:`~vctrain.predict.frames.FramePredictor` per
+    (camera, frame size, own vehicle's rows), made on first use. ``camera``: the frames' (a
+    :class:`~vcprep.camera.FrameCameras` gives each file its own); ``views``: the (camera, pan, tilt)
+    views every frame's rectangle is extended for (:func:`rectangle_views`; None: each predictor's
+    own); ``vehicle``: (rows, at frame height) of the own vehicle a model that reads frames as they
+    are predicts 'not road' on, or file -> that per source (:func:`frames_ego_rows`)."""
+
+    def __init__(self, predictor: Any, camera: Camera | FrameCameras | None, views: list | None = None,
+                 vehicle: tuple[int, int] | dict | None = None):
+        self.predictor, self.camera, self.views, self.vehicle = predictor, camera, views, vehicle
+        self.fps: dict = {}
+
+    def probability(self, img: np.ndarray, vp: tuple[float, float] | None = None,
+                    image: str | Path = "frame") -> np.ndarray:
+        """P(road) float32 (h, w) of the decoded frame ``img`` (BGR) warped at ``vp`` (its road VP in
+        frame pixels; None: the camera's average pose); ``image`` names its file (its calibration in
+        a per-frame folder, its source's own vehicle, errors)."""
+        size = (img.shape[1], img.shape[0])
+        if hasattr(self.predictor, "check_frame_size"):  # a graph takes frames of its own size only
+            self.predictor.check_frame_size(size, image)
+        cam = camera_of_image(self.camera, image, size) if self.camera is not None else None
+        v = self.vehicle
+        rows = rows_at(v.get(image) if isinstance(v, dict) else v, size[1])  # dict: per source
+        fp = self.fps.get((cam, size, rows))
+        if fp is None:
+            fp = self.fps[(cam, size, rows)] = FramePredictor(self.predictor, cam, size, views=self.views,
+                                                              ego_rows=rows)
+        return fp.predict(img, vp)
+
+
+@dataclass
+class RoadPlan:
+    """What a batch of frames is predicted with: the :class:`Road`, which VPs the model takes
+    (``rule``: :func:`within_rule`) and each frame's pose (``poses``: item id ->
+    :class:`vcprep.vp.ItemPose`), and with ``--bev`` its :class:`~vctrain.predict.bev.BevRun` and
+    the poses the bird's-eye view takes."""
+
+    road: Road
+    rule: str
+    poses: dict
+    bev_run: Any = None
+    bev_poses: dict = field(default_factory=dict)
+
+    def vp(self, key: str) -> tuple[float, float] | None:
+        """The road VP frame ``key`` is warped with (None: its camera's average pose)."""
+        return self.poses[key].vp if key in self.poses else None
+
+    def bev_pose(self, key: str) -> tuple:
+        """(vp, status) of frame ``key``'s bird's-eye view, () for its camera's pose."""
+        pose = self.bev_poses.get(key)
+        return (pose.vp, pose.status) if pose else ()
+
+
+def _needs_camera(predictor: Any, camera: Any) -> None:
+    if warps_frames(predictor) and camera is None:
+        raise InputError("a virtual-camera model needs the camera of the images", getattr(predictor, "path", None),
+                         NEEDS_CAMERA)
+
+
+def plan_files(predictor: Any, jobs: list[Job], camera: Camera | FrameCameras | None, within: str = "auto",
+               vp_rule: Any = None, vehicle: tuple[int, int] | dict | None = None, bev: Any = None,
+               on_error: Callable[[Job, VCError], None] | None = None) -> RoadPlan:
+    """The :class:`RoadPlan` of image files ``jobs``: their VPs by ``within`` (:func:`within_rule`)
+    estimated together (:func:`frame_poses`), the rectangle extended once for all of them
+    (:func:`rectangle_views`), ``bev`` (given: :class:`~vctrain.predict.bev.BevOptions`) and its
+    poses; ``on_error(job, error)`` takes a frame that cannot be read (raised where None)."""
+    _needs_camera(predictor, camera)
+    rule = within_rule(predictor, within, camera)
+    poses = frame_poses(predictor, jobs, camera if camera is not None else getattr(predictor, "camera", None), rule,
+                        vp_rule, on_error)
+    bev_run, bev_poses = _bev_poses(predictor, bev, jobs, camera, within, rule, poses, vp_rule, on_error)
+    views = None
+    if extends(predictor):
+        views = rectangle_views([j for j in jobs if rule == "none" or j.id in poses], camera, poses, on_error)
+    return RoadPlan(Road(predictor, camera, views, vehicle), rule, poses, bev_run, bev_poses)
+
+
+def plan_arrays(predictor: Any, frames: list[np.ndarray], camera: Camera | None, within: str = "auto",
+                vp_rule: Any = None, vehicle: tuple[int, int] | None = None, bev: Any = None,
+                vps: list | None = None) -> tuple[RoadPlan, list[str]]:
+    """(:func:`plan_files`' plan, the frames' ids ``frame_000000``, ...) of decoded ``frames`` of one
+    camera, a folder of their files would get: VPs estimated together in order (one sequence;
+    :func:`vcprep.vp.array_poses`, the numbers of the files) or given (``vps``: one (u, v) a frame),
+    one rectangle for all of them."""
+    _needs_camera(predictor, camera)
+    from vcprep.vp import ItemPose, array_poses
+
+    rule = within_rule(predictor, within, camera)
+    cam = camera if camera is not None else getattr(predictor, "camera", None)  # (a graph's own)
+    ids = [f"frame_{i:06d}" for i in range(len(frames))]
+    if vps is not None:
+        poses = {i: ItemPose((float(v[0]), float(v[1])), "given") for i, v in zip(ids, vps)} if rule != "none" else {}
+    else:
+        poses = array_poses(frames, cam, rule, model_vp_rule(getattr(predictor, "data", {}), vp_rule)[0], ids)
+    bev_run, bev_poses = None, {}
+    if bev is not None:
+        from .bev import BevRun
+
+        bev_run = BevRun(bev, cam, within, getattr(predictor, "path", None))
+        bev_poses = poses if bev_run.rule == rule else array_poses(
+            frames, cam, bev_run.rule, model_vp_rule(getattr(predictor, "data", {}), vp_rule)[0], ids)
+    views = None
+    if extends(predictor):
+        views = views_of((cam.for_image_size((f.shape[1], f.shape[0])), poses[i].vp if i in poses else None)
+                         for i, f in zip(ids, frames))
+    return RoadPlan(Road(predictor, camera, views, vehicle), rule, poses, bev_run, bev_poses), ids
 
 
 def _bev_poses(predictor: Any, bev: Any, jobs: list[Job], camera, within: str, rule: str, poses: dict, vp_rule: Any,
-               run: RoadRun) -> tuple[Any, dict]:
+               on_error=None) -> tuple[Any, dict]:
     """(``--bev``'s :class:`~vctrain.predict.bev.BevRun`, each frame's pose for it: the model's
     ``poses`` where it takes the same rule, else found by its own); (None, {}) without ``bev``."""
     if bev is None:
@@ -400,7 +356,26 @@ def _bev_poses(predictor: Any, bev: Any, jobs: list[Job], camera, within: str, r
     bev_run = BevRun(bev, camera, within, jobs[0].image if jobs else None)
     if bev_run.rule == rule:
         return bev_run, poses
-    return bev_run, frame_poses(predictor, jobs, camera, bev_run.rule, vp_rule, run.fail)
+    return bev_run, frame_poses(predictor, jobs, camera, bev_run.rule, vp_rule, on_error)
+
+
+def road_files(plan: RoadPlan, jobs: list[Job], skip: set[str] = frozenset(), progress: bool = True
+               ) -> Iterator[tuple[Job, np.ndarray | None, np.ndarray | None, VCError | None]]:
+    """(job, decoded frame, P(road), None) of each image file of ``jobs`` (those whose file is in
+    ``skip`` left out), in order, through ``plan``'s road; (job, frame or None, None, error) for
+    one that cannot be read or predicted. Read on a thread of its own, :data:`DEPTH` frames ahead."""
+    todo = [j for j in jobs if str(j.image) not in skip]
+    with Prefetch(_read(todo), DEPTH) as frames:
+        for job, img, error in tqdm(frames, total=len(todo), desc="predict", unit="img",
+                                    disable=None if progress else True, leave=False):
+            try:
+                if error is not None:
+                    raise error
+                prob = plan.road.probability(img, plan.vp(job.id), job.image)
+            except VCError as e:
+                yield job, img, None, e
+                continue
+            yield job, img, prob, None
 
 
 def run_road(predictor: Any, images: Iterable[str | Path], out: str | Path,
@@ -423,40 +398,20 @@ def run_road(predictor: Any, images: Iterable[str | Path], out: str | Path,
     t0 = time.perf_counter()
     jobs = collect_images(images, trees=True)  # a tree whose frames repeat names: outputs mirror it
     out = out_dir(out)
-    if warps_frames(predictor) and camera is None:
-        raise InputError("a virtual-camera model needs the camera of the images", None,
-                         NEEDS_CAMERA)
-    rule = within_rule(predictor, within, camera)
     run = RoadRun()
-    poses = frame_poses(predictor, jobs, camera if camera is not None else getattr(predictor, "camera", None), rule,
-                        vp_rule, run.fail)
-    bev_run, bev_poses = _bev_poses(predictor, bev, jobs, camera, within, rule, poses, vp_rule, run)
-    views = None
-    if extends(predictor):
-        views = rectangle_views([j for j in jobs if rule == "none" or j.id in poses], camera, poses, run.fail)
-    bad = {str(f) for f, _ in run.failed}
-    fps: dict = {}
-    todo = [j for j in jobs if str(j.image) not in bad]
-    # read on one thread, the network on this one, written on a third, in order (vctrain.predict.pipeline)
-    writer = Writer(DEPTH)
+    plan = plan_files(predictor, jobs, camera, within, vp_rule, vehicle, bev, run.fail)
+    writer = Writer(DEPTH)  # read on one thread, the network on this one, written on a third, in order
 
     def write(job: Job, prob: np.ndarray, img: np.ndarray) -> None:
-        pose = bev_poses.get(job.id)
-        inset = bev_run.write(out, job.id, prob, job.image, *((pose.vp, pose.status) if pose else ())) \
-            if bev_run is not None else None
+        inset = plan.bev_run.write(out, job.id, prob, job.image, *plan.bev_pose(job.id)) \
+            if plan.bev_run is not None else None
         run.written.append(write_prediction(out, job.id, prob, img if overlay else None, inset)[0])
     try:
-        with Prefetch(_read(todo), DEPTH) as frames:
-            for job, img, error in tqdm(frames, total=len(todo), desc="predict", unit="img",
-                                        disable=None if progress else True, leave=False):
-                vp = poses[job.id].vp if job.id in poses else None
-                try:
-                    if error is not None:
-                        raise error
-                    prob = _predict_one(fps, predictor, job, img, camera, views, vp, vehicle)
-                except VCError as e:
+        with closing(road_files(plan, jobs, {str(f) for f, _ in run.failed}, progress)) as frames:
+            for job, img, prob, error in frames:
+                if error is not None:
                     _remove_outputs(out, job.id)
-                    run.fail(job, e)
+                    run.fail(job, error)
                     continue
                 writer.submit(write, job, prob, img)
                 run.ids.append(job.id)
@@ -466,6 +421,6 @@ def run_road(predictor: Any, images: Iterable[str | Path], out: str | Path,
         raise
     if say is not None and warps_frames(predictor) and run.ids:
         source = model_vp_rule(getattr(predictor, "data", {}), vp_rule)[1]
-        say(geometry_line(_road_geometry(run, poses, fps, camera), source, ego_source))
+        say(geometry_line(_road_geometry(run, plan.poses, plan.road.fps, camera), source, ego_source))
     run.seconds = time.perf_counter() - t0
     return run

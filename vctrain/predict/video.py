@@ -32,9 +32,11 @@ from __future__ import annotations
 import os
 import sys
 from collections import deque
+from contextlib import closing
+from dataclasses import dataclass
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
-from typing import Callable, Iterator
+from typing import Any, Callable, Iterator
 
 import cv2
 import numpy as np
@@ -50,7 +52,8 @@ from .pipeline import DEPTH, Prefetch, Writer
 from .road import ego_rows, model_vp_rule, own_vehicle, within_rule
 from .written import road_mask, tint_road
 
-__all__ = ["check_video_stems", "ego_camera", "predict_video", "draw_overlay", "horizon_segment"]
+__all__ = ["check_video_stems", "ego_camera", "predict_video", "draw_overlay", "horizon_segment", "VideoRoad",
+           "VideoStream", "video_road"]
 
 HORIZON_CYAN, VP_RED = (255, 255, 0), (0, 0, 255)  # BGR
 VP_AHEAD = 1  # per-frame VPs: frames whose estimate runs in a worker thread while earlier frames are predicted
@@ -143,6 +146,83 @@ def _now(fn, *args) -> Future:
     return done
 
 
+@dataclass
+class VideoRoad:
+    """What a video's frames are predicted with (:func:`video_road`): the frame predictor (its camera at
+    the video's size with the own vehicle's rows), the streamed VPs (``vps``, per-frame VPs) or the
+    given ones (``given``, read from the CSV ``mode``), whether the model takes them (``model_vps``;
+    else only ``--bev`` does) and ``--bev``'s run."""
+
+    fp: FramePredictor
+    mode: str
+    vps: StreamingVPs | None = None
+    given: dict | None = None
+    model_vps: bool = True
+    bev_run: Any = None
+
+
+def video_road(predictor, info: VideoInfo, camera: Camera | None, within: str = "auto", ego: str | None = None,
+               progress: bool = True, vp_window: int = 2, vp_rule=None, bev=None,
+               times: StageTimes | None = None) -> VideoRoad:
+    """The :class:`VideoRoad` of the video ``info`` (:func:`predict_video` says what each argument does)."""
+    from vcprep.vp import read_vp_csv
+
+    if hasattr(predictor, "check_frame_size"):  # a graph takes frames of its own size only
+        predictor.check_frame_size(info.size, info.path)
+    cam = _video_camera(predictor, camera, Path(info.path), info, ego, progress)
+    mode = within_rule(predictor, within, cam)
+    bev_run = _bev_run(bev, cam, within, info.path)
+    model_vps, mode = mode != "none", _vp_mode(mode, bev_run)  # (--bev: the VPs its poses need)
+    given = read_vp_csv(mode) if mode not in ("estimate", "none") else None
+    fp = FramePredictor(predictor, cam, info.size, ego_rows=_resize_ego_rows(predictor, cam, info, ego, progress))
+    if times is not None:
+        fp.times = times
+    if mode == "estimate" and fp.camera is None:
+        raise InputError("per-frame VPs need the camera of the video", info.path, "add --camera, or --within none")
+    cfg = model_vp_rule(getattr(predictor, "data", {}), vp_rule)[0].config()
+    vps = StreamingVPs(fp.camera, vp_window, cfg=cfg, times=fp.times) if mode == "estimate" else None
+    return VideoRoad(fp, mode, vps, given, model_vps, bev_run)
+
+
+class VideoStream:
+    """A video's frames on the one road, in order: iterating gives (index, frame or None (undecodable),
+    P(road) or None, the road VP used or None, its status or None) of every frame, the network run in
+    the iterating thread (frames decoded on a thread of their own, VPs estimated ``vp_ahead`` frames
+    ahead on another). ``info`` and ``road`` (:class:`VideoRoad`) are known before the first frame.
+    What ``vctrain predict`` writes of a video and :meth:`vctrain.RoadModel.segment_video` yields."""
+
+    def __init__(self, predictor, video: str | Path, camera: Camera | None, within: str = "auto",
+                 ego: str | None = None, progress: bool = True, vp_window: int = 2, vp_rule=None, bev=None,
+                 times: StageTimes | None = None, vp_ahead: int = VP_AHEAD):
+        self.path = Path(video)
+        self.cap, self.info = open_video(self.path)
+        self.vp_ahead = vp_ahead
+        try:
+            self.road = video_road(predictor, self.info, camera, within, ego, progress, vp_window, vp_rule, bev, times)
+        except BaseException:
+            self.cap.release()
+            raise
+
+    def __iter__(self) -> Iterator[tuple[int, np.ndarray | None, np.ndarray | None, Any, str | None]]:
+        road = self.road
+        pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="vp") \
+            if road.vps is not None and self.vp_ahead else None
+        # decoded on a thread of its own, DEPTH frames ahead (vctrain.predict.pipeline)
+        frames = Prefetch(read_frames(self.cap, self.info, lambda msg: tqdm.write(msg, file=sys.stderr)), DEPTH)
+        try:
+            for i, frame, vp, status in _ordered(frames, road, self.path.stem, pool.submit if pool else _now,
+                                                 self.vp_ahead):
+                prob = None if frame is None else road.fp.predict(frame, vp if road.model_vps else None)
+                yield i, frame, prob, vp, status
+        finally:
+            frames.close()
+            if pool is not None:
+                pool.shutdown(wait=True, cancel_futures=True)
+
+    def close(self) -> None:
+        self.cap.release()
+
+
 def predict_video(predictor, video: str | Path, out: str | Path, camera: Camera | None, within: str = "auto",
                   mask_video: bool = False, overlay: bool = False, progress: bool = True, vp_window: int = 2,
                   times: StageTimes | None = None, ego: str | None = None, vp_ahead: int = VP_AHEAD,
@@ -159,48 +239,23 @@ def predict_video(predictor, video: str | Path, out: str | Path, camera: Camera 
     :class:`vctrain.predict.bev.BevOptions`): each frame's BEV PNGs (in ``OUT/<stem>/``, also with
     ``mask_video``) and road in metres too, its record with ``"frame"``; its VPs streamed as the
     model's are where the model takes none."""
-    from vcprep.vp import read_vp_csv
-
-    video = Path(video)
-    cap, info = open_video(video)
+    stream = VideoStream(predictor, video, camera, within, ego, progress, vp_window, vp_rule, bev, times, vp_ahead)
     try:
-        if hasattr(predictor, "check_frame_size"):  # a graph takes frames of its own size only
-            predictor.check_frame_size(info.size, video)
-        cam = _video_camera(predictor, camera, video, info, ego, progress)
-        mode = within_rule(predictor, within, cam)
-        bev_run = _bev_run(bev, cam, within, video)
-        model_vps, mode = mode != "none", _vp_mode(mode, bev_run)  # (--bev: the VPs its poses need)
-        given = None
-        if mode not in ("estimate", "none"):
-            given = read_vp_csv(mode)
-        fp = FramePredictor(predictor, cam, info.size, ego_rows=_resize_ego_rows(predictor, cam, info, ego, progress))
-        if times is not None:
-            fp.times = times
-        if mode == "estimate" and fp.camera is None:
-            raise InputError("per-frame VPs need the camera of the video", video, "add --camera, or --within none")
-        cfg = model_vp_rule(getattr(predictor, "data", {}), vp_rule)[0].config()
-        vps = StreamingVPs(fp.camera, vp_window, cfg=cfg, times=fp.times) if mode == "estimate" else None
-        out = _out_folder(out, video.stem, mask_video)
-        pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="vp") if vps is not None and vp_ahead else None
-        sink = frames = None
+        out = _out_folder(out, stream.path.stem, mask_video)
+        sink = None
         try:
-            sink = _FrameSink(fp, out, video.stem, info, mask_video, overlay, progress, bev_run, model_vps)
-            # decoded on a thread of its own, DEPTH frames ahead (vctrain.predict.pipeline)
-            frames = Prefetch(read_frames(cap, info, lambda msg: tqdm.write(msg, file=sys.stderr)), DEPTH)
-            _stream(frames, sink, vps, given, mode, pool.submit if pool is not None else _now, vp_ahead)
-            frames.close()
+            sink = _FrameSink(stream.road.fp, out, stream.path.stem, stream.info, mask_video, overlay, progress,
+                              stream.road.bev_run)
+            with closing(iter(stream)) as frames:
+                for i, frame, prob, vp, status in frames:
+                    sink.emit(i, frame, prob, vp, status)
             return sink.close()
         except BaseException:
-            if frames is not None:
-                frames.close()
             if sink is not None:
                 sink.abort()
             raise
-        finally:
-            if pool is not None:
-                pool.shutdown(wait=True, cancel_futures=True)
     finally:
-        cap.release()
+        stream.close()
 
 
 def _bev_run(bev, cam: Camera | None, within: str, video: Path):
@@ -271,11 +326,11 @@ class _FrameSink:
     written of a frame is written on the :class:`~vctrain.predict.pipeline.Writer`'s thread, in order."""
 
     def __init__(self, fp: FramePredictor, out: Path, stem: str, info: VideoInfo, mask_video: bool,
-                 overlay: bool, progress: bool, bev=None, model_vps: bool = True):
+                 overlay: bool, progress: bool, bev=None):
         from .predictor import write_prediction
 
         self.fp, self.stem, self.frame_dir, self._write_prediction = fp, stem, out / stem, write_prediction
-        self.bev, self.model_vps, self.source = bev, model_vps, info.path  # (model_vps: the model takes the VPs)
+        self.bev, self.source = bev, info.path
         self.outs: list[_VideoOut] = []
         self.written: list[Path] = []
         self.mv = self.ov = None
@@ -289,15 +344,11 @@ class _FrameSink:
             raise
         self.bar = tqdm(total=info.frames or None, desc=stem, unit="frame", disable=None if progress else True,
                         leave=False)
-        self.held: dict[int, np.ndarray | None] = {}
-        self.order: list[int] = []
         self.writer = Writer(DEPTH)
 
-    def emit(self, i: int, vp, status: str | None = None) -> None:
-        """Predict held frame ``i`` with ``vp`` and hand it to the writer (an undecodable frame: the
+    def emit(self, i: int, frame: np.ndarray | None, prob: np.ndarray | None, vp, status: str | None = None) -> None:
+        """Hand frame ``i`` and its P(road) ``prob`` to the writer (an undecodable frame, None: the
         videos repeat their last frame)."""
-        frame = self.held.pop(i)
-        prob = None if frame is None else self.fp.predict(frame, vp if self.model_vps else None)
         self.writer.submit(self._write, i, frame, prob, vp, status)
 
     def _write(self, i: int, frame: np.ndarray | None, prob: np.ndarray | None, vp, status: str | None = None) -> None:
@@ -318,13 +369,6 @@ class _FrameSink:
                 self.ov.write(inset(shown) if inset is not None else shown)
         self.bar.update(1)
 
-    def release(self, final: list[tuple[int, object]]) -> None:
-        """Predict, in order, every held frame up to the last whose VP is final."""
-        done = dict(final)
-        while self.order and (self.held[self.order[0]] is None or self.order[0] in done):
-            i = self.order.pop(0)
-            self.emit(i, *((done[i].vp, done[i].status) if i in done else (None,)))
-
     def close(self) -> list[Path]:
         """Finish the writes and the videos; the paths written (mask PNGs or mask video, then the
         overlay video)."""
@@ -342,32 +386,46 @@ class _FrameSink:
             o.abort()
 
 
-def _stream(frames: Iterator[tuple[int, np.ndarray | None]], sink: _FrameSink, vps: StreamingVPs | None, given,
-            mode: str, submit: Callable[..., Future], vp_ahead: int) -> None:
-    """Every frame into ``sink``, in order: at once with a given VP (``given``, read from the CSV
-    ``mode``) or none; with per-frame VPs (``vps``) once its VP is final. The VP of the frame just
-    read is estimated (``submit``: in another thread) while the frames before it are predicted and
-    written, ``vp_ahead`` frames ahead (the estimate is pure: the same numbers, in the same order)."""
+def _ordered(frames: Iterator[tuple[int, np.ndarray | None]], road: VideoRoad, stem: str,
+             submit: Callable[..., Future], vp_ahead: int) -> Iterator[tuple[int, np.ndarray | None, Any, str | None]]:
+    """(index, frame, vp, status) of every frame, in order: at once with a given VP (``road.given``,
+    read from the CSV ``road.mode``) or none; with per-frame VPs (``road.vps``) once its VP is final.
+    The VP of the frame just read is estimated (``submit``: in another thread) while the frames
+    before it are predicted and written, ``vp_ahead`` frames ahead (the estimate is pure: the same
+    numbers, in the same order)."""
+    vps, held, order = road.vps, {}, []
     ahead: deque[tuple[int, Future]] = deque()
     for i, frame in frames:
-        sink.held[i] = frame
         if vps is None:
-            vp = None
-            if given is not None and frame is not None:
-                key = f"{sink.stem}_{i:06d}"
-                if key not in given:
-                    raise InputError(f"no VP row for frame id '{key}'", mode, "add an 'id,u,v' row per frame")
-                vp = given[key]
-            sink.emit(i, vp)
+            yield i, frame, _given_vp(road, stem, i, frame), None
             continue
-        sink.order.append(i)
+        held[i] = frame
+        order.append(i)
         if frame is not None:
             ahead.append((i, submit(vps.estimate, frame)))
         while len(ahead) > vp_ahead:
             j, est = ahead.popleft()
-            sink.release(vps.push(j, estimate=est.result()))
+            yield from _release(held, order, vps.push(j, estimate=est.result()))
     if vps is not None:
         while ahead:
             j, est = ahead.popleft()
-            sink.release(vps.push(j, estimate=est.result()))
-        sink.release(vps.flush())
+            yield from _release(held, order, vps.push(j, estimate=est.result()))
+        yield from _release(held, order, vps.flush())
+
+
+def _given_vp(road: VideoRoad, stem: str, i: int, frame: np.ndarray | None):
+    """Frame ``i``'s VP from the CSV (None: no CSV, or an undecodable frame)."""
+    if road.given is None or frame is None:
+        return None
+    key = f"{stem}_{i:06d}"
+    if key not in road.given:
+        raise InputError(f"no VP row for frame id '{key}'", road.mode, "add an 'id,u,v' row per frame")
+    return road.given[key]
+
+
+def _release(held: dict, order: list[int], final: list[tuple[int, object]]):
+    """Every held frame up to the last whose VP is final, in order: (index, frame, vp, status)."""
+    done = dict(final)
+    while order and (held[order[0]] is None or order[0] in done):
+        i = order.pop(0)
+        yield (i, held.pop(i), *((done[i].vp, done[i].status) if i in done else (None, None)))
