@@ -170,18 +170,21 @@ def load_cameras(spec: str | Path, sample_image: str | Path | None = None,
 
 
 def camera_from_spec(spec: "str | Path | Camera", sample_image: str | Path | None = None, per_frame: bool = True,
-                     frames=None, needed: bool = True, say=None) -> "Camera | FrameCameras | None":
+                     frames=None, needed: bool = True, say=None,
+                     size: tuple[int, int] | None = None) -> "Camera | FrameCameras | None":
     """Whatever ``--camera`` takes, loaded (:func:`load_cameras`): a :class:`Camera` as it is, a
     preset, a camera file (calibration files carry no image size: ``sample_image``'s is used), a
     folder of per-frame calibration files where ``per_frame`` (:class:`FrameCameras`), or
     ``estimate``: the camera estimated from ``frames`` (image files, videos (a sample of their
     frames) or decoded arrays; :mod:`vcprep.camera.estimate`), said through ``say`` (given).
     ``needed`` False: the spec is only checked (a file or preset must load; nothing is estimated)
-    and None is returned."""
+    and None is returned. ``size`` (w, h): the frames' size, where no ``sample_image`` gives it (a
+    calibration file's camera is for it)."""
     if isinstance(spec, Camera):
         return spec if needed else None
     if str(spec) != "estimate":
-        cam = load_cameras(spec, sample_image, per_frame=per_frame)
+        cam = load_cameras(spec, sample_image, per_frame=per_frame) if size is None or preset_name(spec) is not None \
+            or Path(str(spec)).is_dir() else load_camera(str(spec), image_size=size)
         return cam if needed else None
     if not needed:
         return None

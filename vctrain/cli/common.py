@@ -14,6 +14,7 @@ from vcprep.errors import InputError, one_of
 from vcprep.labels import LABEL_FORMAT_HELP
 
 from vctrain import __version__
+from ..shipped import MODELS, SHIPPED, resolve_model, shipped_models  # noqa: F401 (the commands' names)
 from ..training.config import AdaptSettings, TrainConfig
 
 app = typer.Typer(rich_markup_mode=None, pretty_exceptions_enable=False, add_completion=False, no_args_is_help=True,
@@ -89,33 +90,9 @@ TRAIN = TrainConfig()     # the defaults of fit's options, as TrainConfig declar
 ADAPT = AdaptSettings()  # ... and of adapt's
 
 
-# the models that ship with the repository (models/<name>/*.pt), reachable by name from any folder;
-# 'shipped' names the one the README and `make demo` use
-MODELS = Path(__file__).resolve().parents[2] / "models"
-SHIPPED = "road-multicamera"
-
-
-def shipped_models() -> dict[str, Path]:
-    """name -> model file of every model under :data:`MODELS` ('shipped' first: :data:`SHIPPED`'s)."""
-    found = {d.name: sorted(d.glob("*.pt"))[0] for d in sorted(MODELS.glob("*")) if any(d.glob("*.pt"))}
-    return {"shipped": found[SHIPPED], **found} if SHIPPED in found else found
-
-
 def model_arg(arg: Optional[Path]) -> Optional[Path]:
-    """A MODEL argument: a file that exists as given; else a shipped model's name ('road-multicamera',
-    'shipped'; :func:`shipped_models`); a missing .pt/.onnx file or unknown name is refused naming the
-    shipped model's path and its names (anything else is left to the loader)."""
-    if arg is None or arg.exists():
-        return arg
-    models = shipped_models()
-    if str(arg) in models:
-        return models[str(arg)]
-    if not models or arg.suffix.lower() not in ("", ".pt", ".onnx"):
-        return arg
-    here = f"the shipped model is {models['shipped']}, named {SHIPPED} or shipped; " if "shipped" in models else ""
-    what = "ONNX graph" if arg.suffix.lower() == ".onnx" else "checkpoint"
-    raise InputError(f"{what} not found", arg, here + one_of(str(arg), models,
-                                                             what="give a .pt written by 'vctrain fit' or a name:"))
+    """A MODEL argument (:func:`vctrain.shipped.resolve_model`: a file, or a shipped model's name)."""
+    return resolve_model(arg)
 
 
 def path_or_json(out: Path, doc: Any, as_json: bool) -> None:
