@@ -144,3 +144,30 @@ def write_synthetic_dataset(folder: Path, cam: Camera, n: int = 3, poses=None, b
         cv2.imwrite(str(img_dir / f"seq_{i:04d}.png"), img)
         cv2.imwrite(str(lab_dir / f"seq_{i:04d}.png"), ids)
     return img_dir, lab_dir
+
+
+@pytest.fixture(scope="session")
+def tiny_vc_model(tmp_path_factory) -> Path:
+    """A width-8 virtual-camera network fitted for 3 epochs on 6 rendered CamVid-camera frames in the
+    virtual camera at scale 0.02 (110x56), completed projectively (its quality does not matter: the
+    tests that use it compare two paths through the same network)."""
+    from vcprep.dataset import list_dataset
+    from vcprep.io import write_png
+    from vcprep.labels import get_label_format
+    from vcprep.store import WarpSettings, warp_dataset
+    from vctrain.training import TrainConfig, fit
+
+    root = tmp_path_factory.mktemp("video_model")
+    cam = PRESETS["camvid"].resized(0.1)
+    (root / "src/images").mkdir(parents=True)
+    (root / "src/labels").mkdir()
+    for i in range(6):
+        img, lab = render_road(cam, RoadScene(offset=-1.5 + 0.6 * i, texture_seed=i), pan=-4.0 + 1.6 * i)
+        write_png(root / "src/images" / f"t_{i}.png", img)
+        write_png(root / "src/labels" / f"t_{i}.png", lab)
+    fmt = get_label_format("values:road=1;ignore=255")
+    warp_dataset(list_dataset(root / "src/images", root / "src/labels", fmt), root / "store",
+                 WarpSettings(cam, PRESETS["virtual"], 0.02, fmt, completion="projective", progress=False))
+    fit(TrainConfig(stores=[str(root / "store")], out=str(root / "model.pt"), base_width=8, epochs=3, batch_size=3,
+                    val_fraction=0, progress=False, device="cpu"))
+    return root / "model.pt"

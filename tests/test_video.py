@@ -14,19 +14,15 @@ import torch
 from typer.testing import CliRunner
 
 from conftest import assert_one_error_line, run_cli
-from vcprep.store import WarpSettings, warp_dataset
-from vcprep.dataset import list_dataset
 from vcprep.camera import PRESETS, camera_to_yaml
 from vcprep.errors import InputError
 from vcprep.warp import pose_from_vp, vp_from_pose
 from vcprep.io import read_image, write_png
-from vcprep.labels import get_label_format
 from vcprep.synthetic import RoadScene, render_road
 from vcprep.vp import estimate_files
 from vctrain.cli import app
 from vctrain.predict import FramePredictor, StreamingVPs
 from vctrain.predict import Predictor, predict_images
-from vctrain.training import TrainConfig, fit
 
 runner = CliRunner()
 torch.set_num_threads(1)
@@ -34,24 +30,10 @@ N_FRAMES = 8
 
 
 @pytest.fixture(scope="module")
-def model(tmp_path_factory) -> Path:
-    """A width-8 network fitted for 3 epochs on 6 rendered CamVid-camera frames in the virtual
-    camera at scale 0.02 (110x56), completed projectively (its quality does not matter here:
-    every test compares two paths through the same network)."""
-    root = tmp_path_factory.mktemp("video_model")
-    cam = PRESETS["camvid"].resized(0.1)
-    (root / "src/images").mkdir(parents=True)
-    (root / "src/labels").mkdir()
-    for i in range(6):
-        img, lab = render_road(cam, RoadScene(offset=-1.5 + 0.6 * i, texture_seed=i), pan=-4.0 + 1.6 * i)
-        write_png(root / "src/images" / f"t_{i}.png", img)
-        write_png(root / "src/labels" / f"t_{i}.png", lab)
-    fmt = get_label_format("values:road=1;ignore=255")
-    warp_dataset(list_dataset(root / "src/images", root / "src/labels", fmt), root / "store",
-                 WarpSettings(cam, PRESETS["virtual"], 0.02, fmt, completion="projective", progress=False))
-    fit(TrainConfig(stores=[str(root / "store")], out=str(root / "model.pt"), base_width=8, epochs=3, batch_size=3,
-                    val_fraction=0, progress=False, device="cpu"))
-    return root / "model.pt"
+def model(tiny_vc_model) -> Path:
+    """The suite's tiny virtual-camera model (conftest: a width-8 network, 3 epochs, 110x56): every
+    test here compares two paths through the same network."""
+    return tiny_vc_model
 
 
 @pytest.fixture(scope="module")

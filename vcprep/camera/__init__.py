@@ -17,7 +17,8 @@ from .estimate import (ASSUMED_HEIGHT, ASSUMED_HFOV, ROAD_WIDTH, estimate_camera
 from .files import (camera_from_dict, camera_to_yaml, read_camera_yaml, read_cityscapes_camera, read_kitti_calib,
                     read_kitti_entries)
 from .pinhole import Camera, PRESETS, scale_matrix
-from .sources import FrameCameras, PRESET_PREFIX, camera_from_spec, camera_of_image, load_camera, load_cameras, preset_name
+from .sources import FrameCameras, PRESET_PREFIX, camera_of_image, load_camera, load_cameras, preset_name
+from .spec import camera_from_spec
 from .virtual import (DESIGN_ABOVE, DESIGN_PAN_RANGE, DESIGN_TILT_RANGE, EXTENTS, STORE_PIXELS, design_virtual_camera,
                       extend_canvas, same_camera_other_canvas, scale_for_pixels)
 

@@ -11,7 +11,7 @@ import typer
 
 from vcprep import __version__
 from ..camera.pinhole import PRESETS
-from ..camera.sources import camera_from_spec
+from ..camera.spec import camera_from_spec
 from ..camera.estimate import estimated_line  # noqa: F401 (the commands' name for it)
 from ..cliutil import count, ensure_parent, err
 from ..dataset import collect_images
