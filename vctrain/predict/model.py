@@ -192,7 +192,7 @@ class RoadModel:
         ``bev``: also the bird's-eye view and the road in metres (:attr:`Segmentation.metres`) on
         ``grid`` (a :class:`vcprep.bev.BevGrid`; default the KITTI benchmark's) along a
         ``corridor`` metres wide."""
-        return self.segment_frames([frame], camera, bev=bev, within=within, vps=None if vp is None else [vp],
+        return self.segment_frames([check_frame(frame)], camera, bev=bev, within=within, vps=None if vp is None else [vp],
                                    ego=ego, grid=grid, corridor=corridor)[0]
 
     def segment_frames(self, frames: Sequence[np.ndarray], camera: Any = None, *, bev: bool = False,
