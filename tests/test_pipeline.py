@@ -27,7 +27,7 @@ from vcprep.synthetic import RoadScene, render_road
 from conftest import assert_one_error_line, run_cli
 from test_video import _decode
 
-from vctrain.predict import Predictor, predict_inputs
+from vctrain.predict import PredictOptions, Predictor, predict_inputs
 from vctrain.predict.pipeline import Prefetch, Writer
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -115,7 +115,8 @@ def test_threaded_video_and_folder_give_the_sequential_masks_in_order(drive, tmp
     p = Predictor(SHIPPED, "cpu", "torch")
     frames = _decode(drive / "drive.mp4")
     ref = [np.where(p.road_probability(f) >= 0.5, 255, 0).astype(np.uint8) for f in frames]
-    r = predict_inputs(SHIPPED, [drive / "drive.mp4"], tmp_path / "v", overlay=True, progress=False, engine="torch")
+    r = predict_inputs(PredictOptions(SHIPPED, (drive / "drive.mp4",), tmp_path / "v", overlay=True, progress=False,
+                                      engine="torch"))
     masks = [m for m in r.written if m.name.endswith("_mask.png")]
     assert [m.name for m in masks] == [f"drive_{i:06d}_mask.png" for i in range(len(frames))]
     for m, want in zip(masks, ref):
@@ -123,7 +124,8 @@ def test_threaded_video_and_folder_give_the_sequential_masks_in_order(drive, tmp
     assert len(_decode(tmp_path / "v/drive_overlay.mp4")) == len(frames)
     files = sorted((drive / "frames").iterdir())
     ref = [np.where(p.road_probability(read_image(f).array) >= 0.5, 255, 0).astype(np.uint8) for f in files]
-    r = predict_inputs(SHIPPED, [drive / "frames"], tmp_path / "f", overlay=True, progress=False, engine="torch")
+    r = predict_inputs(PredictOptions(SHIPPED, (drive / "frames",), tmp_path / "f", overlay=True, progress=False,
+                                      engine="torch"))
     assert [m.name for m in r.written] == [f"{f.stem}_mask.png" for f in files]
     for m, want in zip(r.written, ref):
         assert np.array_equal(read_image(m).array, want), m.name
@@ -140,7 +142,7 @@ def test_a_failing_write_ends_the_run_with_its_error_and_no_partial_video(drive,
     out = tmp_path / "o"
     (out / "drive/drive_000005_prob.png").mkdir(parents=True)
     with pytest.raises(OSError) as e:
-        predict_inputs(SHIPPED, [drive / "drive.mp4"], out, overlay=True, progress=False, engine="torch")
+        predict_inputs(PredictOptions(SHIPPED, (drive / "drive.mp4",), out, overlay=True, progress=False, engine="torch"))
     assert "drive_000005_prob.png" in str(e.value)
     assert sorted(p.name for p in out.iterdir()) == ["drive"]  # no overlay video, finished or temporary
     assert sorted(p.name for p in (out / "drive").glob("*_mask.png")) == [f"drive_{i:06d}_mask.png" for i in range(5)]

@@ -80,7 +80,7 @@ def split_quality(name: str, files: list[Path], labels: Path, fmt: str, wd: Path
     from vcprep.labels import get_label_format
     from vctrain.deploy import export_onnx
     from vctrain.evaluate import evaluate_folder
-    from vctrain.predict import predict_inputs
+    from vctrain.predict import PredictOptions, predict_inputs
 
     size = Counter(image_size(f) for f in files).most_common(1)[0][0]
     files = [f for f in files if image_size(f) == size]  # a graph takes one size
@@ -98,7 +98,7 @@ def split_quality(name: str, files: list[Path], labels: Path, fmt: str, wd: Path
     row["int8_export"] = export_onnx(MODEL, None, graphs["int8_graph"], size=size, int8=True)["int8"]
     for key, path, engine in (("torch", MODEL, "torch"), ("float_graph", graphs["float_graph"], "auto"),
                               ("int8_graph", graphs["int8_graph"], "auto")):
-        predict_inputs(path, [folder], wd / name / key, progress=False, engine=engine)
+        predict_inputs(PredictOptions(path, (folder,), wd / name / key, progress=False, engine=engine))
         row[f"iou_{key}"] = 100 * evaluate_folder(wd / name / key, labels, get_label_format(fmt), progress=False)[0]["iou"]
     same = total = 0
     from vcprep.io import read_image

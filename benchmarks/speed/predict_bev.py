@@ -35,7 +35,6 @@ import statistics
 import sys
 import tempfile
 import time
-from functools import partial
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
@@ -48,15 +47,14 @@ MODES = ("off", "nominal", "vp")
 
 def run_once(src: Path, out: Path, mode: str, overlay: bool, engine: str) -> float:
     """Seconds of one ``vctrain predict`` (in this process) of ``src`` in ``mode``."""
-    from vcprep.cli import camera_for
-    from vctrain.predict import predict_inputs
+    from vctrain.predict import PredictOptions, predict_inputs
     from vctrain.predict.bev import BevOptions
 
     shutil.rmtree(out, ignore_errors=True)
     bev = None if mode == "off" else BevOptions(emit=lambda record: None, spec="camvid")
     t0 = time.perf_counter()
-    predict_inputs(MODEL, [src], out, partial(camera_for, "camvid", quiet=True), overlay=overlay, progress=False,
-                   engine=engine, within="none" if mode == "nominal" else "auto", bev=bev)
+    predict_inputs(PredictOptions(MODEL, (src,), out, "camvid", overlay=overlay, progress=False, engine=engine,
+                                  within="none" if mode == "nominal" else "auto", bev=bev))
     return time.perf_counter() - t0
 
 

@@ -181,18 +181,13 @@ def e2e(path: Path, engine: str, src: Path, out: Path, overlay: bool, predictor=
     export) is not timed, for any engine alike."""
     import shutil
 
-    from vctrain.predict import inputs, predict_inputs
+    from vctrain.predict import PredictOptions, predict_inputs
 
     shutil.rmtree(out, ignore_errors=True)
-    load = inputs._predictor
-    if predictor is not None:
-        inputs._predictor = lambda *a, **k: predictor
-    try:
-        t0 = time.perf_counter()
-        r = predict_inputs(path, [src], out, None, overlay=overlay, progress=False, engine=engine)
-        return time.perf_counter() - t0, r.engine
-    finally:
-        inputs._predictor = load
+    t0 = time.perf_counter()
+    r = predict_inputs(PredictOptions(path, (src,), out, overlay=overlay, progress=False, engine=engine),
+                       predictor=predictor)
+    return time.perf_counter() - t0, r.engine
 
 
 def speed(args, wd: Path) -> list[dict]:

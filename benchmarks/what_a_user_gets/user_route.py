@@ -41,7 +41,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.measure.data import (BIN, CS_FORMAT, DATA, KITTI, LUMS_FORMAT, ROOT, SHARED_DATA, link_files, require_data, run)
 from benchmarks.measure.report import machine, results_dir, today
-from vctrain.predict.frames import DEFAULT_BEYOND
+from vctrain.predict import DEFAULT_BEYOND
 
 SETS = {  # name: (camera file, images, labels, label format)
     "cityscapes": (SHARED_DATA / "cityscapes_pix2pix" / "camera.yaml", SHARED_DATA / "cityscapes_pix2pix" / "images",

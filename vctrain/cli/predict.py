@@ -10,6 +10,7 @@ import typer
 
 from vcprep.cliutil import corridor_option, ensure_parent, err, range_option, res_option
 
+from ..predict.settings import BEYOND, DEFAULT_BEYOND, DEFAULT_ENGINE, GRAPH_ENGINE
 from .common import app, model_arg, path_or_json, pin_threads, threads_option
 
 
@@ -19,69 +20,74 @@ EGO_HELP = ("the own vehicle (bonnet, dashboard) in a video or a folder of one c
             "BDD100K- or CamVid-style name prefix), none (no search: the camera as given) or N bottom rows; default: auto for a virtual-camera "
             "model, none for a model that reads frames as they are (the shipped model: give --ego auto or N "
             "for a dashcam)")
+ENGINE_HELP = ("what runs the network. A .pt model: torch (the engine studies score, a study's masks bit for bit), "
+               "onnx / openvino (the same network exported in memory, in onnxruntime / OpenVINO: faster on a CPU, "
+               "P(road) within 3e-6 of torch's, so a pixel at P = 0.5 can differ) or auto (openvino, else onnx, "
+               f"where installed); default {DEFAULT_ENGINE}. A graph (.onnx): openvino, onnx or auto; default "
+               f"{GRAPH_ENGINE}. Said on stderr and recorded in OUT/predict.json")
+BEYOND_RULES = {"hybrid": "the network on the grown rectangle, P(road) where the ray from the road VP leaves the "
+                          "training rectangle beyond it",
+                "extend": "the network's own values there",
+                "rays": "the network on the training rectangle alone, rays beyond it"}
+BEYOND_HELP = ("a virtual-camera model, frame pixels outside its training rectangle (a camera lower, steeper or "
+               "wider than the training one): " + ", ".join(f"{r} ({BEYOND_RULES[r]})" for r in BEYOND)
+               + f"; default {DEFAULT_BEYOND}")
+BEV_HELP = ("also the road in a bird's-eye view and in metres (needs --camera): OUT/<stem>_bev_prob.png (0-255, "
+            "unseen 0) and <stem>_bev_mask.png (the values of 'vcprep bev': 0 not road, 1 road, 255 unseen), far row "
+            "first; stdout: one JSON line per frame (id, free_m, width_m, area_m2, pose) instead of the paths; an "
+            "inset in the overlays. Each frame's pose from its road VP (--within none: the camera's nominal pose)")
+CAMERA_HELP = ("camera of the images: preset or file (.yaml, KITTI .txt, Cityscapes .json), or a folder of per-frame "
+               "calibration files matched by stem, or 'estimate' (from these images, as 'vcprep camera estimate' "
+               "does); a .yaml camera's ego_rows (its own vehicle) are never warped; the prediction there continues "
+               "the scene above them")
+OVERLAY_HELP = ("also write OUT/<stem>_overlay.png (road in green); for a video OUT/<stem>_overlay.mp4 (road in green; "
+                "the horizon and the road VP of each frame too, only with --camera)")
+WITHIN_HELP = ("per-image VP correction: auto (as the model was trained), estimate, a CSV id,u,v, or none; with --bev "
+               "also the BEV's poses (auto: each frame's own road VP)")
+
+# predict's arguments and options, declared once each (the command's signature names them)
+MODEL_ARG = typer.Argument(None, help="model written by 'vctrain fit', or a shipped model's name from any folder: "
+                                      "shipped (= road-multicamera) (left out with --prior)")
+IMAGES_ARG = typer.Argument(None, help="image files or folders, or video files (.mp4 .avi .mkv .mov ...)")
+OUT_OPT = typer.Option(..., "--out", "-o", help="output folder (created)")
+CAMERA_OPT = typer.Option(None, "--camera", "-c", help=CAMERA_HELP)
+PRIOR_OPT = typer.Option(None, "--prior", help="no model: segment with the geometric prior written by 'vcprep prior' "
+                                               "(p_g >= 0.5, back-projected)")
+STORE_OPT = typer.Option(None, "--store", help="predict every item of this store instead of IMAGES")
+DEVICE_OPT = typer.Option("auto", "--device", help="auto, cpu, cuda, cuda:N")
+ENGINE_OPT = typer.Option(None, "--engine", help=ENGINE_HELP)
+KEEP_STORE_OPT = typer.Option(None, "--keep-store", help="keep the warped images in this store")
+WITHIN_OPT = typer.Option("auto", "--within", help=WITHIN_HELP)
+OVERLAY_OPT = typer.Option(False, "--overlay", help=OVERLAY_HELP)
+MASK_VIDEO_OPT = typer.Option(False, "--mask-video", help="a video's masks as one lossless video OUT/<stem>_mask.mkv "
+                                                          "instead of a PNG per frame")
+VP_RANGE_OPT = typer.Option(None, "--vp-range", help="estimated VPs: searched and accepted within PAN TILT degrees of "
+                                                     "the camera's pose (default: the rule the model was trained "
+                                                     "with, e.g. a study's pan_range tilt_range; said on stderr)")
+VP_SMOOTH_OPT = typer.Option(None, "--vp-smooth", min=0, help="estimated VPs: median over N frames either side of a "
+                                                              "sequence (default: the model's rule for images, 2 for "
+                                                              "a video)")
+VP_SEQUENCES_OPT = typer.Option(None, "--vp-sequences", help="estimated VPs: a frame's sequence (its fallback and "
+                                                             "smoothing) is its file name up to the first '_' (name) "
+                                                             "or its folder (folder: IDD's drives); default: the "
+                                                             "model's rule")
+EGO_OPT = typer.Option(None, "--ego", help=EGO_HELP)
+BEYOND_OPT = typer.Option(None, "--beyond", help=BEYOND_HELP)
+BEV_OPT = typer.Option(False, "--bev", help=BEV_HELP)
+QUIET_OPT = typer.Option(False, "--quiet", "-q", help="no progress bar")
 
 
 @app.command("predict")
 def predict_cmd(
-    checkpoint: Optional[Path] = typer.Argument(None, help="model written by 'vctrain fit', or a shipped "
-                                                         "model's name from any folder: shipped (= road-multicamera) "
-                                                         "(left out with --prior)"),
-    images: Optional[List[Path]] = typer.Argument(None, help="image files or folders, or video files (.mp4 .avi .mkv .mov ...)"),
-    out: Path = typer.Option(..., "--out", "-o", help="output folder (created)"),
-    camera: Optional[str] = typer.Option(None, "--camera", "-c",
-                                         help="camera of the images: preset or file (.yaml, KITTI .txt, Cityscapes .json), "
-                                              "or a folder of per-frame calibration files matched by stem, or "
-                                              "'estimate' (from these images, as 'vcprep camera estimate' does); a .yaml "
-                                              "camera's ego_rows (its own vehicle) are never warped; the prediction there "
-                                              "continues the scene above them"),
-    prior: Optional[Path] = typer.Option(None, "--prior", help="no model: segment with the geometric prior written by "
-                                                                "'vcprep prior' (p_g >= 0.5, back-projected)"),
-    store: Optional[Path] = typer.Option(None, "--store", help="predict every item of this store instead of IMAGES"),
-    device: str = typer.Option("auto", "--device", help="auto, cpu, cuda, cuda:N"),
-    engine: Optional[str] = typer.Option(None, "--engine", help="what runs a .pt model's network: torch (the default: "
-                                                         "the engine studies score, a study's masks bit for bit), onnx / "
-                                                         "openvino (the same network exported in memory, in onnxruntime / "
-                                                         "OpenVINO: faster on a CPU, P(road) within 3e-6 of torch's, so a "
-                                                         "pixel at P = 0.5 can differ) or auto (openvino, else onnx, where "
-                                                         "installed); a graph (.onnx) runs in openvino or onnx (default: "
-                                                         "auto); said on stderr and recorded in OUT/predict.json"),
-    keep_store: Optional[Path] = typer.Option(None, "--keep-store", help="keep the warped images in this store"),
-    within: str = typer.Option("auto", "--within", help="per-image VP correction: auto (as the model was trained), "
-                                                         "estimate, a CSV id,u,v, or none; with --bev also the "
-                                                         "BEV's poses (auto: each frame's own road VP)"),
-    overlay: bool = typer.Option(False, "--overlay", help="also write OUT/<stem>_overlay.png (road in green); for a "
-                                                           "video OUT/<stem>_overlay.mp4 (road in green; the horizon "
-                                                           "and the road VP of each frame too, only with --camera)"),
-    mask_video: bool = typer.Option(False, "--mask-video", help="a video's masks as one lossless video "
-                                                                "OUT/<stem>_mask.mkv instead of a PNG per frame"),
-    vp_range: Optional[Tuple[float, float]] = typer.Option(None, "--vp-range", help="estimated VPs: searched and "
-                                                          "accepted within PAN TILT degrees of the camera's pose "
-                                                          "(default: the rule the model was trained with, e.g. a "
-                                                          "study's pan_range tilt_range; said on stderr)"),
-    vp_smooth: Optional[int] = typer.Option(None, "--vp-smooth", min=0, help="estimated VPs: median over N frames "
-                                                                             "either side of a sequence (default: the "
-                                                                             "model's rule for images, 2 for a video)"),
-    vp_sequences: Optional[str] = typer.Option(None, "--vp-sequences", help="estimated VPs: a frame's sequence (its "
-                                               "fallback and smoothing) is its file name up to the first '_' (name) "
-                                               "or its folder (folder: IDD's drives); default: the model's rule"),
-    ego: Optional[str] = typer.Option(None, "--ego", help=EGO_HELP),
-    beyond: Optional[str] = typer.Option(None, "--beyond", help="a virtual-camera model, frame pixels outside its "
-                                         "training rectangle (a camera lower, steeper or wider than the training "
-                                         "one): hybrid (default: the network on the grown rectangle, P(road) where "
-                                         "the ray from the road VP leaves the training rectangle beyond it), extend "
-                                         "(the network's own values there) or rays (the network on the training "
-                                         "rectangle alone, rays beyond it)"),
-    bev: bool = typer.Option(False, "--bev", help="also the road in a bird's-eye view and in metres (needs --camera): "
-                             "OUT/<stem>_bev_prob.png (0-255, unseen 0) and <stem>_bev_mask.png (the values of "
-                             "'vcprep bev': 0 not road, 1 road, 255 unseen), far row first; stdout: one JSON line "
-                             "per frame (id, free_m, width_m, area_m2, pose) instead of the paths; an inset in the "
-                             "overlays. "
-                             "Each frame's pose from its road VP (--within none: the camera's nominal pose)"),
-    corridor: float = corridor_option("with --bev: "),
-    grid_range: Optional[str] = range_option("with --bev: "),
-    res: float = res_option("with --bev: "),
-    threads: Optional[int] = threads_option(),
-    quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar"),
+    checkpoint: Optional[Path] = MODEL_ARG, images: Optional[List[Path]] = IMAGES_ARG, out: Path = OUT_OPT,
+    camera: Optional[str] = CAMERA_OPT, prior: Optional[Path] = PRIOR_OPT, store: Optional[Path] = STORE_OPT,
+    device: str = DEVICE_OPT, engine: Optional[str] = ENGINE_OPT, keep_store: Optional[Path] = KEEP_STORE_OPT,
+    within: str = WITHIN_OPT, overlay: bool = OVERLAY_OPT, mask_video: bool = MASK_VIDEO_OPT,
+    vp_range: Optional[Tuple[float, float]] = VP_RANGE_OPT, vp_smooth: Optional[int] = VP_SMOOTH_OPT,
+    vp_sequences: Optional[str] = VP_SEQUENCES_OPT, ego: Optional[str] = EGO_OPT, beyond: Optional[str] = BEYOND_OPT,
+    bev: bool = BEV_OPT, corridor: float = corridor_option("with --bev: "),
+    grid_range: Optional[str] = range_option("with --bev: "), res: float = res_option("with --bev: "),
+    threads: Optional[int] = threads_option(), quiet: bool = QUIET_OPT,
 ):
     """Predict road in original camera images with the checkpoint's own preprocessing.
 
@@ -101,7 +107,8 @@ def predict_cmd(
     stderr says which VPs, own vehicle and rectangle were used. --bev (every model kind, a resize
     model too, given --camera) adds each frame's road in metres: free_m (how far the --corridor
     ahead is road), width_m at 10, 20 and 30 m (null where not all in view), area_m2 and pose, as
-    'vcprep bev' measures them (docs/bev.md).
+    'vcprep bev' measures them (docs/bev.md). From Python: vctrain.load(MODEL).segment(frame, camera)
+    (docs/api.md), the same masks.
 
     \b
     Example:
@@ -115,21 +122,17 @@ def predict_cmd(
       vctrain predict runs/vc.pt --camera camvid drive.mp4 --overlay --out preds/drive
       vctrain predict models/road-multicamera/road.pt --camera camvid drive.mp4 --bev --overlay --out preds/drive
     """
-    from functools import partial
-
-    from vcprep.cli import camera_for
-
-    from ..predict.inputs import predict_inputs
+    from ..predict.inputs import PredictOptions, predict_inputs
 
     pin_threads(threads)
-    frames_camera = partial(camera_for, camera, quiet=quiet) if camera is not None else None
-    checkpoint = model_arg(checkpoint) if prior is None else checkpoint
-    bev_options = _bev_options(camera, corridor, grid_range, res) if bev else None
-    result = predict_inputs(checkpoint, images, out, frames_camera, prior=prior, store=store, device=device,
-                            keep_store=keep_store, within=within, overlay=overlay, mask_video=mask_video, ego=ego,
-                            progress=not quiet, vp_range=vp_range, vp_smooth=vp_smooth, vp_sequences=vp_sequences,
-                            say=None if quiet else (lambda msg: err(f"{out}: {msg}")), beyond=beyond, engine=engine,
-                            bev=bev_options)
+    options = PredictOptions(
+        model=model_arg(checkpoint) if prior is None else checkpoint, images=tuple(images or ()), out=out,
+        camera=camera, prior=prior, store=store, device=device, engine=engine, keep_store=keep_store, within=within,
+        overlay=overlay, mask_video=mask_video, ego=ego, vp_range=vp_range, vp_smooth=vp_smooth,
+        vp_sequences=vp_sequences, beyond=beyond, bev=_bev_options(camera, corridor, grid_range, res) if bev else None,
+        progress=not quiet)
+    result = predict_inputs(options, say=None if quiet else (lambda msg: err(f"{out}: {msg}")),
+                            note=None if quiet else err)
     _report(result, out, quiet, paths=not bev)
 
 

@@ -27,11 +27,11 @@ from torch import nn
 
 from vcprep.errors import InputError
 
+from ..predict.settings import ENGINES  # noqa: F401 (declared once there; importable from here)
 from .runtime import compiled, installed, require, runtime_name
 
 __all__ = ["ENGINES", "OPSET", "OnnxNetwork", "choose_engine", "engine_name", "trace_onnx"]
 
-ENGINES = ("auto", "torch", "onnx", "openvino")
 RUNTIME = {"onnx": "onnxruntime", "openvino": "openvino"}  # an exported engine -> the runtime it runs in
 OPSET = 17  # the ONNX opset of every graph vcseg writes
 

@@ -6,18 +6,36 @@ the prior or a graph, with one set of rules for VPs, the rectangle and bad frame
 :mod:`.video` (a video's frames on the same road, streamed), :mod:`.predictor` (:class:`Predictor`:
 a checkpoint on one image; the store path for stores that exist), :mod:`.inputs` (what ``vctrain
 predict`` was given, routed), :mod:`.model` (:func:`load`, :class:`RoadModel`: the Python face,
-docs/api.md).
+docs/api.md), :mod:`.settings` (the settings declared once: ``--beyond``, ``--engine``).
 """
 from __future__ import annotations
 
-from .frames import FramePredictor, StageTimes, StreamingVPs
-from .inputs import predict_inputs
-from .model import RoadModel, Segmentation, check_frame, load
-from .predictor import Predictor, predict_frames, predict_images, warp_like_training
-from .road import run_road
-from .video import ego_camera, predict_video
-from .written import write_prediction
+import importlib
+from typing import Any
 
-__all__ = ["FramePredictor", "StageTimes", "StreamingVPs", "predict_inputs", "Predictor", "predict_images",
-           "predict_frames", "run_road", "warp_like_training", "write_prediction", "ego_camera", "predict_video",
-           "load", "RoadModel", "Segmentation", "check_frame"]
+# Each name's module. The face loads a module on first use of one of its names (PEP 562), as
+# vctrain.training's does: the commands take their help texts' defaults from settings.py (no torch).
+_HOME = {
+    "settings": ("BEYOND", "DEFAULT_BEYOND", "ENGINES", "DEFAULT_ENGINE", "GRAPH_ENGINE"),
+    "frames": ("FramePredictor", "StageTimes", "StreamingVPs"),
+    "inputs": ("PredictOptions", "predict_inputs"),
+    "model": ("load", "RoadModel", "Segmentation", "check_frame"),
+    "predictor": ("Predictor", "predict_frames", "predict_images", "warp_like_training"),
+    "road": ("run_road",),
+    "video": ("ego_camera", "predict_video"),
+    "written": ("write_prediction",),
+}
+_MODULE_OF = {name: module for module, names in _HOME.items() for name in names}
+__all__ = [name for names in _HOME.values() for name in names]
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _MODULE_OF:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{_MODULE_OF[name]}"), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

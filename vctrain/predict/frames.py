@@ -11,15 +11,16 @@ PNG holds, bit for bit) and the back-projection (:func:`back_to_frame`).
 What a frame pixel that lands outside the training rectangle gets is the model's ``beyond`` rule
 (:data:`BEYOND`; ``vctrain predict --beyond``; measured by benchmarks/other_cameras/low_camera.py):
 
-* ``extend`` (the default; what a study scores and an exported graph holds): the rectangle grown
+* ``extend``: the rectangle grown
   to hold the frame's lower half at its pose (:func:`vcprep.camera.virtual.extend_canvas`; a
   folder's frames share the rectangle of :func:`vctrain.predict.road.rectangle_views`; a later
   video frame whose pose does not fit grows it), the network run on rows no training image filled;
 * ``rays``: the network runs on the training rectangle only; such a pixel takes P(road) where the
   ray from the road VP through it leaves the rectangle (:func:`vcprep.warp.backproject.backproject_rays`:
   the projective completion's rule run backwards; road edges are lines through the VP);
-* ``hybrid``: the network on the grown rectangle (its context), such a pixel by the rays from the
-  training rectangle's edge within it.
+* ``hybrid`` (the default, :data:`vctrain.predict.settings.DEFAULT_BEYOND`; what a study scores): the
+  network on the grown rectangle (its context), such a pixel by the rays from the training
+  rectangle's edge within it.
 
 The geometric prior (an image of the training rectangle) gives such pixels 0.
 
@@ -49,13 +50,11 @@ from vcprep.vp import VPConfig, VPResult, apply_reliability, estimate_vp, smooth
 from vcprep.camera import extend_canvas
 
 from ..training.data import vp_in_store
+from .settings import BEYOND, DEFAULT_BEYOND
 
 __all__ = ["StageTimes", "FramePredictor", "StreamingVPs", "warps_frames", "reads_road_vps", "BEYOND",
            "DEFAULT_BEYOND", "extends", "back_to_frame"]
 
-# what a virtual-camera model predicts for frame pixels outside its training rectangle (module docstring)
-BEYOND = ("extend", "rays", "hybrid")
-DEFAULT_BEYOND = "hybrid"
 
 # the fix of every "this model needs the camera of the frames" error: an uncalibrated camera is estimated
 NEEDS_CAMERA = "add --camera: a preset, a calibration file, or 'estimate' (from these frames, no calibration needed)"

@@ -7,13 +7,17 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any, Callable, Optional, Sequence
 
 from vcprep.progress import count, rate_text
-from vcprep.errors import InputError, one_of
+from vcprep.camera import camera_from_spec
+from vcprep.errors import InputError
 
-__all__ = ["CameraFor", "Predicted", "predict_inputs"]
+from .model import engine_used, open_predictor, set_beyond
+
+__all__ = ["CameraFor", "Predicted", "PredictOptions", "predict_inputs"]
 
 # the camera of the frames from --camera: camera_for(sample_image, per_frame=..., frames=...) -> Camera
 # (or FrameCameras); the caller's, so that an estimated camera is said where the caller says things
@@ -51,106 +55,108 @@ class Predicted:
         return f"{what} predicted ({self.source}{engine}); {rate_text(self.frames, self.seconds, 'frame')}"
 
 
-def predict_inputs(checkpoint: Optional[Path], images: Optional[Sequence[Path]], out: Path,
-                   camera_for: Optional[CameraFor] = None, prior: Optional[Path] = None, store: Optional[Path] = None,
-                   device: str = "auto", keep_store: Optional[Path] = None, within: str = "auto",
-                   overlay: bool = False, mask_video: bool = False, ego: Optional[str] = None,
-                   progress: bool = True, vp_range: Optional[tuple[float, float]] = None,
-                   vp_smooth: Optional[int] = None, vp_sequences: Optional[str] = None,
-                   say: Optional[Callable[[str], None]] = None, beyond: Optional[str] = None,
-                   engine: str | None = None, bev: Any = None) -> Predicted:
-    """``vctrain predict``: ``checkpoint`` (a ``.pt`` model or an ``.onnx`` graph; with ``prior``
-    it is the first image) on ``images`` (files, folders, videos) or every item of ``store``.
-    ``camera_for`` (None: no --camera) gives the frames' camera. ``vp_range`` (pan, tilt degrees),
-    ``vp_smooth`` (frames either side) and ``vp_sequences`` ('name', 'folder') change the rule
-    estimated VPs follow (default: the model's, :func:`vctrain.predict.road.model_vp_rule`); ``say``
-    (given) hears which VPs, own vehicle and rectangle image files were warped with. ``beyond``
-    (a virtual-camera model only): the rule for frame pixels outside its training rectangle
-    (:data:`vctrain.predict.frames.BEYOND`; None: the default, extend). ``engine`` runs a ``.pt``
-    model's network (:data:`vctrain.deploy.engine.ENGINES`; 'auto': OpenVINO, else onnxruntime, on the
-    CPU where installed) and a graph's (None or 'auto': the fastest installed; 'onnx', 'openvino');
-    the prior runs in numpy; the summary line says which,
-    and ``predict.json`` records it. ``bev`` (given: :class:`vctrain.predict.bev.BevOptions`): every
-    frame's bird's-eye view and road in metres too (it needs ``camera_for``, or a graph's own camera).
+@dataclass(frozen=True)
+class PredictOptions:
+    """Everything ``vctrain predict`` was asked, one field per option (the defaults are the command's;
+    ``vctrain predict --help`` says what each does)."""
+
+    model: Optional[Path] = None          # a .pt, an exported .onnx or a shipped name (with prior: an image)
+    images: tuple = ()                    # image files, folders, videos
+    out: Path = Path("preds")
+    camera: Optional[str] = None          # --camera: a preset, a file, a per-frame folder, 'estimate'
+    prior: Optional[Path] = None          # --prior: the geometric prior instead of a model
+    store: Optional[Path] = None          # --store: every item of this store instead of images
+    device: str = "auto"
+    engine: Optional[str] = None          # None: torch for a .pt, the fastest runtime for a graph
+    keep_store: Optional[Path] = None
+    within: str = "auto"
+    overlay: bool = False
+    mask_video: bool = False
+    ego: Optional[str] = None
+    vp_range: Optional[tuple] = None      # (pan, tilt) degrees
+    vp_smooth: Optional[int] = None
+    vp_sequences: Optional[str] = None
+    beyond: Optional[str] = None          # None: vctrain.predict.frames.DEFAULT_BEYOND
+    bev: Any = None                       # --bev: a vctrain.predict.bev.BevOptions
+    progress: bool = True
+
+    @property
+    def source(self) -> Path:
+        """What predicts (the prior or the model), as errors and predict.json name it."""
+        return self.prior if self.prior is not None else self.model
+
+
+def predict_inputs(options: PredictOptions, say: Optional[Callable[[str], None]] = None,
+                   note: Optional[Callable[[str], None]] = None, predictor: Any = None) -> Predicted:
+    """``vctrain predict`` (:class:`PredictOptions`): a ``.pt`` model, an ``.onnx`` graph or the prior
+    on image files, folders and videos, or on every item of a store; writes the masks, returns what
+    was done (:class:`Predicted`). ``say`` (given) hears which VPs, own vehicle and rectangle image
+    files were warped with; ``note`` (given) hears an estimated camera's line; ``predictor``: the
+    model already loaded (a benchmark's, so that its load is not timed). Estimated VPs follow the
+    model's rule (:func:`vctrain.predict.road.model_vp_rule`) changed by ``vp_range``, ``vp_smooth``
+    and ``vp_sequences``; the summary line and ``predict.json`` say which engine ran the network.
     Bad combinations raise :class:`InputError` before anything is predicted."""
-    if prior is not None:
-        if checkpoint is not None and checkpoint.suffix.lower() == ".pt":
-            raise InputError("give either a model or --prior, not both", checkpoint, "drop one of them")
-        images = [checkpoint, *(images or [])] if checkpoint is not None else images  # all positionals are images
-    elif checkpoint is None:
-        raise InputError("no model given", None, "give MODEL.pt, or --prior prior.npy to segment with the prior")
+    opts = _checked(options)
     from vcprep.io import is_video
 
     from .video import check_video_stems
 
-    if mask_video and not any(is_video(p) for p in images or []):
-        raise InputError("--mask-video is for videos", None, "give a video file, or drop --mask-video")
-    if store is None and not images:
-        raise InputError("nothing to predict", None, "give image files/folders, or --store STORE")
-    if store is not None and images:
-        raise InputError("give either IMAGES or --store, not both", store, "run predict twice")
-    graph = prior is None and checkpoint.suffix.lower() == ".onnx"  # an exported graph: its camera is inside
-    if graph and store is not None:
-        raise InputError("an exported graph takes the camera's own frames, not a store", store,
-                         "give the original frames (IMAGES)")
-    videos = check_video_stems([p for p in images or [] if is_video(p)])
-    images = [p for p in images or [] if not is_video(p)]
-    predictor = _predictor(checkpoint, prior, device, engine)
-    engine_used = _engine_used(predictor)  # said in the summary line (Predicted.line)
-    if beyond is not None:
-        _set_beyond(predictor, beyond, checkpoint if prior is None else prior)
-    if bev is not None and camera_for is None and getattr(predictor, "camera", None) is None:
+    videos = check_video_stems([p for p in opts.images if is_video(p)])
+    images = [p for p in opts.images if not is_video(p)]
+    predictor = predictor or open_predictor(opts.source, opts.device, opts.engine, prior=opts.prior is not None)
+    engine = engine_used(predictor)  # said in the summary line (Predicted.line)
+    if opts.beyond is not None:
+        set_beyond(predictor, opts.beyond, opts.source)
+    if opts.bev is not None and opts.camera is None and getattr(predictor, "camera", None) is None:
         from .bev import BEV_NEEDS_CAMERA
 
-        raise InputError("--bev needs the frames' camera", checkpoint if prior is None else prior, BEV_NEEDS_CAMERA)
-    if store is None:  # (frames: a study's candidate model takes stores only, said before any frame is read)
+        raise InputError("--bev needs the frames' camera", opts.source, BEV_NEEDS_CAMERA)
+    if opts.store is None:  # (frames: a study's candidate model takes stores only, said before any frame is read)
         from .frames import refuse_mixed
 
         refuse_mixed(predictor)
-    existed, poses = Path(out).exists(), {}
-    bev = _keeping_poses(bev, poses)
+    camera_for = partial(camera_from_spec, opts.camera, say=note) if opts.camera is not None else None
+    out, existed = Path(opts.out), Path(opts.out).exists()
     try:
-        result = _predict_all(predictor, prior, images, videos, out, camera_for, store, keep_store, within, overlay,
-                              mask_video, ego, progress, vp_range, vp_smooth, vp_sequences, say, bev)
-        result.engine = engine_used
+        result = _predict_all(opts, predictor, images, videos, camera_for, say)
+        result.engine = engine
     except BaseException:
         if not existed:
-            _remove_empty(Path(out))
+            _remove_empty(out)
         raise
     if not existed and not result.written:
-        _remove_empty(Path(out))
+        _remove_empty(out)
     elif result.written:
         from ..evaluate import record_predictions
 
-        record_predictions(Path(out), prior if prior is not None else checkpoint, result.masks, engine_used,
-                           inputs=[str(p) for p in [*videos, *images, *([store] if store else [])]], poses=poses)
-        if poses and say is not None:
-            from .bev import poses_line
-
-            say(poses_line(poses))
+        record_predictions(out, opts.source, result.masks, engine)
     return result
 
 
-def _keeping_poses(bev, poses: dict):
-    """``--bev``'s options, each frame's BEV pose also kept in ``poses`` (for predict.json: eval --bev takes them)."""
-    if bev is None:
-        return None
-    from .bev import recording
+def _checked(opts: PredictOptions) -> PredictOptions:
+    """``opts`` with every positional of a ``--prior`` run an image, and its bad combinations refused."""
+    from dataclasses import replace
 
-    return recording(bev, poses)
+    from vcprep.io import is_video
 
-
-def _set_beyond(predictor: Any, beyond: str, path: Path) -> None:
-    """``--beyond``: checked, and given to a virtual-camera model (the only kind it concerns)."""
-    from .frames import BEYOND
-
-    if beyond not in BEYOND:
-        raise InputError(f"unknown --beyond '{beyond}'", None, one_of(beyond, BEYOND))
-    if getattr(predictor, "beyond_rule", None) is None or getattr(predictor, "mode", None) != "virtual" \
-            or getattr(predictor, "takes_frames", False):
-        raise InputError("--beyond is for a virtual-camera model (.pt); a resize model, the prior and an "
-                         "exported graph (rays, inside it) have no choice to make", path, "drop --beyond")
-    predictor.beyond_rule = beyond
+    model, images = opts.model, tuple(opts.images or ())
+    if opts.prior is not None:
+        if model is not None and Path(model).suffix.lower() == ".pt":
+            raise InputError("give either a model or --prior, not both", model, "drop one of them")
+        images, model = ((Path(model), *images) if model is not None else images), None  # all positionals are images
+    elif model is None:
+        raise InputError("no model given", None, "give MODEL.pt, or --prior prior.npy to segment with the prior")
+    opts = replace(opts, model=model, images=images)
+    if opts.mask_video and not any(is_video(p) for p in images):
+        raise InputError("--mask-video is for videos", None, "give a video file, or drop --mask-video")
+    if opts.store is None and not images:
+        raise InputError("nothing to predict", None, "give image files/folders, or --store STORE")
+    if opts.store is not None and images:
+        raise InputError("give either IMAGES or --store, not both", opts.store, "run predict twice")
+    if opts.prior is None and Path(model).suffix.lower() == ".onnx" and opts.store is not None:
+        raise InputError("an exported graph takes the camera's own frames, not a store", opts.store,
+                         "give the original frames (IMAGES)")  # (its camera is inside)
+    return opts
 
 
 def _remove_empty(out: Path) -> None:
@@ -165,41 +171,38 @@ def _remove_empty(out: Path) -> None:
         out.rmdir()
 
 
-def _predict_all(predictor, prior, images, videos, out, camera_for, store, keep_store, within, overlay, mask_video,
-                 ego, progress, vp_range, vp_smooth, vp_sequences, say, bev=None) -> Predicted:
+def _predict_all(opts: PredictOptions, predictor, images: list[Path], videos: list[Path],
+                 camera_for: Optional[CameraFor], say) -> Predicted:
     """:func:`predict_inputs` once its inputs are checked: the videos, the store, the image files."""
     from .frames import StageTimes
     from .video import predict_video
 
-    rule = _vp_rule(predictor, vp_range, vp_smooth, vp_sequences)
-    written, t0, times = [], time.perf_counter(), StageTimes()
-    if videos:
-        for v in videos:  # 'estimate': from a sample of the video's own frames (its overlay draws the horizon)
-            vcam = camera_for(None, per_frame=False, frames=[v]) if camera_for is not None else None
-            written += predict_video(predictor, v, out, vcam, within=within, mask_video=mask_video, overlay=overlay,
-                                     progress=progress, ego=ego, times=times, vp_rule=rule, bev=bev,
-                                     **({"vp_window": vp_smooth} if vp_smooth is not None else {}))
+    rule = _vp_rule(predictor, opts.vp_range, opts.vp_smooth, opts.vp_sequences)
+    written, t0, times, out = [], time.perf_counter(), StageTimes(), opts.out
+    for v in videos:  # 'estimate': from a sample of the video's own frames (its overlay draws the horizon)
+        vcam = camera_for(None, per_frame=False, frames=[v]) if camera_for is not None else None
+        written += predict_video(predictor, v, out, vcam, within=opts.within, mask_video=opts.mask_video,
+                                 overlay=opts.overlay, progress=opts.progress, ego=opts.ego, times=times, vp_rule=rule,
+                                 bev=opts.bev, **({"vp_window": opts.vp_smooth} if opts.vp_smooth is not None else {}))
     n_images = 0
-    if store is not None:
+    if opts.store is not None:
         from vcprep.store import Store
 
         from .predictor import predict_store
 
-        opened = Store.open(store)
-        written = predict_store(predictor, opened, out, progress=progress, overlay=overlay,
-                                bev=_store_bev(bev, opened, camera_for, within))
+        opened = Store.open(opts.store)
+        written = predict_store(predictor, opened, out, progress=opts.progress, overlay=opts.overlay,
+                                bev=_store_bev(opts.bev, opened, camera_for, opts.within))
         n_images = len(written)
-    failed, masks = [], [p for p in written if Path(p).name.endswith("_mask.png")]  # a video's frames
-    masks = list(written) if store is not None else masks
+    failed, masks = [], list(written) if opts.store is not None else []
     if images:
-        run = _predict_image_files(predictor, images, out, camera_for, keep_store, within, overlay, progress,
-                                   ego, rule, say, bev)
+        run = _predict_image_files(opts, predictor, images, camera_for, rule, say)
         written += run.written
         masks += run.written
         failed = run.failed
         n_images = len(run.written) + len(failed)
-    return Predicted(written, n_images if images or store else None, len(videos), _source(predictor, prior), failed,
-                     times.frames + n_images - len(failed), time.perf_counter() - t0, masks)
+    return Predicted(written, n_images if images or opts.store else None, len(videos), _source(predictor, opts.prior),
+                     failed, times.frames + n_images - len(failed), time.perf_counter() - t0, masks)
 
 
 def _store_bev(bev, store, camera_for: Optional[CameraFor], within: str):
@@ -225,41 +228,6 @@ def _source(predictor, prior: Optional[Path]) -> str:
         source += (f"; {count(predictor.beyond, 'frame')} with a VP beyond the graph's pose range ({pan:g}, {tilt:g} deg):"
                    " its rectangle holds less of them than vctrain predict's, export with a larger --pose-range")
     return source
-
-
-def _predictor(checkpoint: Optional[Path], prior: Optional[Path], device: str, engine: str | None = None):
-    """The prior's predictor (``prior`` given), an exported graph's (``.onnx``) or the checkpoint's
-    model on ``device`` through ``engine`` (None: torch for a checkpoint, the fastest runtime installed
-    for a graph)."""
-    if prior is None and checkpoint.suffix.lower() == ".onnx":
-        from ..deploy.runtime import OnnxPredictor
-
-        if engine == "torch":
-            raise InputError("an exported graph runs in OpenVINO or onnxruntime, not PyTorch", checkpoint,
-                             "drop --engine torch, or give the .pt model")
-        return OnnxPredictor(checkpoint, runtime=engine)
-    if prior is not None:
-        from ..adapt import PriorPredictor
-
-        return PriorPredictor(prior)
-    from .predictor import Predictor
-
-    return Predictor(checkpoint, device, engine or "torch")
-
-
-def _engine_used(predictor) -> str:
-    """What runs the network, as stderr and predict.json say it ('' for the prior: no network)."""
-    from ..deploy.engine import engine_name
-    from ..deploy.runtime import runtime_name
-
-    if getattr(predictor, "takes_frames", False):
-        return f"{runtime_name(predictor.runtime)}, the graph{' (int8)' if predictor.info.get('int8') else ''}"
-    kind = getattr(predictor, "engine", None)
-    if kind is None:
-        return ""
-    device = str(predictor.device)
-    return engine_name(kind) + (", the network exported in memory" if kind != "torch" else "") + \
-        (f" on {device}" if device != "cpu" else "")
 
 
 def _vp_rule(predictor, vp_range: Optional[tuple[float, float]], vp_smooth: Optional[int],
@@ -291,51 +259,58 @@ def _needs_no_camera(predictor) -> bool:
     return not reads_road_vps(predictor)
 
 
-def _predict_image_files(predictor, images: Sequence[Path], out: Path, camera_for: Optional[CameraFor],
-                         keep_store: Optional[Path], within: str, overlay: bool, progress: bool,
-                         ego: Optional[str] = None, vp_rule: Any = None, say: Optional[Callable[[str], None]] = None,
-                         bev: Any = None):
+def _predict_image_files(opts: PredictOptions, predictor, images: Sequence[Path], camera_for: Optional[CameraFor],
+                         vp_rule: Any = None, say: Optional[Callable[[str], None]] = None):
     """Image files and folders: their camera from ``camera_for`` (a virtual-camera model needs
-    one; with one camera, its own vehicle found from the frames unless the camera states it: ``ego``
-    as for a video; a resize model cuts it only when ``ego`` asks), then
+    one; with one camera, its own vehicle found from the frames unless the camera states it:
+    ``opts.ego`` as for a video; a resize model cuts it only when ``ego`` asks), then
     :func:`vctrain.predict.predictor.predict_frames` (the one road for a frame) with ``vp_rule``
-    (None: the model's); ``say`` hears what the frames were warped with; ``bev``: as run_road takes it."""
+    (None: the model's); ``say`` hears what the frames were warped with."""
     from vcprep.camera import Camera
-    from vcprep.progress import err
     from vcprep.dataset import collect_images
 
     from .frames import NEEDS_CAMERA, reads_road_vps, warps_frames
     from .predictor import predict_frames
-    from .road import folder_ego_camera, frames_ego_rows
 
-    cam, ego_source, rows = None, "", None
-    if camera_for is not None:  # checked even where the model needs none: a typo is never silent
-        jobs = collect_images(images, trees=True)
-        needed = bev is not None or not _needs_no_camera(predictor)  # (--bev: the road in metres needs it)
-        cam = camera_for(jobs[0].image, frames=[j.image for j in jobs], needed=needed)
     if camera_for is None and warps_frames(predictor):
         raise InputError("a virtual-camera model needs the camera of the images", predictor.path, NEEDS_CAMERA)
     if camera_for is None and reads_road_vps(predictor):
         raise InputError("this model reads each frame's road vanishing point (VP channel): it needs the camera of "
                          "the images", predictor.path, NEEDS_CAMERA)
-    files = [j.image for j in collect_images(images, trees=True)]
+    cam, files = None, [j.image for j in collect_images(images, trees=True)]
+    if camera_for is not None:  # checked even where the model needs none: a typo is never silent
+        needed = opts.bev is not None or not _needs_no_camera(predictor)  # (--bev: the road in metres needs it)
+        cam = camera_for(files[0], frames=files, needed=needed)
+    if opts.ego not in (None, "none", "auto") and cam is not None and not isinstance(cam, Camera):
+        raise InputError("--ego N needs one camera; per-frame calibration files give the frames' cameras",
+                         files[0], "write ego_rows in a camera file, or drop --ego")
+    cam, rows, ego_source = _files_vehicle(predictor, cam, files, opts.ego, opts.progress)
+    return predict_frames(predictor, images, opts.out, cam, progress=opts.progress, keep_store=opts.keep_store,
+                          overlay=opts.overlay, within=opts.within, vp_rule=vp_rule, say=say, ego_source=ego_source,
+                          vehicle=rows, bev=opts.bev)
+
+
+def _files_vehicle(predictor, cam, files: list[Path], ego: Optional[str], progress: bool):
+    """(the camera, the own vehicle's rows a model that reads frames as they are cuts, where they come
+    from) of one folder's frames (:func:`vctrain.predict.vehicle.folder_ego_camera`, :func:`frames_ego_rows`)."""
+    from vcprep.camera import Camera
+    from vcprep.progress import err
+
+    from .frames import reads_road_vps
+    from .road import folder_ego_camera, frames_ego_rows
+
     tell = (lambda msg: err(f"{files[0].parent}: {msg}")) if progress else None
     warn = lambda msg: err(f"{files[0].parent}: warning: {msg}")  # noqa: E731
     one = cam if isinstance(cam, Camera) else None
-    if ego not in (None, "none", "auto") and cam is not None and one is None:
-        raise InputError("--ego N needs one camera; per-frame calibration files give the frames' cameras",
-                         files[0], "write ego_rows in a camera file, or drop --ego")
     if _reads_frames_as_they_are(predictor) and ego not in (None, "none"):  # asked for: its own vehicle cut
         rows = frames_ego_rows(one, files, ego, tell, warn)
-        ego_source = f"--ego {ego}" if ego != "auto" else "the camera's ego_rows" if cam and cam.ego_rows else ""
-    elif reads_road_vps(predictor) and isinstance(cam, Camera):  # one camera's frames: its own vehicle, as a video's
+        return cam, rows, f"--ego {ego}" if ego != "auto" else "the camera's ego_rows" if cam and cam.ego_rows else ""
+    if reads_road_vps(predictor) and one is not None:  # one camera's frames: its own vehicle, as a video's
         ego = ego or "auto"
-        stated = cam.ego_rows or cam.ego_stated  # (an explicit 'ego_rows: 0': none, and no search)
-        cam = folder_ego_camera(cam, files, ego, tell, warn)
-        ego_source = (f"--ego {ego}" if ego not in ("auto", "none") else "the camera's ego_rows" if stated
-                      else "found from the frames" if cam.ego_rows else "")
-    return predict_frames(predictor, images, out, cam, progress=progress, keep_store=keep_store, overlay=overlay,
-                          within=within, vp_rule=vp_rule, say=say, ego_source=ego_source, vehicle=rows, bev=bev)
+        cam = folder_ego_camera(one, files, ego, tell, warn)
+        return cam, None, (f"--ego {ego}" if ego not in ("auto", "none") else "the camera's ego_rows" if one.ego_rows
+                           else "found from the frames" if cam.ego_rows else "")
+    return cam, None, ""
 
 
 def _reads_frames_as_they_are(predictor) -> bool:

@@ -29,6 +29,7 @@ from vcprep.errors import InputError
 from ..shipped import resolve_model
 from .bev import BevMeasure, BevOptions
 from .frames import reads_road_vps, refuse_mixed, warps_frames
+from .settings import DEFAULT_ENGINE, GRAPH_ENGINE
 from .road import plan_arrays
 from .written import road_mask
 
@@ -95,14 +96,14 @@ def open_predictor(model: str | Path, device: str = "auto", engine: str | None =
         if engine == "torch":
             raise InputError("an exported graph runs in OpenVINO or onnxruntime, not PyTorch", path,
                              "drop --engine torch, or give the .pt model")
-        return OnnxPredictor(path, runtime=engine)
+        return OnnxPredictor(path, runtime=engine or GRAPH_ENGINE)
     if prior:
         from ..adapt import PriorPredictor
 
         return PriorPredictor(path)
     from .predictor import Predictor
 
-    return Predictor(path, device, engine or "torch")
+    return Predictor(path, device, engine or DEFAULT_ENGINE)
 
 
 def engine_used(predictor) -> str:

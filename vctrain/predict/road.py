@@ -7,9 +7,9 @@ all of them:
 
 * which VPs the frames get (:func:`within_rule`): the model's own rule for ``--within auto``;
 * the virtual camera's rectangle: the training's, and beyond it the model's rule
-  (:mod:`vctrain.predict.frames`; ``extend``, the default: the rectangle extended once for every
-  frame of the folder at the pose it is warped with, :func:`rectangle_views`, so all frames share
-  one rectangle);
+  (:mod:`vctrain.predict.frames`; ``extend`` and ``hybrid``, the default: the rectangle extended
+  once for every frame of the folder at the pose it is warped with, :func:`rectangle_views`, so all
+  frames share one rectangle);
 * a frame that cannot be read or predicted is skipped: its outputs are removed, the other frames
   are still predicted, and :class:`RoadRun` names it (``vctrain predict`` says it on stderr and
   exits 1); a frame that cannot be written (a full disk) ends the run with its error.
