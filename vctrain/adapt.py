@@ -62,7 +62,11 @@ class PriorPredictor:
     beyond_rule = None  # p_g is an image of one rectangle: images are warped into it, 0 outside it
 
     mode = "virtual"
-    vp_channel = False
+    vp_channel = ray_channels = takes_frames = False  # (vctrain.predict.kinds.RoadPredictor)
+    camera = engine = None
+
+    def check_frame_size(self, size: tuple[int, int], name: str | Path | None = None) -> None:
+        """Frames of any size are taken (warped into the prior's rectangle)."""
 
     def __init__(self, prior: str | Path):
         self.path = Path(prior)

@@ -126,6 +126,8 @@ class OnnxPredictor:
     back-projection are inside the graph)."""
 
     takes_frames = True
+    beyond_rule = None                    # (rays, inside the graph; vctrain.predict.kinds.RoadPredictor)
+    vp_channel = ray_channels = False
 
     def __init__(self, path: str | Path, threads: int = 0, runtime: str | None = None):
         self.path = Path(path)
@@ -146,6 +148,7 @@ class OnnxPredictor:
         self.vp_input = "vp" in info["inputs"]
         self.camera = camera_from_dict(info["camera"], self.path)
         self.mode = info["mode"]
+        self.data: dict = {}  # (no checkpoint: the VP rule is the detector's)
         self.beyond = 0  # frames predicted with a VP beyond the graph's pose range (beyond_range)
 
     def beyond_range(self, vp: tuple[float, float] | None) -> bool:

@@ -6,7 +6,8 @@ the prior or a graph, with one set of rules for VPs, the rectangle and bad frame
 :mod:`.video` (a video's frames on the same road, streamed), :mod:`.predictor` (:class:`Predictor`:
 a checkpoint on one image; the store path for stores that exist), :mod:`.inputs` (what ``vctrain
 predict`` was given, routed), :mod:`.model` (:func:`load`, :class:`RoadModel`: the Python face,
-docs/api.md), :mod:`.settings` (the settings declared once: ``--beyond``, ``--engine``).
+docs/api.md), :mod:`.settings` (the settings declared once: ``--beyond``, ``--engine``), :mod:`.kinds`
+(:class:`RoadPredictor`: what a predictor offers the road).
 """
 from __future__ import annotations
 
@@ -17,6 +18,7 @@ from typing import Any
 # vctrain.training's does: the commands take their help texts' defaults from settings.py (no torch).
 _HOME = {
     "settings": ("BEYOND", "DEFAULT_BEYOND", "ENGINES", "DEFAULT_ENGINE", "GRAPH_ENGINE"),
+    "kinds": ("RoadPredictor",),
     "frames": ("FramePredictor", "StageTimes", "StreamingVPs"),
     "inputs": ("PredictOptions", "predict_inputs"),
     "model": ("load", "RoadModel", "Segmentation", "check_frame"),

@@ -50,6 +50,7 @@ from vcprep.vp import VPConfig, VPResult, apply_reliability, estimate_vp, smooth
 from vcprep.camera import extend_canvas
 
 from ..training.data import vp_in_store
+from .kinds import RoadPredictor
 from .settings import BEYOND, DEFAULT_BEYOND
 
 __all__ = ["StageTimes", "FramePredictor", "StreamingVPs", "warps_frames", "reads_road_vps", "BEYOND",
@@ -89,7 +90,7 @@ class FramePredictor:
     reads frames as they are (resize) predicts 'not road' on these bottom rows of the frame, the own
     vehicle (a virtual-camera model never warps the camera's ``ego_rows``)."""
 
-    def __init__(self, predictor: Any, camera: Camera | None, frame_size: tuple[int, int],
+    def __init__(self, predictor: RoadPredictor, camera: Camera | None, frame_size: tuple[int, int],
                  poses: Iterable[tuple[float, float]] = (),
                  views: list[tuple[Camera, float, float]] | None = None, ego_rows: int = 0):
         refuse_mixed(predictor)
@@ -111,7 +112,7 @@ class FramePredictor:
         self._trained = camera_from_dict(sp["virtual"], predictor.path)
         self._scale = float(sp["scale"])
         self._completion = predictor.data.get("completion", "none")
-        self._beyond = getattr(predictor, "beyond_rule", None)  # None: the prior (0 outside its rectangle)
+        self._beyond = predictor.beyond_rule  # None: the prior (0 outside its rectangle)
         self._extend = self._beyond in ("extend", "hybrid")
         if views is not None:
             self._views = list(views)
@@ -185,7 +186,7 @@ class FramePredictor:
         t0 = time.perf_counter()
         if not warps_frames(p):
             self._check(frame)
-            if vp is None and getattr(p, "vp_channel", False) and self.camera is not None:
+            if vp is None and p.vp_channel and self.camera is not None:
                 vp = vp_from_pose(self.camera)
             prob = p.road_probability(frame, vp)
             if self.ego_rows:
@@ -209,10 +210,10 @@ class FramePredictor:
         return out
 
 
-def extends(predictor: Any) -> bool:
+def extends(predictor: RoadPredictor) -> bool:
     """Whether frames are warped into a rectangle grown to hold them (``extend``, ``hybrid``) rather
     than the training's (``rays``; the prior's one image)."""
-    return warps_frames(predictor) and getattr(predictor, "beyond_rule", None) in ("extend", "hybrid")
+    return warps_frames(predictor) and predictor.beyond_rule in ("extend", "hybrid")
 
 
 def back_to_frame(prob: np.ndarray, rec: dict[str, Any], beyond: str | None,
@@ -229,30 +230,29 @@ def back_to_frame(prob: np.ndarray, rec: dict[str, Any], beyond: str | None,
     return np.clip(out, 0.0, 1.0)
 
 
-def refuse_mixed(predictor: Any) -> None:
+def refuse_mixed(predictor: RoadPredictor) -> None:
     """A mixed-view or ray-channel model (issue 53's study candidates) predicts store items only (the
     two views averaged per store record; the record's camera gives the rays): one clear error for
     frames, video and export."""
-    if getattr(predictor, "mode", None) == "mixed":
+    if predictor.mode == "mixed":
         raise InputError("a mixed-view model (trained on both views) predicts store items only", predictor.path,
                          "predict a store with --store, or use a virtual-camera or resize model")
-    if getattr(predictor, "ray_channels", False):
+    if predictor.ray_channels:
         raise InputError("a ray-channel model predicts store items only (their records give each camera)",
                          predictor.path, "predict a store with --store, or use a model without ray channels")
 
 
-def warps_frames(predictor: Any) -> bool:
+def warps_frames(predictor: RoadPredictor) -> bool:
     """Whether frames are warped into a virtual camera before ``predictor`` sees them: a virtual-camera
     model or the prior, not a resize model nor a graph that holds its warp inside."""
-    return predictor.mode == "virtual" and not getattr(predictor, "takes_frames", False)
+    return predictor.mode == "virtual" and not predictor.takes_frames
 
 
-def reads_road_vps(predictor: Any) -> bool:
+def reads_road_vps(predictor: RoadPredictor) -> bool:
     """Whether ``predictor`` sees each frame's road VP: it warps frames (:func:`warps_frames`), or it is a
     resize model with the VP channel (crossval's ``resize-vp``). Its own vehicle then counts as for the
     study's stores: the bonnet's rows are left out of the VP estimate."""
-    return warps_frames(predictor) or bool(getattr(predictor, "vp_channel", False)
-                                           or getattr(predictor, "ray_channels", False))
+    return warps_frames(predictor) or bool(predictor.vp_channel or predictor.ray_channels)
 
 
 @dataclass

@@ -107,7 +107,7 @@ def predict_inputs(options: PredictOptions, say: Optional[Callable[[str], None]]
     engine = engine_used(predictor)  # said in the summary line (Predicted.line)
     if opts.beyond is not None:
         set_beyond(predictor, opts.beyond, opts.source)
-    if opts.bev is not None and opts.camera is None and getattr(predictor, "camera", None) is None:
+    if opts.bev is not None and opts.camera is None and predictor.camera is None:
         from .bev import BEV_NEEDS_CAMERA
 
         raise InputError("--bev needs the frames' camera", opts.source, BEV_NEEDS_CAMERA)
@@ -220,7 +220,7 @@ def _source(predictor, prior: Optional[Path]) -> str:
     pose range (P(road) cut to its rectangle there)."""
     if prior is not None:
         return "geometric prior"
-    if not getattr(predictor, "takes_frames", False):
+    if not predictor.takes_frames:
         return predictor.mode + " model"
     source = f"ONNX graph, {predictor.mode} model"
     if predictor.beyond:
@@ -240,7 +240,7 @@ def _vp_rule(predictor, vp_range: Optional[tuple[float, float]], vp_smooth: Opti
 
     from .road import model_vp_rule
 
-    rule = model_vp_rule(getattr(predictor, "data", {}))[0]
+    rule = model_vp_rule(predictor.data)[0]
     if vp_range is not None:
         rule = replace(rule, pan_range=float(vp_range[0]), tilt_range=float(vp_range[1]))
     if vp_sequences is not None:
@@ -252,7 +252,7 @@ def _needs_no_camera(predictor) -> bool:
     """A resize model without the VP channel reads frames as they are, and a graph holds its camera
     (a --vp-input graph's VPs are estimated with the given one): --camera changes nothing there (it is
     checked, not estimated: a folder of three frames is enough)."""
-    if getattr(predictor, "takes_frames", False):
+    if predictor.takes_frames:
         return not predictor.vp_input
     from .frames import reads_road_vps
 
@@ -317,5 +317,5 @@ def _reads_frames_as_they_are(predictor) -> bool:
     """A model (not a graph) that neither warps frames nor reads their road VPs: a resize model."""
     from .frames import reads_road_vps, warps_frames
 
-    return not getattr(predictor, "takes_frames", False) and not warps_frames(predictor) \
+    return not predictor.takes_frames and not warps_frames(predictor) \
         and not reads_road_vps(predictor)

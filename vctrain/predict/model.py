@@ -28,6 +28,7 @@ from vcprep.errors import InputError
 
 from ..shipped import resolve_model
 from .bev import BevMeasure, BevOptions
+from .kinds import RoadPredictor
 from .frames import reads_road_vps, refuse_mixed, warps_frames
 from .settings import DEFAULT_ENGINE, GRAPH_ENGINE
 from .road import plan_arrays
@@ -111,9 +112,9 @@ def engine_used(predictor) -> str:
     from ..deploy.engine import engine_name
     from ..deploy.runtime import runtime_name
 
-    if getattr(predictor, "takes_frames", False):
+    if predictor.takes_frames:
         return f"{runtime_name(predictor.runtime)}, the graph{' (int8)' if predictor.info.get('int8') else ''}"
-    kind = getattr(predictor, "engine", None)
+    kind = predictor.engine
     if kind is None:
         return ""
     device = str(predictor.device)
@@ -137,7 +138,7 @@ def load(name_or_path: str | Path, engine: str | None = None, device: str = "aut
     return RoadModel(predictor)
 
 
-def set_beyond(predictor: Any, beyond: str, path: Path) -> None:
+def set_beyond(predictor: RoadPredictor, beyond: str, path: Path) -> None:
     """``beyond`` checked, and given to a virtual-camera model (the only kind it concerns)."""
     from vcprep.errors import one_of
 
@@ -145,8 +146,7 @@ def set_beyond(predictor: Any, beyond: str, path: Path) -> None:
 
     if beyond not in BEYOND:
         raise InputError(f"unknown --beyond '{beyond}'", None, one_of(beyond, BEYOND))
-    if getattr(predictor, "beyond_rule", None) is None or getattr(predictor, "mode", None) != "virtual" \
-            or getattr(predictor, "takes_frames", False):
+    if predictor.beyond_rule is None or predictor.mode != "virtual" or predictor.takes_frames:
         raise InputError("--beyond is for a virtual-camera model (.pt); a resize model, the prior and an "
                          "exported graph (rays, inside it) have no choice to make", path, "drop --beyond")
     predictor.beyond_rule = beyond
@@ -156,7 +156,7 @@ class RoadModel:
     """A loaded model (:func:`load`): its ``predictor`` and what it needs. Thread-confined: one
     RoadModel per thread (its frame predictors keep caches)."""
 
-    def __init__(self, predictor: Any):
+    def __init__(self, predictor: RoadPredictor):
         refuse_mixed(predictor)
         self.predictor = predictor
         self.path = Path(predictor.path)
@@ -168,14 +168,14 @@ class RoadModel:
     def kind(self) -> str:
         """'virtual' (warps frames into its virtual camera), 'resize' (reads frames as they are) or
         'graph (virtual)' / 'graph (resize)' (an exported graph, the camera inside)."""
-        mode = getattr(self.predictor, "mode", "virtual")
-        return f"graph ({mode})" if getattr(self.predictor, "takes_frames", False) else mode
+        mode = self.predictor.mode
+        return f"graph ({mode})" if self.predictor.takes_frames else mode
 
     @property
     def needs_camera(self) -> bool:
         """Whether ``segment`` needs ``camera``: a virtual-camera model, or one that reads each frame's VP."""
         return warps_frames(self.predictor) or (reads_road_vps(self.predictor)
-                                                and not getattr(self.predictor, "takes_frames", False))
+                                                and not self.predictor.takes_frames)
 
     @property
     def engine(self) -> str:
@@ -253,7 +253,7 @@ class RoadModel:
         from vcprep.camera import camera_from_spec
 
         if camera is None:
-            own = getattr(self.predictor, "camera", None)  # (a graph's)
+            own = self.predictor.camera  # (a graph's)
             if self.needs_camera or (bev and own is None):
                 what = "a bird's-eye view" if not self.needs_camera else \
                     "a virtual-camera model" if warps_frames(self.predictor) else "a model that reads each frame's VP"
@@ -274,7 +274,7 @@ class RoadModel:
         size = (frames[0].shape[1], frames[0].shape[0])
         same = [f for f in frames if (f.shape[1], f.shape[0]) == size]
         search = lambda: ego_rows_from_frames(spread(same, EGO_SAMPLES), "frames")  # noqa: E731
-        if getattr(p, "takes_frames", False):
+        if p.takes_frames:
             return cam, None
         if not warps_frames(p) and not reads_road_vps(p):  # a resize model: cut where asked
             if ego in (None, "none"):

@@ -53,6 +53,11 @@ class Predictor:
     """A checkpoint's model plus its input conventions."""
 
     beyond_rule = DEFAULT_BEYOND  # frame pixels outside the training rectangle (vctrain.predict.frames: BEYOND)
+    takes_frames = False          # (vctrain.predict.kinds.RoadPredictor: a network on warped or resized frames)
+    camera = None                 # (the frames' camera is given)
+
+    def check_frame_size(self, size: tuple[int, int], name: str | Path | None = None) -> None:
+        """Frames of any size are taken (warped or resized to the working size)."""
 
     def __init__(self, checkpoint: str | Path, device: str = "auto", engine: str = "torch"):
         self.path = Path(checkpoint)

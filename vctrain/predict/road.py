@@ -41,6 +41,7 @@ from vcprep.io import image_size, read_image
 from vcprep.vp import frame_poses as poses_of
 from vcprep.warp import pose_from_vp
 
+from .kinds import RoadPredictor
 from .frames import NEEDS_CAMERA, FramePredictor, extends, warps_frames
 from .vehicle import MISSED_VEHICLE, ego_rows, folder_ego_camera, frames_ego_rows, own_vehicle, rows_at, \
     sources_ego_rows  # noqa: F401 (the road's own vehicle, importable from here)
@@ -85,21 +86,21 @@ def out_dir(out: str | Path) -> Path:
     return out
 
 
-def within_rule(predictor: Any, within: str, camera: Camera | FrameCameras | None) -> str:
+def within_rule(predictor: RoadPredictor, within: str, camera: Camera | FrameCameras | None) -> str:
     """'estimate', 'none' or a CSV path: which road VPs the frames get (``vctrain predict --within``).
 
     ``auto``: per-frame VPs when the model was trained with them (a virtual-camera model whose
     training store has estimated VPs, a graph exported with ``--vp-input``), else the camera's
     pose. A resize model takes a VP only through its VP channel, by the same rule (crossval's
     ``resize-vp``: each frame's own estimated VP, as it was trained)."""
-    if getattr(predictor, "takes_frames", False):
+    if predictor.takes_frames:
         if not predictor.vp_input:
             if within not in ("auto", "none"):
                 raise InputError("this graph has the camera's mount pose built in (exported without --vp-input)",
                                  predictor.path, "drop --within, or export with --vp-input")
             return "none"
         return "estimate" if within == "auto" else within
-    if not warps_frames(predictor) and not getattr(predictor, "vp_channel", False):
+    if not warps_frames(predictor) and not predictor.vp_channel:
         return "none"
     return virtual_within(predictor.data, within, camera)
 
@@ -129,7 +130,7 @@ def model_vp_rule(data: dict[str, Any], override: Any = None) -> tuple[Any, str]
     return (recorded, "the model's") if recorded is not None else (VPRule(), "the detector's defaults")
 
 
-def frame_poses(predictor: Any, jobs: list[Job], camera: Camera | FrameCameras | None, rule: str, vp_rule: Any = None,
+def frame_poses(predictor: RoadPredictor, jobs: list[Job], camera: Camera | FrameCameras | None, rule: str, vp_rule: Any = None,
                 on_error=None) -> dict:
     """Each frame's pose (:class:`vcprep.vp.ItemPose`: its road VP in source pixels, status, rule)
     by ``rule`` (:func:`within_rule`); {} for 'none'. Estimated VPs follow ``vp_rule`` or the model's
@@ -138,7 +139,7 @@ def frame_poses(predictor: Any, jobs: list[Job], camera: Camera | FrameCameras |
     takes a frame that cannot be read."""
     if rule == "none":
         return {}
-    poses, _ = poses_of(jobs, camera, rule, model_vp_rule(getattr(predictor, "data", {}), vp_rule)[0],
+    poses, _ = poses_of(jobs, camera, rule, model_vp_rule(predictor.data, vp_rule)[0],
                         on_error=(lambda i, e: on_error(jobs[i], e)) if on_error else None)
     return poses or {}
 
@@ -243,7 +244,7 @@ class Road:
     own); ``vehicle``: (rows, at frame height) of the own vehicle a model that reads frames as they
     are predicts 'not road' on, or file -> that per source (:func:`frames_ego_rows`)."""
 
-    def __init__(self, predictor: Any, camera: Camera | FrameCameras | None, views: list | None = None,
+    def __init__(self, predictor: RoadPredictor, camera: Camera | FrameCameras | None, views: list | None = None,
                  vehicle: tuple[int, int] | dict | None = None):
         self.predictor, self.camera, self.views, self.vehicle = predictor, camera, views, vehicle
         self.fps: dict = {}
@@ -254,8 +255,7 @@ class Road:
         frame pixels; None: the camera's average pose); ``image`` names its file (its calibration in
         a per-frame folder, its source's own vehicle, errors)."""
         size = (img.shape[1], img.shape[0])
-        if hasattr(self.predictor, "check_frame_size"):  # a graph takes frames of its own size only
-            self.predictor.check_frame_size(size, image)
+        self.predictor.check_frame_size(size, image)  # (a graph takes frames of its own size only)
         cam = camera_of_image(self.camera, image, size) if self.camera is not None else None
         v = self.vehicle
         rows = rows_at(v.get(image) if isinstance(v, dict) else v, size[1])  # dict: per source
@@ -289,13 +289,13 @@ class RoadPlan:
         return (pose.vp, pose.status) if pose else ()
 
 
-def _needs_camera(predictor: Any, camera: Any) -> None:
+def _needs_camera(predictor: RoadPredictor, camera: Any) -> None:
     if warps_frames(predictor) and camera is None:
-        raise InputError("a virtual-camera model needs the camera of the images", getattr(predictor, "path", None),
+        raise InputError("a virtual-camera model needs the camera of the images", predictor.path,
                          NEEDS_CAMERA)
 
 
-def plan_files(predictor: Any, jobs: list[Job], camera: Camera | FrameCameras | None, within: str = "auto",
+def plan_files(predictor: RoadPredictor, jobs: list[Job], camera: Camera | FrameCameras | None, within: str = "auto",
                vp_rule: Any = None, vehicle: tuple[int, int] | dict | None = None, bev: Any = None,
                on_error: Callable[[Job, VCError], None] | None = None) -> RoadPlan:
     """The :class:`RoadPlan` of image files ``jobs``: their VPs by ``within`` (:func:`within_rule`)
@@ -304,7 +304,7 @@ def plan_files(predictor: Any, jobs: list[Job], camera: Camera | FrameCameras | 
     poses; ``on_error(job, error)`` takes a frame that cannot be read (raised where None)."""
     _needs_camera(predictor, camera)
     rule = within_rule(predictor, within, camera)
-    poses = frame_poses(predictor, jobs, camera if camera is not None else getattr(predictor, "camera", None), rule,
+    poses = frame_poses(predictor, jobs, camera if camera is not None else predictor.camera, rule,
                         vp_rule, on_error)
     bev_run, bev_poses = _bev_poses(predictor, bev, jobs, camera, within, rule, poses, vp_rule, on_error)
     views = None
@@ -313,7 +313,7 @@ def plan_files(predictor: Any, jobs: list[Job], camera: Camera | FrameCameras | 
     return RoadPlan(Road(predictor, camera, views, vehicle), rule, poses, bev_run, bev_poses)
 
 
-def plan_arrays(predictor: Any, frames: list[np.ndarray], camera: Camera | None, within: str = "auto",
+def plan_arrays(predictor: RoadPredictor, frames: list[np.ndarray], camera: Camera | None, within: str = "auto",
                 vp_rule: Any = None, vehicle: tuple[int, int] | None = None, bev: Any = None,
                 vps: list | None = None) -> tuple[RoadPlan, list[str]]:
     """(:func:`plan_files`' plan, the frames' ids ``frame_000000``, ...) of decoded ``frames`` of one
@@ -324,19 +324,19 @@ def plan_arrays(predictor: Any, frames: list[np.ndarray], camera: Camera | None,
     from vcprep.vp import ItemPose, array_poses
 
     rule = within_rule(predictor, within, camera)
-    cam = camera if camera is not None else getattr(predictor, "camera", None)  # (a graph's own)
+    cam = camera if camera is not None else predictor.camera  # (a graph's own)
     ids = [f"frame_{i:06d}" for i in range(len(frames))]
     if vps is not None:
         poses = {i: ItemPose((float(v[0]), float(v[1])), "given") for i, v in zip(ids, vps)} if rule != "none" else {}
     else:
-        poses = array_poses(frames, cam, rule, model_vp_rule(getattr(predictor, "data", {}), vp_rule)[0], ids)
+        poses = array_poses(frames, cam, rule, model_vp_rule(predictor.data, vp_rule)[0], ids)
     bev_run, bev_poses = None, {}
     if bev is not None:
         from .bev import BevRun
 
-        bev_run = BevRun(bev, cam, within, getattr(predictor, "path", None))
+        bev_run = BevRun(bev, cam, within, predictor.path)
         bev_poses = poses if bev_run.rule == rule else array_poses(
-            frames, cam, bev_run.rule, model_vp_rule(getattr(predictor, "data", {}), vp_rule)[0], ids)
+            frames, cam, bev_run.rule, model_vp_rule(predictor.data, vp_rule)[0], ids)
     views = None
     if extends(predictor):
         views = views_of((cam.for_image_size((f.shape[1], f.shape[0])), poses[i].vp if i in poses else None)
@@ -344,7 +344,7 @@ def plan_arrays(predictor: Any, frames: list[np.ndarray], camera: Camera | None,
     return RoadPlan(Road(predictor, camera, views, vehicle), rule, poses, bev_run, bev_poses), ids
 
 
-def _bev_poses(predictor: Any, bev: Any, jobs: list[Job], camera, within: str, rule: str, poses: dict, vp_rule: Any,
+def _bev_poses(predictor: RoadPredictor, bev: Any, jobs: list[Job], camera, within: str, rule: str, poses: dict, vp_rule: Any,
                on_error=None) -> tuple[Any, dict]:
     """(``--bev``'s :class:`~vctrain.predict.bev.BevRun`, each frame's pose for it: the model's
     ``poses`` where it takes the same rule, else found by its own); (None, {}) without ``bev``."""
@@ -352,7 +352,7 @@ def _bev_poses(predictor: Any, bev: Any, jobs: list[Job], camera, within: str, r
         return None, {}
     from .bev import BevRun
 
-    camera = camera if camera is not None else getattr(predictor, "camera", None)  # a graph's own
+    camera = camera if camera is not None else predictor.camera  # a graph's own
     bev_run = BevRun(bev, camera, within, jobs[0].image if jobs else None)
     if bev_run.rule == rule:
         return bev_run, poses
@@ -378,7 +378,7 @@ def road_files(plan: RoadPlan, jobs: list[Job], skip: set[str] = frozenset(), pr
             yield job, img, prob, None
 
 
-def run_road(predictor: Any, images: Iterable[str | Path], out: str | Path,
+def run_road(predictor: RoadPredictor, images: Iterable[str | Path], out: str | Path,
              camera: Camera | FrameCameras | None, progress: bool = True, overlay: bool = False,
              within: str = "auto", vp_rule: Any = None, say: Callable[[str], None] | None = None,
              ego_source: str = "", vehicle: tuple[int, int] | dict | None = None, bev: Any = None) -> RoadRun:
@@ -420,7 +420,7 @@ def run_road(predictor: Any, images: Iterable[str | Path], out: str | Path,
         writer.abort()
         raise
     if say is not None and warps_frames(predictor) and run.ids:
-        source = model_vp_rule(getattr(predictor, "data", {}), vp_rule)[1]
+        source = model_vp_rule(predictor.data, vp_rule)[1]
         say(geometry_line(_road_geometry(run, plan.poses, plan.road.fps, camera), source, ego_source))
     run.seconds = time.perf_counter() - t0
     return run

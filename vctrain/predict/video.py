@@ -167,8 +167,7 @@ def video_road(predictor, info: VideoInfo, camera: Camera | None, within: str = 
     """The :class:`VideoRoad` of the video ``info`` (:func:`predict_video` says what each argument does)."""
     from vcprep.vp import read_vp_csv
 
-    if hasattr(predictor, "check_frame_size"):  # a graph takes frames of its own size only
-        predictor.check_frame_size(info.size, info.path)
+    predictor.check_frame_size(info.size, info.path)  # (a graph takes frames of its own size only)
     cam = _video_camera(predictor, camera, Path(info.path), info, ego, progress)
     mode = within_rule(predictor, within, cam)
     bev_run = _bev_run(bev, cam, within, info.path)
@@ -179,7 +178,7 @@ def video_road(predictor, info: VideoInfo, camera: Camera | None, within: str = 
         fp.times = times
     if mode == "estimate" and fp.camera is None:
         raise InputError("per-frame VPs need the camera of the video", info.path, "add --camera, or --within none")
-    cfg = model_vp_rule(getattr(predictor, "data", {}), vp_rule)[0].config()
+    cfg = model_vp_rule(predictor.data, vp_rule)[0].config()
     vps = StreamingVPs(fp.camera, vp_window, cfg=cfg, times=fp.times) if mode == "estimate" else None
     return VideoRoad(fp, mode, vps, given, model_vps, bev_run)
 
@@ -284,7 +283,7 @@ def _video_camera(predictor, camera: Camera | None, video: Path, info: VideoInfo
         if reads_road_vps(predictor):
             raise InputError("this model reads each frame's road vanishing point (VP channel): it needs the camera "
                              "of the video", video, NEEDS_CAMERA)
-        camera = getattr(predictor, "camera", None)  # a graph's own (its VPs, the overlay's horizon)
+        camera = predictor.camera  # a graph's own (its VPs, the overlay's horizon)
         if camera is None:
             return None
     cam = camera.for_image_size(info.size, video)
@@ -299,7 +298,7 @@ def _resize_ego_rows(predictor, camera: Camera | None, info: VideoInfo, ego: str
     """The own vehicle's rows a model that reads frames as they are cuts from the video's frames,
     where ``ego`` asks (:func:`vctrain.predict.road.ego_rows`'s rule); 0 otherwise."""
     if ego in (None, "none") or warps_frames(predictor) or reads_road_vps(predictor) \
-            or getattr(predictor, "takes_frames", False):
+            or predictor.takes_frames:
         return 0
     from vcprep.camera import ego_rows_from_frames
 
