@@ -144,3 +144,34 @@ def test_metres_without_bev_and_an_unknown_model_are_refused(shipped):
     with pytest.raises(InputError, match="not found") as e:
         vctrain.load("no-such-model.pt")
     assert "shipped" in e.value.fix
+
+
+def _page_commands(page: Path) -> list[list[str]]:
+    """The command lines of ``page``'s fenced sh blocks, in order."""
+    import re
+    import shlex
+
+    blocks = re.findall(r"```sh\n(.*?)```", page.read_text(), flags=re.S)
+    return [shlex.split(line) for block in blocks for line in block.splitlines() if line.strip()]
+
+
+def test_the_api_page_runs_as_a_doctest(tmp_path, monkeypatch):
+    """docs/api.md: its fenced commands (the fine-tuning) run first, then its Python examples as a
+    doctest, in a folder holding the shipped examples (the model by name from any folder)."""
+    import doctest
+
+    page = Path(__file__).resolve().parent.parent / "docs" / "api.md"
+    (tmp_path / "examples").symlink_to(EXAMPLES)
+    commands = _page_commands(page)
+    assert [c[:2] for c in commands] == [["vctrain", "fit"]]
+    for argv in commands:
+        proc = run_cli(*argv[1:], prog=argv[0], cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr
+    monkeypatch.chdir(tmp_path)
+    # a fence line ends an example's expected output, as a blank line does
+    text = "\n".join("" if line.startswith("```") else line for line in page.read_text().splitlines())
+    test = doctest.DocTestParser().get_doctest(text, {}, "api.md", str(page), 0)
+    runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+    runner.run(test)
+    result = runner.summarize(verbose=False)
+    assert result.failed == 0 and result.attempted >= 25, result

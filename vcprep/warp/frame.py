@@ -72,7 +72,7 @@ def warp_frame(frame: np.ndarray, camera: Camera | str, virtual: Camera | str = 
     item = warp_arrays(frame, None, store_size, H, completion, vp_store, cam.ego_rows)
     record = {"H": H.ravel().tolist(), "size": list(size), "store_size": list(store_size),
               "vp": [float(vp[0]), float(vp[1])], "pan_deg": float(pan), "tilt_deg": float(tilt)}
-    return WarpedFrame(item.image, item.valid, np.array(H), record)
+    return WarpedFrame(item.image, item.valid != 0, np.array(H), record)
 
 
 def virtual_scaled(params: dict[str, Any]) -> Camera:
