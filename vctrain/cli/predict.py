@@ -250,17 +250,23 @@ def export_cmd(
     info = export_onnx(model_arg(checkpoint), cam, out, vp_input=vp_input, pose_range=(pose_range, pose_range),
                        size=frame_size, camera_spec=camera, int8=int8, calib=calib)
     if not quiet:
-        w, h = info["inputs"]["frame"][1][1], info["inputs"]["frame"][1][0]
-        inner = (f"virtual store {info['store_size'][0]}x{info['store_size'][1]}, completion {info['completion']}"
-                 if info["mode"] == "virtual" else f"resized to {info['work'][0]}x{info['work'][1]}")
-        err(f"{out}: {info['mode']} model for camera {info['camera_name']} ({w}x{h}; {inner}; "
-            f"{'VP input' if vp_input else 'mount pose built in'}; opset {info['opset']}; onnxruntime vs torch max "
-            f"|diff| {info['max_abs_diff_vs_torch']:.1e})")
-        if int8:
-            q = info["int8"]
-            err(f"{out}: int8 network, calibrated on {q['frames']} frames of {q['calibration']}: masks agree with "
-                f"the float graph's on {100 * q['mask_agreement']:.2f} % of their pixels")
-        if frame_size is None:  # the size came from the camera: say it, and how to get another
-            err(f"{out}: the graph takes {w}x{h} frames only (the size of camera {camera}); for frames of another "
-                f"size export with --frame A_FRAME or --size WxH")
+        _export_summary(info, out, camera, vp_input, int8, frame_size is None)
     path_or_json(out, info, as_json)
+
+
+def _export_summary(info: dict, out: Path, camera: Optional[str], vp_input: bool, int8: bool, camera_size: bool) -> None:
+    """``vctrain export``'s lines on stderr: what the graph holds, its int8 agreement, the one frame size
+    it takes (``camera_size``: the camera's, no --frame or --size given)."""
+    w, h = info["inputs"]["frame"][1][1], info["inputs"]["frame"][1][0]
+    inner = (f"virtual store {info['store_size'][0]}x{info['store_size'][1]}, completion {info['completion']}"
+             if info["mode"] == "virtual" else f"resized to {info['work'][0]}x{info['work'][1]}")
+    err(f"{out}: {info['mode']} model for camera {info['camera_name']} ({w}x{h}; {inner}; "
+        f"{'VP input' if vp_input else 'mount pose built in'}; opset {info['opset']}; onnxruntime vs torch max "
+        f"|diff| {info['max_abs_diff_vs_torch']:.1e})")
+    if int8:
+        q = info["int8"]
+        err(f"{out}: int8 network, calibrated on {q['frames']} frames of {q['calibration']}: masks agree with "
+            f"the float graph's on {100 * q['mask_agreement']:.2f} % of their pixels")
+    if camera_size:
+        err(f"{out}: the graph takes {w}x{h} frames only (the size of camera {camera}); for frames of another "
+            f"size export with --frame A_FRAME or --size WxH")

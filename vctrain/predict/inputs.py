@@ -264,13 +264,15 @@ def _predict_image_files(opts: PredictOptions, predictor, images: Sequence[Path]
     """Image files and folders: their camera from ``camera_for`` (a virtual-camera model needs
     one; with one camera, its own vehicle found from the frames unless the camera states it:
     ``opts.ego`` as for a video; a resize model cuts it only when ``ego`` asks), then
-    :func:`vctrain.predict.predictor.predict_frames` (the one road for a frame) with ``vp_rule``
-    (None: the model's); ``say`` hears what the frames were warped with."""
+    :func:`vctrain.predict.road.run_road` (the one road for a frame; ``--keep-store``: through a store,
+    :func:`vctrain.predict.predictor.predict_frames`) with ``vp_rule`` (None: the model's); ``say``
+    hears what the frames were warped with."""
     from vcprep.camera import Camera
     from vcprep.dataset import collect_images
 
     from .frames import NEEDS_CAMERA, reads_road_vps, warps_frames
     from .predictor import predict_frames
+    from .road import run_road
 
     if camera_for is None and warps_frames(predictor):
         raise InputError("a virtual-camera model needs the camera of the images", predictor.path, NEEDS_CAMERA)
@@ -285,9 +287,12 @@ def _predict_image_files(opts: PredictOptions, predictor, images: Sequence[Path]
         raise InputError("--ego N needs one camera; per-frame calibration files give the frames' cameras",
                          files[0], "write ego_rows in a camera file, or drop --ego")
     cam, rows, ego_source = _files_vehicle(predictor, cam, files, opts.ego, opts.progress)
-    return predict_frames(predictor, images, opts.out, cam, progress=opts.progress, keep_store=opts.keep_store,
-                          overlay=opts.overlay, within=opts.within, vp_rule=vp_rule, say=say, ego_source=ego_source,
-                          vehicle=rows, bev=opts.bev)
+    if opts.keep_store is not None and warps_frames(predictor):  # the store path: warped into a store kept
+        return predict_frames(predictor, images, opts.out, cam, progress=opts.progress, keep_store=opts.keep_store,
+                              overlay=opts.overlay, within=opts.within, vp_rule=vp_rule, say=say,
+                              ego_source=ego_source, vehicle=rows, bev=opts.bev)
+    return run_road(predictor, images, opts.out, cam, progress=opts.progress, overlay=opts.overlay,
+                    within=opts.within, vp_rule=vp_rule, say=say, ego_source=ego_source, vehicle=rows, bev=opts.bev)
 
 
 def _files_vehicle(predictor, cam, files: list[Path], ego: Optional[str], progress: bool):
