@@ -175,3 +175,18 @@ def test_the_api_page_runs_as_a_doctest(tmp_path, monkeypatch):
     runner.run(test)
     result = runner.summarize(verbose=False)
     assert result.failed == 0 and result.attempted >= 25, result
+
+
+def test_help_and_docstrings_take_the_defaults_from_the_settings():
+    """``--engine``'s and ``--beyond``'s help say the defaults vctrain.predict.settings declares, and no
+    docstring of the predict package calls another rule the default (issue 79: they said extend)."""
+    from vctrain.predict import BEYOND, DEFAULT_BEYOND, DEFAULT_ENGINE, GRAPH_ENGINE
+
+    proc = run_cli("predict", "--help", prog="vctrain")
+    text = " ".join(proc.stdout.split())
+    assert f"default {DEFAULT_ENGINE}. A graph (.onnx): openvino, onnx or auto; default {GRAPH_ENGINE}." in text
+    assert f"; default {DEFAULT_BEYOND} " in text
+    sources = " ".join(" ".join(p.read_text().split()) for p in (Path(vctrain.__file__).parent / "predict").glob("*.py"))
+    assert f"``{DEFAULT_BEYOND}`` (the default" in sources
+    assert [r for r in BEYOND if r != DEFAULT_BEYOND and f"``{r}`` (the default" in sources] == []
+    assert [r for r in BEYOND if r != DEFAULT_BEYOND and f"None: the default, {r}" in sources] == []
