@@ -110,7 +110,7 @@ def test_bev_gives_the_metres_predict_prints(shipped, tmp_path):
     frame's pose from its road VP)."""
     _, stdout = _predict(tmp_path / "k", "shipped", KITTI_FRAME, "--camera", KITTI_CALIB, "--bev")
     printed = json.loads(stdout.splitlines()[0])
-    got = shipped.segment(cv2.imread(str(KITTI_FRAME)), str(KITTI_CALIB), bev=True)
+    got = shipped.segment(cv2.imread(str(KITTI_FRAME)), KITTI_CALIB, bev=True)  # (a Path as a str)
     assert got.metres["free_m"] == printed["free_m"] and got.metres == {k: printed[k] for k in got.metres}
     assert got.bev.mask.shape == got.bev.prob.shape and set(np.unique(got.bev.mask)) <= {0, 1, 255}
     _, stdout = _predict(tmp_path / "c", "shipped", EXAMPLES / "camvid" / "images", "--camera", "camvid", "--bev")

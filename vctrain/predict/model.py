@@ -193,8 +193,8 @@ class RoadModel:
         ``bev``: also the bird's-eye view and the road in metres (:attr:`Segmentation.metres`) on
         ``grid`` (a :class:`vcprep.bev.BevGrid`; default the KITTI benchmark's) along a
         ``corridor`` metres wide."""
-        return self.segment_frames([check_frame(frame)], camera, bev=bev, within=within, vps=None if vp is None else [vp],
-                                   ego=ego, grid=grid, corridor=corridor)[0]
+        return self.segment_frames([check_frame(frame)], camera, bev=bev, within=within,
+                                   vps=None if vp is None else [vp], ego=ego, grid=grid, corridor=corridor)[0]
 
     def segment_frames(self, frames: Sequence[np.ndarray], camera: Any = None, *, bev: bool = False,
                        within: str = "auto", vps: Sequence[tuple[float, float]] | None = None,
@@ -202,7 +202,8 @@ class RoadModel:
                        corridor: float | None = None) -> list[Segmentation]:
         """:meth:`segment` of several frames of one camera, in order, as ``vctrain predict`` does a
         folder of them: their VPs estimated together (one sequence), one virtual rectangle for all,
-        their own vehicle found from them; ``camera`` 'estimate' is estimated from them."""
+        their own vehicle found from them (as one source: predict searches a folder whose file names
+        tell several sources apart source by source); ``camera`` 'estimate' is estimated from them."""
         frames = [check_frame(f, f"frame {i}") for i, f in enumerate(frames)]
         if not frames:
             raise InputError("no frames given", None, "give a list of H x W x 3 uint8 BGR arrays")
@@ -291,7 +292,7 @@ class RoadModel:
         from vcprep.bev import CORRIDOR, KITTI_GRID
 
         return BevOptions(grid=grid or KITTI_GRID, corridor=CORRIDOR if corridor is None else float(corridor),
-                          spec=camera if isinstance(camera, str) else None)
+                          spec=str(camera) if isinstance(camera, (str, Path)) else None)
 
     def _result(self, prob: np.ndarray, frame: np.ndarray, vp: Any, pose: Any, cam: Camera | None,
                 measure: BevMeasure | None, index: int) -> Segmentation:
