@@ -1,8 +1,10 @@
 """What ``vctrain predict`` was given, checked and routed: image files and folders, videos or a
 store, through a model (:class:`~vctrain.predict.Predictor`), the geometric prior
 (:class:`~vctrain.adapt.PriorPredictor`) or a graph written by ``vctrain export``
-(:class:`~vctrain.deploy.runtime.OnnxPredictor`). :func:`predict_inputs` returns the files written
-and what was predicted (:class:`Predicted`)."""
+(:class:`~vctrain.deploy.runtime.OnnxPredictor`). The command builds one :class:`PredictOptions`;
+:func:`predict_inputs` takes it and returns the files written and what was predicted
+(:class:`Predicted`). Frames take the road the Python face takes (:mod:`vctrain.predict.road`,
+:mod:`vctrain.predict.model`)."""
 from __future__ import annotations
 
 import time

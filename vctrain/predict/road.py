@@ -130,8 +130,8 @@ def model_vp_rule(data: dict[str, Any], override: Any = None) -> tuple[Any, str]
     return (recorded, "the model's") if recorded is not None else (VPRule(), "the detector's defaults")
 
 
-def frame_poses(predictor: RoadPredictor, jobs: list[Job], camera: Camera | FrameCameras | None, rule: str, vp_rule: Any = None,
-                on_error=None) -> dict:
+def frame_poses(predictor: RoadPredictor, jobs: list[Job], camera: Camera | FrameCameras | None, rule: str,
+                vp_rule: Any = None, on_error=None) -> dict:
     """Each frame's pose (:class:`vcprep.vp.ItemPose`: its road VP in source pixels, status, rule)
     by ``rule`` (:func:`within_rule`); {} for 'none'. Estimated VPs follow ``vp_rule`` or the model's
     (:func:`model_vp_rule`) over the folder's sequences (:func:`vcprep.vp.frame_poses`, the
@@ -344,8 +344,8 @@ def plan_arrays(predictor: RoadPredictor, frames: list[np.ndarray], camera: Came
     return RoadPlan(Road(predictor, camera, views, vehicle), rule, poses, bev_run, bev_poses), ids
 
 
-def _bev_poses(predictor: RoadPredictor, bev: Any, jobs: list[Job], camera, within: str, rule: str, poses: dict, vp_rule: Any,
-               on_error=None) -> tuple[Any, dict]:
+def _bev_poses(predictor: RoadPredictor, bev: Any, jobs: list[Job], camera, within: str, rule: str, poses: dict,
+               vp_rule: Any, on_error=None) -> tuple[Any, dict]:
     """(``--bev``'s :class:`~vctrain.predict.bev.BevRun`, each frame's pose for it: the model's
     ``poses`` where it takes the same rule, else found by its own); (None, {}) without ``bev``."""
     if bev is None:
