@@ -10,7 +10,6 @@ from typing import Any, Optional
 import typer
 
 from vcprep.cliutil import emit_json
-from vcprep.errors import InputError, one_of
 from vcprep.labels import LABEL_FORMAT_HELP
 
 from vctrain import __version__
