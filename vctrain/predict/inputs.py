@@ -281,7 +281,8 @@ def _predict_image_files(opts: PredictOptions, predictor, images: Sequence[Path]
     if camera_for is None and reads_road_vps(predictor):
         raise InputError("this model reads each frame's road vanishing point (VP channel): it needs the camera of "
                          "the images", predictor.path, NEEDS_CAMERA)
-    cam, files = None, [j.image for j in collect_images(images, trees=True)]
+    jobs = collect_images(images, trees=True)  # (once: the camera, the own vehicle and the road take them)
+    cam, files = None, [j.image for j in jobs]
     if camera_for is not None:  # checked even where the model needs none: a typo is never silent
         needed = opts.bev is not None or not _needs_no_camera(predictor)  # (--bev: the road in metres needs it)
         cam = camera_for(files[0], frames=files, needed=needed)
@@ -294,7 +295,8 @@ def _predict_image_files(opts: PredictOptions, predictor, images: Sequence[Path]
                               overlay=opts.overlay, within=opts.within, vp_rule=vp_rule, say=say,
                               ego_source=ego_source, vehicle=rows, bev=opts.bev)
     return run_road(predictor, images, opts.out, cam, progress=opts.progress, overlay=opts.overlay,
-                    within=opts.within, vp_rule=vp_rule, say=say, ego_source=ego_source, vehicle=rows, bev=opts.bev)
+                    within=opts.within, vp_rule=vp_rule, say=say, ego_source=ego_source, vehicle=rows, bev=opts.bev,
+                    jobs=jobs)
 
 
 def _files_vehicle(predictor, cam, files: list[Path], ego: Optional[str], progress: bool):

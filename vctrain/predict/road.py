@@ -380,7 +380,8 @@ def road_files(plan: RoadPlan, jobs: list[Job], skip: set[str] = frozenset(), pr
 def run_road(predictor: RoadPredictor, images: Iterable[str | Path], out: str | Path,
              camera: Camera | FrameCameras | None, progress: bool = True, overlay: bool = False,
              within: str = "auto", vp_rule: Any = None, say: Callable[[str], None] | None = None,
-             ego_source: str = "", vehicle: tuple[int, int] | dict | None = None, bev: Any = None) -> RoadRun:
+             ego_source: str = "", vehicle: tuple[int, int] | dict | None = None, bev: Any = None,
+             jobs: list[Job] | None = None) -> RoadRun:
     """Predict image files/folders taken with ``camera`` (needed for virtual-camera models; a
     :class:`~vcprep.camera.FrameCameras` gives every image its own calibrated camera and pose);
     writes ``<stem>_mask.png``, ``<stem>_prob.png`` (and ``_overlay.png``) in ``out``. A frame that
@@ -393,9 +394,9 @@ def run_road(predictor: RoadPredictor, images: Iterable[str | Path], out: str | 
     (rows, at frame height, or file -> that per source; :func:`frames_ego_rows`): a model that reads
     frames as they are predicts 'not road' on the own vehicle's rows. ``bev`` (given:
     :class:`vctrain.predict.bev.BevOptions`): each frame's BEV and road in metres too, at its pose by
-    ``within`` (:mod:`vctrain.predict.bev`)."""
+    ``within`` (:mod:`vctrain.predict.bev`). ``jobs``: ``images`` already collected (the caller's)."""
     t0 = time.perf_counter()
-    jobs = collect_images(images, trees=True)  # a tree whose frames repeat names: outputs mirror it
+    jobs = jobs if jobs is not None else collect_images(images, trees=True)  # (a tree: outputs mirror it)
     out = out_dir(out)
     run = RoadRun()
     plan = plan_files(predictor, jobs, camera, within, vp_rule, vehicle, bev, run.fail)
