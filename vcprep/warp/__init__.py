@@ -14,7 +14,7 @@ from .completion import (COMPLETION_VERSION, CompletionMaps, METHODS, border_ign
                          completion_maps, store_vp)
 from .completion_rays import LABEL_RIM, exit_points_rectangle, label_exit_points
 from .completion_tables import TABLE_ARC, TABLE_COLS
-from .frame import WarpedFrame, warp_frame
+from .frame import WarpedFrame, frame_pose, warp_at_pose, warp_frame
 from .homography import (apply_homography, check_not_folded, ground_to_image, pose_axes, pose_from_vp,
                          road_magnification, virt_H_src, virtual_at_scale, vp_from_pose)
 from .remap import (OUTSIDE, RemapMaps, build_maps, maps_for, maps_from_coordinates, source_coordinates, warp_image,
@@ -25,4 +25,4 @@ __all__ = ["backproject_array", "backproject_rays", "ray_clamped", "backproject_
            "exit_points_rectangle", "label_exit_points", "TABLE_ARC", "TABLE_COLS", "apply_homography",
            "check_not_folded", "ground_to_image", "pose_axes", "pose_from_vp", "road_magnification", "virt_H_src", "virtual_at_scale",
            "vp_from_pose", "OUTSIDE", "RemapMaps", "build_maps", "maps_for", "maps_from_coordinates", "source_coordinates", "warp_image", "warp_label",
-           "WarpedFrame", "warp_frame"]
+           "WarpedFrame", "warp_frame", "frame_pose", "warp_at_pose"]

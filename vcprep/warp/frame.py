@@ -19,7 +19,7 @@ from ..errors import InputError
 from .backproject import backproject_array
 from .homography import apply_homography, pose_from_vp, vp_from_pose
 
-__all__ = ["WarpedFrame", "warp_frame"]
+__all__ = ["WarpedFrame", "warp_frame", "frame_pose", "warp_at_pose"]
 
 
 @dataclass(frozen=True)
@@ -49,7 +49,7 @@ def warp_frame(frame: np.ndarray, camera: Camera | str, virtual: Camera | str = 
     'replicate', 'none'), at the pose of the road VP ``vp`` (None: the camera's average pose).
     The camera's ``ego_rows`` (its own vehicle) are never warped."""
     from ..camera.spec import camera_from_spec
-    from ..store.build import item_geometry, store_params, warp_arrays
+    from ..store.build import store_params
 
     if not isinstance(frame, np.ndarray) or frame.ndim not in (2, 3) or frame.dtype != np.uint8:
         raise InputError(f"frame is {getattr(frame, 'dtype', type(frame).__name__)} "
@@ -60,19 +60,37 @@ def warp_frame(frame: np.ndarray, camera: Camera | str, virtual: Camera | str = 
     virtual = PRESETS[virtual] if isinstance(virtual, str) and virtual in PRESETS else \
         camera_from_spec(virtual, None, per_frame=False)
     params = store_params(virtual, scale)
-    scaled = virtual_scaled(params)
     store_size = (int(params["store_size"][0]), int(params["store_size"][1]))
+    vp, pan, tilt = frame_pose(cam, vp)
+    item, H, record = warp_at_pose(frame, cam, virtual_scaled(params), store_size, completion, vp, pan, tilt)
+    return WarpedFrame(item.image, item.valid != 0, np.array(H), record)
+
+
+def frame_pose(camera: Camera, vp: tuple[float, float] | None = None) -> tuple[tuple[float, float], float, float]:
+    """(vp, pan, tilt) of a frame of ``camera`` (at the frame's size) warped at its road VP ``vp``
+    (None: the camera's average pose, and the VP of that pose)."""
     if vp is None:
-        pan, tilt = cam.pan, cam.tilt
-        vp = vp_from_pose(cam, pan, tilt)
-    else:
-        pan, tilt = pose_from_vp(cam, vp)
-    cam, H = item_geometry(cam, size, scaled, None, pan, tilt)
+        return vp_from_pose(camera, camera.pan, camera.tilt), camera.pan, camera.tilt
+    vp = (float(vp[0]), float(vp[1]))
+    pan, tilt = pose_from_vp(camera, vp)
+    return vp, pan, tilt
+
+
+def warp_at_pose(frame: np.ndarray, camera: Camera, virtual_scaled: Camera, store_size: tuple[int, int],
+                 completion: str, vp: tuple[float, float], pan: float, tilt: float) -> tuple[Any, np.ndarray, dict]:
+    """(the warped item (:class:`vcprep.store.build.WarpedItem`), ``virt_H_src``, the store record fields
+    ``H``, ``size``, ``store_size``, ``vp``, ``pan_deg``, ``tilt_deg``) of ``frame`` of ``camera`` at
+    (pan, tilt), its road VP ``vp``: :func:`vcprep.store.build.build_item`'s geometry and body, in memory
+    (the numbers of a store's item, bit for bit)."""
+    from ..store.build import item_geometry, warp_arrays
+
+    size = (frame.shape[1], frame.shape[0])
+    cam, H = item_geometry(camera, size, virtual_scaled, None, pan, tilt)
     vp_store = tuple(apply_homography(H, [vp])[0])
     item = warp_arrays(frame, None, store_size, H, completion, vp_store, cam.ego_rows)
-    record = {"H": H.ravel().tolist(), "size": list(size), "store_size": list(store_size),
-              "vp": [float(vp[0]), float(vp[1])], "pan_deg": float(pan), "tilt_deg": float(tilt)}
-    return WarpedFrame(item.image, item.valid != 0, np.array(H), record)
+    record = {"H": H.ravel().tolist(), "size": list(cam.size), "store_size": list(store_size),
+              "vp": [vp[0], vp[1]], "pan_deg": pan, "tilt_deg": tilt}
+    return item, H, record
 
 
 def virtual_scaled(params: dict[str, Any]) -> Camera:

@@ -42,10 +42,10 @@ from typing import Any, Iterable
 import numpy as np
 
 from vcprep.warp import backproject_array, backproject_rays
-from vcprep.store import item_geometry, item_magnification, store_params, warp_arrays
+from vcprep.store import item_magnification, store_params
 from vcprep.camera import Camera, camera_from_dict
 from vcprep.errors import InputError
-from vcprep.warp import apply_homography, pose_from_vp, vp_from_pose
+from vcprep.warp import frame_pose, vp_from_pose, warp_at_pose
 from vcprep.vp import VPConfig, VPResult, apply_reliability, estimate_vp, smooth_sequences
 from vcprep.camera import extend_canvas
 
@@ -163,20 +163,11 @@ class FramePredictor:
         as :func:`vcprep.store.build.build_item` computes them. ``vp``: the frame's own road VP (source
         pixels); None: the camera's average pose."""
         self._check(frame)
-        cam = self.camera
-        if vp is not None:
-            vp = (float(vp[0]), float(vp[1]))
-            pan, tilt = pose_from_vp(cam, vp)
-        else:
-            pan, tilt = cam.pan, cam.tilt
-            vp = vp_from_pose(cam, pan, tilt)
+        vp, pan, tilt = frame_pose(self.camera, vp)
         if self._extend:
             self._fit_canvas(pan, tilt)
-        cam, H = item_geometry(cam, self.size, self._virtual_scaled, None, pan, tilt)
-        vp_store = tuple(apply_homography(H, [vp])[0])
-        item = warp_arrays(frame, None, self.store_size, H, self._completion, vp_store, cam.ego_rows)
-        rec = {"H": H.ravel().tolist(), "size": list(cam.size), "store_size": list(self.store_size),
-               "vp": [vp[0], vp[1]], "pan_deg": pan, "tilt_deg": tilt}
+        item, _, rec = warp_at_pose(frame, self.camera, self._virtual_scaled, self.store_size, self._completion, vp,
+                                    pan, tilt)
         return item.image, rec
 
     def predict(self, frame: np.ndarray, vp: tuple[float, float] | None = None) -> np.ndarray:
