@@ -145,3 +145,40 @@ def test_rays_give_a_low_cameras_near_road_exactly(offset):
         if inner is None:  # the near road outside the training rectangle: plain back-projection says 'not road'
             plain = backproject_array(prob, rec, "prob") >= 0.5
             assert (plain & truth)[120:].sum() < 0.5 * truth[120:].sum()
+
+
+@pytest.mark.parametrize("vp", [None, (121.0, 52.0)])
+def test_warp_frame_is_the_store_builds_item_bit_for_bit(tmp_path, vp):
+    """vcprep.warp_frame (in memory) against the oracle ``vcprep warp`` writes: a store of the same
+    frame, camera, virtual camera, scale, completion and pose; its way back is the store's."""
+    from dataclasses import replace
+
+    from vcprep.dataset import list_dataset
+    from vcprep.io import read_image, write_png
+    from vcprep.store import WarpSettings, warp_dataset
+    from vcprep.vp import ItemPose
+    from vcprep.warp import warp_frame
+
+    cam = replace(PRESETS["camvid"].resized(0.25), ego_rows=10)
+    frame = render_road(cam, RoadScene(offset=0.4), pan=1.0, supersample=1)[0]
+    (tmp_path / "src").mkdir()
+    write_png(tmp_path / "src" / "f.png", frame)
+    poses = {"f": ItemPose(vp, "given")} if vp is not None else None
+    store, _ = warp_dataset(list_dataset(tmp_path / "src"), tmp_path / "store",
+                            WarpSettings(cam, PRESETS["virtual"], 0.05, completion="projective", poses=poses,
+                                         progress=False))
+    rec = next(iter(store))
+    warped = warp_frame(frame, cam, "virtual", 0.05, "projective", vp=vp)
+    assert np.array_equal(warped.image, read_image(store.path(rec["image"])).array)
+    assert warped.record["H"] == rec["H"] and warped.record["store_size"] == rec["store_size"]
+    grey = warped.image[..., 1]
+    assert np.array_equal(warped.back(grey), backproject_array(grey, rec, "prob"))
+    assert warped.valid.dtype == bool and warped.valid.any() and not warped.valid.all()
+
+
+def test_warp_frame_refuses_what_is_not_a_frame():
+    from vcprep.errors import InputError
+    from vcprep.warp import warp_frame
+
+    with pytest.raises(InputError, match="expected H x W"):
+        warp_frame(np.zeros((20, 20), np.float32), "camvid")
