@@ -71,6 +71,10 @@ def test_shipped_model_by_name_gives_predicts_masks(shipped, tmp_path):
     assert shipped.kind == "resize" and not shipped.needs_camera
     for f in CAMVID:
         _same_as_written(shipped.segment(cv2.imread(str(f))), out, f.stem)
+    files = list(shipped.segment_files([EXAMPLES / "camvid" / "images"]))
+    assert [Path(r.source).name for r in files] == [f.name for f in CAMVID]
+    for f, r in zip(CAMVID, files):
+        _same_as_written(r, out, f.stem)
 
 
 @pytest.mark.parametrize("camera, within", [("cam.yaml", "none"), ("cam.yaml", "estimate"), ("camvid", "auto")])
@@ -84,6 +88,8 @@ def test_virtual_model_with_camera_gives_predicts_masks(tiny_vc_model, drive, tm
     out, _ = _predict(tmp_path, tiny_vc_model, drive / "frames", "--camera", camera, "--within", within)
     results = model.segment_frames([cv2.imread(str(f)) for f in frames], camera, within=within)
     for f, r in zip(frames, results):
+        _same_as_written(r, out, f.stem)
+    for f, r in zip(frames, model.segment_files([drive / "frames"], camera, within=within)):
         _same_as_written(r, out, f.stem)
     assert all((r.vp_status in ("accepted", "fallback")) == (within == "estimate") for r in results)
     assert all(r.pose is not None and r.camera is not None for r in results)

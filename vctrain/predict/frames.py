@@ -54,7 +54,8 @@ from .kinds import RoadPredictor
 from .settings import BEYOND, DEFAULT_BEYOND
 
 __all__ = ["StageTimes", "FramePredictor", "StreamingVPs", "warps_frames", "reads_road_vps", "BEYOND",
-           "DEFAULT_BEYOND", "extends", "back_to_frame"]
+           "DEFAULT_BEYOND", "extends", "back_to_frame",
+           "reads_frames_as_they_are"]
 
 
 # the fix of every "this model needs the camera of the frames" error: an uncalibrated camera is estimated
@@ -237,6 +238,11 @@ def warps_frames(predictor: RoadPredictor) -> bool:
     """Whether frames are warped into a virtual camera before ``predictor`` sees them: a virtual-camera
     model or the prior, not a resize model nor a graph that holds its warp inside."""
     return predictor.mode == "virtual" and not predictor.takes_frames
+
+
+def reads_frames_as_they_are(predictor: RoadPredictor) -> bool:
+    """A model (not a graph) that neither warps frames nor reads their road VPs: a resize model."""
+    return not predictor.takes_frames and not warps_frames(predictor) and not reads_road_vps(predictor)
 
 
 def reads_road_vps(predictor: RoadPredictor) -> bool:

@@ -273,8 +273,11 @@ def _predict_image_files(opts: PredictOptions, predictor, images: Sequence[Path]
     from vcprep.dataset import collect_images
 
     from .frames import NEEDS_CAMERA, reads_road_vps, warps_frames
+    from vcprep.progress import err
+
     from .predictor import predict_frames
     from .road import run_road
+    from .vehicle import files_vehicle
 
     if camera_for is None and warps_frames(predictor):
         raise InputError("a virtual-camera model needs the camera of the images", predictor.path, NEEDS_CAMERA)
@@ -289,7 +292,9 @@ def _predict_image_files(opts: PredictOptions, predictor, images: Sequence[Path]
     if opts.ego not in (None, "none", "auto") and cam is not None and not isinstance(cam, Camera):
         raise InputError("--ego N needs one camera; per-frame calibration files give the frames' cameras",
                          files[0], "write ego_rows in a camera file, or drop --ego")
-    cam, rows, ego_source = _files_vehicle(predictor, cam, files, opts.ego, opts.progress)
+    tell = (lambda msg: err(f"{files[0].parent}: {msg}")) if opts.progress else None
+    warn = lambda msg: err(f"{files[0].parent}: warning: {msg}")  # noqa: E731
+    cam, rows, ego_source = files_vehicle(predictor, cam, files, opts.ego, tell, warn)
     if opts.keep_store is not None and warps_frames(predictor):  # the store path: warped into a store kept
         return predict_frames(predictor, images, opts.out, cam, progress=opts.progress, keep_store=opts.keep_store,
                               overlay=opts.overlay, within=opts.within, vp_rule=vp_rule, say=say,
@@ -297,34 +302,3 @@ def _predict_image_files(opts: PredictOptions, predictor, images: Sequence[Path]
     return run_road(predictor, images, opts.out, cam, progress=opts.progress, overlay=opts.overlay,
                     within=opts.within, vp_rule=vp_rule, say=say, ego_source=ego_source, vehicle=rows, bev=opts.bev,
                     jobs=jobs)
-
-
-def _files_vehicle(predictor, cam, files: list[Path], ego: Optional[str], progress: bool):
-    """(the camera, the own vehicle's rows a model that reads frames as they are cuts, where they come
-    from) of one folder's frames (:func:`vctrain.predict.vehicle.folder_ego_camera`, :func:`frames_ego_rows`)."""
-    from vcprep.camera import Camera
-    from vcprep.progress import err
-
-    from .frames import reads_road_vps
-    from .road import folder_ego_camera, frames_ego_rows
-
-    tell = (lambda msg: err(f"{files[0].parent}: {msg}")) if progress else None
-    warn = lambda msg: err(f"{files[0].parent}: warning: {msg}")  # noqa: E731
-    one = cam if isinstance(cam, Camera) else None
-    if _reads_frames_as_they_are(predictor) and ego not in (None, "none"):  # asked for: its own vehicle cut
-        rows = frames_ego_rows(one, files, ego, tell, warn)
-        return cam, rows, f"--ego {ego}" if ego != "auto" else "the camera's ego_rows" if cam and cam.ego_rows else ""
-    if reads_road_vps(predictor) and one is not None:  # one camera's frames: its own vehicle, as a video's
-        ego = ego or "auto"
-        cam = folder_ego_camera(one, files, ego, tell, warn)
-        return cam, None, (f"--ego {ego}" if ego not in ("auto", "none") else "the camera's ego_rows" if one.ego_rows
-                           else "found from the frames" if cam.ego_rows else "")
-    return cam, None, ""
-
-
-def _reads_frames_as_they_are(predictor) -> bool:
-    """A model (not a graph) that neither warps frames nor reads their road VPs: a resize model."""
-    from .frames import reads_road_vps, warps_frames
-
-    return not predictor.takes_frames and not warps_frames(predictor) \
-        and not reads_road_vps(predictor)

@@ -17,13 +17,13 @@ file, a :class:`vcprep.camera.Camera`, or 'estimate' (from the frames given: at 
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Iterator, Sequence
 
 import numpy as np
 
-from vcprep.camera import Camera
+from vcprep.camera import Camera, camera_of_image
 from vcprep.errors import InputError
 
 from ..shipped import resolve_model
@@ -48,7 +48,7 @@ class Segmentation:
     'accepted', 'fallback', 'given' or None; ``pose``: (pan, tilt) degrees of the camera at that VP
     (None without a camera); ``bev`` (``bev=True``): the bird's-eye view
     (:class:`vctrain.predict.bev.BevMeasure`: ``prob``, ``mask``, ``grid``); ``index``: the frame's
-    place in its video or list."""
+    place in its video or list; ``source``: its file (:meth:`RoadModel.segment_files`)."""
 
     prob: np.ndarray
     mask: np.ndarray
@@ -58,6 +58,7 @@ class Segmentation:
     camera: Camera | None = None
     bev: BevMeasure | None = None
     index: int = 0
+    source: str | None = None  # the frame's file (segment_files)
 
     @property
     def metres(self) -> dict[str, Any]:
@@ -220,6 +221,37 @@ class RoadModel:
             measure = plan.bev_run.measure(prob, key, *plan.bev_pose(key)) if plan.bev_run is not None else None
             out.append(self._result(prob, frame, plan.vp(key), plan.poses.get(key), cam, measure, k))
         return out
+
+    def segment_files(self, images: Sequence[str | Path], camera: Any = None, *, bev: bool = False,
+                      within: str = "auto", ego: str | int | None = None, grid: Any = None,
+                      corridor: float | None = None) -> Iterator[Segmentation]:
+        """:meth:`segment` of image files and folders (read as ``vctrain predict`` reads them, in its
+        order), yielded one by one: the very road ``vctrain predict`` takes them on (its VP sequences
+        by file name, its own vehicle per source, a folder of per-frame calibration files as
+        ``camera``), the frame's file in :attr:`Segmentation.source`. A frame that cannot be read or
+        predicted raises its error."""
+        from vcprep.camera import camera_from_spec
+        from vcprep.dataset import collect_images
+
+        from .road import plan_files, road_files
+        from .vehicle import files_vehicle
+
+        jobs = collect_images(images, trees=True)
+        files = [j.image for j in jobs]
+        cam = None
+        if camera is None:
+            self._camera(None, files, bev)  # (the error where one is needed)
+        else:
+            cam = camera_from_spec(camera, files[0], per_frame=True, frames=files)
+        cam, rows, _ = files_vehicle(self.predictor, cam, files, None if ego is None else str(ego))
+        plan = plan_files(self.predictor, jobs, cam, within, None, rows, self._bev_options(bev, camera, grid, corridor))
+        for k, (job, img, prob, error) in enumerate(road_files(plan, jobs, progress=False)):
+            if error is not None:
+                raise error
+            measure = plan.bev_run.measure(prob, job.image, *plan.bev_pose(job.id)) if plan.bev_run else None
+            at = camera_of_image(cam, job.image, (img.shape[1], img.shape[0])) if cam is not None else None
+            yield replace(self._result(prob, img, plan.vp(job.id), plan.poses.get(job.id), at, measure, k),
+                          source=str(job.image))
 
     def segment_video(self, source: str | Path, camera: Any = None, *, bev: bool = False, within: str = "auto",
                       ego: str | int | None = None, grid: Any = None, corridor: float | None = None,

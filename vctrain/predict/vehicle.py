@@ -14,7 +14,7 @@ from vcprep.errors import InputError, VCError
 from vcprep.io import image_size
 
 __all__ = ["MISSED_VEHICLE", "own_vehicle", "ego_rows", "frames_ego_rows", "sources_ego_rows", "rows_at",
-           "folder_ego_camera"]
+           "folder_ego_camera", "files_vehicle"]
 
 
 # said (through ``warn``, even under --quiet) when the search from frames finds no own vehicle: it misses a
@@ -162,3 +162,24 @@ def folder_ego_camera(camera: Camera, files: list[Path], ego: str = "auto",
     cam = camera.for_image_size(size)
     same = [f for f in picks if sizes.get(f) == size]
     return own_vehicle(cam, picks[0].parent, ego, say, lambda: ego_rows_from_frame_files(same, picks[0].parent), warn)
+
+
+def files_vehicle(predictor: Any, cam: Any, files: list[Path], ego: str | None, say: Callable[[str], None] | None = None,
+                  warn: Callable[[str], None] | None = None) -> tuple[Any, Any, str]:
+    """(the camera with its own vehicle's rows, the rows a model that reads frames as they are cuts:
+    (rows, height) or file -> that per source, where they come from) of one folder's image ``files``
+    by ``vctrain predict``'s rules: a model that reads road VPs gets :func:`folder_ego_camera`'s
+    camera (``ego`` None: 'auto'); a resize model cuts rows only where ``ego`` asks
+    (:func:`frames_ego_rows`); a graph neither."""
+    from .frames import reads_frames_as_they_are, reads_road_vps
+
+    one = cam if isinstance(cam, Camera) else None
+    if reads_frames_as_they_are(predictor) and ego not in (None, "none"):  # asked for: its own vehicle cut
+        rows = frames_ego_rows(one, files, ego, say, warn)
+        return cam, rows, f"--ego {ego}" if ego != "auto" else "the camera's ego_rows" if cam and cam.ego_rows else ""
+    if reads_road_vps(predictor) and one is not None:  # one camera's frames: its own vehicle, as a video's
+        ego = ego or "auto"
+        cam = folder_ego_camera(one, files, ego, say, warn)
+        return cam, None, (f"--ego {ego}" if ego not in ("auto", "none") else "the camera's ego_rows" if one.ego_rows
+                           else "found from the frames" if cam.ego_rows else "")
+    return cam, None, ""
