@@ -640,7 +640,7 @@ def test_a_camera_file_that_states_no_own_vehicle_is_not_searched_nor_warned(tin
     assert read_camera_yaml(tmp_path / "again.yaml").ego_stated
     import pathlib
 
-    from vcprep.camera.files import read_kitti_calib
+    from vcprep.camera import read_kitti_calib
 
     kitti = pathlib.Path(__file__).resolve().parent.parent / "examples" / "kitti" / "calib" / "um_000000.txt"
     assert PRESETS["kitti"].ego_stated and read_kitti_calib(kitti).ego_stated  # KITTI's rig shows none

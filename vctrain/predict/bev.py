@@ -42,7 +42,8 @@ from vcprep.io import write_png
 
 from .written import prob_u8
 
-__all__ = ["BevOptions", "BevRun", "BevMeasure", "draw_inset", "BEV_NEEDS_CAMERA"]
+__all__ = ["BevOptions", "BevRun", "BevMeasure", "draw_inset", "BEV_NEEDS_CAMERA", "recording", "poses_line",
+           "poses_rule"]
 
 BEV_NEEDS_CAMERA = ("add --camera (a preset, a calibration file, or 'estimate' from these frames): its height and "
                     "pose put the road in metres")
@@ -135,7 +136,8 @@ class BevRun:
         view = self.view(image, (prob.shape[1], prob.shape[0]), vp, status)
         maps = bev_maps(view, grid, image)
         mask = to_bev((prob >= 0.5).astype(np.uint8), maps, "label")
-        road = road_in_metres(mask, grid, view, self.options.corridor)
+        hidden, why = frame_hidden(maps, view.size, camera_ego_rows(self.source.camera, view.size))
+        road = road_in_metres(mask, grid, view, self.options.corridor, hidden=hidden, hidden_why=why)
         return BevMeasure(to_bev(prob_u8(prob), maps, "prob"), mask, road, grid, view)
 
     def write(self, out: Path, stem: str, prob: np.ndarray, image: str | Path, vp: tuple[float, float] | None = None,
@@ -164,3 +166,53 @@ class BevMeasure:
     metres: dict[str, Any]
     grid: BevGrid
     view: GroundView
+
+
+def recording(options: BevOptions, poses: dict[str, dict[str, Any]]) -> BevOptions:
+    """``options`` whose ``emit`` also keeps each frame's pose in ``poses`` (id -> its ``pose``), for
+    ``predict.json``: ``vctrain eval --bev`` then takes the same poses."""
+    from dataclasses import replace
+
+    emit = options.emit
+
+    def keep(record: dict[str, Any]) -> None:
+        poses[str(record["id"])] = record.get("pose") or {}
+        if emit is not None:
+            emit(record)
+
+    return replace(options, emit=keep)
+
+
+POSE_WORDS = {"vp": "its road VP", "nominal": "the camera's nominal pose", "calibration": "its calibration file",
+              "kitti": "its KITTI calibration (the devkit's transform)"}
+
+
+def _poses_said(poses: dict[str, dict[str, Any]]) -> str:
+    """'BEV poses: each frame's pose from its road VP (12 frames), the camera's nominal pose (1 frame)'."""
+    from collections import Counter
+
+    from vcprep.progress import count
+
+    by = Counter(str(p.get("source", "nominal")) for p in poses.values())
+    return "BEV poses: each frame's pose from " + ", ".join(f"{POSE_WORDS.get(src, src)} ({count(n, 'frame')})"
+                                                            for src, n in by.most_common())
+
+
+def poses_line(poses: dict[str, dict[str, Any]]) -> str:
+    """What ``vctrain predict --bev`` says of its poses on stderr."""
+    return (_poses_said(poses) + "; kept in predict.json, where 'vctrain eval --bev' takes them (--within none: "
+            "the camera's nominal pose)")
+
+
+def poses_rule(poses: dict[str, dict[str, Any]], calibrated: bool, within: str) -> str:
+    """What ``vctrain eval --bev`` says of its poses: the ones ``predict --bev`` kept (``poses``), the
+    frames' calibration, or the camera's nominal pose (and why)."""
+    if calibrated:
+        return "BEV poses: each frame's calibration (as 'vctrain predict --bev' takes it)"
+    if within == "none":
+        return "BEV poses: the camera's nominal pose (--within none)"
+    if not poses:
+        return ("BEV poses: the camera's nominal pose (predict.json keeps no frame poses: 'vctrain predict --bev' "
+                "keeps each frame's road-VP pose for eval to take)")
+    return _poses_said(poses) + ", as 'vctrain predict --bev' found them (predict.json; --within none: the camera's " \
+        "nominal pose)"

@@ -118,7 +118,8 @@ def predict_inputs(options: PredictOptions, say: Optional[Callable[[str], None]]
 
         refuse_mixed(predictor)
     camera_for = partial(camera_from_spec, opts.camera, say=note) if opts.camera is not None else None
-    out, existed = Path(opts.out), Path(opts.out).exists()
+    out, existed, poses = Path(opts.out), Path(opts.out).exists(), {}
+    opts = _keeping_poses(opts, poses)
     try:
         result = _predict_all(opts, predictor, images, videos, camera_for, say)
         result.engine = engine
@@ -131,8 +132,25 @@ def predict_inputs(options: PredictOptions, say: Optional[Callable[[str], None]]
     elif result.written:
         from ..evaluate import record_predictions
 
-        record_predictions(out, opts.source, result.masks, engine)
+        record_predictions(out, opts.source, result.masks, engine, poses=poses,
+                           inputs=[str(p) for p in [*videos, *images, *([opts.store] if opts.store else [])]])
+        if poses and say is not None:
+            from .bev import poses_line
+
+            say(poses_line(poses))
     return result
+
+
+def _keeping_poses(opts: PredictOptions, poses: dict) -> PredictOptions:
+    """``opts`` whose ``--bev`` also keeps each frame's BEV pose in ``poses`` (for predict.json: eval --bev
+    takes them)."""
+    if opts.bev is None:
+        return opts
+    from dataclasses import replace
+
+    from .bev import recording
+
+    return replace(opts, bev=recording(opts.bev, poses))
 
 
 def _checked(opts: PredictOptions) -> PredictOptions:
@@ -196,7 +214,8 @@ def _predict_all(opts: PredictOptions, predictor, images: list[Path], videos: li
         written = predict_store(predictor, opened, out, progress=opts.progress, overlay=opts.overlay,
                                 bev=_store_bev(opts.bev, opened, camera_for, opts.within))
         n_images = len(written)
-    failed, masks = [], list(written) if opts.store is not None else []
+    failed, masks = [], [p for p in written if Path(p).name.endswith("_mask.png")]  # a video's frames
+    masks = list(written) if opts.store is not None else masks
     if images:
         run = _predict_image_files(opts, predictor, images, camera_for, rule, say)
         written += run.written

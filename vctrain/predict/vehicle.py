@@ -22,7 +22,8 @@ __all__ = ["MISSED_VEHICLE", "own_vehicle", "ego_rows", "frames_ego_rows", "sour
 # place from frame to frame; docs/cameras.md), and a missed bonnet is warped as road
 MISSED_VEHICLE = ("the search misses a bonnet that reflects the road or sits at several places (frames of "
                   "several mounts), as Cityscapes' does: if the frames show your own vehicle give --ego N (its bottom "
-                  "rows) or ego_rows in the camera file; --ego 0 says there is none and ends this warning")
+                  "rows) or ego_rows in the camera file; --ego 0 or 'ego_rows: 0' in the camera file says there is "
+                  "none and ends this warning")
 
 
 def own_vehicle(cam: Camera, source: str | Path, ego: str, say: Callable[[str], None] | None,
@@ -35,16 +36,18 @@ def own_vehicle(cam: Camera, source: str | Path, ego: str, say: Callable[[str], 
     (``warn``, given: the caller's even under --quiet; else ``say``) with :data:`MISSED_VEHICLE`."""
     from dataclasses import replace
 
-    return replace(cam, ego_rows=ego_rows(cam.size[1], cam.ego_rows, source, ego, say, estimate, warn))
+    return replace(cam, ego_rows=ego_rows(cam.size[1], cam.ego_rows, source, ego, say, estimate, warn,
+                                          known=cam.ego_stated))
 
 
 def ego_rows(height: int, stated: int, source: str | Path, ego: str, say: Callable[[str], None] | None,
-             estimate: Callable[[], Any], warn: Callable[[str], None] | None = None) -> int:
+             estimate: Callable[[], Any], warn: Callable[[str], None] | None = None, known: bool = False) -> int:
     """The own vehicle's bottom rows of frames ``height`` rows high by :func:`own_vehicle`'s rule
-    (``stated``: the camera's ``ego_rows``, 0 where none is stated)."""
+    (``stated``: the camera's ``ego_rows``, 0 where none is stated; ``known``: the camera file states
+    them, an explicit 'ego_rows: 0' too: no search, nothing said)."""
     from vcprep.camera import rows_at_height
 
-    if ego == "none" or (ego == "auto" and stated):
+    if ego == "none" or (ego == "auto" and (stated or known)):
         return int(stated)
     if ego != "auto":
         try:
@@ -76,7 +79,7 @@ def frames_ego_rows(camera: Camera | None, files: list[Path], ego: str, say: Cal
     at the first frame's size (``ego`` 'auto' looks in up to :data:`vcprep.io.EGO_SAMPLES` frames
     spread over the folder). Frames of several sources (``ego`` 'auto', no rows stated; a folder per
     drive, BDD100K- or CamVid-style names): each source's own, file -> (rows, height) (:func:`sources_ego_rows`)."""
-    if ego == "auto" and not (camera is not None and camera.ego_rows):
+    if ego == "auto" and not (camera is not None and (camera.ego_rows or camera.ego_stated)):
         per_source = sources_ego_rows(files, say, warn)
         if per_source is not None:
             return per_source
@@ -180,6 +183,7 @@ def files_vehicle(predictor: Any, cam: Any, files: list[Path], ego: str | None, 
     if reads_road_vps(predictor) and one is not None:  # one camera's frames: its own vehicle, as a video's
         ego = ego or "auto"
         cam = folder_ego_camera(one, files, ego, say, warn)
-        return cam, None, (f"--ego {ego}" if ego not in ("auto", "none") else "the camera's ego_rows" if one.ego_rows
+        stated = one.ego_rows or one.ego_stated  # (an explicit 'ego_rows: 0': none, and no search)
+        return cam, None, (f"--ego {ego}" if ego not in ("auto", "none") else "the camera's ego_rows" if stated
                            else "found from the frames" if cam.ego_rows else "")
     return cam, None, ""
