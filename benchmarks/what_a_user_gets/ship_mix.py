@@ -118,7 +118,7 @@ def main() -> None:
     (res / f"ship_mix_{cand}.md").write_text(table)
     write_json(res / f"ship_mix_{cand}.json", {
         "headline": head, "cells": cells, "candidate": cand, "datasets": CANDIDATES[cand], "splits": SPLITS,
-        "epochs": a.epochs, "seeds": seeds, "shipped": str(a.shipped), "threads": a.threads, "machine": machine(),
+        "epochs": a.epochs, "seeds": seeds, "shipped": str(a.shipped.resolve().relative_to(ROOT)) if a.shipped.resolve().is_relative_to(ROOT) else str(a.shipped), "threads": a.threads, "machine": machine(),
         "date": today(), "issue": 82, "command": "benchmarks/what_a_user_gets/ship_mix.py " + " ".join(sys.argv[1:])})
     model = wd / f"seed{seeds[0]}" / "runs" / "_all" / "resize" / "model.pt"
     if a.ship and model.is_file():

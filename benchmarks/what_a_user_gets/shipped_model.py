@@ -205,7 +205,7 @@ def figure(model: Path, wd: Path, out_png: Path) -> Path:
     for p in sorted((LUMS / "images").glob("*.jpg")):
         if any(fnmatch(p.stem, g) for g in LUMS_HELD):
             (lums / p.name).symlink_to(p)
-    views = [("KITTI, never trained on", KITTI / "image_2", KITTI / "calib", "um_000000"),
+    views = [("KITTI road frame (held out)", KITTI / "image_2", KITTI / "calib", "um_000000"),
              ("CamVid val", DATA / "val", native_camera(wd), "0016E5_08159"),
              ("LUMS held out", lums, "estimate", "color_51_png.rf.9d2006df9e405caecb43f428bcd8fbd5")]
     tiles = []

@@ -10,6 +10,7 @@ import typer
 from vcprep.cliutil import check_data_folders, count, ensure_parent, err
 from vcprep.errors import InputError
 
+from ..shipped import SHIPPED
 from ..training.config import TrainConfig
 from .common import (LABEL_FORMAT_HELP, TRAIN, app, command_seconds, model_arg, parse_size, path_or_json, pin_threads,
                      threads_option)
@@ -49,7 +50,7 @@ HELP = {  # the options whose help does not fit on their line
     "ray_channels": "two extra input channels: each pixel's ray angles beside and below the road VP, from the camera's "
                     "focal length",
     "init": "fine-tune: start from this checkpoint's weights, or a shipped model's name from any folder: shipped "
-            "(= road-multicamera) (same model, width, input channels and --baseline; "
+            f"(= {SHIPPED}) or another under models/ (same model, width, input channels and --baseline; "
             "a resize model's working size unless --size); a fifth of the frames is held out (--val-split "
             "sequence), the start is scored on it before the first epoch and kept unless the trained model scores "
             "higher there",

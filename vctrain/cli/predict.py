@@ -11,6 +11,7 @@ import typer
 from vcprep.cliutil import corridor_option, ensure_parent, err, range_option, res_option
 
 from ..predict.settings import BEYOND, DEFAULT_BEYOND, DEFAULT_ENGINE, GRAPH_ENGINE
+from ..shipped import SHIPPED
 from .common import app, model_arg, path_or_json, pin_threads, threads_option
 
 
@@ -47,7 +48,7 @@ WITHIN_HELP = ("per-image VP correction: auto (as the model was trained), estima
 
 # predict's arguments and options, declared once each (the command's signature names them)
 MODEL_ARG = typer.Argument(None, help="model written by 'vctrain fit', or a shipped model's name from any folder: "
-                                      "shipped (= road-multicamera) (left out with --prior)")
+                                      f"shipped (= {SHIPPED}), or another under models/ (left out with --prior)")
 IMAGES_ARG = typer.Argument(None, help="image files or folders, or video files (.mp4 .avi .mkv .mov ...)")
 OUT_OPT = typer.Option(..., "--out", "-o", help="output folder (created)")
 CAMERA_OPT = typer.Option(None, "--camera", "-c", help=CAMERA_HELP)
@@ -112,15 +113,15 @@ def predict_cmd(
 
     \b
     Example:
-      vctrain predict models/road-multicamera/road.pt my/frames --out preds --overlay   # the shipped model
+      vctrain predict models/road-street/road.pt my/frames --out preds --overlay   # the shipped model
       vctrain predict shipped my/frames --out preds   # the same model by its name, from any folder
-      vctrain predict models/road-multicamera/road.pt dashcam/ --ego auto --out preds/dashcam   # bonnet cut off
+      vctrain predict models/road-street/road.pt dashcam/ --ego auto --out preds/dashcam   # bonnet cut off
       vctrain predict runs/vc.pt --camera kitti data/kitti/image_2 --out preds/kitti
       vctrain predict runs/vc.pt --camera low.yaml frames/ --beyond rays --out preds/low   # far below the training camera
       vctrain predict runs/vc.pt --store stores/camvid_val --out preds/camvid_val
       vctrain predict --prior prior.npy --camera kitti data/kitti/image_2 --out preds/geoprior
       vctrain predict runs/vc.pt --camera camvid drive.mp4 --overlay --out preds/drive
-      vctrain predict models/road-multicamera/road.pt --camera camvid drive.mp4 --bev --overlay --out preds/drive
+      vctrain predict models/road-street/road.pt --camera camvid drive.mp4 --bev --overlay --out preds/drive
     """
     from ..predict.inputs import PredictOptions, predict_inputs
 
@@ -182,7 +183,7 @@ def _failed(result, out: Path) -> None:
 @app.command("export")
 def export_cmd(
     checkpoint: Path = typer.Argument(..., help="model written by 'vctrain fit' (virtual-camera or resize baseline), or a "
-                                                  "shipped model's name: shipped (= road-multicamera)"),
+                                                  f"shipped model's name: shipped (= {SHIPPED})"),
     camera: Optional[str] = typer.Option(None, "--camera", "-c",
                                          help="the camera the graph is for: preset or file (.yaml, KITTI .txt, "
                                               "Cityscapes .json); its image size is the graph's input size (with "
@@ -225,8 +226,8 @@ def export_cmd(
     Example:
       vctrain export runs/vc.pt --camera kitti --frame data/kitti/image_2/000000.png -o road.onnx
       vctrain export runs/vc.pt --camera mycam.yaml --vp-input -o road_vp.onnx
-      vctrain export models/road-multicamera/road.pt --frame data/frames/0001.png -o road.onnx
-      vctrain export models/road-multicamera/road.pt --size 1280x720 --int8 --calib my/frames -o road_int8.onnx
+      vctrain export models/road-street/road.pt --frame data/frames/0001.png -o road.onnx
+      vctrain export models/road-street/road.pt --size 1280x720 --int8 --calib my/frames -o road_int8.onnx
       vctrain predict road.onnx data/kitti/image_2 --out preds/kitti
     """
     from vcprep.cli import camera_for

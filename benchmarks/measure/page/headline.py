@@ -19,8 +19,11 @@ NAMES = {"camvid": "CamVid", "cityscapes": "Cityscapes", "idd": "IDD-Lite", "bdd
          "kitti": "KITTI", "kitti_semantics": "KITTI"}
 HEADER = ["regime", "what wins", "by how much (road IoU points; mean ± std over seeds)",
           "on which cameras (held out of training)"]
-TWIN = {"within": "virtual-camera twin", "resize": "resize twin"}
-SHIPPED = "[`models/road-multicamera`](models/road-multicamera/README.md)"
+SHIP_NAME = "road-street"     # what `shipped` names (vctrain.shipped.SHIPPED; issue 82)
+SHIP_RESULT = "ship_mix_four"  # its run beside the model it replaced (benchmarks/what_a_user_gets/ship_mix.py)
+SHIP_LOO = "ship_loo"          # the candidates judged on cameras held out of training (benchmarks/other_cameras/ship_loo.py)
+SHIPPED = f"[`models/{SHIP_NAME}`](models/{SHIP_NAME}/README.md)"
+SPLIT_NAMES = {"kitti_semantics": "`kitti_semantics`", "kitti": "the KITTI road frame"}
 GUESSED = ("idd", "bdd", "lums")  # the development sets whose camera files are assumed (their READMEs)
 
 
@@ -60,15 +63,6 @@ def worst_merged(m: dict) -> list[tuple[str, str]]:
     return [(name, fig) for _, name, fig in sorted(per)]
 
 
-def shipped_twins(data: dict[str, dict]) -> tuple[str, dict] | None:
-    """(stem, JSON) of the first shipped_model* run that trained both twins (within and resize)."""
-    for stem in sorted(s for s in data if s.startswith("shipped_model")):
-        h = data[stem]["headline"]
-        if h.get("mean_within") is not None and h.get("mean_resize") is not None:
-            return stem, data[stem]
-    return None
-
-
 def one_camera(a: dict) -> Row:
     """Trained on CamVid, tested on the real other cameras (benchmarks/other_cameras/as_shipped.py)."""
     fig = _mean_std(_real_mean(a["cells"], AS_SHIPPED_REAL), signed=True)
@@ -101,25 +95,21 @@ def calibrated_merged(c: dict, stem: str = "calibrated_loo_lite0fpn") -> Row:
 
 
 def shipped(data: dict[str, dict]) -> Row:
-    """The model that ships (benchmarks/what_a_user_gets/shipped_model.json): its held-out mean, and why it is
-    the twin it is: the last run of both twins (an earlier network's, ``shipped_twins``), when there is one."""
-    d = data["shipped_model"]
-    h, ship = d["headline"], d["headline"]["shipped_condition"]
-    fig = f"{h[f'mean_{ship}']:.1f}"
-    by = f"held-out mean **{fig}** ({_seeds([d['seed']])}, {d['epochs']} epochs)"
-    twins, geo = shipped_twins(data), data.get("ship_geometry", {}).get("headline", {})
-    if ship == "resize" and geo.get("mean_within") is not None and geo.get("mean_shipped") is not None:
-        g = data["ship_geometry"]  # issue 73 item 4: the virtual-camera twin trained on every development set
-        by += (f"; a virtual-camera twin trained on the six development sets ({g['epochs']} epochs): "
-               f"{geo['mean_within']:.1f} against its {geo['mean_shipped']:.1f} on {len(g['sets'])} held-out splits")
-    elif twins is not None:
-        stem, t = twins
-        other = "within" if ship == "resize" else "resize"
-        by += (f"; its {TWIN[other]} was last trained beside it for an earlier network ({t['epochs']} epochs): "
-               f"{t['headline'][f'mean_{other}']:.1f} against {t['headline'][f'mean_{ship}']:.1f}")
-    return Row("the shipped model", f"the shipped model, {SHIPPED}", WINNER[ship], by,
-               f"{len(d['sets'])} held-out splits: " + ", ".join(NAMES.get(s, s) for s in d["sets"]), fig,
-               "shipped_model")
+    """The model that ships (benchmarks/what_a_user_gets/results/ship_mix_four.json): its mean over the held-out
+    splits beside the model it replaced in the same run, and the candidates' leave-one-dataset-out
+    (ship_loo.json) where finished."""
+    d = data[SHIP_RESULT]
+    h, cand = d["headline"], d["candidate"]
+    fig = f"{h[f'mean_{cand}']:.1f}"
+    by = (f"held-out mean **{fig}** ({_seeds(d['seeds'])}, {d['epochs']} epochs) against {h['mean_shipped']:.1f} for "
+          "`road-multicamera`, which it replaced")
+    loo = data.get(SHIP_LOO, {}).get("headline", {})
+    if loo.get(f"{cand}_mean") is not None and loo.get("today_mean") is not None:
+        by += (f"; each dataset held out whole ({len(data[SHIP_LOO]['held_out'])} folds): {loo[f'{cand}_mean']:.1f} "
+               f"against {loo['today_mean']:.1f}")
+    return Row("the shipped model", f"the shipped model, {SHIPPED}", WINNER["resize"], by,
+               f"{len(d['splits'])} held-out splits: " + ", ".join(SPLIT_NAMES.get(s, NAMES.get(s, s)) for s in d["splits"]), fig,
+               SHIP_RESULT)
 
 
 def rows(data: dict[str, dict]) -> list[Row]:
@@ -133,16 +123,13 @@ def render(data: dict[str, dict]) -> str:
     rs = rows(data)
     one, several = rs[0], rs[1]
     cal = [r for r in rs if r.key == "several calibrated cameras"]
-    ship = data["shipped_model"]
-    cond = ship["headline"]["shipped_condition"]
-    because = (f"because {cond} wins when cameras with guessed files are merged" if WINNER[cond] == several.wins
-               else "the twin that scored higher on the held-out splits")
-    network = f"a {ship['model']}" if ship.get("model") else "a model"
+    sets = ", ".join(NAMES[t] for t in data[SHIP_RESULT]["datasets"])
     lines = ["On real cameras held out of training, the virtual camera (`within`: per-image correction) against "
              "the same network on resized images (`resize`):", ""]
     lines += table(HEADER, [[r.regime, r.wins, r.by, r.cameras] for r in rs])
-    lines += [f"- **Which model to use**: the shipped one, {SHIPPED}, {network} trained on "
-              f"several cameras merged, the {TWIN[cond]}, {because}.",
+    lines += [f"- **Which model to use**: the shipped one, {SHIPPED}, a lite0fpn trained on {sets} with the frames "
+              "read as they are, chosen on cameras held out of training; for BDD100K-like dashcams and LUMS-like "
+              "low cameras, `road-multicamera`, which trained on them.",
               f"- **When the virtual camera pays**: a model trained on one camera and used on others "
               f"({one.figure} IoU points over resize)" + (f", or on several calibrated cameras ({cal[0].figure})" if cal else "")
               + ": your labelled frames, each camera described by a file (calibrated, or `--camera estimate`, which beat "
@@ -168,8 +155,8 @@ def problems(block: str, data: dict[str, dict]) -> list[str]:
         row = next((c for c in cells if c and c[0].startswith(r.key)), None)
         if row is None or len(row) < 3 or r.figure not in row[2]:
             out.append(f"the headline's table leaves out the '{r.key}' figure ({r.figure}, from {r.source}.json)")
-    if "models/road-multicamera" not in block:
-        out.append("the headline does not name the shipped model (models/road-multicamera)")
+    if f"models/{SHIP_NAME}" not in block:
+        out.append(f"the headline does not name the shipped model (models/{SHIP_NAME})")
     return out
 
 
@@ -177,16 +164,14 @@ def readme_figures(data: dict[str, dict]) -> list[tuple[str, list[str], str]]:
     """Each figure the README states: (where and what, the figure as the README writes it (in parts),
     the results file it comes from). The headline's are generated; the others are written by hand."""
     rs = rows(data)
-    s = data["shipped_model"]
-    cells = s["cells"][s["headline"]["shipped_condition"]]
+    s = data[SHIP_RESULT]
+    cells = {t: s["headline"][f"{s['candidate']}_{t}"] for t in s["splits"] if t != "kitti_semantics"}
     out = [(f"headline, {r.key}", [r.figure], f"{r.source}.json") for r in rs]
     out.insert(2, ("headline, several cameras merged: the worst held-out cameras",
                    [f"{n} {f}" for n, f in worst_merged(data["multi_camera_median"])[:2]], "multi_camera_median.json"))
-    out += [("headline: the shipped model's network and twin",
-             [x for x in (s.get("model"), f"the {TWIN[s['headline']['shipped_condition']]}") if x], "shipped_model.json"),
-            ("Three routes, 1: the shipped model's held-out road IoU", [
+    out += [("Three routes, 1: the shipped model's held-out road IoU", [
                 f"{'CamVid val' if t == 'camvid' else NAMES[t]} {cells[t]:.1f}" for t in cells if t != "kitti"]
-             + [f"KITTI frame it never saw {cells['kitti']:.1f}"], "shipped_model.json"),
+             + [f"the KITTI road frame {cells['kitti']:.1f}"], f"{SHIP_RESULT}.json"),
             ("Your first hour, 2: the shipped model on held-out frames (the figure)", ["shipped_model.png"],
              "shipped_model.png"),
             ("Your first hour, 5 and Concepts: minutes a model, 305 CamVid frames on 2 cores (the route's fits, median)",
