@@ -551,3 +551,19 @@ def test_docs_have_links_and_readme_is_short():
     assert (ROOT / "README.md").stat().st_size <= 15_000
     readme = (ROOT / "README.md").read_text().splitlines()
     assert readme[3].startswith("make demo") and readme[4].startswith("make test")
+
+
+def test_the_shipped_models_leave_one_out_table_is_the_results_files():
+    """Issue 82: docs/training.md and the road-street card show ship_loo.py's table as its results file has it
+    (ship_loo.embed writes it between the markers)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("ship_loo", ROOT / "benchmarks" / "other_cameras" / "ship_loo.py")
+    loo = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(loo)
+    table = loo.table_lines((ROOT / "benchmarks" / "other_cameras" / "results" / "ship_loo.md").read_text())
+    assert "| `four` |" in table and "| `today` |" in table
+    for doc in loo.DOCS:
+        text = doc.read_text()
+        block = text[text.index("\n", text.index(loo.BEGIN)) + 1:text.index(loo.END)]
+        assert block == table, doc

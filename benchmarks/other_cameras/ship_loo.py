@@ -69,6 +69,25 @@ FOLDS = ["kitti_semantics", "camvid", "cityscapes", "idd"]
 BASELINE = "today"
 COND = "resize"
 TARGET_GAIN, TARGET_WORST = 3.0, -1.0
+# the documents that show the table (between these markers; tests/test_docs.py checks they match the results file)
+DOCS = [ROOT / "docs" / "training.md", ROOT / "models" / "road-street" / "README.md"]
+BEGIN, END = "<!-- ship_loo:", "<!-- end ship_loo -->"
+
+
+def table_lines(table: str) -> str:
+    """The Markdown tables of ``table`` (the results file's .md) without its prose: what the documents show."""
+    keep = [ln for ln in table.splitlines() if ln.startswith("|") or not ln.strip()]
+    return "\n".join(ln for i, ln in enumerate(keep) if ln or (i and keep[i - 1])).strip() + "\n"
+
+
+def embed(table: str, docs: list[Path] = DOCS) -> None:
+    """Each document's block between BEGIN's line and END replaced by the table's tables."""
+    for doc in docs:
+        text = doc.read_text()
+        i, j = text.find(BEGIN), text.find(END)
+        if 0 <= i < j:
+            head = text.index("\n", i) + 1
+            doc.write_text(text[:head] + table_lines(table) + text[j:])
 
 
 def candidate_study(wd: Path, cand: str, quick: bool, epochs: int | None) -> Path:
@@ -197,6 +216,8 @@ def report(a: argparse.Namespace, wd: Path, cands: list[str], folds: list[str], 
     rd = wd / "results" if a.quick else results_dir(__file__)
     (rd / "ship_loo.md").parent.mkdir(parents=True, exist_ok=True)
     (rd / "ship_loo.md").write_text(table)
+    if not a.quick:
+        embed(table)
     write_json(rd / "ship_loo.json", {
         "headline": head, "targets": tg, "cells": cells, "candidates": {c: CANDIDATES[c] for c in cands},
         "held_out": folds, "seeds": seeds, "epochs": a.epochs, "steps_per_epoch": 2 if a.quick else 35,
