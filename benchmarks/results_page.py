@@ -102,9 +102,11 @@ LIBRARIES = {"OpenCV": ("cv2", "opencv"), "numpy": ("numpy",), "torch": ("torch"
 def recorded_versions(d: dict) -> dict[str, str]:
     """The library versions a result records (top level or headline), by :data:`LIBRARIES` name."""
     head = d["headline"] if isinstance(d.get("headline"), dict) else {}
+    prov = d["provenance"].get("versions") or {} if isinstance(d.get("provenance"), dict) else {}
     out = {}
     for name, keys in LIBRARIES.items():
-        val = next((d.get(k, head.get(k)) for k in keys if d.get(k, head.get(k)) is not None), None)
+        val = next((d.get(k, head.get(k, prov.get(k))) for k in keys
+                    if d.get(k, head.get(k, prov.get(k))) is not None), None)
         if isinstance(val, str) and val[:1].isdigit():
             out[name] = val
     return out
@@ -134,6 +136,23 @@ def version_note(d: dict, newest: dict[str, str]) -> str | None:
             "script before comparing") if older else None
 
 
+def provenance_facts(prov: dict, known: list[str]) -> list[str]:
+    """The machine row's facts from a result's ``provenance`` (benchmarks/measure/report.py), leaving out
+    what the result already states (``known``: its machine line and the keys it named)."""
+    out = []
+    if prov.get("machine") and prov["machine"] not in known:
+        out.append(str(prov["machine"]))
+    for key in ("python",):
+        if prov.get(key) is not None and key not in known:
+            out.append(f"{key} {prov[key]}")
+    for key, val in (prov.get("versions") or {}).items():
+        if val is not None and key not in known and not (key == "opencv" and "cv2" in known):
+            out.append(f"{key} {val}")
+    if prov.get("commit") and "commit" not in known:
+        out.append(f"commit {prov['commit']}" + (" (uncommitted changes)" if prov.get("dirty") else ""))
+    return out
+
+
 def run_facts(path: Path, d: dict, newest: dict[str, str] | None = None) -> list[list[str]]:
     stem, script = path.stem, script_for(path)
     if "command" in d:
@@ -149,13 +168,15 @@ def run_facts(path: Path, d: dict, newest: dict[str, str] | None = None) -> list
         settings.append("conditions " + ",".join(d["conditions"]))
     if settings:
         command += "; recorded settings: " + ", ".join(settings)
-    date = d.get("date") or f"not recorded in the JSON (`git log -1 -- {rel(path)}` says when it was committed)"
+    prov = d["provenance"] if isinstance(d.get("provenance"), dict) else {}
+    date = d.get("date") or prov.get("date") or f"not recorded in the JSON (`git log -1 -- {rel(path)}` says when it was committed)"
     head = d["headline"] if isinstance(d.get("headline"), dict) else {}
     machine = []
     for key in ("machine", "cores", "threads", "python", "cv2", "opencv", "numpy", "torch", "commit"):
         val = d.get(key, head.get(key))
         if val is not None:
             machine.append(str(val) if key == "machine" else f"{key} {val}")
+    machine += provenance_facts(prov, [m.split(" ")[0] for m in machine[1:]] + machine[:1])
     data = d.get("data", head.get("data"))
     rows = [["file", link(path)], ["script", link(script) if script else "not found"],
             ["command", command], ["date", date],

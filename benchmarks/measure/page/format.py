@@ -62,5 +62,5 @@ def _mean_std(v: list[float] | None, signed: bool = False) -> str:
 def r_generic(d: dict) -> list[str]:
     h = d.get("headline") if isinstance(d.get("headline"), dict) else d
     rows = [[k, f"{v:.4g}" if isinstance(v, float) else num(v)] for k, v in h.items()
-            if k not in ("command", "date", "machine", "data") and not (isinstance(v, (list, dict)) and len(json.dumps(v)) > 200)]
+            if k not in ("command", "date", "machine", "data", "provenance") and not (isinstance(v, (list, dict)) and len(json.dumps(v)) > 200)]
     return table(["figure", "value"], rows)
