@@ -220,3 +220,26 @@ def test_the_cli_finder_knows_the_cli():
     """The check above would notice: the command modules are told from library modules of like names."""
     assert _is_cli("vcprep.cliutil") and _is_cli("vctrain.cli.common") and _is_cli("vcprep.cli")
     assert not _is_cli("vctrain.client") and not _is_cli("vcprep.progress")
+
+
+MAX_FUNCTION_LINES = 80
+
+
+def _long_functions(path: Path, limit: int = MAX_FUNCTION_LINES) -> list[str]:
+    """``name (lines)`` of each function in ``path`` longer than ``limit`` lines, from ``def`` to the end of
+    its body (decorators left out; a nested function counts on its own and inside its parent)."""
+    return [f"{path.relative_to(ROOT)}:{n.lineno} {n.name} ({n.end_lineno - n.lineno + 1} lines)"
+            for n in ast.walk(ast.parse(path.read_text()))
+            if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)) and n.end_lineno - n.lineno + 1 > limit]
+
+
+def test_no_function_is_over_80_lines():
+    """No function in vcprep/ or vctrain/ passes 80 lines, the commands included (issue 79): a long command
+    declares its options as module-level constants and hands its work to helpers."""
+    assert [f for path in _modules().values() for f in _long_functions(path)] == []
+
+
+def test_the_length_check_finds_a_long_function():
+    """The check above would notice: at a lower limit it names fit's command with its length."""
+    found = _long_functions(ROOT / "vctrain" / "cli" / "fit.py", 20)
+    assert any(" fit_cmd (" in f and f.startswith("vctrain/cli/fit.py:") for f in found)

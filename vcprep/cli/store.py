@@ -48,27 +48,34 @@ SCALE_HELP = (f"store scale of the full virtual camera (0.125: the 'virtual' pre
               f"own, else the scale giving {STORE_PIXELS:,} pixels (480x360's)")
 
 
+WARP_CAMERA_OPT = typer.Option(..., "--camera", "-c", help=FRAMES_HELP + ", or 'estimate': estimated from these "
+                               "frames (as 'vcprep camera estimate' does; written to STORE/camera.estimated.yaml)")
+WARP_IMAGES_OPT = typer.Option(..., "--images", "-i", help="folder of source images (subfolders included)")
+WARP_OUT_OPT = typer.Option(..., "--out", "-o", help="store directory (created, or updated in place)")
+WARP_LABELS_OPT = typer.Option(None, "--labels", "-l", help="folder of label images, a tree mirroring --images (e.g. "
+                               "gtFine/train for leftImg8bit/train)")
+WARP_LABEL_FORMAT_OPT = typer.Option(None, "--label-format", "-f", help=LABEL_FORMAT_HELP)
+WARP_VIRTUAL_OPT = typer.Option(None, "--virtual", help=VIRTUAL_HELP)
+WARP_SCALE_OPT = typer.Option(None, "--scale", "-s", help=SCALE_HELP)
+WARP_ID_PREFIX_OPT = typer.Option("", "--id-prefix", help="prefix for item ids (keeps datasets apart in one store)")
+WARP_COMPLETE_OPT = typer.Option("projective", "--complete", help=COMPLETE_HELP)
+WARP_WITHIN_OPT = typer.Option(None, "--within", help=WITHIN_HELP + "; default: 'estimate' for one camera, 'none' for "
+                               "per-frame calibration (each frame's exact pose)")
+WARP_VP_SMOOTH_OPT = typer.Option(0, "--vp-smooth", min=0, help=SMOOTH_HELP)
+WARP_JOBS_OPT = typer.Option(None, "--jobs", "-j", min=1, help=JOBS_HELP)
+WARP_SHARD_OPT = typer.Option(None, "--shard", help=SHARD_HELP)
+WARP_KEEP_GOING_OPT = typer.Option(False, "--keep-going", "-k", help=KEEP_GOING_HELP)
+WARP_QUIET_OPT = typer.Option(False, "--quiet", "-q", help="no progress bar or summary on stderr")
+
+
 @app.command("warp")
 def warp_cmd(
-    camera: str = typer.Option(..., "--camera", "-c", help=FRAMES_HELP + ", or 'estimate': estimated from these "
-                               "frames (as 'vcprep camera estimate' does; written to STORE/camera.estimated.yaml)"),
-    images: Path = typer.Option(..., "--images", "-i", help="folder of source images (subfolders included)"),
-    out: Path = typer.Option(..., "--out", "-o", help="store directory (created, or updated in place)"),
-    labels: Optional[Path] = typer.Option(None, "--labels", "-l", help="folder of label images, a tree mirroring "
-                                          "--images (e.g. gtFine/train for leftImg8bit/train)"),
-    label_format: Optional[str] = typer.Option(None, "--label-format", "-f",
-                                               help=LABEL_FORMAT_HELP),
-    virtual: Optional[str] = typer.Option(None, "--virtual", help=VIRTUAL_HELP),
-    scale: Optional[float] = typer.Option(None, "--scale", "-s", help=SCALE_HELP),
-    id_prefix: str = typer.Option("", "--id-prefix", help="prefix for item ids (keeps datasets apart in one store)"),
-    complete: str = typer.Option("projective", "--complete", help=COMPLETE_HELP),
-    within: Optional[str] = typer.Option(None, "--within", help=WITHIN_HELP + "; default: 'estimate' for one "
-                                         "camera, 'none' for per-frame calibration (each frame's exact pose)"),
-    vp_smooth: int = typer.Option(0, "--vp-smooth", min=0, help=SMOOTH_HELP),
-    jobs: Optional[int] = typer.Option(None, "--jobs", "-j", min=1, help=JOBS_HELP),
-    shard: Optional[str] = typer.Option(None, "--shard", help=SHARD_HELP),
-    keep_going: bool = typer.Option(False, "--keep-going", "-k", help=KEEP_GOING_HELP),
-    quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar or summary on stderr"),
+    camera: str = WARP_CAMERA_OPT, images: Path = WARP_IMAGES_OPT, out: Path = WARP_OUT_OPT,
+    labels: Optional[Path] = WARP_LABELS_OPT, label_format: Optional[str] = WARP_LABEL_FORMAT_OPT,
+    virtual: Optional[str] = WARP_VIRTUAL_OPT, scale: Optional[float] = WARP_SCALE_OPT,
+    id_prefix: str = WARP_ID_PREFIX_OPT, complete: str = WARP_COMPLETE_OPT, within: Optional[str] = WARP_WITHIN_OPT,
+    vp_smooth: int = WARP_VP_SMOOTH_OPT, jobs: Optional[int] = WARP_JOBS_OPT, shard: Optional[str] = WARP_SHARD_OPT,
+    keep_going: bool = WARP_KEEP_GOING_OPT, quiet: bool = WARP_QUIET_OPT,
 ):
     """Warp a folder of images (and labels) from CAMERA into the virtual camera store OUT.
 

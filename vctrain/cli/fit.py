@@ -120,57 +120,76 @@ def _parse_crop(text: Optional[str]) -> Optional[Any]:
                      "use e.g. --crop 320x240, --crop 0.67 or --crop 0.44x1")
 
 
+STORES_ARG = typer.Argument(None, help="training stores built by 'vcprep warp' (one virtual camera and scale)")
+OUT_OPT = typer.Option(..., "--out", "-o", help=HELP["out"])
+RECIPE_OPT = typer.Option(None, "--recipe", help=RECIPE_HELP)
+MODEL_OPT = typer.Option(None, "--model", "-m", help=MODEL_HELP)
+WIDTH_OPT = typer.Option(None, "--width", help="first-block width override (64 = segnet, 16 = narrow)")
+PRETRAINED_OPT = typer.Option(None, "--pretrained/--no-pretrained", help=PRETRAINED_HELP)
+BASELINE_OPT = typer.Option(TRAIN.baseline, "--baseline", help=HELP["baseline"])
+IMAGES_OPT = typer.Option(None, "--images", help="baseline only: folder of original images")
+LABELS_OPT = typer.Option(None, "--labels", help="baseline only: folder of their labels")
+LABEL_FORMAT_OPT = typer.Option(None, "--label-format", help=f"baseline only: {LABEL_FORMAT_HELP}")
+SIZE_OPT = typer.Option(None, "--size", help=SIZE_HELP)
+CROP_OPT = typer.Option(None, "--crop", help=CROP_HELP)
+EPOCHS_OPT = typer.Option(None, "--epochs", "-e", help="epochs (cpu recipe: 20, paper recipe: 30; the paper: 600 on a GPU)")
+BATCH_SIZE_OPT = typer.Option(None, "--batch-size", "-b", help="global batch size (recipes: 8)")
+OPTIMIZER_OPT = typer.Option(None, "--optimizer", help="sgd (momentum 0.9; paper) or adamw (cpu)")
+LR_OPT = typer.Option(None, "--lr", help="peak learning rate (paper: 0.005, cpu: 0.002; with --init: a tenth of the checkpoint's)")
+WEIGHT_DECAY_OPT = typer.Option(None, "--weight-decay", help="weight decay (paper: 0.0005, cpu: 0.01)")
+SCHEDULE_OPT = typer.Option(None, "--schedule", help=HELP["schedule"])
+SEED_OPT = typer.Option(TRAIN.seed, "--seed", help="seeds init, validation split, order and augmentation")
+DEVICE_OPT = typer.Option(TRAIN.device, "--device", help="auto (cuda if present), cpu, cuda, cuda:N")
+VAL_FRACTION_OPT = typer.Option(None, "--val-fraction", help=HELP["val_fraction"])
+VAL_SPLIT_OPT = typer.Option(TRAIN.val_split, "--val-split", help=HELP["val_split"])
+VAL_STORE_OPT = typer.Option(None, "--val-store", help="validation store (repeatable; replaces --val-fraction)")
+VAL_IMAGES_OPT = typer.Option(None, "--val-images", help=HELP["val_images"])
+VAL_LABELS_OPT = typer.Option(None, "--val-labels", help="--val-images' labels (in --label-format)")
+CLASS_WEIGHTS_OPT = typer.Option(TRAIN.class_weights, "--class-weights", help="'none' or 'median-freq' (median frequency balancing)")
+HFLIP_OPT = typer.Option(None, "--hflip/--no-hflip", help=HELP["hflip"])
+SCALE_AUG_OPT = typer.Option(None, "--scale-aug", help=HELP["scale_aug"])
+SHIFT_AUG_OPT = typer.Option(None, "--shift-aug", help=HELP["shift_aug"])
+SHADING_AUG_OPT = typer.Option(None, "--shading-aug", help=HELP["shading_aug"])
+COLOR_AUG_OPT = typer.Option(None, "--color-aug", help=HELP["color_aug"])
+GREYSCALE_OPT = typer.Option(TRAIN.greyscale, "--greyscale", help="augment: probability of greyscale (1 = a greyscale model)")
+VP_CHANNEL_OPT = typer.Option(TRAIN.vp_channel, "--vp-channel", help="extra input channel: the VP proximity map")
+RAY_CHANNELS_OPT = typer.Option(TRAIN.ray_channels, "--ray-channels", help=HELP["ray_channels"])
+RESUME_OPT = typer.Option(None, "--resume", help=HELP["resume"])
+INIT_OPT = typer.Option(None, "--init", help=HELP["init"])
+FREEZE_BN_OPT = typer.Option(None, "--freeze-bn/--no-freeze-bn", help=HELP["freeze_bn"])
+FREEZE_ENCODER_OPT = typer.Option(None, "--freeze-encoder/--no-freeze-encoder", help=HELP["freeze_encoder"])
+AVERAGE_INIT_OPT = typer.Option(None, "--average-init", help=HELP["average_init"])
+BALANCE_OPT = typer.Option(None, "--balance", help=HELP["balance"])
+L2SP_OPT = typer.Option(None, "--l2sp", help=HELP["l2sp"])
+FORCE_LABELS_OPT = typer.Option(TRAIN.force_labels, "--force-labels", help=HELP["force_labels"])
+OVERWRITE_OPT = typer.Option(False, "--overwrite", help=HELP["overwrite"])
+WORKERS_OPT = typer.Option(TRAIN.workers, "--workers", help="data loader processes")
+LOG_OPT = typer.Option(None, "--log", help="JSON-lines log, one row per epoch (default: beside OUT, runs/vc.log.jsonl)")
+AS_JSON_OPT = typer.Option(False, "--json", help="print the run summary as one JSON object instead of the path")
+QUIET_OPT = typer.Option(False, "--quiet", "-q", help="no progress bar or epoch lines on stderr")
+
+
 @app.command("fit")
 def fit_cmd(
-    stores: Optional[List[Path]] = typer.Argument(None, help="training stores built by 'vcprep warp' (one virtual camera and scale)"),
-    out: Path = typer.Option(..., "--out", "-o", help=HELP["out"]),
-    recipe: Optional[str] = typer.Option(None, "--recipe", help=RECIPE_HELP),
-    model: Optional[str] = typer.Option(None, "--model", "-m", help=MODEL_HELP),
-    width: Optional[int] = typer.Option(None, "--width", help="first-block width override (64 = segnet, 16 = narrow)"),
-    pretrained: Optional[bool] = typer.Option(None, "--pretrained/--no-pretrained", help=PRETRAINED_HELP),
-    baseline: str = typer.Option(TRAIN.baseline, "--baseline", help=HELP["baseline"]),
-    images: Optional[Path] = typer.Option(None, "--images", help="baseline only: folder of original images"),
-    labels: Optional[Path] = typer.Option(None, "--labels", help="baseline only: folder of their labels"),
-    label_format: Optional[str] = typer.Option(None, "--label-format", help=f"baseline only: {LABEL_FORMAT_HELP}"),
-    size: Optional[str] = typer.Option(None, "--size", help=SIZE_HELP),
-    crop: Optional[str] = typer.Option(None, "--crop", help=CROP_HELP),
-    epochs: Optional[int] = typer.Option(None, "--epochs", "-e", help="epochs (cpu recipe: 20, paper recipe: 30; the paper: 600 on a GPU)"),
-    batch_size: Optional[int] = typer.Option(None, "--batch-size", "-b", help="global batch size (recipes: 8)"),
-    optimizer: Optional[str] = typer.Option(None, "--optimizer", help="sgd (momentum 0.9; paper) or adamw (cpu)"),
-    lr: Optional[float] = typer.Option(None, "--lr", help="peak learning rate (paper: 0.005, cpu: 0.002; with --init: a tenth of the checkpoint's)"),
-    weight_decay: Optional[float] = typer.Option(None, "--weight-decay", help="weight decay (paper: 0.0005, cpu: 0.01)"),
-    schedule: Optional[str] = typer.Option(None, "--schedule", help=HELP["schedule"]),
-    seed: int = typer.Option(TRAIN.seed, "--seed", help="seeds init, validation split, order and augmentation"),
-    device: str = typer.Option(TRAIN.device, "--device", help="auto (cuda if present), cpu, cuda, cuda:N"),
-    val_fraction: Optional[float] = typer.Option(None, "--val-fraction", help=HELP["val_fraction"]),
-    val_split: str = typer.Option(TRAIN.val_split, "--val-split", help=HELP["val_split"]),
-    val_store: Optional[List[Path]] = typer.Option(None, "--val-store", help="validation store (repeatable; replaces --val-fraction)"),
-    val_images: Optional[Path] = typer.Option(None, "--val-images", help=HELP["val_images"]),
-    val_labels: Optional[Path] = typer.Option(None, "--val-labels", help="--val-images' labels (in --label-format)"),
-    class_weights: str = typer.Option(TRAIN.class_weights, "--class-weights", help="'none' or 'median-freq' (median frequency balancing)"),
-    hflip: Optional[bool] = typer.Option(None, "--hflip/--no-hflip", help=HELP["hflip"]),
-    scale_aug: Optional[float] = typer.Option(None, "--scale-aug", help=HELP["scale_aug"]),
-    shift_aug: Optional[float] = typer.Option(None, "--shift-aug", help=HELP["shift_aug"]),
-    shading_aug: Optional[float] = typer.Option(None, "--shading-aug", help=HELP["shading_aug"]),
-    color_aug: Optional[float] = typer.Option(None, "--color-aug", help=HELP["color_aug"]),
-    greyscale: float = typer.Option(TRAIN.greyscale, "--greyscale", help="augment: probability of greyscale (1 = a greyscale model)"),
-    vp_channel: bool = typer.Option(TRAIN.vp_channel, "--vp-channel", help="extra input channel: the VP proximity map"),
-    ray_channels: bool = typer.Option(TRAIN.ray_channels, "--ray-channels", help=HELP["ray_channels"]),
-    resume: Optional[Path] = typer.Option(None, "--resume", help=HELP["resume"]),
-    init: Optional[Path] = typer.Option(None, "--init", help=HELP["init"]),
-    freeze_bn: Optional[bool] = typer.Option(None, "--freeze-bn/--no-freeze-bn", help=HELP["freeze_bn"]),
-    freeze_encoder: Optional[bool] = typer.Option(None, "--freeze-encoder/--no-freeze-encoder",
-                                                  help=HELP["freeze_encoder"]),
-    average_init: Optional[float] = typer.Option(None, "--average-init", help=HELP["average_init"]),
-    balance: Optional[str] = typer.Option(None, "--balance", help=HELP["balance"]),
-    l2sp: Optional[float] = typer.Option(None, "--l2sp", help=HELP["l2sp"]),
-    force_labels: bool = typer.Option(TRAIN.force_labels, "--force-labels", help=HELP["force_labels"]),
-    overwrite: bool = typer.Option(False, "--overwrite", help=HELP["overwrite"]),
-    workers: int = typer.Option(TRAIN.workers, "--workers", help="data loader processes"),
-    log: Optional[Path] = typer.Option(None, "--log", help="JSON-lines log, one row per epoch (default: beside OUT, runs/vc.log.jsonl)"),
-    as_json: bool = typer.Option(False, "--json", help="print the run summary as one JSON object instead of the path"),
-    threads: Optional[int] = threads_option(),
-    quiet: bool = typer.Option(False, "--quiet", "-q", help="no progress bar or epoch lines on stderr"),
+    stores: Optional[List[Path]] = STORES_ARG, out: Path = OUT_OPT, recipe: Optional[str] = RECIPE_OPT,
+    model: Optional[str] = MODEL_OPT, width: Optional[int] = WIDTH_OPT, pretrained: Optional[bool] = PRETRAINED_OPT,
+    baseline: str = BASELINE_OPT, images: Optional[Path] = IMAGES_OPT, labels: Optional[Path] = LABELS_OPT,
+    label_format: Optional[str] = LABEL_FORMAT_OPT, size: Optional[str] = SIZE_OPT, crop: Optional[str] = CROP_OPT,
+    epochs: Optional[int] = EPOCHS_OPT, batch_size: Optional[int] = BATCH_SIZE_OPT,
+    optimizer: Optional[str] = OPTIMIZER_OPT, lr: Optional[float] = LR_OPT,
+    weight_decay: Optional[float] = WEIGHT_DECAY_OPT, schedule: Optional[str] = SCHEDULE_OPT, seed: int = SEED_OPT,
+    device: str = DEVICE_OPT, val_fraction: Optional[float] = VAL_FRACTION_OPT, val_split: str = VAL_SPLIT_OPT,
+    val_store: Optional[List[Path]] = VAL_STORE_OPT, val_images: Optional[Path] = VAL_IMAGES_OPT,
+    val_labels: Optional[Path] = VAL_LABELS_OPT, class_weights: str = CLASS_WEIGHTS_OPT,
+    hflip: Optional[bool] = HFLIP_OPT, scale_aug: Optional[float] = SCALE_AUG_OPT,
+    shift_aug: Optional[float] = SHIFT_AUG_OPT, shading_aug: Optional[float] = SHADING_AUG_OPT,
+    color_aug: Optional[float] = COLOR_AUG_OPT, greyscale: float = GREYSCALE_OPT, vp_channel: bool = VP_CHANNEL_OPT,
+    ray_channels: bool = RAY_CHANNELS_OPT, resume: Optional[Path] = RESUME_OPT, init: Optional[Path] = INIT_OPT,
+    freeze_bn: Optional[bool] = FREEZE_BN_OPT, freeze_encoder: Optional[bool] = FREEZE_ENCODER_OPT,
+    average_init: Optional[float] = AVERAGE_INIT_OPT, balance: Optional[str] = BALANCE_OPT,
+    l2sp: Optional[float] = L2SP_OPT, force_labels: bool = FORCE_LABELS_OPT, overwrite: bool = OVERWRITE_OPT,
+    workers: int = WORKERS_OPT, log: Optional[Path] = LOG_OPT, as_json: bool = AS_JSON_OPT,
+    threads: Optional[int] = threads_option(), quiet: bool = QUIET_OPT,
 ):
     """Train a road segmentation network on virtual-camera stores (or the resize baseline).
 
@@ -207,6 +226,15 @@ def fit_cmd(
     """
     init = model_arg(init)  # 'shipped' -> the shipped model's file; a missing file is refused naming it
     cfg = _fit_config(locals())  # (first: locals() are the options, each named as its TrainConfig field)
+    _run_fit(cfg, out, log, images, labels, val_images, val_labels, overwrite=overwrite, threads=threads,
+             as_json=as_json, quiet=quiet)
+
+
+def _run_fit(cfg: TrainConfig, out: Path, log: Optional[Path], images: Optional[Path], labels: Optional[Path],
+             val_images: Optional[Path], val_labels: Optional[Path], *, overwrite: bool, threads: Optional[int],
+             as_json: bool, quiet: bool) -> None:
+    """``vctrain fit``'s run of ``cfg``: the folders checked, the rerun plan (resume, done, aside, refused),
+    the training, and its summary on stderr and stdout."""
     from vcprep.cliutil import Interrupted
 
     from ..training.checkpoint import last_path
