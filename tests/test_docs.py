@@ -175,6 +175,22 @@ def test_results_sit_beside_the_script_that_writes_them_and_name_it():
             assert argv[argv[0] == "python"] == rp.rel(script), (p.name, argv)  # (after a leading "python")
 
 
+def benchmark_scripts() -> list[str]:
+    """Every benchmark script, by its repository path: ``benchmarks/<question>/<name>.py`` (not the shared
+    ``measure/`` package, not a folder's ``__init__.py``)."""
+    return sorted(str(p.relative_to(ROOT)) for p in (ROOT / "benchmarks").glob("*/*.py")
+                  if p.parent.name != "measure" and p.name != "__init__.py")
+
+
+def test_every_benchmark_script_is_in_the_development_index():
+    """docs/development.md's benchmark index (the commands by folder and the paragraph after them) names
+    every benchmark script by its path (issue 79: nine were missing)."""
+    page = (ROOT / "docs" / "development.md").read_text()
+    scripts = benchmark_scripts()
+    assert len(scripts) > 30 and "benchmarks/speed/warp.py" in scripts
+    assert [s for s in scripts if s not in page] == []
+
+
 def test_results_page_generator_is_deterministic_and_generic(tmp_path):
     """A JSON the generator has no table for gets one from its headline, with its recorded facts."""
     rp = _results_page()
