@@ -55,7 +55,7 @@ import cv2
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
-from benchmarks.measure.data import BIN, CS_FORMAT, DATA, ROOT, SHARED_DATA, run
+from benchmarks.measure.data import BIN, CITYSCAPES, CS_FORMAT, DATA, ROOT, run
 from benchmarks.measure.report import machine, results_dir, today, write_json
 import vcprep.vp.reliability as vpmod
 from vcprep.camera import PRESETS, Camera, load_camera
@@ -65,7 +65,6 @@ from vcprep.warp import vp_from_pose
 from vcprep.labels import get_label_format
 from vcprep.synthetic import RoadScene, render_road
 
-CITYSCAPES = SHARED_DATA / "cityscapes_pix2pix"
 FOCALS = [0.5, 0.71, 1.0, 1.41, 2.0]
 TILTS = [-8.0, -4.0, 0.0, 4.0, 8.0]
 # simulate crops the 58-degree CamVid frame (<= 33 deg wide at +/-8 deg); the horizon stays in view

@@ -57,7 +57,7 @@ import cv2
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
-from benchmarks.measure.data import BIN, DATA, ROOT, SHARED_DATA, native_camera, run
+from benchmarks.measure.data import BIN, CITYSCAPES, DATA, ROOT, native_camera, run
 from benchmarks.measure.report import machine, results_dir, today, write_json
 from vcprep.camera import PRESETS, Camera, load_camera
 from vcprep.camera import ASSUMED_HFOV, whole_frame_vp_config
@@ -65,7 +65,6 @@ from vcprep.warp import vp_from_pose
 from vcprep.io import read_image
 from vcprep.vp import estimate_vp
 
-CITYSCAPES = SHARED_DATA / "cityscapes_pix2pix"
 SIM = [(hf, t) for hf in (20, 30) for t in (-8, -4, 0, 4, 8)]
 MAX_DEV_DEG = 20.0        # a near-vertical segment: within this of the image vertical
 MIN_LEN_SHARE = 0.08      # ... and at least this share of the image height long

@@ -1,5 +1,6 @@
 """Data, tools and study datasets of the benchmarks: the shared data folders (``SHARED_DATA``: CamVid
-as ``DATA``, ``KITTI``), :func:`run` (a tool as a subprocess), cameras made EXACTLY from real CamVid
+as ``DATA``, ``KITTI``; the other cameras' datasets: ``CITYSCAPES``, ``IDD``, ``BDD``, ``LUMS``,
+``KITTI_SEM``), :func:`run` (a tool as a subprocess), cameras made EXACTLY from real CamVid
 frames with ``vcprep simulate`` (crop/scale = a new K; rotation about the optical centre = the
 homography K' R K^-1, exact for any scene; only fully covered output pixels are kept):
 :data:`SIMULATED`, :func:`native_camera`, :func:`ego_camera`, :func:`simulate`; and study datasets
@@ -21,6 +22,12 @@ DATA = SHARED_DATA / "camvid"                       # CamVid, SegNet release (48
 KITTI = SHARED_DATA / "kitti_road" / "training"     # KITTI road: image_2, gt_image_2, calib
 CS_FORMAT = "values:road=1;ignore=255;max=255"  # ../shared/data/cityscapes_pix2pix (its README)
 LUMS_FORMAT = "values:road=2;max=4"              # ../shared/data/lums_road (its README)
+CITYSCAPES = SHARED_DATA / "cityscapes_pix2pix"  # Cityscapes frames as pix2pix's release (256x256)
+IDD = SHARED_DATA / "idd_lite"                   # IDD-Lite (India Driving Dataset, 320x227)
+BDD = SHARED_DATA / "bdd100k_drivable"           # BDD100K drivable area (1280x720)
+LUMS = SHARED_DATA / "lums_road"                 # LUMS road captures (640x640)
+KITTI_SEM = SHARED_DATA / "kitti_semantics"      # 98 KITTI frames, road masks, the calibrated KITTI camera
+KITTI_SEM_FORMAT = CS_FORMAT                     # 0 not road, 1 road, 255 void (its README)
 
 # simulated camera -> `vcprep simulate` arguments, applied to CamVid frames through the native camera
 SIMULATED: dict[str, list[str]] = {

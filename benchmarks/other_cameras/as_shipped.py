@@ -90,19 +90,14 @@ import yaml
 import cv2
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
-from benchmarks.measure.data import (BIN, CS_FORMAT, DATA, KITTI, LUMS_FORMAT, ROOT, SHARED_DATA, SIM, link_files, native_camera,
-                          require_data, run, simulate)
+from benchmarks.measure.data import (BDD, BIN, CITYSCAPES, CS_FORMAT, DATA, IDD, KITTI, KITTI_SEM,  # noqa: F401
+                                    KITTI_SEM_FORMAT, LUMS, LUMS_FORMAT, ROOT, SHARED_DATA, SIM, link_files,
+                                    native_camera, require_data, run, simulate)  # (the datasets: importable here too)
 from benchmarks.measure.report import machine, results_dir, today
 from benchmarks.measure.stats import format_stat, seed_stats
 from benchmarks.measure.tables import bar_plot
 from vctrain.study import CANVASES, DEFAULT_CANVAS
 
-CITYSCAPES = SHARED_DATA / "cityscapes_pix2pix"
-IDD = SHARED_DATA / "idd_lite"
-BDD = SHARED_DATA / "bdd100k_drivable"
-LUMS = SHARED_DATA / "lums_road"
-KITTI_SEM = SHARED_DATA / "kitti_semantics"     # 98 KITTI frames, road masks, the calibrated KITTI camera
-KITTI_SEM_FORMAT = CS_FORMAT                     # 0 not road, 1 road, 255 void (its README)
 REAL_OTHER = ["cityscapes", "idd", "kitti", "bdd", "lums"]  # real cameras other than CamVid: the headline
 EGO = ["cityscapes", "camvid-0001TP"]                       # real cameras that show their own vehicle
 ESTIMATED = ["cityscapes", "idd", "bdd"]                    # also with camera: estimate

@@ -58,11 +58,11 @@ import numpy as np
 import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
-from benchmarks.other_cameras.as_shipped import BDD, CITYSCAPES, IDD, KITTI_SEM, LUMS, camvid_steps_per_epoch, link_stores, run_study
+from benchmarks.measure.data import BDD, CITYSCAPES, DATA, IDD, KITTI_SEM, LUMS, ROOT, require_data
+from benchmarks.other_cameras.as_shipped import camvid_steps_per_epoch, link_stores, run_study
 from benchmarks.other_cameras.merged_estimated import fold_args, frames_only_entry
 from benchmarks.other_cameras.multi_camera import SHADING_AUG, study_file, summarise
 from benchmarks.other_cameras.multi_camera import collect as loo_collect
-from benchmarks.measure.data import DATA, ROOT, require_data
 from benchmarks.measure.report import machine, results_dir, today, write_json
 
 CALIBRATED = ["camvid", "cityscapes", "kitti_semantics"]   # held out in turn

@@ -48,12 +48,11 @@ import numpy as np
 import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
-from benchmarks.measure.data import BIN, DATA, LUMS_FORMAT, ROOT, SHARED_DATA, link_files, require_data, run
+from benchmarks.measure.data import BIN, DATA, LUMS, LUMS_FORMAT, ROOT, link_files, require_data, run
 from benchmarks.measure.report import machine, results_dir, today
 from vcprep.camera import load_camera
 from vcprep.labels import decode_label, get_label_format
 
-LUMS = SHARED_DATA / "lums_road"
 HEIGHTS = (1.21, 0.9, 0.7, 0.55)  # sim-<h>: the camvid camera declared at h metres (1.21: its own file)
 RULES = ("extend", "rays", "hybrid")
 BANDS = 4  # bands of the lower half of the frame

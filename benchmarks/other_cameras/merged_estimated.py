@@ -49,10 +49,10 @@ import numpy as np
 import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
-from benchmarks.other_cameras.as_shipped import BDD, CITYSCAPES, IDD, LUMS, camvid_steps_per_epoch, link_stores, run_study
+from benchmarks.measure.data import BDD, CITYSCAPES, DATA, IDD, KITTI, LUMS, ROOT, require_data
+from benchmarks.other_cameras.as_shipped import camvid_steps_per_epoch, link_stores, run_study
 from benchmarks.other_cameras.multi_camera import LOO, SHADING_AUG, render, study_file, summarise
 from benchmarks.other_cameras.multi_camera import collect as loo_collect
-from benchmarks.measure.data import DATA, KITTI, ROOT, require_data
 from benchmarks.measure.report import machine, results_dir, today, write_json
 
 GUESSED = ["idd", "bdd", "lums"]      # camera files that are guesses (their READMEs say so)

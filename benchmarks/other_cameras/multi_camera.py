@@ -83,9 +83,9 @@ import numpy as np
 import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
-from benchmarks.other_cameras.as_shipped import (BDD, CITYSCAPES, IDD, KITTI_SEM, KITTI_SEM_FORMAT, LUMS,
-                                                 camvid_steps_per_epoch, link_stores, run_study)
-from benchmarks.measure.data import CS_FORMAT, DATA, KITTI, LUMS_FORMAT, ROOT, native_camera, require_data
+from benchmarks.measure.data import (BDD, CITYSCAPES, CS_FORMAT, DATA, IDD, KITTI, KITTI_SEM, KITTI_SEM_FORMAT, LUMS,
+                                     LUMS_FORMAT, ROOT, native_camera, require_data)
+from benchmarks.other_cameras.as_shipped import camvid_steps_per_epoch, link_stores, run_study
 from benchmarks.measure.report import machine, results_dir, today, write_json
 from benchmarks.measure.stats import seed_stats
 

@@ -46,7 +46,7 @@ import numpy as np
 import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
-from benchmarks.measure.data import BIN, ROOT, SHARED_DATA
+from benchmarks.measure.data import BDD, BIN, ROOT
 from benchmarks.measure.report import machine, results_dir, today, write_json
 from vcprep.store import store_params
 from vcprep.camera import PRESETS, load_camera
@@ -57,7 +57,6 @@ from vctrain.predict import Predictor
 from vcprep.io import open_video
 from vctrain.predict import ego_camera, predict_video
 
-BDD = SHARED_DATA / "bdd100k_drivable"
 FPS, HOLD = 30.0, 45                      # video frame rate; frames each BDD100K frame is shown
 PAN_DEG, PAN_S, TILT_DEG, TILT_S = 1.0, 3.1, 0.6, 2.3
 THREADS = 2

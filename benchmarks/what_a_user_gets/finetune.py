@@ -52,8 +52,7 @@ import numpy as np
 import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
-from benchmarks.other_cameras.as_shipped import CITYSCAPES, LUMS
-from benchmarks.measure.data import BIN, CS_FORMAT, LUMS_FORMAT, ROOT, run
+from benchmarks.measure.data import BIN, CITYSCAPES, CS_FORMAT, LUMS, LUMS_FORMAT, ROOT, run
 from benchmarks.measure.report import machine, results_dir, today, write_json
 from benchmarks.measure.stats import seed_stats
 from vctrain.training import load_checkpoint

@@ -56,11 +56,10 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
-from benchmarks.measure.data import BIN, DATA, ROOT, SHARED_DATA, require_data, run
+from benchmarks.measure.data import BIN, DATA, KITTI_SEM, ROOT, require_data, run
 from benchmarks.measure.report import machine, results_dir, today, write_json
 from benchmarks.what_a_user_gets.own_frames import SHIPPED, _idd, link_frames, score
 
-KITTI_SEM = SHARED_DATA / "kitti_semantics"
 VARIANTS = {"default": [], "before": ["--val-fraction", 0], "freeze-bn": ["--freeze-bn"], "l2sp": ["--l2sp", 0.1],
             "lr/3": ["--lr", 0.0000667], "10 epochs": ["--epochs", 10], "no average": ["--average-init", 0],
             "4 epochs": ["--epochs", 4], "before 4 epochs": ["--val-fraction", 0, "--epochs", 4],

@@ -58,14 +58,13 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
-from benchmarks.measure.data import BIN, DATA, ROOT, SHARED_DATA, require_data, run
+from benchmarks.measure.data import BIN, DATA, IDD, ROOT, require_data, run
 from benchmarks.measure.report import machine, results_dir, today, write_json
 from benchmarks.measure.stats import seed_stats
 from benchmarks.what_a_user_gets.finetune import shipped_without
 from benchmarks.what_a_user_gets.shipped_model import IDD_HELD, IDD_MOD
 from vctrain.training import load_checkpoint
 
-IDD = SHARED_DATA / "idd_lite"
 SHIPPED = ROOT / "models" / "road-multicamera" / "road.pt"
 CONDITIONS = ("fine-tuned", "before", "imagenet")
 RAW = "fine-tuned, not averaged"  # the trained weights of a fine-tuned checkpoint averaged with its start

@@ -52,9 +52,10 @@ from pathlib import Path
 import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
-from benchmarks.other_cameras.as_shipped import BDD, CITYSCAPES, IDD, KITTI_SEM, KITTI_SEM_FORMAT, LUMS, run_study
+from benchmarks.measure.data import (BDD, BIN, CITYSCAPES, CS_FORMAT, DATA, IDD, KITTI, KITTI_SEM, KITTI_SEM_FORMAT,
+                                     LUMS, LUMS_FORMAT, ROOT, native_camera, require_data, run)
+from benchmarks.other_cameras.as_shipped import run_study
 from benchmarks.other_cameras.multi_camera import SHADING_AUG
-from benchmarks.measure.data import BIN, CS_FORMAT, DATA, KITTI, LUMS_FORMAT, ROOT, native_camera, require_data, run
 from benchmarks.measure.report import machine, results_dir, today, write_json
 
 STEPS = 35  # a LOO fold's steps an epoch (benchmarks/other_cameras/multi_camera.py: the CamVid model's)
