@@ -10,12 +10,30 @@ import sys
 import traceback
 from pathlib import Path
 
-import cv2
-import numpy as np
-import pytest
 
-from vcprep.camera import Camera, PRESETS
-from vcprep.synthetic import RoadScene, render_road
+def _avx2_without_avx512() -> bool:
+    """Whether this CPU has AVX2 but no AVX-512 (Linux's /proc/cpuinfo; False where it cannot be read)."""
+    try:
+        flags = next(ln for ln in Path("/proc/cpuinfo").read_text().splitlines() if ln.startswith("flags")).split()
+    except (OSError, StopIteration):
+        return False
+    return "avx2" in flags and "avx512f" not in flags
+
+
+# oneDNN's AVX2 convolution kernels abort the process ("double free or corruption") in the backward pass of
+# the suite's tiny networks (resfpn at width 4, channels-last, one thread) on AVX2-only CPUs (seen on an AMD
+# EPYC; width 8 and up, and the AVX kernels, run): the suite, and every command it starts (they inherit
+# the environment), then use oneDNN's AVX kernels. Set before torch is imported; a user's models are not
+# touched (the shipped and benchmark models train and run on the default kernels on the same CPU).
+if _avx2_without_avx512():
+    os.environ.setdefault("DNNL_MAX_CPU_ISA", "AVX")
+
+import cv2  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from vcprep.camera import Camera, PRESETS  # noqa: E402
+from vcprep.synthetic import RoadScene, render_road  # noqa: E402
 
 BIN = Path(sys.executable).parent
 EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
