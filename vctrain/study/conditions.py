@@ -310,6 +310,9 @@ class AveragePredictor:
         self.predictors = predictors
         # scored on a virtual-camera test store when one of them warps: what its frames were warped with
         self.mode = "virtual" if any(p.mode == "virtual" for p in predictors) else "resize"
+        # what the road's rules read of a predictor (vctrain.predict.kinds.RoadPredictor): it scores store items,
+        # with no input channel of its own (as before the protocol, when these were read with getattr's default)
+        self.takes_frames, self.vp_channel, self.ray_channels = False, False, False
 
     def store_item(self, store: Store, rec: dict[str, Any]):
         return sum(p.store_item(store, rec) for p in self.predictors) / len(self.predictors)
