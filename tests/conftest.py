@@ -44,6 +44,15 @@ PAPER_STORE = ("--virtual", "virtual", "--scale", "0.125", "--within", "none")
 cv2.setNumThreads(1)
 
 
+def default_sigint() -> None:
+    """A Ctrl-C test's ``preexec_fn``: the command starts with SIGINT at its default, as from a shell. A
+    disposition of SIG_IGN survives exec, and the worker process that starts the command may hold one
+    left by an earlier file's code (a command never then sees the Ctrl-C the test sends)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 # Scheduling only: `make test` runs the files on every core (pytest-xdist, --dist loadfile), handing
 # out whole files in collection order. The files that take longest (they train models or kill and
 # resume builds) go first so that no core is left alone with one of them at the end; the rest keep

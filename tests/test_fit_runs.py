@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 import torch
 
-from conftest import run_cli, write_synthetic_dataset
+from conftest import default_sigint, run_cli, write_synthetic_dataset
 from vcprep.camera import PRESETS
 from vctrain.training import load_checkpoint, sequence_items
 
@@ -261,7 +261,7 @@ def test_rerunning_an_interrupted_fit_resumes_it_to_the_uninterrupted_result(fra
            "--out", str(tmp_path / "i.pt")]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path), "OMP_NUM_THREADS": "1"}
     proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, stdout=subprocess.DEVNULL, text=True, env=env,
-                            start_new_session=True)
+                            start_new_session=True, preexec_fn=default_sigint)
     for line in proc.stderr:
         if line.startswith("epoch 1/12"):
             os.killpg(proc.pid, signal.SIGINT)

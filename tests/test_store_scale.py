@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 import pytest
 
-from conftest import PAPER_STORE, BIN, _in_process, assert_one_error_line, run_cli, write_synthetic_dataset
+from conftest import PAPER_STORE, BIN, _in_process, default_sigint, assert_one_error_line, run_cli, write_synthetic_dataset
 from vcprep.store import Shard, Store
 
 N_ITEMS = 40
@@ -301,7 +301,7 @@ def test_keep_going_skips_and_reports_bad_items(ds, tmp_path):
 def _start(ds, out, jobs):
     images, labels = ds
     return subprocess.Popen([str(BIN / "vcprep"), *map(str, _warp_args(images, labels, out, "-j", str(jobs)))],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True, preexec_fn=default_sigint)
 
 
 def _wait_until_building(proc, out, timeout=30.0):

@@ -585,7 +585,7 @@ def test_warp_stopped_while_finding_vps_says_so_and_the_rerun_finds_only_the_res
     import subprocess
     import time
 
-    from conftest import BIN, write_synthetic_dataset
+    from conftest import BIN, default_sigint, write_synthetic_dataset
 
     n = 40
     images, labels = write_synthetic_dataset(tmp_path / "d", camvid_half, n=n,
@@ -596,7 +596,7 @@ def test_warp_stopped_while_finding_vps_says_so_and_the_rerun_finds_only_the_res
     out = tmp_path / "store"
     cache = out / ".vp-cache.jsonl"
     proc = subprocess.Popen([str(BIN / "vcprep"), *map(str, args), "--out", str(out)], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+                            stderr=subprocess.PIPE, text=True, start_new_session=True, preexec_fn=default_sigint)
     t = time.monotonic() + 60
     while proc.poll() is None and time.monotonic() < t and not (cache.exists() and cache.read_text().count("\n") >= 2):
         time.sleep(0.002)
