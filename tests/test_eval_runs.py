@@ -11,7 +11,6 @@ at the recorded VP poses (vcprep.bev, numpy).
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
 import cv2
@@ -19,10 +18,11 @@ import numpy as np
 import pytest
 
 from vcprep.bev import BevGrid, BevSource, bev_maps, to_bev
-from vcprep.camera import Camera, camera_to_yaml
+from vcprep.camera import camera_to_yaml
 from vcprep.synthetic import RoadScene, render_road
 
 from conftest import assert_one_error_line, run_cli
+from test_predict_bev import _camera  # the same synthetic camera (480x270, 70 deg, 1.5 m, 3 deg down)
 
 ROOT = Path(__file__).resolve().parent.parent
 MODEL = ROOT / "models" / "road-multicamera" / "road.pt"
@@ -30,12 +30,6 @@ GRID_ARGS = ("--range=-8,8,4,36", "--res", "0.1")
 GRID = BevGrid(-8.0, 8.0, 4.0, 36.0, 0.1)
 FAST = ("--engine", "torch", "--threads", "1", "-q")
 FMT = "values:road=1"
-
-
-def _camera() -> Camera:
-    w, h, hfov = 480, 270, 70.0
-    f = (w / 2) / math.tan(math.radians(hfov / 2))
-    return Camera("synthetic", (w, h), f, f, (w - 1) / 2, (h - 1) / 2, 1.5, 3.0)
 
 
 @pytest.fixture(scope="module")

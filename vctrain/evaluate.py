@@ -14,7 +14,6 @@ leaves out (an earlier run of another model into the same folder).
 """
 from __future__ import annotations
 
-import hashlib
 import json
 from pathlib import Path
 from typing import Any, Callable
@@ -29,6 +28,7 @@ from vcprep.io import read_image, write_bytes_atomic
 from vcprep.labels import LabelFormat, RoadShare, decode_label, label_stem_for
 
 from .metrics import KittiMetrics, RoadMetrics
+from .study.hashing import file_sha256
 
 BevMapsOf = Callable[[str, tuple[int, int]], Any]  # a frame's stem and size (w, h) -> its BEV maps
 
@@ -36,14 +36,6 @@ __all__ = ["BevMapsOf", "RECORD", "record_predictions", "recorded_frames", "reco
            "prediction_stems", "evaluate_folder"]
 
 RECORD = "predict.json"  # in a prediction folder: which model's runs wrote which frames
-
-
-def _sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def record_predictions(out: Path, model: Path, masks: list[Path], engine: str = "",
@@ -56,7 +48,7 @@ def record_predictions(out: Path, model: Path, masks: list[Path], engine: str = 
     the last run that wrote it); ``poses`` (given: ``predict --bev``'s, stem -> the frame's BEV pose)
     are kept under ``bev_poses``."""
     stems = [m.relative_to(out).as_posix()[: -len("_mask.png")] for m in masks if m.name.endswith("_mask.png")]
-    sha = _sha256(model)
+    sha = file_sha256(model)
     old = _read_record(out)
     runs = old.get("runs", []) if old is not None and old.get("model_sha256") == sha else []
     bev_poses = dict(old.get("bev_poses", {})) if runs else {}

@@ -28,7 +28,6 @@ first 0.3 m. One thread. Target (issue 80): after below before (the newcomer mea
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
 import os
 import subprocess
@@ -40,6 +39,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.measure.report import machine, results_dir, today, write_json
+from vctrain.study.hashing import file_sha256
 from vcprep.bev import BevGrid, BevSource, bev_maps, frame_views, road_in_metres, to_bev
 from vcprep.bev.border import frame_hidden, label_border_rows
 from vcprep.dataset import list_dataset
@@ -101,14 +101,6 @@ def new_rules(bev: np.ndarray, view, hidden=None, why=None) -> dict:
 
 
 # ---- the model's masks ----
-def sha256(path: Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
 def model_path(model: str) -> Path:
     from vctrain.cli.common import model_arg
 
@@ -117,7 +109,7 @@ def model_path(model: str) -> Path:
 
 def predict(model: Path, name: str, images: Path, camera: Path) -> Path:
     """The model's masks of a set (``vctrain predict``, one thread), cached by the model's SHA-256."""
-    out = OUT / sha256(model)[:12] / name
+    out = OUT / file_sha256(model)[:12] / name
     n = len([p for p in images.iterdir() if p.suffix.lower() in (".png", ".jpg")])
     if out.is_dir() and len(list(out.glob("*_mask.png"))) == n:
         return out

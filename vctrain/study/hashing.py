@@ -17,5 +17,10 @@ def settings_sha(obj: Any) -> str:
 
 
 def file_sha256(path: str | Path) -> str:
-    """The SHA-256 (hex) of a file's bytes: which model an adapted model was adapted from."""
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    """The SHA-256 (hex) of a file's bytes (read in 1 MiB blocks): which model an adapted model was adapted
+    from, which model wrote a prediction folder."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
