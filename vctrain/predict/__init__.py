@@ -11,8 +11,7 @@ docs/api.md), :mod:`.settings` (the settings declared once: ``--beyond``, ``--en
 """
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from ..lazy import lazy_face
 
 # Each name's module. The face loads a module on first use of one of its names (PEP 562), as
 # vctrain.training's does: the commands take their help texts' defaults from settings.py (no torch).
@@ -27,17 +26,4 @@ _HOME = {
     "video": ("ego_camera", "predict_video"),
     "written": ("write_prediction",),
 }
-_MODULE_OF = {name: module for module, names in _HOME.items() for name in names}
-__all__ = [name for names in _HOME.values() for name in names]
-
-
-def __getattr__(name: str) -> Any:
-    if name not in _MODULE_OF:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"{__name__}.{_MODULE_OF[name]}"), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+__all__, __getattr__, __dir__ = lazy_face(__name__, _HOME, globals())

@@ -17,8 +17,7 @@ The networks it trains are :mod:`vctrain.networks`; ``vctrain fit`` is its comma
 """
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from ..lazy import lazy_face
 
 # Each name's module. The face loads a module on first use of one of its names (PEP 562): the
 # commands' options take their defaults from TrainConfig (config.py, no torch), so `vctrain --help`
@@ -37,18 +36,4 @@ _HOME = {
     "checkpoint": ("CKPT_FORMAT", "CKPT_VERSION", "save_checkpoint", "load_checkpoint", "model_from_checkpoint",
                    "last_path"),
 }
-_MODULE_OF = {name: module for module, names in _HOME.items() for name in names}
-__all__ = [name for names in _HOME.values() for name in names]
-
-
-def __getattr__(name: str) -> Any:
-    if name not in _MODULE_OF:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f"{__name__}.{_MODULE_OF[name]}"), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
-
+__all__, __getattr__, __dir__ = lazy_face(__name__, _HOME, globals())
