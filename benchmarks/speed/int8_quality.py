@@ -1,12 +1,18 @@
-"""The int8 graph's road IoU on the shipped model's held-out splits, against the float graph and the
+"""The int8 graph's road IoU on a shipped model's held-out splits, against the float graph and the
 model itself (issue 69; run by ``benchmarks/speed/predict_e2e.py --quality`` or alone).
 
-    .venv/bin/python benchmarks/speed/int8_quality.py [--threads 2]
+    .venv/bin/python benchmarks/speed/int8_quality.py [--threads 2] [--model shipped] [--tag NAME]
 
-Splits (never trained on: models/road-multicamera/README.md): CamVid val (101 frames, 480x360),
+``--model``: a shipped model's name or a .pt (default ``shipped``: ``vctrain.shipped.SHIPPED``); results
+``int8_quality.json`` (``road-multicamera``'s run, issue 69) or ``int8_quality_<tag>.json`` (issue 82:
+``--tag road-street``).
+
+Splits (never trained on by either shipped model: models/road-multicamera/README.md,
+models/road-street/README.md): CamVid val (101 frames, 480x360),
 the KITTI road frame (1242x375), Cityscapes cs_25xx-cs_29xx (43 frames, 256x256), LUMS captures 1-79
 (640x640), BDD100K sources 0a3*/0a4* (15 frames, 1280x720), IDD-Lite's held-out drives (drive % 7 ==
-3: 170 frames, 320x227). Per split: road.pt through PyTorch (the model card's route), its float graph and its int8
+3: 170 frames, 320x227), ``kitti_semantics`` 000100-000123 (19 frames, 1242x375; road-street's
+held-out KITTI frames, new to road-multicamera; not in the issue-69 run). Per split: road.pt through PyTorch (the model card's route), its float graph and its int8
 graph (``vctrain export --size WxH [--int8]``, int8 calibrated on the shipped examples, never on the
 split) at the split's frame size, the graphs in their default runtime (OpenVINO where installed, else
 onnxruntime: the JSON's ``graph_runtime``); road IoU = sum TP / sum (TP + FP + FN) over the split, ignore
@@ -26,11 +32,11 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
-from benchmarks.measure.data import CS_FORMAT, DATA, KITTI, LUMS_FORMAT, SHARED_DATA  # noqa: E402
+from benchmarks.measure.data import CS_FORMAT, DATA, KITTI, KITTI_SEM, KITTI_SEM_FORMAT, LUMS_FORMAT, SHARED_DATA  # noqa: E402
 from benchmarks.measure.report import machine, results_dir, today, write_json  # noqa: E402
 
-MODEL = Path(__file__).resolve().parents[2] / "models" / "road-multicamera" / "road.pt"
-BDD_HELD = ("0a3", "0a4")  # the shipped model's held-out BDD100K sources (models/road-multicamera/README.md)
+BDD_HELD = ("0a3", "0a4")  # road-multicamera's held-out BDD100K sources (models/road-multicamera/README.md)
+KITTI_SEM_HELD = (100, 123)  # road-street's held-out kitti_semantics frames (models/road-street/README.md)
 
 
 def splits() -> list[tuple[str, list[Path], Path, str]]:
@@ -46,6 +52,9 @@ def splits() -> list[tuple[str, list[Path], Path, str]]:
     out.append(("bdd", sorted(p for p in (bdd / "images").glob("*.jpg") if p.name.startswith(BDD_HELD)),
                 bdd / "labels", "bdd"))
     out.append(("idd", [im for im, _, _ in idd_held()], None, "idd"))
+    lo, hi = KITTI_SEM_HELD
+    out.append(("kitti_semantics", [p for p in sorted((KITTI_SEM / "images").glob("*.jpg"))
+                                    if lo <= int(p.stem.split("_")[0]) <= hi], KITTI_SEM / "labels", KITTI_SEM_FORMAT))
     return [s for s in out if s[1]]
 
 
@@ -73,7 +82,7 @@ def _capture(p: Path) -> int | None:
     return int(parts[1]) if len(parts) > 1 and parts[1].isdigit() else None
 
 
-def split_quality(name: str, files: list[Path], labels: Path, fmt: str, wd: Path) -> dict:
+def split_quality(model: Path, name: str, files: list[Path], labels: Path, fmt: str, wd: Path) -> dict:
     from collections import Counter
 
     from vcprep.io import image_size
@@ -94,9 +103,9 @@ def split_quality(name: str, files: list[Path], labels: Path, fmt: str, wd: Path
     labels = _idd_labels(wd) if labels is None else labels
     row = {"frames": len(files), "size": list(size)}
     graphs = {"float_graph": wd / name / "float.onnx", "int8_graph": wd / name / "int8.onnx"}
-    export_onnx(MODEL, None, graphs["float_graph"], size=size)
-    row["int8_export"] = export_onnx(MODEL, None, graphs["int8_graph"], size=size, int8=True)["int8"]
-    for key, path, engine in (("torch", MODEL, "torch"), ("float_graph", graphs["float_graph"], "auto"),
+    export_onnx(model, None, graphs["float_graph"], size=size)
+    row["int8_export"] = export_onnx(model, None, graphs["int8_graph"], size=size, int8=True)["int8"]
+    for key, path, engine in (("torch", model, "torch"), ("float_graph", graphs["float_graph"], "auto"),
                               ("int8_graph", graphs["int8_graph"], "auto")):
         predict_inputs(PredictOptions(path, (folder,), wd / name / key, progress=False, engine=engine))
         row[f"iou_{key}"] = 100 * evaluate_folder(wd / name / key, labels, get_label_format(fmt), progress=False)[0]["iou"]
@@ -120,8 +129,8 @@ def _default_runtime() -> str:
     return runtime_name(graph_runtime(None))
 
 
-def held_out_quality(wd: Path) -> dict:
-    rows = {name: split_quality(name, files, labels, fmt, wd) for name, files, labels, fmt in splits()}
+def held_out_quality(model: Path, wd: Path) -> dict:
+    rows = {name: split_quality(model, name, files, labels, fmt, wd) for name, files, labels, fmt in splits()}
     headline = {f"int8_minus_float_{k}": round(r["int8_minus_float"], 2) for k, r in rows.items()}
     headline.update({f"int8_same_mask_pct_{k}": round(r["int8_same_mask_pct"], 2) for k, r in rows.items()})
     targets = {"int8 within 0.5 IoU points of the float model on every split":
@@ -135,18 +144,25 @@ def main() -> None:
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--model", default="shipped", help="a shipped model's name or a .pt (default: shipped)")
+    ap.add_argument("--tag", default="", help="results file suffix (results/int8_quality_<tag>.json)")
     args = ap.parse_args()
+    from vctrain.shipped import resolve_model
+
+    model = resolve_model(args.model)
     use_threads(args.threads)
     with tempfile.TemporaryDirectory(prefix="int8_quality-") as tmp:
-        q = held_out_quality(Path(tmp))
+        q = held_out_quality(model, Path(tmp))
     print("split | frames | size | IoU road.pt (PyTorch) | float graph | int8 graph | int8 - float | int8 mask = float (%)")
     for k, r in q["splits"].items():
         print(f"{k} | {r['frames']} | {r['size'][0]}x{r['size'][1]} | {r['iou_torch']:.2f} | {r['iou_float_graph']:.2f} | "
               f"{r['iou_int8_graph']:.2f} | {r['int8_minus_float']:+.2f} | {r['int8_same_mask_pct']:.2f}")
-    write_json(results_dir(__file__) / "int8_quality.json",
+    write_json(results_dir(__file__) / f"int8_quality{'_' + args.tag if args.tag else ''}.json",
                {"command": "python " + " ".join(["benchmarks/speed/int8_quality.py"] + sys.argv[1:]), "date": today(),
                 "machine": machine(), "threads": args.threads, "load_average": os.getloadavg()[0],
-                "graph_runtime": _default_runtime(), **q})
+                "graph_runtime": _default_runtime(),
+                "model": str(model.resolve().relative_to(Path(__file__).resolve().parents[2]))
+                if model.resolve().is_relative_to(Path(__file__).resolve().parents[2]) else str(model), **q})
     print(json.dumps(q["headline"]))
 
 

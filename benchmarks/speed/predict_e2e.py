@@ -367,7 +367,7 @@ def main() -> None:
         if args.quality:
             from benchmarks.speed.int8_quality import held_out_quality
 
-            quality = held_out_quality(wd / "quality")
+            quality = held_out_quality(MODEL, wd / "quality")
     load1 = os.getloadavg()[0]
     print("size | engine | input | overlay | network only ms | engine on a frame ms | end-to-end ms | frames/s | "
           "end-to-end / network")

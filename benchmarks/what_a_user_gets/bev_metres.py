@@ -2,7 +2,10 @@
 20 m ahead) from the model's masks against the same from the labels, the rules before issue 80
 against today's, on the same BEV masks.
 
-    .venv/bin/python benchmarks/what_a_user_gets/bev_metres.py [--model shipped] [--tag NAME]
+    .venv/bin/python benchmarks/what_a_user_gets/bev_metres.py [--model shipped] [--tag NAME] [--frames LO-HI]
+
+``--frames 100-123``: only those kitti_semantics frames (road-street's held-out frames: it trained on the
+others; issue 82 ran ``--model road-street --tag road-street --frames 100-123``).
 
 Data: the 98 frames of `../shared/data/kitti_semantics` (camera.yaml, its labels: 0 not road, 1 road,
 255 void) and the KITTI road frame of `../shared/data/kitti_road` (`um_000000`, its calibration file:
@@ -121,10 +124,15 @@ def predict(model: Path, name: str, images: Path, camera: Path) -> Path:
 
 
 # ---- per frame ----
-def measure_set(name: str, preds: Path, pose: str) -> list[dict]:
+def in_range(frame_id: str, frames: tuple[int, int] | None) -> bool:
+    """Whether a kitti_semantics frame ('000105_10') is in ``frames`` (lo, hi inclusive; None: all)."""
+    return frames is None or frames[0] <= int(frame_id.split("_")[0]) <= frames[1]
+
+
+def measure_set(name: str, preds: Path, pose: str, frames: tuple[int, int] | None = None) -> list[dict]:
     images, labels, fmt_name, camera = SETS[name]
     fmt = get_label_format(fmt_name)
-    jobs = list_dataset(images, labels, fmt)
+    jobs = [j for j in list_dataset(images, labels, fmt) if name != "kitti_semantics" or in_range(j.id, frames)]
     source = BevSource.from_spec(str(camera))
     within = "none" if source.calibrated or pose == "nominal" else "estimate"
     views = frame_views(jobs, source, within)
@@ -204,7 +212,10 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--model", default="shipped", help="a model file or a shipped model's name (default: shipped)")
     ap.add_argument("--tag", default="", help="results file suffix (results/bev_metres_<tag>.json)")
+    ap.add_argument("--frames", default="", metavar="LO-HI",
+                    help="kitti_semantics frames LO..HI only (by number; e.g. 100-123, road-street's held-out frames)")
     args = ap.parse_args()
+    frames = tuple(int(v) for v in args.frames.split("-")) if args.frames else None
     cv2.setNumThreads(1)
     model = model_path(args.model)
     results, detail = {}, {}
@@ -212,11 +223,11 @@ def main() -> None:
         images, _, _, camera = SETS[name]
         preds = predict(model, name, images, camera)
         for pose in (("calibration",) if name == "kitti_road" else ("vp", "nominal")):
-            rows = measure_set(name, preds, pose)
+            rows = measure_set(name, preds, pose, frames)
             results[f"{name}/{pose}"] = summary(rows)
             detail[f"{name}/{pose}"] = compact(rows)
     lines = table(results)
-    print(f"model {model} (sha256 {sha256(model)[:12]}); grid x -10..10, z 6..46 m, 0.05 m; corridor {CORRIDOR} m; "
+    print(f"model {model} (sha256 {file_sha256(model)[:12]}); grid x -10..10, z 6..46 m, 0.05 m; corridor {CORRIDOR} m; "
           "median |model - label| in metres over the frames where both rules give both numbers (n), and where this "
           "rule does (all)")
     print("\n".join(lines))
@@ -226,11 +237,11 @@ def main() -> None:
                 for m in ("free_m", "width_10", "width_20") for r in ("before", "after")}
     doc = {"headline": headline,
            "command": command, "date": today(), "machine": machine(), "model": str(model),
-           "model_sha256": sha256(model), "threads": 1, "results": results, "detail": detail}
+           "model_sha256": file_sha256(model), "kitti_semantics_frames": list(frames) if frames else "all", "threads": 1, "results": results, "detail": detail}
     write_json(results_dir(__file__) / f"{stem}.json", doc)
     (results_dir(__file__) / f"{stem}.md").write_text(
-        f"# The road in metres: the model's against the labels' ({today()})\n\n`{command}`; model `{model.name}` "
-        f"(sha256 {sha256(model)[:12]}). Median absolute error in metres (n: the frames where both rules give both "
+        f"# The road in metres: the model's against the labels' ({today()})\n\n`{command}`; model `{model.parent.name}/{model.name}` "
+        f"(sha256 {file_sha256(model)[:12]}). Median absolute error in metres (n: the frames where both rules give both "
         "numbers; all: where this rule does).\n\n"
         + "\n".join(lines) + "\n")
     print(json.dumps(doc["headline"]))
