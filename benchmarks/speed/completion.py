@@ -43,6 +43,16 @@ by a quarter to a third, but they interpolate exactly where the fixed-point maps
 to 1/32 px, so the store image would change (up to 4 grey levels on ~9 % of the covered pixels)
 and the exported graph, which reproduces the fixed-point arithmetic, would no longer agree with
 predict (docs/warp.md "Speed").
+
+Splitting covered and completed pixels (issue 81, measured on 5.1.0, load average ~6): covered
+bands by ``cv2.warpPerspective``, only the uncovered pixels through the fill table, costs 2.97-3.20x
+at 1/8 and 2.10x at full (today's pass in the same run 3.09x and 1.91x); today's pass with
+``warpPerspective`` for its covered bands 2.98x and 1.71x. The fill of the ~74 % uncovered pixels
+alone (nearest ``cv2.remap``, ~2 ns a pixel) costs 1.1-1.8x the bare warp, which writes zeros
+there, so 1.3x is out of reach for any arrangement of OpenCV/numpy/torch kernels; and
+``warpPerspective`` on 5.1 interpolates in float (= float maps), on 4.13/4.14 in 1/32 px, so the
+store would change (8.8-9.1 % of covered pixels, up to 4 grey levels) and depend on the OpenCV
+version, and the exported graph would miss predict by 0.024 (docs/warp.md "Speed").
 """
 from __future__ import annotations
 
