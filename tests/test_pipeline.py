@@ -198,6 +198,14 @@ def test_int8_graph_agrees_with_the_float_graph_and_refuses_another_size(tmp_pat
     assert same / total >= 0.99
     assert abs(q.info["int8"]["mask_agreement"] - same / total) < 0.01  # (it also saw the KITTI frame, resized)
     assert (tmp_path / "q.onnx").stat().st_size < 0.5 * (tmp_path / "f.onnx").stat().st_size
+    import onnx  # the first convolution and the finest lateral keep float weights, every other conv int8
+
+    graph = onnx.load(str(tmp_path / "q.onnx")).graph
+    made_by, consts = {o: n.op_type for n in graph.node for o in n.output}, {i.name for i in graph.initializer}
+    convs = {n.name: n.input[1] in consts or made_by.get(n.input[1]) != "DequantizeLinear"
+             for n in graph.node if n.op_type == "Conv" and n.name.startswith("/model/")}
+    assert [k for k, is_float in convs.items() if is_float] == ["/model/_conv_stem/Conv", "/model/lateral.0/Conv"]
+    assert len(convs) > 40
     r = run_cli("predict", tmp_path / "q.onnx", EXAMPLES, "--out", tmp_path / "p", "--threads", "1", prog="vctrain")
     assert r.returncode == 0, r.stderr
     assert json.loads((tmp_path / "p/predict.json").read_text())["engine"].endswith("the graph (int8)")
