@@ -113,7 +113,7 @@ def link_frames(items: list[tuple[Path, Path, str]], folder: Path, suffixes: tup
 def score(model: Path, test: Path, fmt: str, out: Path, threads: int) -> dict[str, float]:
     """Road IoU, precision and recall (%) of ``model`` on the test frames."""
     env = {"OMP_NUM_THREADS": str(threads)}
-    run(BIN / "vctrain", "predict", model, test / "images", "--out", out, "-q", env=env)
+    run(BIN / "vctrain", "predict", model, test / "images", "--out", out, "--engine", "torch", "-q", env=env)  # (the engine studies score)
     res = json.loads(run(BIN / "vctrain", "eval", out, "--labels", test / "labels", "--label-format", fmt,
                          "--json", "-q", env=env).strip().splitlines()[-1])
     return {k: round(100 * float(res[k]), 2) for k in ("iou", "precision", "recall")}
