@@ -11,6 +11,7 @@
 * :mod:`.camera_change`: the camera change alone, on the simulated cameras;
 * :mod:`.vp_reference`, :mod:`.vp_sets`, :mod:`.vp_scoring`: road vanishing points: the baseline
   and the reference rule, the sets, and their scoring;
+* :mod:`.folds`: leave-one-out folds (their command line, a held-out camera from its frames only);
 * :mod:`.report`: what a result JSON records about its run, writing it, and where it goes
   (:func:`~.report.results_dir`: ``results/`` beside the script);
 * :mod:`.page`: the results page's sections and the README's headline (benchmarks/results_page.py).

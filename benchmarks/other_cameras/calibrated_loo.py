@@ -15,7 +15,7 @@ KITTI frames at 1242x375, the rectified KITTI camera and its published height, l
 (41 BDD100K frames of 27 dashcams) and ``lums`` (144 frames of a low campus vehicle), each scored twice:
 with the camera file it ships with (ASSUMED: its README says so; the own vehicle from the labels, as
 ``multi_camera.py``) and as ``<name>-est`` with its camera estimated from its frames alone, as ``vctrain
-predict --camera estimate`` does (``merged_estimated.frames_only_camera``: no test label read; kept in
+predict --camera estimate`` does (``benchmarks.measure.folds.frames_only_camera``: no test label read; kept in
 WORKDIR/frames-only/<name>/, shared by the models).
 
 **Split**: one ``vctrain crossval`` study per fold (WORKDIR/<model>/<fold>/seed<k>/, ``--seed k``; an
@@ -60,7 +60,7 @@ import yaml
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.measure.data import BDD, CITYSCAPES, DATA, IDD, KITTI_SEM, LUMS, ROOT, require_data
 from benchmarks.other_cameras.as_shipped import camvid_steps_per_epoch, link_stores, run_study
-from benchmarks.other_cameras.merged_estimated import fold_args, frames_only_entry
+from benchmarks.measure.folds import fold_args, frames_only_entry
 from benchmarks.other_cameras.multi_camera import SHADING_AUG, study_file, summarise
 from benchmarks.other_cameras.multi_camera import collect as loo_collect
 from benchmarks.measure.report import machine, results_dir, today, write_json

@@ -55,6 +55,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: 
 from benchmarks.measure.data import BIN, CITYSCAPES, CS_FORMAT, LUMS, LUMS_FORMAT, ROOT, run
 from benchmarks.measure.report import machine, results_dir, today, write_json
 from benchmarks.measure.stats import seed_stats
+from benchmarks.what_a_user_gets.own_frames import shipped_without
 from vctrain.training import load_checkpoint
 
 N_TRAIN = 20
@@ -138,23 +139,6 @@ def training_data(name: str, data: dict, train: Path, vps: Path, wd: Path, threa
         "--images", train / "images", "--labels", train / "labels", "--label-format", fmt,
         "--within", vps, "--out", store, "-q", env={"OMP_NUM_THREADS": str(threads)})
     return [store], True
-
-
-def shipped_without(name: str, wd: Path, epochs: int, threads: int, arch: str = "lite0fpn") -> Path:
-    """The shipped recipe (benchmarks/what_a_user_gets/shipped_model.py: its study, ``resize``, seed 0,
-    network ``arch``: the shipped model's) trained on every development set's training split but set
-    ``name``'s: WORKDIR/base/seed0/runs/_all/resize/model.pt (resumed where it stopped)."""
-    from benchmarks.other_cameras.as_shipped import run_study
-    from benchmarks.what_a_user_gets.shipped_model import study_file
-
-    base = (wd / "base").resolve()
-    base.mkdir(parents=True, exist_ok=True)
-    path = study_file(base, False, epochs, arch)
-    study = yaml.safe_load(path.read_text())
-    study["datasets"] = [d for d in study["datasets"] if d["name"] != f"{name}-train"]
-    path.write_text(yaml.safe_dump(study, sort_keys=False))
-    run_study(path, base / "seed0", ["resize"], 0, threads)
-    return base / "seed0" / "runs" / "_all" / "resize" / "model.pt"
 
 
 def grid(epochs: list[int], factors: list[float]) -> list[tuple[str, int, float | None]]:

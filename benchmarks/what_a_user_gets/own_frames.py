@@ -56,18 +56,35 @@ import time
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.measure.data import BIN, DATA, IDD, ROOT, require_data, run
 from benchmarks.measure.report import machine, results_dir, today, write_json
 from benchmarks.measure.stats import seed_stats
-from benchmarks.what_a_user_gets.finetune import shipped_without
 from benchmarks.what_a_user_gets.shipped_model import IDD_HELD, IDD_MOD
 from vctrain.training import load_checkpoint
 
 SHIPPED = ROOT / "models" / "road-multicamera" / "road.pt"
 CONDITIONS = ("fine-tuned", "before", "imagenet")
 RAW = "fine-tuned, not averaged"  # the trained weights of a fine-tuned checkpoint averaged with its start
+
+
+def shipped_without(name: str, wd: Path, epochs: int, threads: int, arch: str = "lite0fpn") -> Path:
+    """The shipped recipe (benchmarks/what_a_user_gets/shipped_model.py: its study, ``resize``, seed 0,
+    network ``arch``: the shipped model's) trained on every development set's training split but set
+    ``name``'s: WORKDIR/base/seed0/runs/_all/resize/model.pt (resumed where it stopped)."""
+    from benchmarks.other_cameras.as_shipped import run_study
+    from benchmarks.what_a_user_gets.shipped_model import study_file
+
+    base = (wd / "base").resolve()
+    base.mkdir(parents=True, exist_ok=True)
+    path = study_file(base, False, epochs, arch)
+    study = yaml.safe_load(path.read_text())
+    study["datasets"] = [d for d in study["datasets"] if d["name"] != f"{name}-train"]
+    path.write_text(yaml.safe_dump(study, sort_keys=False))
+    run_study(path, base / "seed0", ["resize"], 0, threads)
+    return base / "seed0" / "runs" / "_all" / "resize" / "model.pt"
 
 
 def _idd() -> tuple[list[tuple[Path, Path, str]], list[tuple[Path, Path, str]]]:
