@@ -7,6 +7,9 @@ its scripts, the question each answers, the results it writes and the time it ta
 * ``camera_from_frames/`` -- what do a camera's own frames say about it (road VP, pose, focal length,
   own vehicle)?
 * ``what_a_user_gets/`` -- the shipped model, the README's route, fine-tuning on one's own camera.
+* ``archive/<question>/`` -- closed studies, out of the live suite: their questions are answered and
+  frozen in the docs, their results stay in ``<question>/results/`` (``archive/README.md`` says what
+  each answered and where its result lives).
 
 At the top only what a developer runs to check a change: ``results_page.py`` (``make docs``: the
 results page and the README's headline from every ``<question>/results/*.json``; ``--check`` says

@@ -62,10 +62,13 @@ def rel(p: Path) -> str:
 
 
 def script_for(result: Path) -> Path | None:
-    """The benchmark that writes ``result``: in its question folder (results/..), the longest script
-    name the file's stem starts with."""
+    """The benchmark that writes ``result``: in its question folder (results/..) or that question's
+    archive (benchmarks/archive/<question>/: a closed study), the longest script name the file's stem
+    starts with."""
     stem = result.name.split(".json")[0]
-    scripts = [p for p in result.parent.parent.glob("*.py") if p.name != "__init__.py"]
+    question = result.parent.parent
+    scripts = [p for p in (*question.glob("*.py"), *(question.parent / "archive" / question.name).glob("*.py"))
+               if p.name != "__init__.py"]
     for p in sorted(scripts, key=lambda p: len(p.stem), reverse=True):
         if stem == p.stem or stem.startswith(p.stem + ".") or stem.startswith(p.stem + "_"):
             return p

@@ -424,7 +424,7 @@ def test_predict_a_wider_steeper_camera_predicts_its_whole_frame(trained, tmp_pa
     warped into the training rectangle and those pixels take the value where the ray from the road
     VP leaves it; hybrid (the default) does both: the extended rectangle, rays beyond the training
     one. (How
-    well a model does there is the benchmarks' question: benchmarks/other_cameras/low_camera.py.)"""
+    well a model does there is the benchmarks' question: benchmarks/archive/other_cameras/low_camera.py.)"""
     from vcprep.warp import backproject_array, backproject_rays
     from vcprep.camera import Camera, camera_to_yaml
     from vcprep.warp import virt_H_src

@@ -13,10 +13,10 @@ docs/development.md or the results JSON records it, else "unknown".
 * ``camera_estimate.py`` -- how well ``vcprep camera estimate`` recovers cameras whose calibration we
   know and hide: horizon, tilt, pan, focal length, road depth scale (issue 25). Results:
   ``camera_estimate.{md,json}``. Time: unknown.
-* ``focal_from_verticals.py`` -- can the frames fix the focal length? Road VP x vertical VP
-  self-calibration, measured (issue 25). Results: ``focal_from_verticals.{md,json}``. Time: 30 s
-  (docs/development.md; focal_from_verticals.json: 29.8 s).
 * ``ego_frames.py`` -- the own vehicle found from frames alone against the label method, on the real
   sets (issue 35). Results: ``ego_frames.json``. Time: 40 s (docs/development.md; ego_frames.json:
   36.3 s).
+
+``focal_from_verticals.py`` (can the frames fix the focal length? no: issue 25) is in
+``benchmarks/archive/camera_from_frames/``, its results still here (benchmarks/archive/README.md).
 """

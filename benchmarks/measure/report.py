@@ -84,5 +84,9 @@ def write_json(path: Path, data, indent: int = 1) -> Path:
 
 def results_dir(script: str | Path) -> Path:
     """A benchmark's results folder: ``results/`` beside the script (``benchmarks/<question>/results/``),
-    where benchmarks/results_page.py reads its JSON."""
-    return Path(script).resolve().parent / "results"
+    where benchmarks/results_page.py reads its JSON; an archived script's
+    (``benchmarks/archive/<question>/``) is its question's, where its results stayed."""
+    folder = Path(script).resolve().parent
+    if folder.parent.name == "archive" and folder.parent.parent.name == "benchmarks":
+        folder = folder.parent.parent / folder.name
+    return folder / "results"

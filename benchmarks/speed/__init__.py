@@ -21,8 +21,6 @@ records it, else "unknown".
   store's images, labels, valid masks and frames, against OpenCV's encoder, and whether each gives the
   same bytes in fresh processes (issue 69). Results: ``png_deflate.json``. Time: about 5 min on 2
   loaded cores.
-* ``stages.py`` -- each stage's time per image, beside the paper's Table 3. Results: ``stages.json``.
-  Time: unknown.
 * ``deploy.py`` -- the exported ONNX graph (``vctrain export``) against the torch path per frame, at
   KITTI and BDD100K sizes, 1, 2 threads and the default. Results: ``deploy.json``. Time: unknown.
 * ``networks.py`` -- the networks' cost side by side, ``lite0fpn`` against ``resfpn`` (issue 53): a
@@ -39,4 +37,6 @@ records it, else "unknown".
   ``bev.json``. Time: 10 s.
 
 ``networks.py`` takes the frames and checkpoints of ``deploy.py`` (``benchmarks.speed.deploy``).
+``stages.py`` (each stage's time beside the paper's Table 3) is in ``benchmarks/archive/speed/``, its
+``stages.json`` still here (benchmarks/archive/README.md).
 """

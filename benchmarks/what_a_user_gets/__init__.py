@@ -28,17 +28,10 @@ docs/development.md or the results JSON records it, else "unknown".
   drive) and on KITTI (a camera the model never saw), against zero-shot. Results:
   ``finetune_guard[_<tag>].{md,json}``. Time: 5-8 min a 4-epoch fit of 60 frames on 2 shared cores,
   20-25 min a 20-epoch one.
-* ``finetune.py`` -- fine-tuning on a camera the model has not seen: 20 labelled frames of it
-  (issue 34: the learning-rate rule; before fit --init's issue-60 defaults). Results:
-  ``finetune.{md,json}`` (LUMS), ``finetune_<set>.{md,json}``. Time: unknown.
 * ``label_check.py`` -- labels read as the wrong class (issue 80): ``vctrain fit``'s label check on the
   seven real label sets with their right formats, as frames and as stores of the README's route (none
   refused), and on CamVid's labels read with ``values:road=1;ignore=255`` (building as road: refused).
   Results: ``label_check.{md,json}``. Time: about 3 min on 2 shared cores.
-* ``train.py`` -- CamVid train -> val in its own camera: the virtual-camera model against the resize
-  baseline at the same budget (the pipeline and the budget, not the cross-camera gain). Results:
-  ``train.json``. Time: about 8 min a model, two models (its docstring; train.json: fits of 301 and
-  309 s).
 
 * ``bev_metres.py`` -- the road in metres a planner gets (issue 80): ``free_m`` and ``width_m`` (10,
   20 m) from a model's masks (``--model``, default the shipped one) against the same from the labels,
@@ -46,7 +39,11 @@ docs/development.md or the results JSON records it, else "unknown".
   and the nominal one) and the KITTI road frame. Results: ``bev_metres[_<tag>].{md,json}``. Time:
   about 35 s (one thread; the masks cached in ``benchmarks/out/bev_metres/``).
 
-``shipped_model.py`` and ``finetune.py`` build their studies with
-``benchmarks/other_cameras/as_shipped.py``'s, and ``user_route.py`` compares with its
-``as_shipped.json``.
+``shipped_model.py`` builds its study with ``benchmarks/other_cameras/as_shipped.py``'s, and
+``user_route.py`` compares with its ``as_shipped.json``.
+
+The closed studies of this question (``finetune.py``: the learning-rate rule before ``fit --init``'s
+defaults; ``shipped_screen.py``: larger encoders against the shipped recipe; ``train.py``: CamVid in
+its own camera) are in ``benchmarks/archive/what_a_user_gets/``, their results still here:
+benchmarks/archive/README.md says what each answered.
 """

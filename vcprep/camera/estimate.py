@@ -18,7 +18,7 @@ Conventions are :mod:`vcprep.warp.homography`'s (tilt > 0 looks down; pixel cent
   self-calibration (road VP . vertical VP = -f^2) is ill-conditioned at road-camera tilts of a few
   degrees: the verticals converge by under a degree across the frame, not at all for a level
   camera, and it gives fy, not fx (the pixel aspect is a second unknown: CamVid's is 1.32).
-  ``benchmarks/camera_from_frames/focal_from_verticals.py`` pools every frame's near-vertical segments against the
+  ``benchmarks/archive/camera_from_frames/focal_from_verticals.py`` pools every frame's near-vertical segments against the
   nadir each candidate fy implies: on 10 exact simulated cameras cut from CamVid val (tilt -8..+8
   deg) and on CamVid val and Cityscapes, |fy error| has a median of 41 % with detected road VPs
   (32 % with the horizon given), 0 of 12 within 10 %; a level camera gives a flat cost (no

@@ -6,7 +6,7 @@ then four stages of two residual BasicBlocks at 1/4 ... 1/32, widths ``base_widt
 with the feature-pyramid decoder (vctrain.networks.fpn) that predicts at 1/4 and upsamples the logits
 bilinearly. Skip connections and residual blocks train in minutes where SegNet's unpooling decoder
 needs hundreds of epochs; most of its work runs at 1/4 resolution or below, so it is about 6x faster
-per image than segnet-narrow on a CPU (benchmarks/other_cameras/real_cameras.py).
+per image than segnet-narrow on a CPU (benchmarks/archive/other_cameras/real_cameras.py).
 
 Shapes: input (N, in_channels, H, W) float, output (N, num_classes, H, W) logits, for any H, W.
 """

@@ -9,7 +9,7 @@ cached, so a fixed pose builds them once), the network on the warped uint8 image
 PNG holds, bit for bit) and the back-projection (:func:`back_to_frame`).
 
 What a frame pixel that lands outside the training rectangle gets is the model's ``beyond`` rule
-(:data:`BEYOND`; ``vctrain predict --beyond``; measured by benchmarks/other_cameras/low_camera.py):
+(:data:`BEYOND`; ``vctrain predict --beyond``; measured by benchmarks/archive/other_cameras/low_camera.py):
 
 * ``extend``: the rectangle grown
   to hold the frame's lower half at its pose (:func:`vcprep.camera.virtual.extend_canvas`; a

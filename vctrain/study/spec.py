@@ -99,7 +99,7 @@ CONDITION_TRAIN: dict[str, dict[str, Any]] = {"resize-vp": {"vp_channel": True},
 # tri-mask alone (paper §4.5), or the prior fused with the within model's own prediction (GeoSeg-like)
 ADAPT_COMBINE = {"adapt": "prior", "adapt-fuse": "fuse", "adapt-self": "self"}
 DEFAULT_CONDITIONS = ("resize", "between", "within", "within-gt", "zero")  # a study without 'conditions:'
-# The measured best design (benchmarks/other_cameras/real_cameras.py --dev and issue 24's real cameras: 56.7 vs 55.7
+# The measured best design (benchmarks/archive/other_cameras/real_cameras.py --dev and issue 24's real cameras: 56.7 vs 55.7
 # road IoU on four real other cameras, 81.1 vs 75.5 on CamVid's unseen rig, against store_width 320,
 # no crop above the horizon and whole-image training): the defaults of a study that sets nothing.
 # (one source of truth with `vcprep warp`'s defaults: vcprep.camera.virtual, vctrain.training.config.TRAIN_WINDOW)

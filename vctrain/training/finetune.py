@@ -52,7 +52,7 @@ def init_network(cfg: TrainConfig, init: dict[str, Any]) -> None:
     network (``--model``, ``--width``), so :func:`check_init` only refuses what was asked otherwise;
     a resize model's working size (the frames' own would show the network another scale than it
     learnt, and CamVid's 960x720 costs four times the steps); BatchNorm frozen or not
-    (:data:`FINETUNE_FREEZE_BN`); and the learning rate, ``ADAPT_LR_FACTOR`` (a tenth) of the checkpoint's own (benchmarks/what_a_user_gets/finetune.py
+    (:data:`FINETUNE_FREEZE_BN`); and the learning rate, ``ADAPT_LR_FACTOR`` (a tenth) of the checkpoint's own (benchmarks/archive/what_a_user_gets/finetune.py
     measured that rule: 20 frames of an unseen camera, +4.2 over training on them from scratch)."""
     if cfg.lr is None and (init.get("config") or {}).get("lr"):
         cfg.lr = ADAPT_LR_FACTOR * float(init["config"]["lr"])

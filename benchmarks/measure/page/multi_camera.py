@@ -35,7 +35,7 @@ def r_multi_camera(d: dict) -> list[str]:
 
 
 def r_merged_estimated(d: dict) -> list[str]:
-    """Leave one camera out with the guessed cameras estimated (benchmarks/other_cameras/merged_estimated.py)."""
+    """Leave one camera out with the guessed cameras estimated (benchmarks/archive/other_cameras/merged_estimated.py)."""
     cams = [[k, num(v["fx"], 1), num(v["height"], 2), num(v["tilt"], 1), num(v["pan"], 1), num(v["ego_rows"]),
              "x".join(map(str, v["size"]))] for k, v in d.get("cameras", {}).items()]
     return (["The guessed camera files (" + ", ".join(d.get("guessed", [])) + ") replaced by estimates: a training "
@@ -69,7 +69,7 @@ def r_shipped_model(d: dict) -> list[str]:
 
 
 def r_shipped_screen(d: dict) -> list[str]:
-    """The shipped model's appearance levers (benchmarks/what_a_user_gets/shipped_screen.py): each variant's resize
+    """The shipped model's appearance levers (benchmarks/archive/what_a_user_gets/shipped_screen.py): each variant's resize
     twin against today's recipe (the baseline) trained in the same run; the script writes its .md with this."""
     rows, base, sets = d["rows"], d["baseline"], d["sets"]
     pr = lambda r, t: f"{num(r['iou'][t], 1)} ({num(r['precision'][t], 1)} / {num(r['recall'][t], 1)})"  # noqa: E731
@@ -105,7 +105,7 @@ def r_ship_geometry(d: dict) -> list[str]:
 
 
 def r_finetune(d: dict) -> list[str]:
-    """Fine-tuning on 20 labelled frames of a camera the model has not seen (benchmarks/what_a_user_gets/finetune.py)."""
+    """Fine-tuning on 20 labelled frames of a camera the model has not seen (benchmarks/archive/what_a_user_gets/finetune.py)."""
     c, seeds, h = d["cells"], d.get("seeds", []), d["headline"]
     split = d.get("split", "LUMS: captures 400–466; scored on the 118 frames of the other captures")
     out = [f"{d.get('n_train')} labelled frames, {split}; model `{d.get('model')}`; recipe {str(d.get('epochs')).split(',')[0]} "
@@ -166,7 +166,7 @@ def r_route_finetune(d: dict) -> list[str]:
 
 def r_low_camera(d: dict) -> list[str]:
     """A camera lower than the training one: each ``--beyond`` rule on LUMS and on CamVid val declared
-    lower (benchmarks/other_cameras/low_camera.py)."""
+    lower (benchmarks/archive/other_cameras/low_camera.py)."""
     iou, seeds = d["iou"], d["seeds"]
     names = list(dict.fromkeys(k.split("|")[0] for k in iou))
     rules = list(dict.fromkeys(k.split("|")[1] for k in iou))
@@ -205,7 +205,7 @@ def r_loo_diagnose(d: dict) -> list[str]:
 
 
 def r_adapt_loo(d: dict) -> list[str]:
-    """Adapting without labels on LOO folds (benchmarks/other_cameras/adapt_loo.py): per seed, and the mean."""
+    """Adapting without labels on LOO folds (benchmarks/archive/other_cameras/adapt_loo.py): per seed, and the mean."""
     conds = ["resize", "resize-self", "resize-fuse", "within", "adapt", "adapt-fuse", "adapt-self"]
     seeds = d.get("seeds", [d.get("seed")])
     per = d.get("per_seed") or {str(seeds[0]): d["cells"]}

@@ -2,7 +2,7 @@
 twin and the shipped model, scored in the bird's-eye view of the road (BEV) on every calibrated real camera,
 beside the perspective scores of the same masks.
 
-    .venv/bin/python benchmarks/other_cameras/bev_worth.py [--seeds 0,1,2] [--sets camvid_val,cityscapes,...]
+    .venv/bin/python benchmarks/archive/other_cameras/bev_worth.py [--seeds 0,1,2] [--sets camvid_val,cityscapes,...]
                                                            [--workdir benchmarks/out/user_route] [--quick]
 
 Models: the README route's (benchmarks/what_a_user_gets/user_route.py: CamVid train minus 0001TP, ``vcprep warp
@@ -31,7 +31,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.measure.data import BIN, DATA, KITTI, ROOT, run
 from benchmarks.measure.report import machine, results_dir, today, write_json
-from benchmarks.other_cameras.camera_error import SETS as CALIBRATED, ensure_models, quick_links, run_main
+from benchmarks.archive.other_cameras.camera_error import SETS as CALIBRATED, ensure_models, quick_links, run_main
 
 SETS = {  # name: (camera, images, labels, label format)
     "camvid_val": ("camvid", DATA / "val", DATA / "valannot", "camvid"),
@@ -95,12 +95,12 @@ def report(a: argparse.Namespace, cells: dict, seeds: list[int]) -> dict:
         d = [head[f"vc_minus_resize_{n}_{space}_iou"] for n in cells]
         head[f"vc_minus_resize_mean_{space}_iou"] = round(float(np.mean(d)), 2)
     table = "\n".join(rows)
-    cmd = f"benchmarks/other_cameras/bev_worth.py --seeds {a.seeds} --sets {','.join(cells)}" + (" --quick" if a.quick else "")
+    cmd = f"benchmarks/archive/other_cameras/bev_worth.py --seeds {a.seeds} --sets {','.join(cells)}" + (" --quick" if a.quick else "")
     out = results_dir(__file__) if not a.quick else a.workdir / "bev_worth" / "results"
     write_json(out / "bev_worth.json", {"headline": head, "cells": cells, "seeds": seeds, "sets": list(cells),
                                         "machine": machine(), "date": today(), "command": cmd})
     (out / "bev_worth.md").write_text(
-        f"# The geometry's worth per square metre (benchmarks/other_cameras/bev_worth.py)\n\n{today()}, {machine()}; "
+        f"# The geometry's worth per square metre (benchmarks/archive/other_cameras/bev_worth.py)\n\n{today()}, {machine()}; "
         f"`{cmd}`\n\nRoad IoU and MaxF %, in the frame's pixels and on the KITTI road benchmark's BEV grid "
         f"(x -10..10 m, z 6..46 m, 0.05 m cells), mean ± std over seeds {a.seeds}; the shipped model once.\n\n"
         f"{table}\n")

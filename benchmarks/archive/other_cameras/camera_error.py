@@ -1,7 +1,7 @@
 """How exact a camera file must be (issue 73 item 2): calibrated real frames predicted by the README route's
 virtual-camera model with camera files wrong by known amounts, against its resize twin on the same frames.
 
-    .venv/bin/python benchmarks/other_cameras/camera_error.py [--seeds 0,1,2] [--sets kitti_semantics,cityscapes]
+    .venv/bin/python benchmarks/archive/other_cameras/camera_error.py [--seeds 0,1,2] [--sets kitti_semantics,cityscapes]
                                                               [--workdir benchmarks/out/user_route] [--quick]
 
 The models are the README route's (benchmarks/what_a_user_gets/user_route.py: CamVid train minus 0001TP,
@@ -179,13 +179,13 @@ def report(a: argparse.Namespace, cells: dict, seeds: list[int]) -> dict:
     held = {n: all(head[f"within_minus_resize_{n}_{e.replace(' ', '_')}"] > 0 for e in TARGET) for n in sets}
     head["target_within_above_resize_focal20_height30_pitch2"] = held
     table = "\n".join(rows)
-    cmd = f"benchmarks/other_cameras/camera_error.py --seeds {a.seeds} --sets {','.join(sets)}" + (" --quick" if a.quick else "")
+    cmd = f"benchmarks/archive/other_cameras/camera_error.py --seeds {a.seeds} --sets {','.join(sets)}" + (" --quick" if a.quick else "")
     out = results_dir(__file__) if not a.quick else a.workdir / "camera_error" / "results"
     write_json(out / "camera_error.json", {"headline": head, "cells": cells, "seeds": seeds, "errors": list(ERRORS),
                                            "target_errors": TARGET, "machine": machine(), "date": today(),
                                            "command": cmd})
     (out / "camera_error.md").write_text(
-        f"# How exact a camera file must be (benchmarks/other_cameras/camera_error.py)\n\n{today()}, {machine()}; "
+        f"# How exact a camera file must be (benchmarks/archive/other_cameras/camera_error.py)\n\n{today()}, {machine()}; "
         f"`{cmd}`\n\nRoad IoU %, mean over seeds {a.seeds} (± std of the difference). Models: the README route "
         f"(CamVid train minus 0001TP), the virtual camera (`within`) and its resize twin.\n\n{table}\n")
     print(table)

@@ -1,9 +1,9 @@
 """Where the virtual camera loses a held-out camera: one fold of benchmarks/other_cameras/multi_camera.py, looked at
 pixel by pixel (issue 34).
 
-    .venv/bin/python benchmarks/other_cameras/loo_diagnose.py [--heldout idd] [--seed 0] [--every 4]
+    .venv/bin/python benchmarks/archive/other_cameras/loo_diagnose.py [--heldout idd] [--seed 0] [--every 4]
                                                               [--workdir benchmarks/out/multi_camera] [--threads 2]
-    .venv/bin/python benchmarks/other_cameras/loo_diagnose.py --calibrated-fold kitti_semantics --heldout idd
+    .venv/bin/python benchmarks/archive/other_cameras/loo_diagnose.py --calibrated-fold kitti_semantics --heldout idd
                      --workdir 'benchmarks/out/calibrated_loo/idd-1(0-4)(0-9)_x'      # a calibrated_loo.py fold
 
 Reads the fold's finished models (``within`` of the ``extent: median`` study in WORKDIR/median/seed<k>,
@@ -169,7 +169,7 @@ def main() -> None:
     (res / f"{stem}.md").write_text(table)
     write_json(res / f"{stem}.json", {
         "headline": d, "heldout": a.heldout, "seed": a.seed, "every": a.every, "machine": machine(), "date": today(),
-        "command": f"benchmarks/other_cameras/loo_diagnose.py --heldout {a.heldout} --seed {a.seed} --every {a.every}"
+        "command": f"benchmarks/archive/other_cameras/loo_diagnose.py --heldout {a.heldout} --seed {a.seed} --every {a.every}"
                    + extra})
     print(json.dumps(d))
 

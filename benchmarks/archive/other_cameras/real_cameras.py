@@ -1,6 +1,6 @@
 """Will a CamVid-trained model work on a new camera? Real and exactly simulated other cameras (issue 14).
 
-    .venv/bin/python benchmarks/other_cameras/real_cameras.py [--seeds 0,1,2] [--epochs N] [--conditions resize,between,within]
+    .venv/bin/python benchmarks/archive/other_cameras/real_cameras.py [--seeds 0,1,2] [--epochs N] [--conditions resize,between,within]
                                                               [--workdir benchmarks/out/real_cameras] [--threads 2] [--quick]
 
 One ``vctrain crossval`` study, run once per seed (``--seed k``) into WORKDIR/seed<k>/; every run
@@ -25,7 +25,7 @@ Data (../shared/data; nothing is tuned on a test set):
   as a row of its own (not in the headline). Other folders found in ../shared/data are listed as
   not used.
 * **simulated other cameras**: CamVid val through ``tele``, ``band`` and ``dashcam``, made by
-  ``vcprep simulate`` exactly as benchmarks/other_cameras/cross_camera.py makes them (measure.data).
+  ``vcprep simulate`` exactly as benchmarks/archive/other_cameras/cross_camera.py makes them (measure.data).
 
 Every test set has role test: per condition ONE model is trained on CamVid train and scored on each
 test set in its own camera (back-projected, ignore excluded; road IoU = sum TP / sum (TP+FP+FN) over
@@ -361,7 +361,7 @@ def report_md(agg: dict, shift: dict, models: list, tg: dict, seeds: list[int], 
     T = args.threads
     minutes = float(np.mean([m["train_minutes"] for m in models])) if models else None
     virt, m0 = study_json["virtual"], (models[0] if models else {})
-    md = ["# Real new cameras: train on CamVid, test on other cameras (benchmarks/other_cameras/real_cameras.py)", "",
+    md = ["# Real new cameras: train on CamVid, test on other cameras (benchmarks/archive/other_cameras/real_cameras.py)", "",
           f"Road IoU (%) on each test set in its own camera, mean ± std over {len(seeds)} seeds {seeds}"
           + (" (QUICK SMOKE RUN: numbers mean nothing)" if args.quick else "") + ".", "",
           seed_table(agg, sets, conditions, items),

@@ -1,6 +1,6 @@
 """Issue 44's candidates for a camera-aware model that wins when cameras are merged: one table of every measured one.
 
-    .venv/bin/python benchmarks/other_cameras/multi_camera_candidates.py [--workdir benchmarks/out/multi_camera/median] [--seeds 0,1]
+    .venv/bin/python benchmarks/archive/other_cameras/multi_camera_candidates.py [--workdir benchmarks/out/multi_camera/median] [--seeds 0,1]
                                                                          [--held-out idd,bdd]
 
 Runs nothing: collects the finished leave-one-camera-out folds of ``benchmarks/other_cameras/multi_camera.py --extent
@@ -113,7 +113,7 @@ def render(c: dict[str, dict[str, list]], seeds: list[int], held: list[str]) -> 
              "ASSUMED, in training and in testing (unless a candidate estimates them). Road IoU (%) on all frames "
              f"of the held-out camera in its own pixels, each fold trained on the other four; per cell seeds "
              f"{seeds_txt}, in brackets the mean difference to `resize` of the same fold and seeds (paired). Test "
-             "splits warped as `vctrain predict` warps them. Written by benchmarks/other_cameras/multi_camera_candidates.py.", "",
+             "splits warped as `vctrain predict` warps them. Written by benchmarks/archive/other_cameras/multi_camera_candidates.py.", "",
              "| candidate | " + " | ".join(held) + " | mean over the folds − resize |",
              "|---|" + "---|" * (len(held) + 1)]
     for name, folds in c.items():
@@ -157,7 +157,7 @@ def main() -> None:
     write_json(res / "multi_camera_candidates.json", {
         "headline": head, "cells": c, "seeds": seeds, "held_out": held, "workdir": str(a.workdir),
         "machine": machine(), "date": today(),
-        "command": f"benchmarks/other_cameras/multi_camera_candidates.py --seeds {a.seeds} --held-out {a.held_out}"})
+        "command": f"benchmarks/archive/other_cameras/multi_camera_candidates.py --seeds {a.seeds} --held-out {a.held_out}"})
     print(json.dumps(head))
 
 

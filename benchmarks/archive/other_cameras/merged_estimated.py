@@ -1,7 +1,7 @@
 """Several cameras merged, every camera nobody calibrated ESTIMATED as a user would (issue 59, item 1):
 does the virtual camera beat resize once the guessed camera files are gone?
 
-    .venv/bin/python benchmarks/other_cameras/merged_estimated.py [--seeds 0,1] [--held-out idd,bdd,...]
+    .venv/bin/python benchmarks/archive/other_cameras/merged_estimated.py [--seeds 0,1] [--held-out idd,bdd,...]
                                                                   [--model lite0fpn] [--epochs N] [--threads 2]
                                                                   [--workdir benchmarks/out/merged_estimated]
                                                                   [--quick] [--collect]
@@ -149,7 +149,7 @@ def main() -> None:
         "headline": head, "targets": targets, "cells": cells, "cameras": cams, "conditions": CONDS, "model": a.model,
         "held_out": folds, "seeds": seeds, "test_only": [], "steps_per_epoch": 2 if a.quick else camvid_steps_per_epoch(), "issue": 59,
         "guessed": GUESSED, "extent": "median", "epochs": a.epochs, "threads": a.threads, "machine": machine(),
-        "date": today(), "command": "benchmarks/other_cameras/merged_estimated.py " + " ".join(sys.argv[1:])})
+        "date": today(), "command": "benchmarks/archive/other_cameras/merged_estimated.py " + " ".join(sys.argv[1:])})
     print(json.dumps(head))
 
 

@@ -1,6 +1,6 @@
 """Adapting to a held-out camera without its labels: does the geometric prior beat self-training? (issue 34)
 
-    .venv/bin/python benchmarks/other_cameras/adapt_loo.py [--folds idd,bdd] [--seeds 0,1] [--threads 2]
+    .venv/bin/python benchmarks/archive/other_cameras/adapt_loo.py [--folds idd,bdd] [--seeds 0,1] [--threads 2]
                                                            [--workdir benchmarks/out/multi_camera/adapt]
 
 A user always has unlabelled frames of their own camera. In the virtual camera the project can adapt a
@@ -221,7 +221,7 @@ def main() -> None:
         "headline": head, "cells": cells, "per_seed": {str(s): per_seed[s] for s in seeds},
         "extra": {str(s): extra[s] for s in seeds}, "folds": folds, "seeds": seeds, "lo": LO, "hi": HI,
         "machine": machine(), "date": today(),
-        "command": f"benchmarks/other_cameras/adapt_loo.py --folds {a.folds} --seeds {a.seeds} --threads {a.threads}"})
+        "command": f"benchmarks/archive/other_cameras/adapt_loo.py --folds {a.folds} --seeds {a.seeds} --threads {a.threads}"})
     print(json.dumps(head))
     sys.stdout.flush()
 

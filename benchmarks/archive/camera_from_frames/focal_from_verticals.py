@@ -1,7 +1,7 @@
 """Can the frames fix the focal length? The classical self-calibration from the road VP and the
 vertical VP, measured on cameras whose calibration we know (issue 25's fx target).
 
-    .venv/bin/python benchmarks/camera_from_frames/focal_from_verticals.py [--frames 60] [--quick]
+    .venv/bin/python benchmarks/archive/camera_from_frames/focal_from_verticals.py [--frames 60] [--quick]
 
 `vcprep camera estimate` does not estimate the focal length: it takes --fx, --hfov or EXIF, else it
 ASSUMES a 60-degree lens and says so. This benchmark is the measurement behind that choice.
@@ -211,7 +211,7 @@ def main() -> None:
     stem = "focal_from_verticals"
     (res / f"{stem}.md").write_text("\n".join(md) + "\n")
     write_json(res / f"{stem}.json",
-               {"headline": head, "sets": rows, "command": " ".join(["benchmarks/camera_from_frames/focal_from_verticals.py", *sys.argv[1:]]),
+               {"headline": head, "sets": rows, "command": " ".join(["benchmarks/archive/camera_from_frames/focal_from_verticals.py", *sys.argv[1:]]),
          "settings": {"frames": frames, "max_dev_deg": MAX_DEV_DEG, "min_len_share": MIN_LEN_SHARE,
                       "tau_deg": math.degrees(TAU), "grid_fy_over_h": [float(GRID[0]), float(GRID[-1])], "boot": BOOT},
          "machine": machine(), "date": today()})

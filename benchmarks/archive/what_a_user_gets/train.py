@@ -1,9 +1,9 @@
 """Training benchmark on CamVid: virtual-camera model vs the plain-resize baseline, same budget.
 
-    .venv/bin/python benchmarks/what_a_user_gets/train.py [--epochs 6] [--workdir benchmarks/out/train]
+    .venv/bin/python benchmarks/archive/what_a_user_gets/train.py [--epochs 6] [--workdir benchmarks/out/train]
 
 Data: ../shared/data/camvid train (367) -> val (101), same camera (so this measures the pipeline
-and the budget, not the cross-camera gain; that is benchmarks/other_cameras/cross_camera.py). Model segnet-narrow on
+and the budget, not the cross-camera gain; that is benchmarks/archive/other_cameras/cross_camera.py). Model segnet-narrow on
 the CPU, seed 0, SGD as `vctrain fit` documents, --epochs each (default 6: about 8 minutes per model
 on this 2-core machine, inside the 20-minute budget). Working sizes with about the same pixel count:
 virtual camera 344x176 (the 1/8 store halved), resize baseline 288x216 (CamVid's 4:3). Validation for

@@ -1,6 +1,6 @@
 """Cross-camera study on CamVid (paper Tables 4/7): leave one camera out, five conditions.
 
-    .venv/bin/python benchmarks/other_cameras/cross_camera.py [--epochs 6] [--workdir benchmarks/out/cross_camera]
+    .venv/bin/python benchmarks/archive/other_cameras/cross_camera.py [--epochs 6] [--workdir benchmarks/out/cross_camera]
 
 The paper's five datasets are not available here, so four cameras are made EXACTLY from real
 CamVid frames with ``vcprep simulate`` (crop/scale = a new K; rotation about the optical centre =
@@ -157,7 +157,7 @@ def main() -> None:
     virt = study_json["virtual"]
     cams = {n: yaml.safe_load(Path(d["camera"]).read_text()) for n, d in datasets.items()}
     lines = [
-        "# Cross-camera study on CamVid (benchmarks/other_cameras/cross_camera.py)", "",
+        "# Cross-camera study on CamVid (benchmarks/archive/other_cameras/cross_camera.py)", "",
         table.strip(), "",
         f"- Cameras (simulated exactly from CamVid; train = a disjoint quarter of CamVid train each, "
         f"test = CamVid val through that camera, {rows[0]['test_items'] if rows else '?'} frames):",

@@ -1,6 +1,6 @@
 """Is condition ``average`` the geometry or just an ensemble? Its control, on the leave-one-camera-out folds (issue 44).
 
-    .venv/bin/python benchmarks/other_cameras/multi_camera_ensembles.py [--workdir benchmarks/out/multi_camera/median]
+    .venv/bin/python benchmarks/archive/other_cameras/multi_camera_ensembles.py [--workdir benchmarks/out/multi_camera/median]
                                                                         [--seeds 0,1] [--held-out idd,bdd]
 
 Condition ``average`` (vctrain crossval) averages two networks, the ``within`` and the ``resize`` model of a
@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
-from benchmarks.other_cameras.multi_camera_candidates import fold_args
+from benchmarks.archive.other_cameras.multi_camera_candidates import fold_args
 from benchmarks.measure.report import machine, results_dir, today, write_json
 
 
@@ -92,7 +92,7 @@ def main() -> None:
     (res / "multi_camera_ensembles.md").write_text(table)
     write_json(res / "multi_camera_ensembles.json", {
         "cells": cells, "seeds": seeds, "workdir": str(a.workdir), "machine": machine(), "date": today(),
-        "command": f"benchmarks/other_cameras/multi_camera_ensembles.py --seeds {a.seeds} --held-out {a.held_out}"})
+        "command": f"benchmarks/archive/other_cameras/multi_camera_ensembles.py --seeds {a.seeds} --held-out {a.held_out}"})
     print(json.dumps({f"{t}_{k.replace(' ', '_')}": v for t, c in cells.items() for k, v in c.items()}))
 
 

@@ -1,6 +1,6 @@
 """Per-image runtime of each stage, shaped like the paper's Table 3, with the paper's figures beside.
 
-    .venv/bin/python benchmarks/speed/stages.py [--frames 20] [--scale 0.125]
+    .venv/bin/python benchmarks/archive/speed/stages.py [--frames 20] [--scale 0.125]
 
 Data: ../shared/data/camvid/val (480x360, camvid preset) when present, else synthetic renders (and
 says so). One thread for OpenCV and PyTorch; CPU. Stages (ms per image, median over frames):

@@ -3,7 +3,7 @@ trained by benchmarks/what_a_user_gets/shipped_model.py with the same seed, epoc
 on this machine (the baseline in the same run), scored on the six held-out splits, in shipped_model.py's
 work folders (a budget's runs are its own there).
 
-    .venv/bin/python benchmarks/what_a_user_gets/shipped_screen.py [--epochs 15] [--seed 0]
+    .venv/bin/python benchmarks/archive/what_a_user_gets/shipped_screen.py [--epochs 15] [--seed 0]
                                                                    [--candidates lite1fpn,lite2fpn,lite0fpn@px307200] [--quick]
 
 **Variants** ``NET[@pxN]``: the network (``--model NET``: lite0fpn today, lite1fpn, lite2fpn) and the
@@ -36,7 +36,7 @@ from benchmarks.measure.page.multi_camera import r_shipped_screen
 from benchmarks.measure.report import machine, results_dir, today, write_json
 from benchmarks.what_a_user_gets.shipped_model import SETS
 
-SCRIPT = Path(__file__).resolve().parent / "shipped_model.py"
+SCRIPT = Path(__file__).resolve().parents[2] / "what_a_user_gets" / "shipped_model.py"
 WORKDIR = ROOT / "benchmarks" / "out" / "shipped_model"
 
 
@@ -89,7 +89,7 @@ def main() -> None:
     result = {"headline": head, "rows": rows, "targets": {v: targets(rows[a.baseline], r) for v, r in rows.items()
                                                          if v != a.baseline},
               "baseline": a.baseline, "epochs": a.epochs, "seed": a.seed, "sets": SETS, "machine": machine(),
-              "date": today(), "command": f"benchmarks/what_a_user_gets/shipped_screen.py --candidates "
+              "date": today(), "command": f"benchmarks/archive/what_a_user_gets/shipped_screen.py --candidates "
                                           f"{a.candidates} --baseline {a.baseline} --epochs {a.epochs} --seed {a.seed}"}
     text = "\n".join(r_shipped_screen(result))
     print(text)

@@ -1,6 +1,6 @@
 """Fine-tuning on a camera the model has not seen: 20 labelled frames of it (issue 34, item 4).
 
-    .venv/bin/python benchmarks/what_a_user_gets/finetune.py [--set lums] [--base-epochs 120 | --model M] [--seeds 0,1,2]
+    .venv/bin/python benchmarks/archive/what_a_user_gets/finetune.py [--set lums] [--base-epochs 120 | --model M] [--seeds 0,1,2]
                                                              [--epochs 40[,120]] [--lr-factors 0.1[,0.3]] [--frames 20[,10,5]]
                                                              [--threads 2]
                                                              [--workdir benchmarks/out/finetune]
@@ -233,7 +233,7 @@ def main() -> None:
     res = results_dir(__file__)
     stem = "finetune" if a.set == "lums" else f"finetune_{a.set}"
     (res / f"{stem}.md").write_text(table)
-    command = (f"benchmarks/what_a_user_gets/finetune.py --set {a.set} " + (f"--base-epochs {a.base_epochs} " if a.base_epochs else "")
+    command = (f"benchmarks/archive/what_a_user_gets/finetune.py --set {a.set} " + (f"--base-epochs {a.base_epochs} " if a.base_epochs else "")
                + f"--seeds {a.seeds} --epochs {a.epochs} --lr-factors {a.lr_factors} --frames {a.frames}")
     base_scores = {f.stem[len("result-"):]: round(100 * json.loads(f.read_text())["iou"], 2)
                    for f in sorted(a.model.parent.glob("result-*.json"))} if a.base_epochs else {}

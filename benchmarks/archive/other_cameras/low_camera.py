@@ -1,7 +1,7 @@
 """A camera lower than the training one (issue 60, item 3): where a virtual-camera model loses the
 road near it, and the rule beyond the training rectangle that keeps it.
 
-    .venv/bin/python benchmarks/other_cameras/low_camera.py [--seeds 0,1,2] [--workdir benchmarks/out/user_route] [--quick]
+    .venv/bin/python benchmarks/archive/other_cameras/low_camera.py [--seeds 0,1,2] [--workdir benchmarks/out/user_route] [--quick]
 
 The models are the README route's (benchmarks/what_a_user_gets/user_route.py, run it first with
 the same --seeds and --workdir): ``vctrain fit stores/mine`` on CamVid train minus 0001TP (the
@@ -151,7 +151,7 @@ def report(a: argparse.Namespace, wd: Path, seeds: list[int], names: list[str], 
     head = {f"{n}_{rule}": round(float(np.mean(iou[f"{n}|{rule}"])), 2) for n in names for rule in rules}
     for rule in RULES:
         head[f"lums_{rule}_minus_resize"] = round(float(np.mean(iou[f"lums|{rule}"]) - np.mean(iou["lums|resize"])), 2)
-    cmd = "benchmarks/other_cameras/low_camera.py " + ("--quick" if a.quick else f"--seeds {a.seeds}")
+    cmd = "benchmarks/archive/other_cameras/low_camera.py " + ("--quick" if a.quick else f"--seeds {a.seeds}")
     res = {"headline": head, "iou": iou, "bands": {k: [r["bands"] for r in v] for k, v in cells.items() if k.startswith("lums|")},
            "seeds": seeds, "heights": list(HEIGHTS), "rules": list(RULES), "machine": machine(), "date": today(),
            "command": cmd}
@@ -159,7 +159,7 @@ def report(a: argparse.Namespace, wd: Path, seeds: list[int], names: list[str], 
     res_dir.mkdir(parents=True, exist_ok=True)
     (res_dir / "low_camera.json").write_text(json.dumps(res, indent=1) + "\n")
     table = "\n".join(rows) + "\n\n" + "\n".join(band_rows)
-    (res_dir / "low_camera.md").write_text(f"# A camera lower than the training one (benchmarks/other_cameras/low_camera.py)"
+    (res_dir / "low_camera.md").write_text(f"# A camera lower than the training one (benchmarks/archive/other_cameras/low_camera.py)"
                                            f"\n\n{today()}, {machine()}; `{cmd}`\n\n{table}\n")
     print(table)
     print(json.dumps(head))
