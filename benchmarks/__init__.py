@@ -19,6 +19,6 @@ keeps its models, stores and caches under ``benchmarks/out/<name>/`` (not in git
 
 Every script runs as a file from the repository: ``.venv/bin/python benchmarks/<question>/<name>.py``.
 Its one ``sys.path`` line puts the repository first, so it imports this package by its full name
-(``benchmarks.measure.data``, ``benchmarks.other_cameras.as_shipped``) as well as the repository's own
+(``benchmarks.measure.data``, ``benchmarks.measure.studies``) as well as the repository's own
 ``vcprep`` and ``vctrain``.
 """

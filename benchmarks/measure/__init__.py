@@ -11,6 +11,9 @@
 * :mod:`.camera_change`: the camera change alone, on the simulated cameras;
 * :mod:`.vp_reference`, :mod:`.vp_sets`, :mod:`.vp_scoring`: road vanishing points: the baseline
   and the reference rule, the sets, and their scoring;
+* :mod:`.studies`: crossval studies as the scripts run them (a study file, its run, stores shared
+  between seeds, the CamVid step budget); :mod:`.as_shipped_figures`: the one-training-camera
+  verdict's cells, headline and page (benchmarks/other_cameras/as_shipped.py);
 * :mod:`.folds`: leave-one-out folds (their command line, a held-out camera from its frames only);
 * :mod:`.report`: what a result JSON records about its run, writing it, and where it goes
   (:func:`~.report.results_dir`: ``results/`` beside the script);

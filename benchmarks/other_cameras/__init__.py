@@ -26,9 +26,12 @@ records it, else "unknown"; a study's total is its models times the minutes a mo
   their frames; ``within`` against ``resize``, ``--model`` resfpn or lite0fpn (issue 73). Results:
   ``calibrated_loo_<model>.{md,json}``. Time: two models a fold and seed; ``minutes_per_model`` in the JSON.
 
-``multi_camera.py`` (and through it ``calibrated_loo.py``) and ``benchmarks/what_a_user_gets/shipped_model.py`` build their studies with
-``as_shipped.py``'s (``benchmarks.other_cameras.as_shipped``; the shipped model also takes
-``multi_camera.py``'s shading augmentation); ``calibrated_loo.py`` takes its folds' command line and the
+Every study here and ``benchmarks/what_a_user_gets/``'s run ``vctrain crossval`` through
+``benchmarks.measure.studies`` (a study file, its run resumed, the stores shared between seeds, the
+CamVid model's step budget; it began in ``as_shipped.py``, whose figures and page are in
+``benchmarks.measure.as_shipped_figures``). ``multi_camera.py`` (and through it
+``calibrated_loo.py``) and ``benchmarks/what_a_user_gets/shipped_model.py`` take the CamVid step budget
+(the shipped model also takes ``multi_camera.py``'s shading augmentation); ``calibrated_loo.py`` takes its folds' command line and the
 frames-only cameras from ``benchmarks.measure.folds``.
 
 The closed studies of this question (the simulated cameras, the cut CamVid cameras, issue 44's

@@ -25,7 +25,7 @@ trained on (role ``train``, all their frames), the held-out one and the six test
 (back-projected; road IoU = sum TP / sum (TP+FP+FN) over the set, ignore excluded). Training as
 ``multi_camera.py``'s: crossval's defaults (the virtual camera designed from the two training cameras,
 each test camera's stores extended as ``vctrain predict`` extends them), ``balance: datasets``, the step
-budget of the single-camera CamVid model (``as_shipped.camvid_steps_per_epoch``), lens-shading
+budget of the single-camera CamVid model (``benchmarks.measure.studies.camvid_steps_per_epoch``), lens-shading
 augmentation 0.4, every condition's network ``--model`` (study ``train: arch``). Checkpoints are chosen
 on the training frames' validation share, never on a test set.
 
@@ -59,7 +59,7 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.measure.data import BDD, CITYSCAPES, DATA, IDD, KITTI_SEM, LUMS, ROOT, require_data
-from benchmarks.other_cameras.as_shipped import camvid_steps_per_epoch, link_stores, run_study
+from benchmarks.measure.studies import camvid_steps_per_epoch, link_stores, run_study
 from benchmarks.measure.folds import fold_args, frames_only_entry
 from benchmarks.other_cameras.multi_camera import SHADING_AUG, study_file, summarise
 from benchmarks.other_cameras.multi_camera import collect as loo_collect

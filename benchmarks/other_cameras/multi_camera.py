@@ -85,7 +85,7 @@ import yaml
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.measure.data import (BDD, CITYSCAPES, CS_FORMAT, DATA, IDD, KITTI, KITTI_SEM, KITTI_SEM_FORMAT, LUMS,
                                      LUMS_FORMAT, ROOT, native_camera, require_data)
-from benchmarks.other_cameras.as_shipped import camvid_steps_per_epoch, link_stores, run_study
+from benchmarks.measure.studies import camvid_steps_per_epoch, link_stores, run_study
 from benchmarks.measure.report import machine, results_dir, today, write_json
 from benchmarks.measure.stats import seed_stats
 

@@ -55,7 +55,7 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.measure.data import BDD, CITYSCAPES, DATA, IDD, KITTI_SEM, LUMS, ROOT, require_data
-from benchmarks.other_cameras.as_shipped import link_stores, run_study
+from benchmarks.measure.studies import link_stores, run_study
 from benchmarks.other_cameras.multi_camera import study_file
 from benchmarks.measure.report import machine, results_dir, today, write_json
 from benchmarks.measure.stats import seed_stats

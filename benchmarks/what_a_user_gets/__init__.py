@@ -39,8 +39,9 @@ docs/development.md or the results JSON records it, else "unknown".
   and the nominal one) and the KITTI road frame. Results: ``bev_metres[_<tag>].{md,json}``. Time:
   about 35 s (one thread; the masks cached in ``benchmarks/out/bev_metres/``).
 
-``shipped_model.py`` builds its study with ``benchmarks/other_cameras/as_shipped.py``'s, and
-``user_route.py`` compares with its ``as_shipped.json``.
+``shipped_model.py`` runs its study with ``benchmarks.measure.studies`` (as
+``benchmarks/other_cameras/as_shipped.py`` does), and ``user_route.py`` compares with its
+``as_shipped.json``.
 
 The closed studies of this question (``finetune.py``: the learning-rate rule before ``fit --init``'s
 defaults; ``shipped_screen.py``: larger encoders against the shipped recipe; ``train.py``: CamVid in

@@ -74,7 +74,7 @@ def shipped_without(name: str, wd: Path, epochs: int, threads: int, arch: str = 
     """The shipped recipe (benchmarks/what_a_user_gets/shipped_model.py: its study, ``resize``, seed 0,
     network ``arch``: the shipped model's) trained on every development set's training split but set
     ``name``'s: WORKDIR/base/seed0/runs/_all/resize/model.pt (resumed where it stopped)."""
-    from benchmarks.other_cameras.as_shipped import run_study
+    from benchmarks.measure.studies import run_study
     from benchmarks.what_a_user_gets.shipped_model import study_file
 
     base = (wd / "base").resolve()

@@ -43,7 +43,7 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.measure.data import BDD, CITYSCAPES, DATA, IDD, KITTI, KITTI_SEM, LUMS, ROOT, require_data
-from benchmarks.other_cameras.as_shipped import run_study, share_stores
+from benchmarks.measure.studies import run_study, share_stores
 from benchmarks.measure.folds import frames_only_entry
 from benchmarks.measure.page.multi_camera import r_ship_geometry
 from benchmarks.measure.report import machine, results_dir, today, write_json

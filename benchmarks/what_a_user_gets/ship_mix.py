@@ -33,7 +33,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.measure.data import BDD, CITYSCAPES, DATA, IDD, KITTI, KITTI_SEM, LUMS, ROOT, require_data
-from benchmarks.other_cameras.as_shipped import run_study, share_stores
+from benchmarks.measure.studies import run_study, share_stores
 from benchmarks.other_cameras.ship_loo import CANDIDATES
 from benchmarks.measure.report import machine, results_dir, today, write_json
 from benchmarks.what_a_user_gets.shipped_model import SETS, collect, ship_checkpoint, study_file

@@ -54,7 +54,7 @@ import yaml
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.measure.data import (BDD, BIN, CITYSCAPES, CS_FORMAT, DATA, IDD, KITTI, KITTI_SEM, KITTI_SEM_FORMAT,
                                      LUMS, LUMS_FORMAT, ROOT, native_camera, require_data, run)
-from benchmarks.other_cameras.as_shipped import run_study
+from benchmarks.measure.studies import run_study
 from benchmarks.other_cameras.multi_camera import SHADING_AUG
 from benchmarks.measure.report import machine, results_dir, today, write_json
 

@@ -49,7 +49,7 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.measure.data import BDD, CITYSCAPES, DATA, IDD, KITTI, LUMS, ROOT, require_data
-from benchmarks.other_cameras.as_shipped import camvid_steps_per_epoch, link_stores, run_study
+from benchmarks.measure.studies import camvid_steps_per_epoch, link_stores, run_study
 from benchmarks.other_cameras.multi_camera import LOO, SHADING_AUG, render, study_file, summarise
 from benchmarks.other_cameras.multi_camera import collect as loo_collect
 from benchmarks.measure.folds import fold_args, frames_only_entry
