@@ -17,9 +17,11 @@ from pathlib import Path
 
 import yaml
 
+from vctrain.training.config import DEFAULT_RECIPE, RECIPES, VAL_FRACTION
+
 from .data import BIN, DATA, link_files, run
 
-VAL_FRACTION, BATCH = 0.1, 8  # the recipe's (vctrain fit's defaults)
+BATCH = RECIPES[DEFAULT_RECIPE]["batch_size"]  # the recipe's (vctrain fit's and crossval's default)
 
 
 def write_study(wd: Path, name: str, datasets: list[dict], train: dict, extra: dict | None = None) -> Path:

@@ -88,12 +88,13 @@ from benchmarks.measure.data import (BDD, CITYSCAPES, CS_FORMAT, DATA, IDD, KITT
 from benchmarks.measure.studies import camvid_steps_per_epoch, link_stores, run_study
 from benchmarks.measure.report import machine, results_dir, today, write_json
 from benchmarks.measure.stats import seed_stats
+from vctrain.training.config import RECIPES
 
 LOO = ["lums", "bdd", "camvid", "cityscapes", "idd"]  # held out in turn (LUMS first: the camera in question)
 TEST_ONLY = ["kitti"]                                  # tested by the model trained on all five
 TARGET_GAIN, TARGET_WORST = 5.0, -1.0
 QUICK_FRAMES = 6
-SHADING_AUG = 0.4  # the multi-camera recipe: colour shading (vctrain.training.data), both conditions
+SHADING_AUG = RECIPES["multicamera"]["shading_aug"]  # the multi-camera recipe's colour shading (vctrain.training.data), both conditions
 
 
 def _link_all(dst: Path, parts: list[tuple[Path, Path]], n: int | None = None) -> dict[str, str]:

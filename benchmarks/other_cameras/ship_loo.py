@@ -55,7 +55,7 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.measure.data import BDD, CITYSCAPES, DATA, IDD, KITTI_SEM, LUMS, ROOT, require_data
-from benchmarks.measure.studies import link_stores, run_study
+from benchmarks.measure.studies import camvid_steps_per_epoch, link_stores, run_study
 from benchmarks.other_cameras.multi_camera import study_file
 from benchmarks.measure.report import machine, results_dir, today, write_json
 from benchmarks.measure.stats import seed_stats
@@ -189,7 +189,7 @@ def render(head: dict, tg: dict, cands: list[str], folds: list[str], seeds: list
     """The markdown table: a row per candidate, a column per held-out dataset (IoU, P / R)."""
     f = lambda v, s="": "-" if v is None else f"{v:{s}.1f}"
     lines = [f"Issue 82: candidate data mixes for the shipped model, each dataset held out whole in turn and scored "
-             f"by a model that never saw its camera (`resize`, lite0fpn, balance: datasets, 35 steps an epoch, "
+             f"by a model that never saw its camera (`resize`, lite0fpn, balance: datasets, {camvid_steps_per_epoch()} steps an epoch, "
              f"{epochs} epochs; seeds {seeds}; a model trained on the same datasets as another candidate's is that one). Road IoU % (precision / recall %).", "",
              "| candidate | trained on | " + " | ".join(f"held out {x}" for x in folds) + " | mean | − today |",
              "|---|---|" + "---|" * (len(folds) + 2)]
@@ -220,7 +220,7 @@ def report(a: argparse.Namespace, wd: Path, cands: list[str], folds: list[str], 
         embed(table)
     write_json(rd / "ship_loo.json", {
         "headline": head, "targets": tg, "cells": cells, "candidates": {c: CANDIDATES[c] for c in cands},
-        "held_out": folds, "seeds": seeds, "epochs": a.epochs, "steps_per_epoch": 2 if a.quick else 35,
+        "held_out": folds, "seeds": seeds, "epochs": a.epochs, "steps_per_epoch": 2 if a.quick else camvid_steps_per_epoch(),
         "condition": COND, "arch": "lite0fpn", "issue": 82, "threads": a.threads, "machine": machine(), "date": today(),
         "command": "benchmarks/other_cameras/ship_loo.py " + " ".join(sys.argv[1:])})
     print(table, flush=True)

@@ -66,6 +66,7 @@ from vcprep.warp import vp_from_pose
 from vcprep.camera import design_virtual_camera
 from vctrain.training import save_checkpoint, to_input
 from vctrain.deploy import OnnxPredictor, export_onnx
+from vctrain.deploy.export import POSE_RANGE  # vctrain export's default for --vp-input
 from vctrain.predict import FramePredictor, StageTimes
 from vctrain.networks import build_model, model_args_for
 from vctrain.predict import Predictor
@@ -74,7 +75,6 @@ from vctrain.study import DEFAULT_ABOVE, DEFAULT_STORE_PIXELS
 
 DATA = SHARED_DATA
 RESIZE_SIZE = (480, 360)  # the resize twin's working size: the same 172800 pixels
-POSE_RANGE = (5.0, 5.0)   # vctrain export's default for --vp-input
 
 
 def frames() -> dict[str, tuple[np.ndarray, object, str]]:

@@ -39,11 +39,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: 
 from benchmarks.speed.deploy import RESIZE_SIZE, checkpoints, frames
 from benchmarks.measure.report import machine, results_dir, today, write_json
 from vctrain.training import to_input
+from vctrain.training.config import DEFAULT_RECIPE, RECIPES, TRAIN_WINDOW
 from vctrain.networks import build_model, model_args_for
 from vctrain.predict import FramePredictor, Predictor
 
-CROP = (round(RESIZE_SIZE[0] * 4 / 9), RESIZE_SIZE[1])  # the study's training window: 4/9 of the width, full height
-BATCH = 8
+CROP = (round(RESIZE_SIZE[0] * TRAIN_WINDOW[0]), round(RESIZE_SIZE[1] * TRAIN_WINDOW[1]))  # the recipe's training window
+BATCH = RECIPES[DEFAULT_RECIPE]["batch_size"]  # the recipe's batch
 
 
 def _stat(v: list[float]) -> dict:

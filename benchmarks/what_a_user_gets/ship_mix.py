@@ -37,6 +37,7 @@ from benchmarks.measure.studies import run_study, share_stores
 from benchmarks.other_cameras.ship_loo import CANDIDATES
 from benchmarks.measure.report import machine, results_dir, today, write_json
 from benchmarks.what_a_user_gets.shipped_model import SETS, collect, ship_checkpoint, study_file
+from vctrain.training.config import RECIPES
 
 SPLITS = [t for t in SETS if t != "kitti"] + ["kitti_semantics", "kitti"]
 KEYS = ("iou", "precision", "recall")
@@ -77,7 +78,7 @@ def render(head: dict, cand: str, a: argparse.Namespace) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--candidate", default="four", choices=sorted(CANDIDATES))
-    ap.add_argument("--epochs", type=int, default=30)
+    ap.add_argument("--epochs", type=int, default=RECIPES["multicamera"]["epochs"], help="default: the shipped recipe's")
     ap.add_argument("--seeds", default="0")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--shipped", type=Path, default=ROOT / "models" / "road-multicamera" / "road.pt")

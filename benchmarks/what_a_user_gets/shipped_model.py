@@ -54,11 +54,10 @@ import yaml
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.measure.data import (BDD, BIN, CITYSCAPES, CS_FORMAT, DATA, IDD, KITTI, KITTI_SEM, KITTI_SEM_FORMAT,
                                      LUMS, LUMS_FORMAT, ROOT, native_camera, require_data, run)
-from benchmarks.measure.studies import run_study
+from benchmarks.measure.studies import camvid_steps_per_epoch, run_study  # (a LOO fold's steps an epoch: 35)
 from benchmarks.other_cameras.multi_camera import SHADING_AUG
 from benchmarks.measure.report import machine, results_dir, today, write_json
 
-STEPS = 35  # a LOO fold's steps an epoch (benchmarks/other_cameras/multi_camera.py: the CamVid model's)
 SETS = ["camvid", "cityscapes", "idd", "bdd", "lums", "kitti"]
 TARGETS = {"camvid": 92.0, "cityscapes": 88.0, "idd": 88.0, "lums": 85.0, "bdd": 60.0, "kitti": 85.0}
 CS_HELD = ["cs_2[5-9]*"]
@@ -118,7 +117,7 @@ def study_file(wd: Path, quick: bool, epochs: int, model: str | None = None, pre
     datasets += [{"name": k, "role": "test", "camera": c, "label_format": f, "test": te} for k, c, f, _, te in sets]
     datasets.append({"name": "kitti", "role": "test", "camera": str(KITTI / "calib"), "label_format": "kitti",
                      "test": {"images": str(KITTI / "image_2"), "labels": str(KITTI / "gt_image_2")}})
-    train = {"epochs": 1, "max_steps": 2} if quick else {"epochs": epochs, "max_steps": STEPS}
+    train = {"epochs": 1, "max_steps": 2} if quick else {"epochs": epochs, "max_steps": camvid_steps_per_epoch()}
     train.update({"arch": model} if model else {})
     train.update({} if pretrained else {"pretrained": False})
     path = wd / "study.yaml"
@@ -322,7 +321,7 @@ def main() -> None:
                + (f" --model {a.model}" if a.model else "") + (" --no-pretrained" if a.no_pretrained else "")
                + (f" --store-pixels {a.store_pixels}" if a.store_pixels else ""))
     result = {"headline": head, "targets": targets, "cells": cells, "sets": SETS, "epochs": a.epochs, "model": a.model,
-              "steps_per_epoch": 2 if a.quick else STEPS, "balance": "datasets", "seed": a.seed,
+              "steps_per_epoch": 2 if a.quick else camvid_steps_per_epoch(), "balance": "datasets", "seed": a.seed,
               "threads": a.threads, "machine": machine(), "date": today(), "command": command}
     (res_dir / "shipped_model.md").parent.mkdir(parents=True, exist_ok=True)
     (res_dir / "shipped_model.md").write_text(table)

@@ -55,8 +55,10 @@ from .engine import OPSET, trace_onnx
 from .runtime import (GRAPH_FORMAT, OnnxPredictor, _session,  # noqa: F401
                            require, vp_from_cam)
 
-__all__ = ["OPSET", "RoadGraph", "export_onnx", "OnnxPredictor", "require"]
+__all__ = ["OPSET", "POSE_RANGE", "RoadGraph", "export_onnx", "OnnxPredictor", "require"]
 
+# (pan, tilt) degrees of its mount a --vp-input graph holds the camera at by default (vctrain export --pose-range)
+POSE_RANGE = (5.0, 5.0)
 
 
 def _sees_store(idx: torch.Tensor, ax: torch.Tensor, ay: torch.Tensor) -> torch.Tensor:
@@ -278,7 +280,7 @@ def frames_camera(size: tuple[int, int]) -> Camera:
 
 
 def export_onnx(checkpoint: str | Path, camera: Camera | None, out: str | Path, vp_input: bool = False,
-                pose_range: tuple[float, float] = (5.0, 5.0), check: bool = True, size: tuple[int, int] | None = None,
+                pose_range: tuple[float, float] = POSE_RANGE, check: bool = True, size: tuple[int, int] | None = None,
                 camera_spec: str | None = None, int8: bool = False, calib: str | Path | None = None) -> dict[str, Any]:
     """Write the ONNX graph of ``checkpoint`` for ``camera`` to ``out`` (module docstring); with
     ``check`` runs it once in onnxruntime against the torch module. Returns its description (also
