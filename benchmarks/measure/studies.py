@@ -17,7 +17,7 @@ from pathlib import Path
 
 import yaml
 
-from vctrain.training.config import DEFAULT_RECIPE, RECIPES, VAL_FRACTION
+from vctrain.training import DEFAULT_RECIPE, RECIPES, VAL_FRACTION
 
 from .data import BIN, DATA, link_files, run
 

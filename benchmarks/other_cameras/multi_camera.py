@@ -88,7 +88,7 @@ from benchmarks.measure.data import (BDD, CITYSCAPES, CS_FORMAT, DATA, IDD, KITT
 from benchmarks.measure.studies import camvid_steps_per_epoch, link_stores, run_study
 from benchmarks.measure.report import machine, results_dir, today, write_json
 from benchmarks.measure.stats import seed_stats
-from vctrain.training.config import RECIPES
+from vctrain.training import RECIPES
 
 LOO = ["lums", "bdd", "camvid", "cityscapes", "idd"]  # held out in turn (LUMS first: the camera in question)
 TEST_ONLY = ["kitti"]                                  # tested by the model trained on all five

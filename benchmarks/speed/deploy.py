@@ -65,8 +65,7 @@ from vcprep.camera import PRESETS, load_camera
 from vcprep.warp import vp_from_pose
 from vcprep.camera import design_virtual_camera
 from vctrain.training import save_checkpoint, to_input
-from vctrain.deploy import OnnxPredictor, export_onnx
-from vctrain.deploy.export import POSE_RANGE  # vctrain export's default for --vp-input
+from vctrain.deploy import POSE_RANGE, OnnxPredictor, export_onnx  # (POSE_RANGE: vctrain export's default for --vp-input)
 from vctrain.predict import FramePredictor, StageTimes
 from vctrain.networks import build_model, model_args_for
 from vctrain.predict import Predictor

@@ -38,8 +38,7 @@ from torch.nn import functional as F
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.speed.deploy import RESIZE_SIZE, checkpoints, frames
 from benchmarks.measure.report import machine, results_dir, today, write_json
-from vctrain.training import to_input
-from vctrain.training.config import DEFAULT_RECIPE, RECIPES, TRAIN_WINDOW
+from vctrain.training import DEFAULT_RECIPE, RECIPES, TRAIN_WINDOW, to_input
 from vctrain.networks import build_model, model_args_for
 from vctrain.predict import FramePredictor, Predictor
 

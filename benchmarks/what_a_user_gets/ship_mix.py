@@ -37,7 +37,7 @@ from benchmarks.measure.studies import run_study, share_stores
 from benchmarks.other_cameras.ship_loo import CANDIDATES
 from benchmarks.measure.report import machine, results_dir, today, write_json
 from benchmarks.what_a_user_gets.shipped_model import SETS, collect, ship_checkpoint, study_file
-from vctrain.training.config import RECIPES
+from vctrain.training import RECIPES
 
 SPLITS = [t for t in SETS if t != "kitti"] + ["kitti_semantics", "kitti"]
 KEYS = ("iou", "precision", "recall")

@@ -5,7 +5,7 @@ Modules: :mod:`.graph_ops` (the torch ops of the graph: OpenCV's sampling, the i
 """
 from __future__ import annotations
 
-from .export import RoadGraph, export_onnx, trace_onnx
+from .export import POSE_RANGE, RoadGraph, export_onnx, trace_onnx
 from .runtime import OnnxPredictor
 
-__all__ = ["RoadGraph", "export_onnx", "trace_onnx", "OnnxPredictor"]
+__all__ = ["POSE_RANGE", "RoadGraph", "export_onnx", "trace_onnx", "OnnxPredictor"]

@@ -24,7 +24,7 @@ from ..lazy import lazy_face
 # and `vctrain eval` start without importing torch (about 1.5 s a process).
 _HOME = {
     "config": ("TrainConfig", "RECIPES", "DEFAULT_RECIPE", "SCHEDULES", "OPTIMIZERS", "BALANCES", "TRAIN_WINDOW",
-               "AdaptSettings", "ADAPT_EPOCHS", "ADAPT_LR_FACTOR", "RUN_ONLY"),
+               "AdaptSettings", "ADAPT_EPOCHS", "ADAPT_LR_FACTOR", "RUN_ONLY", "VAL_FRACTION"),
     "data": ("Sample", "RoadDataset", "store_samples", "resize_samples", "source_focal", "to_input", "vp_proximity",
              "vp_in_store", "ray_angles", "resize_pair", "class_frequencies", "median_frequency_weights"),
     "trainset": ("BASELINES", "MIN_SIDE", "MixedViews", "view_batches", "prepare_data", "resize_working_size",
