@@ -83,7 +83,7 @@ def _check_frame(out: Path, stem: str, record: dict, view) -> None:
 
 def test_folder_bev_equals_the_library_on_predicts_own_masks(scene, tmp_path):
     from vctrain.predict.road import model_vp_rule
-    from vctrain.training import load_checkpoint
+    from vctrain.training import CheckpointData, load_checkpoint
 
     cam_file, frames, _ = scene
     out = tmp_path / "out"
@@ -102,7 +102,7 @@ def test_folder_bev_equals_the_library_on_predicts_own_masks(scene, tmp_path):
         assert isinstance(x["area_m2"], float) and x["pose"]["source"] == "vp"
     # the oracle's views: each frame's road VP by the model's rule, as vcprep bev finds them
     jobs = collect_images([frames])
-    rule = model_vp_rule(load_checkpoint(MODEL)["data"])[0]
+    rule = model_vp_rule(CheckpointData.from_dict(load_checkpoint(MODEL)["data"]))[0]
     views = frame_views(jobs, BevSource.from_spec(str(cam_file)), "estimate", rule)
     for x in records:
         _check_frame(out, x["id"], x, views[x["id"]])

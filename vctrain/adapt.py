@@ -46,6 +46,7 @@ from vcprep.progress import err
 from vcprep.store import Store, store_lock
 
 from .training.checkpoint import load_checkpoint, save_checkpoint
+from .training.checkpoint_data import CheckpointData
 from .training.config import ADAPT_EPOCHS, ADAPT_LR_FACTOR, AdaptSettings, TrainConfig
 
 __all__ = ["COMBINE", "AdaptSettings", "own_settings", "ADAPT_EPOCHS", "ADAPT_LR_FACTOR", "PriorPredictor", "fuse", "surrogate_for_item", "write_surrogate_labels", "adapt",
@@ -81,9 +82,9 @@ class PriorPredictor:
             raise InputError(f"prior is {self.prior.shape[1]}x{self.prior.shape[0]} but its description says {w}x{h}",
                              self.path, "write the prior and its description again with 'vcprep prior'")
         # the warp only places the prior: completion does not change the geometry
-        self.data: dict[str, Any] = {"mode": "virtual", "store_params": sp, "completion": "none",
-                                     "vp_status": meta.get("vp_status", ["camera"]), "input_size": [w, h],
-                                     **({"vp_rule": meta["vp_rule"]} if meta.get("vp_rule") else {})}
+        self.data = CheckpointData(mode="virtual", store_params=sp, completion="none",
+                                   vp_status=tuple(meta.get("vp_status", ["camera"])), input_size=(w, h),
+                                   vp_rule=meta.get("vp_rule") or None)
 
     def store_item(self, store: Store, rec: dict[str, Any]) -> np.ndarray:
         """P(road) = p_g in the item's ORIGINAL camera (source size; 0 outside the virtual image)."""
@@ -203,8 +204,8 @@ def adapt(model: str | Path, images: str | Path | Iterable[str | Path] | Sequenc
 
     model = Path(model)
     ck = load_checkpoint(model)
-    data = ck["data"]
-    if data.get("mode") != "virtual" or not data.get("store_params"):
+    data = CheckpointData.from_dict(ck["data"])
+    if not data.virtual:
         raise InputError("model has no virtual camera (a resize baseline); adaptation works in the virtual camera",
                          model, "adapt a model trained on a store built by 'vcprep warp'")
     lo, hi, combine = settings.lo, settings.hi, settings.combine
@@ -216,8 +217,8 @@ def adapt(model: str | Path, images: str | Path | Iterable[str | Path] | Sequenc
           else ADAPT_LR_FACTOR * float((ck.get("config") or {}).get("lr") or 0.005))
     if epochs < 1 or not lr > 0:
         raise InputError(f"epochs {epochs} and lr {lr:g} must be positive", None, "use e.g. --epochs 5 --lr 0.001")
-    size = tuple(data["store_params"]["store_size"])
-    p, prior_path, meta = _prior_for(prior, data["store_params"], model)
+    size = data.store_size
+    p, prior_path, meta = _prior_for(prior, data.store_params, model)
     out = Path(out)
     if not out.parent.is_dir():
         raise InputError("output folder does not exist", out.parent, "create it first")
@@ -234,7 +235,7 @@ def adapt(model: str | Path, images: str | Path | Iterable[str | Path] | Sequenc
     ids = [j.id for j in jobs]
     predictor = Predictor(model, settings.device) if combine in ("fuse", "self") else None
     shares = write_surrogate_labels(target, p, lo, hi, combine, predictor, ids,
-                                    ignore_uncovered=data.get("completion", "none") == "none")
+                                    ignore_uncovered=data.completion == "none")
     if shares["road"] == 0 or shares["not_road"] == 0:
         what = f"surrogate labels hold no {'road' if shares['road'] == 0 else 'not-road'} pixel (thresholds {lo:g}/{hi:g})"
         if combine == "self":  # the labels are the model's own: it is that sure of nothing (or of one class)
@@ -244,11 +245,11 @@ def adapt(model: str | Path, images: str | Path | Iterable[str | Path] | Sequenc
 
     overrides = dict(stores=[str(target.root)], out=str(out), init=str(model), resume=None, baseline="none",
                      images=None, labels=None, label_format=None, val_fraction=0.0, val_stores=[], log=None,
-                     size=tuple(data.get("input_size") or size),
+                     size=data.input_size or size,
                      epochs=epochs, lr=lr, device=settings.device, progress=settings.progress,
                      max_steps=settings.max_steps, workers=0,
                      average_init=0.0, freeze_bn=False, freeze_encoder=False,  # adapt's measured recipe
-                     vp_channel=bool(data.get("vp_channel", False)), greyscale=float(data.get("greyscale", 0.0)))
+                     vp_channel=data.vp_channel, greyscale=data.greyscale)
     if settings.seed is not None:
         overrides["seed"] = int(settings.seed)
     if settings.batch_size is not None:

@@ -238,6 +238,7 @@ def _run_fit(cfg: TrainConfig, out: Path, log: Optional[Path], images: Optional[
     from vcprep.cliutil import Interrupted
 
     from ..training.checkpoint import last_path
+    from ..training.checkpoint_data import CheckpointData
     from ..training.guard import verdict
     from ..training.loop import fit
     from ..training.rerun import rerun_plan
@@ -260,7 +261,7 @@ def _run_fit(cfg: TrainConfig, out: Path, log: Optional[Path], images: Optional[
     if not quiet:
         err(_fit_line(out, summary))
         if summary.get("finetune"):
-            err(verdict(str(out), summary["finetune"], summary["data"]["val_items"]))
+            err(verdict(str(out), summary["finetune"], CheckpointData.from_dict(summary["data"]).val_items))
     path_or_json(out, summary, as_json)
 
 

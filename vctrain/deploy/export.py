@@ -201,11 +201,11 @@ def _geometry(predictor, camera: Camera, vp_input: bool, pose_range: tuple[float
             p = S @ np.array([vp_src[0], vp_src[1], 1.0])
             g["vp_map"] = vp_proximity(tuple(g["work"]), (p[0], p[1])).astype(np.float32)
         return g
-    sp = data.get("store_params")
+    sp = data.store_params
     if not sp:
         raise InputError("model was not trained in a virtual camera and is no resize baseline", predictor.path,
                          "use a model written by 'vctrain fit'")
-    completion = data.get("completion", "none")
+    completion = data.completion
     if vp_input and completion == "replicate":
         raise InputError("'replicate' completion (a distance transform) cannot follow a VP given at run time",
                          predictor.path, "export without --vp-input (the camera's mount pose)")

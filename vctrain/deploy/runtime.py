@@ -21,6 +21,8 @@ import numpy as np
 from vcprep.camera import Camera, camera_from_dict
 from vcprep.errors import InputError
 
+from ..training.checkpoint_data import CheckpointData
+
 __all__ = ["GRAPH_FORMAT", "RUNTIMES", "OnnxPredictor", "compiled", "graph_runtime", "require", "runtime_name",
            "vp_from_cam"]
 
@@ -148,7 +150,7 @@ class OnnxPredictor:
         self.vp_input = "vp" in info["inputs"]
         self.camera = camera_from_dict(info["camera"], self.path)
         self.mode = info["mode"]
-        self.data: dict = {}  # (no checkpoint: the VP rule is the detector's)
+        self.data = CheckpointData()  # (no checkpoint: the VP rule is the detector's)
         self.beyond = 0  # frames predicted with a VP beyond the graph's pose range (beyond_range)
 
     def beyond_range(self, vp: tuple[float, float] | None) -> bool:

@@ -106,13 +106,13 @@ class FramePredictor:
         if self.camera is None:
             raise InputError("a virtual-camera model needs the camera of the frames", predictor.path,
                              NEEDS_CAMERA)
-        sp = predictor.data.get("store_params")
+        sp = predictor.data.store_params
         if not sp:
             raise InputError("model has no training store parameters", predictor.path,
                              "use a model trained on a store built by 'vcprep warp'")
         self._trained = camera_from_dict(sp["virtual"], predictor.path)
         self._scale = float(sp["scale"])
-        self._completion = predictor.data.get("completion", "none")
+        self._completion = predictor.data.completion
         self._beyond = predictor.beyond_rule  # None: the prior (0 outside its rectangle)
         self._extend = self._beyond in ("extend", "hybrid")
         if views is not None:

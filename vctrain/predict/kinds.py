@@ -8,10 +8,12 @@ them instead of probing for them; what a kind implies is :mod:`vctrain.predict.f
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 if TYPE_CHECKING:
     from vcprep.camera import Camera
+
+    from ..training.checkpoint_data import CheckpointData
 
 __all__ = ["RoadPredictor"]
 
@@ -23,7 +25,7 @@ class RoadPredictor(Protocol):
 
     path: Path                   # the model's file (errors name it)
     mode: str                    # 'virtual' (frames warped into its camera), 'resize', 'mixed' (stores only)
-    data: dict[str, Any]         # the checkpoint's data section ({} for a graph: its camera is inside)
+    data: CheckpointData         # the checkpoint's data section (all defaults for a graph: its camera is inside)
     takes_frames: bool           # a graph: warp, network and back-projection inside it
     beyond_rule: str | None      # frame pixels outside the training rectangle (None: the prior's 0, a graph's rays)
     vp_channel: bool             # reads each frame's road VP as an input channel

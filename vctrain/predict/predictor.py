@@ -39,6 +39,7 @@ from vcprep.store import Store
 from vcprep.vp import frame_poses
 
 from ..training.checkpoint import load_checkpoint, model_from_checkpoint
+from ..training.checkpoint_data import CheckpointData
 from ..training.data import ray_angles, resize_pair, source_focal, to_input, vp_in_store, vp_proximity
 from ..networks.build import fold_batchnorm
 from ..training.loop import resolve_device
@@ -62,16 +63,16 @@ class Predictor:
     def __init__(self, checkpoint: str | Path, device: str = "auto", engine: str = "torch"):
         self.path = Path(checkpoint)
         self.ckpt = load_checkpoint(self.path)
-        self.data: dict[str, Any] = self.ckpt["data"]
+        self.data = CheckpointData.from_dict(self.ckpt["data"])  # (read here, once)
         self.device = resolve_device(device)
         # BN folded into the convs and the channels last: the same function, faster on a CPU (the
         # depthwise convs of lite0fpn most: benchmarks/speed/networks.py)
         self.model = fold_batchnorm(model_from_checkpoint(self.ckpt, self.path).to(self.device).eval())
         self.model = self.model.to(memory_format=torch.channels_last)
-        self.size = tuple(self.data["input_size"])
-        self.greyscale = float(self.data.get("greyscale", 0.0)) >= 1.0
-        self.vp_channel = bool(self.data.get("vp_channel", False))
-        self.ray_channels = bool(self.data.get("ray_channels", False))
+        self.size = self.data.input_size
+        self.greyscale = self.data.greyscale >= 1.0
+        self.vp_channel = self.data.vp_channel
+        self.ray_channels = self.data.ray_channels
         self.engine = "torch"
         self._onnx = None
         self.use_engine(engine)
@@ -106,7 +107,7 @@ class Predictor:
 
     @property
     def mode(self) -> str:
-        return self.data["mode"]
+        return self.data.mode
 
     def network_input(self, x: np.ndarray) -> torch.Tensor:
         """One input array (C, H, W; :func:`vctrain.training.data.to_input` and any extra channels) as the
@@ -150,8 +151,8 @@ class Predictor:
         ``magnification``: store pixels per source pixel of the frames' camera
         (:func:`vcprep.store.item_magnification`); where the warp enlarges the frames more than
         it did any training camera's, the size shrinks by :meth:`density_scale`."""
-        trained = (self.data.get("store_params") or {}).get("store_size")
-        if not trained or tuple(trained) == tuple(store_size):
+        trained = self.data.store_size
+        if not trained or trained == tuple(store_size):
             w, h = self.size
         else:
             w, h = store_size[0] * self.size[0] / trained[0], store_size[1] * self.size[1] / trained[1]
@@ -165,7 +166,7 @@ class Predictor:
         A frame of fewer pixels than the canvas is then seen at the sharpness the network learned
         (issue 73: IDD-Lite's 320x227 frames, enlarged 2.2x, 49-68 % road IoU at full size, 79-80 %
         at this scale). 1 for models trained before the figure was recorded, and for None."""
-        ref = self.data.get("source_magnification")
+        ref = self.data.source_magnification
         if not ref or not magnification:
             return 1.0
         return min(1.0, max(1.0, float(ref)) / float(magnification))
@@ -173,7 +174,7 @@ class Predictor:
     def store_item(self, store: Store, rec: dict[str, Any]) -> np.ndarray:
         """P(road) in the item's ORIGINAL camera (source size), for every model mode."""
         if self.mode == "mixed":
-            return 0.5 * (self._virtual_item(store, rec) + self._resized_item(rec, tuple(self.data["resize_size"])))
+            return 0.5 * (self._virtual_item(store, rec) + self._resized_item(rec, self.data.resize_size))
         if self.mode == "resize":
             return self._resized_item(rec, self.size)
         return self._virtual_item(store, rec)
@@ -195,11 +196,11 @@ class Predictor:
     def _training_rect(self, store: Store) -> tuple[float, float, float, float] | None:
         """The ``hybrid`` rule's training rectangle inside ``store``'s (grown) image, in store pixel
         centres (:meth:`vctrain.predict.frames.FramePredictor._training_rect`); None otherwise."""
-        trained = (self.data.get("store_params") or {}).get("virtual_scaled")
+        trained = self.data.virtual_scaled
         if self.beyond_rule != "hybrid" or not trained:
             return None
         ox = float(store.params["virtual_scaled"]["cx"]) - float(trained["cx"])
-        w, h = self.data["store_params"]["store_size"]
+        w, h = self.data.store_size
         return (ox, 0.0, ox + w - 1.0, h - 1.0)
 
 
@@ -213,7 +214,7 @@ def predict_store(predictor: Predictor, store: Store, out: str | Path, progress:
     if predictor.mode in ("virtual", "mixed"):
         from vcprep.camera import same_camera_other_canvas
 
-        sp = predictor.data.get("store_params") or {}
+        sp = predictor.data.store_params or {}
         if store.params.get("scale") != sp.get("scale"):
             raise InputError("store has another scale than the model's training store", store.root,
                              "predict from the images with --camera (they are warped as the model expects)")
@@ -269,7 +270,7 @@ def predict_images(predictor: Any, images: Iterable[str | Path], out: str | Path
     return run.written
 
 
-def warp_like_training(data: dict[str, Any], path: str | Path, jobs: list[Job], camera: Camera | FrameCameras,
+def warp_like_training(data: CheckpointData, path: str | Path, jobs: list[Job], camera: Camera | FrameCameras,
                        root: str | Path, within: str = "auto", progress: bool = True, extend: bool = True,
                        vp_rule: Any = None) -> Store:
     """Warp image ``jobs`` of ``camera`` into the store ``root`` exactly as the training store of
@@ -280,8 +281,8 @@ def warp_like_training(data: dict[str, Any], path: str | Path, jobs: list[Job], 
     (:func:`vctrain.predict.road.model_vp_rule`). ``extend``: the virtual camera's rectangle extended
     to hold every frame (:func:`vctrain.predict.road.frames_canvas`); False keeps the training's
     rectangle (what a prior, an image of that rectangle, needs)."""
-    sp = data.get("store_params")
-    if data.get("mode") != "virtual" or not sp:
+    sp = data.store_params
+    if not data.virtual:
         raise InputError("model was not trained in a virtual camera (a resize baseline)", path,
                          "use a model trained on a store built by 'vcprep warp'")
     virtual = camera_from_dict(sp["virtual"], path)
@@ -293,7 +294,7 @@ def warp_like_training(data: dict[str, Any], path: str | Path, jobs: list[Job], 
     if extend:
         virtual = frames_canvas(virtual, jobs, camera, poses)
     settings = WarpSettings(camera=camera, virtual=virtual, scale=float(sp["scale"]),
-                            completion=data.get("completion", "none"), poses=poses, progress=progress)
+                            completion=data.completion, poses=poses, progress=progress)
     store, _ = warp_dataset(jobs, root, settings)
     return store
 

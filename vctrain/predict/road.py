@@ -40,6 +40,7 @@ from vcprep.io import image_size, read_image
 from vcprep.vp import frame_poses as poses_of
 from vcprep.warp import pose_from_vp
 
+from ..training.checkpoint_data import CheckpointData
 from .kinds import RoadPredictor
 from .frames import NEEDS_CAMERA, FramePredictor, extends, warps_frames
 from .vehicle import MISSED_VEHICLE, ego_rows, folder_ego_camera, frames_ego_rows, own_vehicle, rows_at, \
@@ -104,12 +105,12 @@ def within_rule(predictor: RoadPredictor, within: str, camera: Camera | FrameCam
     return virtual_within(predictor.data, within, camera)
 
 
-def virtual_within(data: dict[str, Any], within: str, camera: Camera | FrameCameras | None) -> str:
+def virtual_within(data: CheckpointData, within: str, camera: Camera | FrameCameras | None) -> str:
     """:func:`within_rule` for a model warped into its virtual camera (checkpoint ``data``): 'auto'
     estimates VPs when its training store had estimated ones; calibrated poses (one file, a
     per-frame folder) are no VPs, and a per-frame folder already gives every frame its pose."""
     if within == "auto":
-        trained = set(data.get("vp_status", [])) - {"camera", "calibrated"}
+        trained = set(data.vp_status) - {"camera", "calibrated"}
         return "estimate" if trained and not isinstance(camera, FrameCameras) else "none"
     if within != "none" and isinstance(camera, FrameCameras):
         raise InputError("--within needs one camera; a per-frame calibration folder already gives every frame its "
@@ -117,7 +118,7 @@ def virtual_within(data: dict[str, Any], within: str, camera: Camera | FrameCame
     return within
 
 
-def model_vp_rule(data: dict[str, Any], override: Any = None) -> tuple[Any, str]:
+def model_vp_rule(data: CheckpointData, override: Any = None) -> tuple[Any, str]:
     """(the :class:`~vcprep.vp.VPRule` frames are estimated with, where it comes from): ``override``
     (given), else the rule the model's training VPs were found with, else the detector's defaults
     (a model whose stores record none)."""
@@ -125,7 +126,7 @@ def model_vp_rule(data: dict[str, Any], override: Any = None) -> tuple[Any, str]
 
     if override is not None:
         return override, "the given"
-    recorded = VPRule.from_dict(data.get("vp_rule"))
+    recorded = VPRule.from_dict(data.vp_rule)
     return (recorded, "the model's") if recorded is not None else (VPRule(), "the detector's defaults")
 
 

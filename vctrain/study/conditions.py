@@ -26,6 +26,7 @@ from vcprep.camera import FrameCameras
 from vcprep.errors import InputError
 from vcprep.store import Store
 
+from ..training.checkpoint_data import CheckpointData
 from ..training.config import AdaptSettings, TrainConfig
 from ..report import write_json
 from .hashing import file_sha256, settings_sha
@@ -132,8 +133,9 @@ def trained(run: Run, ctx: Context, tag: str) -> tuple[TrainConfig, dict[str, An
         f"({cfg.epochs} epochs at {size[0]}x{size[1]})")
     t0 = time.perf_counter()
     summary = fit(cfg)
-    info = {"train_datasets": [d.name for d in run.train], "train_items": summary["data"]["train_items"],
-            "val_items": summary["data"]["val_items"], "best_epoch": summary["best_epoch"],
+    data = CheckpointData.from_dict(summary["data"])
+    info = {"train_datasets": [d.name for d in run.train], "train_items": data.train_items,
+            "val_items": data.val_items, "best_epoch": summary["best_epoch"],
             "best_val_iou": summary["best_val_iou"], "epochs": cfg.epochs, "input_size": list(size),
             "train_seconds": round(time.perf_counter() - t0, 1),
             "train_images_per_s": summary["train_images_per_s"], "model_args": summary["model_args"],

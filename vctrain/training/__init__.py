@@ -1,17 +1,18 @@
 """A training run, in the order it happens: the recipe, the data, the loop, the checkpoint.
 
-===========  ==========================================================================================
-config       :class:`TrainConfig` (every setting declared once, ``None`` = the recipe's), the recipes,
-             :class:`AdaptSettings`
-data         the training items: reading a store item or a resized frame, decoding, augmenting
-trainset     a run's data: its stores, samples, validation split, working size, window, epoch order
-loop         :func:`fit`: the loop (nanoGPT style), validation, resume, fine-tuning, torchrun
-finetune     starting from a checkpoint: what --init and --resume take from it, the average with the start, L2-SP
-guard        fine-tuning never worse than its start: the held-out frames, the start's score, what --out keeps
-distributed  torchrun: ranks, BatchNorm statistics averaged over processes, the group's clean end
-rerun        runs never lost: the same command resumes, says it is done, or keeps a model of other data aside
-checkpoint   self-describing checkpoints: everything predict and eval need to rebuild the model
-===========  ==========================================================================================
+===============  ======================================================================================
+config           :class:`TrainConfig` (every setting declared once, ``None`` = the recipe's), the recipes,
+                 :class:`AdaptSettings`
+data             the training items: reading a store item or a resized frame, decoding, augmenting
+trainset         a run's data: its stores, samples, validation split, working size, window, epoch order
+loop             :func:`fit`: the loop (nanoGPT style), validation, resume, fine-tuning, torchrun
+finetune         starting from a checkpoint: what --init and --resume take from it, the average with the start, L2-SP
+guard            fine-tuning never worse than its start: the held-out frames, the start's score, what --out keeps
+distributed      torchrun: ranks, BatchNorm statistics averaged over processes, the group's clean end
+rerun            runs never lost: the same command resumes, says it is done, or keeps a model of other data aside
+checkpoint       self-describing checkpoints: everything predict and eval need to rebuild the model
+checkpoint_data  the checkpoint's ``data`` section typed (:class:`CheckpointData`), read once where a model is loaded
+===============  ======================================================================================
 
 The networks it trains are :mod:`vctrain.networks`; ``vctrain fit`` is its command.
 """
@@ -35,5 +36,6 @@ _HOME = {
     "rerun": ("request_of", "data_files", "data_stamp", "data_change", "keep_aside", "log_path", "rerun_plan"),
     "checkpoint": ("CKPT_FORMAT", "CKPT_VERSION", "save_checkpoint", "load_checkpoint", "model_from_checkpoint",
                    "last_path"),
+    "checkpoint_data": ("CheckpointData",),
 }
 __all__, __getattr__, __dir__ = lazy_face(__name__, _HOME, globals())

@@ -15,6 +15,9 @@ A checkpoint is a ``torch.save`` dict (loadable with ``weights_only=True``)::
                  frames enlarged more; absent in models trained before it), train_items, val_items
     epoch, step, metrics (of this epoch), best_iou, best_epoch, history (per-epoch log rows)
     optimizer    optimizer state (for --resume)
+
+The ``data`` section stays a plain dict on disk; readers turn it into a typed
+:class:`vctrain.training.checkpoint_data.CheckpointData` once, where they load the checkpoint.
 """
 from __future__ import annotations
 

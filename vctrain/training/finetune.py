@@ -17,6 +17,7 @@ from torch import nn
 from vcprep.errors import InputError
 
 from .checkpoint import load_checkpoint
+from .checkpoint_data import CheckpointData
 from .config import (ADAPT_LR_FACTOR, FINETUNE_AVERAGE_INIT, FINETUNE_FREEZE_BN, FINETUNE_FREEZE_ENCODER, FINETUNE_L2SP,
                      TrainConfig)
 from ..networks.args import ARCHITECTURES
@@ -41,7 +42,7 @@ def check_init(cfg: TrainConfig, init: dict[str, Any], info: dict[str, Any]) -> 
         raise InputError(f"checkpoint takes {args['in_channels']} input channels, the data "
                          f"{cfg.in_channels}", cfg.init,
                          "fine-tune with the model's own --vp-channel and --ray-channels settings")
-    mode = (init.get("data") or {}).get("mode", "virtual")
+    mode = CheckpointData.from_dict(init.get("data")).mode
     if mode != info["mode"]:
         raise InputError(f"checkpoint was trained in mode '{mode}' but this run is '{info['mode']}'", cfg.init,
                          "fine-tune a resize model with --baseline resize, a virtual-camera model on stores")
@@ -56,9 +57,9 @@ def init_network(cfg: TrainConfig, init: dict[str, Any]) -> None:
     measured that rule: 20 frames of an unseen camera, +4.2 over training on them from scratch)."""
     if cfg.lr is None and (init.get("config") or {}).get("lr"):
         cfg.lr = ADAPT_LR_FACTOR * float(init["config"]["lr"])
-    data = init.get("data") or {}
-    if cfg.size is None and cfg.baseline == "resize" and data.get("mode") == "resize" and data.get("input_size"):
-        cfg.size = tuple(int(v) for v in data["input_size"])  # the scale the model learnt, not the frames' own
+    data = CheckpointData.from_dict(init.get("data"))
+    if cfg.size is None and cfg.baseline == "resize" and data.mode == "resize" and data.input_size:
+        cfg.size = data.input_size  # the scale the model learnt, not the frames' own
     if cfg.freeze_bn is None:
         cfg.freeze_bn = FINETUNE_FREEZE_BN
     if cfg.freeze_encoder is None:

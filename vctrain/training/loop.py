@@ -57,6 +57,7 @@ from tqdm import tqdm
 from vcprep.errors import InputError
 
 from .checkpoint import last_path, load_checkpoint, model_from_checkpoint, save_checkpoint
+from .checkpoint_data import CheckpointData
 from .config import (BALANCES, FINETUNE_VAL_FRACTION, VAL_FRACTION, DEFAULT_RECIPE, OPTIMIZERS, RECIPES, SCHEDULES,
                      TrainConfig)
 from .data import RoadDataset, class_frequencies, median_frequency_weights
@@ -166,7 +167,8 @@ def _network(cfg: TrainConfig, resume: dict[str, Any] | None, init: dict[str, An
         if cfg.arch and cfg.arch != model_args["arch"]:
             raise InputError(f"checkpoint is '{model_args['arch']}' but --model {cfg.arch} was asked", cfg.resume,
                              "leave --model out when resuming")
-        if resume["data"]["mode"] != info["mode"] or resume["data"]["input_size"] != info["input_size"]:
+        trained = CheckpointData.from_dict(resume["data"])
+        if trained.mode != info["mode"] or list(trained.input_size or ()) != list(info["input_size"]):
             raise InputError("checkpoint was trained on other data (mode or working size)", cfg.resume,
                              "resume with the same stores, --baseline and --size")
     else:
