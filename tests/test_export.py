@@ -271,7 +271,7 @@ def test_a_camera_the_warp_enlarges_runs_at_its_own_pixel_density(models, tmp_pa
     p = Predictor(root / "vc.pt", "cpu")
     train = Store.open(root / "store")
     cam_train = PRESETS["camvid"].resized(0.1)
-    assert p.data["source_magnification"] == pytest.approx(item_magnification(cam_train, cam_train.size,
+    assert p.data.source_magnification == pytest.approx(item_magnification(cam_train, cam_train.size,
                                                                               train.virtual), abs=1e-4)
     cam = PRESETS["toronto2020"].resized(0.04)
     m = item_magnification(cam, cam.size, train.virtual)
