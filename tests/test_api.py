@@ -77,6 +77,20 @@ def test_shipped_model_by_name_gives_predicts_masks(shipped, tmp_path):
         _same_as_written(r, out, f.stem)
 
 
+def test_load_and_predict_run_the_same_default_engine(tmp_path):
+    """``vctrain.load("shipped")`` and ``vctrain predict shipped`` with no engine given run the same
+    engine (the fastest installed: vctrain.predict.settings.DEFAULT_ENGINE) and give the same masks
+    and P(road) bit for bit."""
+    model = vctrain.load("shipped")
+    out = tmp_path / "out"
+    proc = run_cli("predict", "shipped", EXAMPLES / "camvid" / "images", "--out", out, "--threads", "1", "--quiet",
+                   prog="vctrain")
+    assert proc.returncode == 0, proc.stderr
+    assert model.engine == json.loads((out / "predict.json").read_text())["engine"]
+    for f in CAMVID:
+        _same_as_written(model.segment(cv2.imread(str(f))), out, f.stem)
+
+
 @pytest.mark.parametrize("camera, within", [("cam.yaml", "none"), ("cam.yaml", "estimate"), ("camvid", "auto")])
 def test_virtual_model_with_camera_gives_predicts_masks(tiny_vc_model, drive, tmp_path, camera, within):
     """A folder's frames together (VPs estimated as one sequence, one rectangle; the preset states no

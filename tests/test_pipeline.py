@@ -174,6 +174,38 @@ def test_exported_engines_give_pytorchs_masks_and_both_are_recorded(engine, said
                                   prog="vctrain"), "unknown --engine 'tensorrt'")
 
 
+def test_the_default_engine_is_the_fastest_installed_and_its_start_up_is_said_apart(tmp_path, monkeypatch):
+    """`vctrain predict` with no --engine runs the network exported in memory in OpenVINO (else
+    onnxruntime) on the CPU, says one start-up line (load and export/compile seconds, the engine)
+    and records them in predict.json; where neither runtime is installed it runs PyTorch and says why,
+    once (not per frame); a GPU's auto is PyTorch."""
+    from vctrain.deploy import engine as eng
+    from vctrain.predict import DEFAULT_ENGINE
+
+    assert DEFAULT_ENGINE == "auto" and eng.choose_engine("auto", "cuda:0") == "torch"
+    assert eng.engine_note("auto", "cuda:0") == "" and eng.engine_note("torch", "cpu") == ""
+    runtime = next((r for r in ("openvino", "onnxruntime") if eng.installed(r)), None)
+    if runtime is None:
+        pytest.skip("neither OpenVINO nor onnxruntime is installed (the deploy extra)")
+    r = run_cli("predict", SHIPPED, EXAMPLES, "--out", tmp_path / "fast", "--threads", "1", prog="vctrain")
+    assert r.returncode == 0, r.stderr
+    record = json.loads((tmp_path / "fast" / "predict.json").read_text())
+    assert record["engine"].startswith({"openvino": "OpenVINO ", "onnxruntime": "onnxruntime "}[runtime])
+    startup = record["runs"][-1]["startup"]
+    assert startup["load_s"] > 0 and startup["compile_s"] > 0
+    lines = [line for line in r.stderr.splitlines() if "start-up:" in line]
+    assert len(lines) == 1 and "the network exported for 480x360 and compiled in" in lines[0], r.stderr
+    assert "start-up apart: load" in r.stderr.splitlines()[-1]
+    monkeypatch.setattr(eng, "installed", lambda module: False)  # no deploy extra
+    r = run_cli("predict", SHIPPED, EXAMPLES, "--out", tmp_path / "torch", "--threads", "1", prog="vctrain")
+    assert r.returncode == 0, r.stderr
+    assert json.loads((tmp_path / "torch" / "predict.json").read_text())["engine"].startswith("PyTorch ")
+    assert r.stderr.count("neither OpenVINO nor onnxruntime is installed: PyTorch runs the network") == 1, r.stderr
+    for f in sorted(EXAMPLES.iterdir()):  # the same masks either way (tests above: P(road) within rounding)
+        a, b = (read_image(tmp_path / e / f"{f.stem}_mask.png").array for e in ("torch", "fast"))
+        assert np.array_equal(a, b), f.name
+
+
 # -- the int8 graph ---------------------------------------------------------------------------------
 
 def test_int8_graph_agrees_with_the_float_graph_and_refuses_another_size(tmp_path):

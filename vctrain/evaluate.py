@@ -39,14 +39,16 @@ RECORD = "predict.json"  # in a prediction folder: which model's runs wrote whic
 
 
 def record_predictions(out: Path, model: Path, masks: list[Path], engine: str = "",
-                       inputs: list[str] | None = None, poses: dict[str, dict] | None = None) -> None:
+                       inputs: list[str] | None = None, poses: dict[str, dict] | None = None,
+                       startup: dict | None = None) -> None:
     """Note in ``out/predict.json`` that ``model`` wrote ``masks`` (``<id>_mask.png`` in ``out``, an id
     with folders for a tree's frames: ``drive1/000123``) through ``engine`` (what ran its network,
     given: ``engine``): a run of the same model (the same file content) adds its frames to the
     record, a run of another model replaces it. Each run is kept apart under ``runs`` (``inputs``:
     what it was given; its ``frames``; a later run of the same inputs replaces it, a frame belongs to
     the last run that wrote it); ``poses`` (given: ``predict --bev``'s, stem -> the frame's BEV pose)
-    are kept under ``bev_poses``."""
+    are kept under ``bev_poses``; ``startup`` (given: what the run paid once, ``load_s`` and
+    ``compile_s``) under its run."""
     stems = [m.relative_to(out).as_posix()[: -len("_mask.png")] for m in masks if m.name.endswith("_mask.png")]
     sha = file_sha256(model)
     old = _read_record(out)
@@ -55,7 +57,8 @@ def record_predictions(out: Path, model: Path, masks: list[Path], engine: str = 
     new = set(stems)
     runs = [{**r, "frames": [f for f in r["frames"] if f not in new]} for r in runs
             if inputs is None or r.get("inputs") != list(inputs)]
-    runs = [r for r in runs if r["frames"]] + [{"inputs": list(inputs or []), "frames": stems}]
+    runs = [r for r in runs if r["frames"]] + [{"inputs": list(inputs or []), "frames": stems,
+                                                  **({"startup": startup} if startup else {})}]
     bev_poses.update(poses or {})
     frames = [f for r in runs for f in r["frames"]]
     doc = {"model": str(model), "model_sha256": sha, **({"engine": engine} if engine else {}), "frames": frames,

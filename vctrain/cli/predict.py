@@ -10,7 +10,7 @@ import typer
 
 from vcprep.cliutil import corridor_option, ensure_parent, err, range_option, res_option
 
-from ..predict.settings import BEYOND, DEFAULT_BEYOND, DEFAULT_ENGINE, GRAPH_ENGINE
+from ..predict.settings import BEYOND, DEFAULT_BEYOND, DEFAULT_ENGINE, GRAPH_ENGINE, STUDY_IOU_TOLERANCE
 from ..shipped import SHIPPED
 from .common import app, model_arg, path_or_json, pin_threads, threads_option
 
@@ -21,11 +21,13 @@ EGO_HELP = ("the own vehicle (bonnet, dashboard) in a video or a folder of one c
             "BDD100K- or CamVid-style name prefix), none (no search: the camera as given) or N bottom rows; default: auto for a virtual-camera "
             "model, none for a model that reads frames as they are (the shipped model: give --ego auto or N "
             "for a dashcam)")
-ENGINE_HELP = ("what runs the network. A .pt model: torch (the engine studies score, a study's masks bit for bit), "
-               "onnx / openvino (the same network exported in memory, in onnxruntime / OpenVINO: faster on a CPU, "
-               "P(road) within 3e-6 of torch's, so a pixel at P = 0.5 can differ) or auto (openvino, else onnx, "
-               f"where installed); default {DEFAULT_ENGINE}. A graph (.onnx): openvino, onnx or auto; default "
-               f"{GRAPH_ENGINE}. Said on stderr and recorded in OUT/predict.json")
+ENGINE_HELP = ("what runs the network. A .pt model: auto (OpenVINO, else onnxruntime, where installed and on the "
+               "CPU: the same network exported in memory, about 2x faster than PyTorch on a CPU; else torch, said "
+               "once on stderr), torch (PyTorch: a study's masks bit for bit; a GPU's), onnx / openvino (one of the "
+               "two runtimes). Their P(road) is PyTorch's within 3e-6, so a pixel at P = 0.5 can differ: a study's "
+               f"road IoU within {STUDY_IOU_TOLERANCE} of auto's; default {DEFAULT_ENGINE}. A graph (.onnx): "
+               f"openvino, onnx or auto; default {GRAPH_ENGINE}. Said on stderr (the start-up line: load and "
+               "export/compile seconds, apart from the frames') and recorded in OUT/predict.json")
 BEYOND_RULES = {"hybrid": "the network on the grown rectangle, P(road) where the ray from the road VP leaves the "
                           "training rectangle beyond it",
                 "extend": "the network's own values there",

@@ -13,6 +13,7 @@ onnx / onnxruntime / openvino are optional (``pip install 'vcseg[deploy]'``) and
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 from typing import Callable
 
@@ -140,11 +141,13 @@ class OnnxPredictor:
         if info.get("format") != GRAPH_FORMAT:
             raise InputError("not a graph written by 'vctrain export' (no vcseg metadata)", self.path,
                              "export the model with 'vctrain export'")
+        t0 = time.perf_counter()
         try:
             self._call = compiled(str(self.path), self.runtime, threads)
         except Exception as e:  # each runtime raises its own types for a graph it cannot run
             raise InputError(f"cannot load ONNX graph in {self.runtime} ({str(e).splitlines()[0][:120]})", self.path,
                              "give the .onnx file written by 'vctrain export'") from None
+        self.compile_seconds = time.perf_counter() - t0  # (the graph read and compiled: part of its load)
         self.info = info
         self.size = tuple(info["inputs"]["frame"][1][1::-1])  # (w, h)
         self.vp_input = "vp" in info["inputs"]

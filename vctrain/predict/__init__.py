@@ -16,7 +16,8 @@ from ..lazy import lazy_face
 # Each name's module. The face loads a module on first use of one of its names (PEP 562), as
 # vctrain.training's does: the commands take their help texts' defaults from settings.py (no torch).
 _HOME = {
-    "settings": ("BEYOND", "DEFAULT_BEYOND", "ENGINES", "DEFAULT_ENGINE", "GRAPH_ENGINE"),
+    "settings": ("BEYOND", "DEFAULT_BEYOND", "ENGINES", "DEFAULT_ENGINE", "GRAPH_ENGINE", "STUDY_ENGINE",
+                 "STUDY_IOU_TOLERANCE"),
     "kinds": ("RoadPredictor",),
     "frames": ("FramePredictor", "StageTimes", "StreamingVPs"),
     "inputs": ("PredictOptions", "predict_inputs"),

@@ -41,6 +41,8 @@ class Predicted:
     seconds: float = 0.0  # wall-clock time of the whole run
     masks: list = field(default_factory=list)  # the masks of image files and store items (what eval scores)
     engine: str = ""      # what ran the network ('onnxruntime 1.32.0', 'PyTorch 2.13.0 (cuda:0)'; vctrain.deploy.engine)
+    load_seconds: float = 0.0     # the model read (a checkpoint, its network built; a graph's file); 0: given loaded
+    compile_seconds: float = 0.0  # the network exported and compiled (an exported engine's, a graph's); not in the rate
 
     def said(self) -> list[str]:
         """One line per skipped frame: 'skipped: <file>: <problem> (<fix>)'."""
@@ -54,7 +56,15 @@ class Predicted:
         what = " and ".join(([count(self.images, "image")] if self.images is not None else [])
                             + ([count(self.videos, "video")] if self.videos else []))
         engine = f"; {self.engine}" if self.engine else ""
-        return f"{what} predicted ({self.source}{engine}); {rate_text(self.frames, self.seconds, 'frame')}"
+        startup = f"; start-up apart: load {self.load_seconds:.1f} s, export/compile {self.compile_seconds:.1f} s" \
+            if self.load_seconds or self.compile_seconds else ""
+        rate = rate_text(self.frames, max(0.0, self.seconds - self.compile_seconds), 'frame')
+        return f"{what} predicted ({self.source}{engine}); {rate}{startup}"
+
+    @property
+    def startup(self) -> dict:
+        """What the run paid once, as predict.json records it: {'load_s': .., 'compile_s': ..}."""
+        return {"load_s": round(self.load_seconds, 3), "compile_s": round(self.compile_seconds, 3)}
 
 
 @dataclass(frozen=True)
@@ -105,7 +115,9 @@ def predict_inputs(options: PredictOptions, say: Optional[Callable[[str], None]]
 
     videos = check_video_stems([p for p in opts.images if is_video(p)])
     images = [p for p in opts.images if not is_video(p)]
+    t0, given = time.perf_counter(), predictor is not None
     predictor = predictor or open_predictor(opts.source, opts.device, opts.engine, prior=opts.prior is not None)
+    spent = _startup(predictor, 0.0 if given else time.perf_counter() - t0, given, say)
     engine = engine_used(predictor)  # said in the summary line (Predicted.line)
     if opts.beyond is not None:
         set_beyond(predictor, opts.beyond, opts.source)
@@ -123,22 +135,54 @@ def predict_inputs(options: PredictOptions, say: Optional[Callable[[str], None]]
     try:
         result = _predict_all(opts, predictor, images, videos, camera_for, say)
         result.engine = engine
+        result.load_seconds, result.compile_seconds = spent()
     except BaseException:
         if not existed:
             _remove_empty(out)
         raise
+    finally:
+        if hasattr(predictor, "on_compiled"):
+            predictor.on_compiled = None
     if not existed and not result.written:
         _remove_empty(out)
     elif result.written:
         from ..evaluate import record_predictions
 
-        record_predictions(out, opts.source, result.masks, engine, poses=poses,
+        record_predictions(out, opts.source, result.masks, engine, poses=poses, startup=result.startup,
                            inputs=[str(p) for p in [*videos, *images, *([opts.store] if opts.store else [])]])
         if poses and say is not None:
             from .bev import poses_line
 
             say(poses_line(poses))
     return result
+
+
+def _startup(predictor, load_s: float, given: bool, say: Optional[Callable[[str], None]]) -> Callable[[], tuple]:
+    """Say the start-up line on ``say``: the model's load (``load_s``, its wall time; a graph's compile
+    counted apart) and the network's export and compile (an exported engine's: on its first frame, when
+    it is compiled), the engine, and why auto chose PyTorch where it did. Returns a function giving
+    (load s, export/compile s) so far (``given``: loaded by the caller, its load and earlier compiles
+    not counted)."""
+    before = getattr(predictor, "compile_seconds", 0.0) if given else 0.0
+    load = max(0.0, load_s - (getattr(predictor, "compile_seconds", 0.0) - before))  # (a graph compiles at its load)
+    spent = lambda: (load, getattr(predictor, "compile_seconds", 0.0) - before)  # noqa: E731
+    if say is None:
+        return spent
+    engine, note = engine_used(predictor), getattr(predictor, "engine_note", "")
+    about = f" ({engine}{f'; {note}' if note else ''})" if engine else ""
+
+    def line(compiled: str = "") -> str:
+        c = spent()[1]
+        return f"start-up: loaded in {load:.1f} s" + (f", {compiled}compiled in {c:.1f} s" if c else "") + about
+
+    if getattr(predictor, "on_compiled", False) is None and predictor.engine not in (None, "torch"):
+        def first(shape: tuple, seconds: float) -> None:  # an exported engine: said once, at its first frame
+            predictor.on_compiled = None
+            say(line(f"the network exported for {shape[-1]}x{shape[-2]} and "))
+        predictor.on_compiled = first
+    else:
+        say(line())
+    return spent
 
 
 def _keeping_poses(opts: PredictOptions, poses: dict) -> PredictOptions:

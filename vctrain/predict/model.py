@@ -90,7 +90,8 @@ def check_frame(frame: Any, what: str = "frame") -> np.ndarray:
 def open_predictor(model: str | Path, device: str = "auto", engine: str | None = None, prior: bool = False):
     """The predictor of ``model``: an exported graph (``.onnx``: :class:`~vctrain.deploy.runtime.OnnxPredictor`),
     the geometric prior (``prior``: :class:`~vctrain.adapt.PriorPredictor`) or a checkpoint's network on
-    ``device`` through ``engine`` (None: torch for a checkpoint, the fastest runtime installed for a graph)."""
+    ``device`` through ``engine`` (None: :data:`~vctrain.predict.settings.DEFAULT_ENGINE` for a checkpoint,
+    the fastest engine installed; :data:`~vctrain.predict.settings.GRAPH_ENGINE` for a graph)."""
     path = Path(model)
     if not prior and path.suffix.lower() == ".onnx":
         from ..deploy.runtime import OnnxPredictor
@@ -128,8 +129,10 @@ def load(name_or_path: str | Path, engine: str | None = None, device: str = "aut
     """A road model ready to segment frames: ``name_or_path`` a checkpoint written by ``vctrain fit``
     (``.pt``, a virtual-camera or a resize model), a shipped model's name from any folder
     ('shipped'), or a graph written by ``vctrain export`` (``.onnx``). ``engine``: what runs a
-    ``.pt``'s network ('torch', the default, what studies score; 'onnx', 'openvino', 'auto') or a
-    graph's ('onnx', 'openvino'; None: the fastest installed); ``device``: 'auto', 'cpu', 'cuda:N';
+    ``.pt``'s network (None or 'auto': OpenVINO, else onnxruntime, on the CPU where installed, else
+    PyTorch, as ``vctrain predict`` by default; 'torch': a study's masks bit for bit; 'onnx',
+    'openvino') or a graph's ('onnx', 'openvino'; None: the fastest installed); ``device``: 'auto',
+    'cpu', 'cuda:N' (a GPU runs PyTorch);
     ``beyond``: a virtual-camera model's rule for frame pixels outside its training rectangle
     (:data:`vctrain.predict.frames.BEYOND`; None: the default)."""
     path = resolve_model(name_or_path)

@@ -22,6 +22,7 @@ Outputs per image ``<stem>_prob.png`` (uint8, round(255 * P(road))) and ``<stem>
 from __future__ import annotations
 
 import json
+import time
 from pathlib import Path
 from typing import Any, Callable, Iterable
 
@@ -61,6 +62,7 @@ class Predictor:
         """Frames of any size are taken (warped or resized to the working size)."""
 
     def __init__(self, checkpoint: str | Path, device: str = "auto", engine: str = "torch"):
+        t0 = time.perf_counter()
         self.path = Path(checkpoint)
         self.ckpt = load_checkpoint(self.path)
         self.data = CheckpointData.from_dict(self.ckpt["data"])  # (read here, once)
@@ -73,20 +75,37 @@ class Predictor:
         self.greyscale = self.data.greyscale >= 1.0
         self.vp_channel = self.data.vp_channel
         self.ray_channels = self.data.ray_channels
-        self.engine = "torch"
+        self.engine, self.engine_note = "torch", ""
         self._onnx = None
+        self.on_compiled: Callable[[tuple[int, ...], float], None] | None = None  # hears each export (shape, s)
+        self.load_seconds = time.perf_counter() - t0  # the checkpoint read and the network built
         self.use_engine(engine)
 
     def use_engine(self, engine: str) -> str:
         """Run the network through ``engine`` (:data:`vctrain.deploy.engine.ENGINES`: 'torch', 'onnx' /
         'openvino' (the same network exported in memory, run in onnxruntime / OpenVINO) or 'auto':
-        OpenVINO, else onnxruntime, on the CPU where installed); returns the one chosen. The default, torch, is what studies and
-        evaluation score."""
-        from ..deploy.engine import OnnxNetwork, choose_engine
+        OpenVINO, else onnxruntime, on the CPU where installed); returns the one chosen, and
+        :attr:`engine_note` says why auto chose torch on a CPU ('' otherwise). This class's default,
+        torch, is what studies score (:data:`vctrain.predict.settings.STUDY_ENGINE`); ``vctrain
+        predict`` and :func:`vctrain.load` take :data:`~vctrain.predict.settings.DEFAULT_ENGINE`."""
+        from ..deploy.engine import OnnxNetwork, choose_engine, engine_note
+        from ..study.hashing import file_sha256
 
         self.engine = choose_engine(engine, str(self.device))
-        self._onnx = OnnxNetwork(self.model, engine=self.engine) if self.engine != "torch" else None
+        self.engine_note = engine_note(engine, str(self.device))
+        self._onnx = None if self.engine == "torch" else \
+            OnnxNetwork(self.model, self._compiled, self.engine, key=file_sha256(self.path))
         return self.engine
+
+    def _compiled(self, shape: tuple[int, ...], seconds: float) -> None:
+        if self.on_compiled is not None:
+            self.on_compiled(shape, seconds)
+
+    @property
+    def compile_seconds(self) -> float:
+        """Seconds spent exporting and compiling the network so far (an exported engine's: once per
+        input size, on its first frame; 0 for torch)."""
+        return self._onnx.export_seconds if self._onnx is not None else 0.0
 
     def logits(self, x: np.ndarray) -> torch.Tensor | np.ndarray:
         """The network's logits (1, K, h, w) float32 of one input array (C, h, w), through

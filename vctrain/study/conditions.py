@@ -96,8 +96,9 @@ class Context:
 
 def _model_predictor(checkpoint: Path):
     from ..predict.predictor import Predictor
+    from ..predict.settings import STUDY_ENGINE
 
-    return Predictor(checkpoint, device="cpu")
+    return Predictor(checkpoint, device="cpu", engine=STUDY_ENGINE)  # (on every install: settings.py says why)
 
 
 def trained(run: Run, ctx: Context, tag: str) -> tuple[TrainConfig, dict[str, Any]]:

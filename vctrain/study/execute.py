@@ -44,8 +44,9 @@ def evaluate_heldout(checkpoint: Path, store_dir: Path, progress: bool = False) 
     """Road metrics of ``checkpoint`` on every labelled item of a held-out test store, scored in the
     item's ORIGINAL camera against its original label (P(road) >= 0.5)."""
     from ..predict.predictor import Predictor
+    from ..predict.settings import STUDY_ENGINE
 
-    return score_store(Predictor(checkpoint, device="cpu"), store_dir, progress)
+    return score_store(Predictor(checkpoint, device="cpu", engine=STUDY_ENGINE), store_dir, progress)
 
 
 def score_store(predictor, store_dir: Path, progress: bool = False) -> dict[str, Any]:
