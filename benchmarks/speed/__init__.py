@@ -14,7 +14,7 @@ records it, else "unknown".
 * ``predict_e2e.py`` -- ``vctrain predict`` end to end beside the engine's network alone, in process
   (issue 69), and the whole command in a fresh process at two video lengths: steady-state frames/s
   and start-up apart (issue 81, ``--only whole``). Results: ``predict_e2e.json``,
-  ``predict_e2e.whole.json``. Time: unknown (the whole-command part: 20 min on 2 loaded cores).
+  ``predict_e2e.whole.json``. Time: unknown (the whole-command part: 20-40 min on 2 loaded cores).
 * ``store.py`` -- building a store (``vcprep warp``) with 1 and 2 worker processes against plain PNG
   decode + encode of the same frames. Results: ``store.json``. Time: unknown.
 * ``png_deflate.py`` -- the PNG writer with each deflate candidate (zlib, zlib-ng, libdeflate) on a

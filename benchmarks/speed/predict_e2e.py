@@ -52,10 +52,13 @@ paid once counted once; the rest is the start-up, ``startup_s`` = t1 - n1 / fps_
 model load, graph compilation, first frames), reported apart, and ``fps_whole`` = n2 / t2 is what
 the longer run gave a user. Sizes (``--whole-sizes``): 1280x720 (CamVid val, enlarged, as above) and
 KITTI's 1242x375 (``../shared/data/kitti_semantics/images``, 98 frames); each with and without
-``--overlay``; engines (``--whole-engines``): ``torch`` (predict's default), ``auto`` (OpenVINO,
-else onnxruntime) and ``int8`` (the int8 graph of ``vctrain export --int8 --size WxH``, exported
-once per size, its export not timed); threads: the command's own defaults (what a user gets); the
-load average before and after is recorded, a loaded machine says so there.
+``--overlay``; engines (``--whole-engines``): ``default`` (no ``--engine``: the command as the README
+prints it; OpenVINO, else onnxruntime, where installed), ``torch`` (``--engine torch``: PyTorch, a
+study's masks bit for bit) and ``int8`` (the int8 graph of ``vctrain export --int8 --size WxH``,
+exported once per size, its export not timed), run in turn at each length so that they share the
+load; beside the fitted start-up, the one the longer run said (predict.json: ``load_s``, the model
+read; ``compile_s``, the network exported and compiled); threads: the command's own defaults (what
+a user gets); the load average before and after is recorded, a loaded machine says so there.
 
 Results: benchmarks/speed/results/predict_e2e.json (in process) and predict_e2e.whole.json (the whole
 command); the last stdout line is one JSON object (both headlines).
@@ -229,7 +232,7 @@ def speed(args, wd: Path) -> list[dict]:
     return rows
 
 
-WHOLE_ENGINES = ("torch", "auto", "int8")
+WHOLE_ENGINES = ("default", "torch", "int8")
 
 
 def whole_frames(n: int, size: tuple[int, int]) -> list[np.ndarray]:
@@ -254,8 +257,10 @@ def write_video(frames: list[np.ndarray], n: int, path: Path) -> tuple[Path, tup
     return path, ((first.shape[1], first.shape[0]) if ok else (w, h))
 
 
-def run_predict(model: Path, video: Path, out: Path, overlay: bool, engine: str | None) -> float:
-    """Wall seconds of one ``vctrain predict`` in a fresh process (the console script beside this Python)."""
+def run_predict(model: Path, video: Path, out: Path, overlay: bool, engine: str | None) -> tuple[float, dict]:
+    """(wall seconds, the start-up it said: predict.json's ``load_s`` and ``compile_s``) of one
+    ``vctrain predict`` in a fresh process (the console script beside this Python; ``engine`` None: no
+    ``--engine``, the command's default)."""
     import shutil
     import subprocess
 
@@ -269,13 +274,15 @@ def run_predict(model: Path, video: Path, out: Path, overlay: bool, engine: str 
     secs = time.perf_counter() - t0
     if proc.returncode != 0:
         raise SystemExit(f"{' '.join(cmd)} failed:\n{proc.stderr[-2000:]}")
-    return secs
+    record = json.loads((out / "predict.json").read_text())
+    return secs, {**record["runs"][-1].get("startup", {}), "engine": record.get("engine", "")}
 
 
 def whole_command(args, wd: Path) -> list[dict]:
     """The rows of the whole-command part (module docstring): per size, engine and overlay, the
-    wall time at both lengths (the fastest of ``--whole-repeats`` runs each), the steady-state rate
-    and the start-up."""
+    wall time at both lengths (the fastest of ``--whole-repeats`` runs each; the engines run in
+    turn at each length, so that they share the machine's load), the steady-state rate and the
+    start-up (fitted, and as the command said it)."""
     from vctrain.deploy import export_onnx
 
     n1, n2 = args.whole_frames
@@ -285,25 +292,40 @@ def whole_command(args, wd: Path) -> list[dict]:
         frames = whole_frames(max(n1, 1), size)
         written = {n: write_video(frames, n, wd / f"whole_{tag}_{n}.mp4") for n in (n1, n2)}
         videos, decoded = {n: v for n, (v, _) in written.items()}, written[n1][1]
-        for engine in args.whole_engines:
-            model, flag = MODEL, engine
+        models = {}
+        for engine in args.whole_engines:  # (path, --engine): the default runs with none
+            models[engine] = (MODEL, None if engine == "default" else engine)
             if engine == "int8":  # the graph for the frames as decoded (1242x374 for KITTI's 1242x375)
-                model, flag = wd / f"road_{decoded[0]}x{decoded[1]}_int8.onnx", None
-                if not model.exists():
-                    export_onnx(MODEL, None, model, size=decoded, int8=True)
-            for overlay in (False, True):
-                t = {n: min(run_predict(model, videos[n], wd / "whole_out", overlay, flag)
-                            for _ in range(args.whole_repeats)) for n in (n1, n2)}
-                # the longer run no slower than the shorter: load swamped the difference, no rate
-                fps = (n2 - n1) / (t[n2] - t[n1]) if t[n2] > t[n1] else None
-                rows.append({"size": tag, "decoded": f"{decoded[0]}x{decoded[1]}", "engine": engine,
-                             "overlay": overlay, "frames": [n1, n2], "wall_s": [t[n1], t[n2]], "fps_steady": fps,
-                             "startup_s": None if fps is None else t[n1] - n1 / fps, "fps_whole": n2 / t[n2]})
-                r = rows[-1]
-                print(f"whole {tag} {engine:5s} overlay={overlay!s:5s} {n1} frames {t[n1]:6.1f} s, {n2} frames "
-                      f"{t[n2]:6.1f} s: steady {fps or float('nan'):5.1f} frames/s, start-up "
-                      f"{r['startup_s'] or float('nan'):5.1f} s, whole {r['fps_whole']:5.1f} frames/s", file=sys.stderr)
+                models[engine] = (wd / f"road_{decoded[0]}x{decoded[1]}_int8.onnx", None)
+                if not models[engine][0].exists():
+                    export_onnx(MODEL, None, models[engine][0], size=decoded, int8=True)
+        for overlay in (False, True):
+            t, said = {}, {}
+            for n in (n1, n2):
+                for _ in range(args.whole_repeats):
+                    for engine, (model, flag) in models.items():
+                        secs, said[engine, n] = run_predict(model, videos[n], wd / "whole_out", overlay, flag)
+                        t[engine, n] = min(t.get((engine, n), secs), secs)
+            for engine in models:
+                rows.append(whole_row(tag, decoded, engine, overlay, (n1, n2), (t[engine, n1], t[engine, n2]),
+                                      said[engine, n2]))
     return rows
+
+
+def whole_row(tag: str, decoded: tuple, engine: str, overlay: bool, n: tuple, t: tuple, said: dict) -> dict:
+    """One row: the steady-state rate from the two lengths, the fitted start-up, and the start-up
+    the longer run said (its load and export/compile seconds)."""
+    # the longer run no slower than the shorter: load swamped the difference, no rate
+    fps = (n[1] - n[0]) / (t[1] - t[0]) if t[1] > t[0] else None
+    row = {"size": tag, "decoded": f"{decoded[0]}x{decoded[1]}", "engine": engine, "engine_said": said.get("engine"),
+           "overlay": overlay, "frames": list(n), "wall_s": list(t), "fps_steady": fps,
+           "startup_s": None if fps is None else t[0] - n[0] / fps, "fps_whole": n[1] / t[1],
+           "load_s": said.get("load_s"), "compile_s": said.get("compile_s")}
+    print(f"whole {tag} {engine:7s} overlay={overlay!s:5s} {n[0]} frames {t[0]:6.1f} s, {n[1]} frames {t[1]:6.1f} s: "
+          f"steady {fps or float('nan'):5.1f} frames/s, start-up {row['startup_s'] or float('nan'):5.1f} s (said: "
+          f"load {row['load_s'] or 0:.1f} s, export/compile {row['compile_s'] or 0:.1f} s), whole "
+          f"{row['fps_whole']:5.1f} frames/s", file=sys.stderr)
+    return row
 
 
 def whole_headline(rows: list[dict]) -> dict:
@@ -313,6 +335,9 @@ def whole_headline(rows: list[dict]) -> dict:
         head[f"fps_steady_{key}"] = None if r["fps_steady"] is None else round(r["fps_steady"], 1)
         head[f"startup_s_{key}"] = None if r["startup_s"] is None else round(r["startup_s"], 1)
         head[f"fps_whole_{key}"] = round(r["fps_whole"], 1)
+        for k in ("load_s", "compile_s"):
+            if r.get(k) is not None:
+                head[f"{k}_{key}"] = round(r[k], 1)
     return head
 
 

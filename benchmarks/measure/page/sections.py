@@ -42,15 +42,18 @@ def r_completion(d: dict) -> list[str]:
 
 
 def r_predict_whole(d: dict) -> list[str]:
+    said = lambda r: "-" if r.get("load_s") is None else f"{num(r['load_s'], 1)} / {num(r['compile_s'], 1)}"  # noqa: E731
     rows = [[r["size"] + (f" (decoded {r['decoded']})" if r.get("decoded", r["size"]) != r["size"] else ""),
              r["engine"], "yes" if r["overlay"] else "no", " / ".join(num(t, 1) for t in r["wall_s"]),
              "-" if r["fps_steady"] is None else num(r["fps_steady"], 1),
-             "-" if r["startup_s"] is None else num(r["startup_s"], 1), num(r["fps_whole"], 1)] for r in d["rows"]]
+             "-" if r["startup_s"] is None else num(r["startup_s"], 1), said(r), num(r["fps_whole"], 1)]
+            for r in d["rows"]]
     n1, n2 = d["rows"][0]["frames"] if d["rows"] else ("?", "?")
     return table(["size", "engine", "overlay", f"wall s ({n1} / {n2} frames)", "steady frames/s", "start-up s",
-                  f"frames/s of the {n2}-frame run"], rows) + [
-        "`vctrain predict MODEL VIDEO` as typed, a fresh process per run; steady = the difference of the two "
-        "lengths, start-up = the rest. Load average before / after: "
+                  "said: load / export+compile s", f"frames/s of the {n2}-frame run"], rows) + [
+        "`vctrain predict MODEL VIDEO` as typed, a fresh process per run (engine `default`: no `--engine`); "
+        "steady = the difference of the two lengths, start-up = the rest (imports included); said = what the "
+        "longer run recorded in predict.json. Load average before / after: "
         + " / ".join(num(x, 1) for x in d.get("load_average", [])) + ".", ""]
 
 
