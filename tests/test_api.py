@@ -1,7 +1,7 @@
 """The Python face: ``vctrain.load(...).segment(frame, camera)`` and its kin (vctrain.predict.model).
 
-The oracle is ``vctrain predict`` run on the same frames as files: the in-memory masks must equal
-its ``_mask.png`` bit for bit (and P(road) its ``_prob.png``), for the shipped model and for a
+The oracle is ``vctrain predict`` run on the same frames as files, each with its default engine: the
+in-memory masks must equal its ``_mask.png`` bit for bit (and P(road) its ``_prob.png``), for the shipped model and for a
 virtual-camera model with a camera; ``bev=True`` must give the road in metres that ``predict
 --bev`` prints. Bad input raises the project's own error."""
 from __future__ import annotations
@@ -29,7 +29,7 @@ KITTI_CALIB = EXAMPLES / "kitti" / "calib" / "um_000000.txt"
 
 @pytest.fixture(scope="module")
 def shipped():
-    return vctrain.load("shipped", engine="torch")
+    return vctrain.load("shipped")  # the default engine, as predict's (_predict)
 
 
 @pytest.fixture(scope="module")
@@ -51,7 +51,7 @@ def drive(tmp_path_factory):
 
 def _predict(tmp_path: Path, *args) -> tuple[Path, str]:
     out = tmp_path / "out"
-    proc = run_cli("predict", *args, "--out", out, "--engine", "torch", "--threads", "1", "--quiet", prog="vctrain")
+    proc = run_cli("predict", *args, "--out", out, "--threads", "1", "--quiet", prog="vctrain")  # its default engine
     assert proc.returncode == 0, proc.stderr
     return out, proc.stdout
 
@@ -67,7 +67,10 @@ def _same_as_written(result, out: Path, stem: str) -> None:
 
 
 def test_shipped_model_by_name_gives_predicts_masks(shipped, tmp_path):
+    """``vctrain.load("shipped")`` and ``vctrain predict shipped``, no engine given either: the same
+    engine (the fastest installed, vctrain.predict.settings.DEFAULT_ENGINE), the same masks."""
     out, _ = _predict(tmp_path, "shipped", EXAMPLES / "camvid" / "images")
+    assert shipped.engine == json.loads((out / "predict.json").read_text())["engine"]
     assert shipped.kind == "resize" and not shipped.needs_camera
     for f in CAMVID:
         _same_as_written(shipped.segment(cv2.imread(str(f))), out, f.stem)
@@ -75,20 +78,6 @@ def test_shipped_model_by_name_gives_predicts_masks(shipped, tmp_path):
     assert [Path(r.source).name for r in files] == [f.name for f in CAMVID]
     for f, r in zip(CAMVID, files):
         _same_as_written(r, out, f.stem)
-
-
-def test_load_and_predict_run_the_same_default_engine(tmp_path):
-    """``vctrain.load("shipped")`` and ``vctrain predict shipped`` with no engine given run the same
-    engine (the fastest installed: vctrain.predict.settings.DEFAULT_ENGINE) and give the same masks
-    and P(road) bit for bit."""
-    model = vctrain.load("shipped")
-    out = tmp_path / "out"
-    proc = run_cli("predict", "shipped", EXAMPLES / "camvid" / "images", "--out", out, "--threads", "1", "--quiet",
-                   prog="vctrain")
-    assert proc.returncode == 0, proc.stderr
-    assert model.engine == json.loads((out / "predict.json").read_text())["engine"]
-    for f in CAMVID:
-        _same_as_written(model.segment(cv2.imread(str(f))), out, f.stem)
 
 
 @pytest.mark.parametrize("camera, within", [("cam.yaml", "none"), ("cam.yaml", "estimate"), ("camvid", "auto")])

@@ -159,6 +159,7 @@ def _report(result, out: Path, quiet: bool, paths: bool = True) -> None:
     for line in result.said():
         err(line)
     if not quiet:
+        err(f"{out}: {result.startup_line()}")
         err(f"{out}: {result.line()}")
     if result.failed:
         _failed(result, out)

@@ -9,7 +9,7 @@ onnxruntime 23.0, PyTorch 38.3; the README's video command on a 1280x720 video w
 29.1 and 17.9 frames/s: benchmarks/speed/predict_e2e.py; on a loaded machine PyTorch's OpenMP
 threads wait at every operator and the gap grows). On a GPU ``auto`` is PyTorch; on a CPU without
 either runtime it is PyTorch too, and :func:`engine_note` says why (once, in predict's start-up
-line). Its P(road) differs from PyTorch's by float rounding only (max |dP| ~3e-6): the masks are
+line, said with its summary). Its P(road) differs from PyTorch's by float rounding only (max |dP| ~3e-6): the masks are
 identical on the examples (tests/test_pipeline.py), but a pixel at P = 0.5 can flip. Studies score
 with PyTorch (:data:`vctrain.predict.settings.STUDY_ENGINE`): ``--engine torch`` gives a study's
 masks bit for bit, the default a study's road IoU within

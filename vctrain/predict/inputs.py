@@ -43,6 +43,7 @@ class Predicted:
     engine: str = ""      # what ran the network ('onnxruntime 1.32.0', 'PyTorch 2.13.0 (cuda:0)'; vctrain.deploy.engine)
     load_seconds: float = 0.0     # the model read (a checkpoint, its network built; a graph's file); 0: given loaded
     compile_seconds: float = 0.0  # the network exported and compiled (an exported engine's, a graph's); not in the rate
+    engine_note: str = ""         # why auto ran PyTorch on the CPU (vctrain.deploy.engine.engine_note); '' otherwise
 
     def said(self) -> list[str]:
         """One line per skipped frame: 'skipped: <file>: <problem> (<fix>)'."""
@@ -56,10 +57,17 @@ class Predicted:
         what = " and ".join(([count(self.images, "image")] if self.images is not None else [])
                             + ([count(self.videos, "video")] if self.videos else []))
         engine = f"; {self.engine}" if self.engine else ""
-        startup = f"; start-up apart: load {self.load_seconds:.1f} s, export/compile {self.compile_seconds:.1f} s" \
-            if self.load_seconds or self.compile_seconds else ""
-        rate = rate_text(self.frames, max(0.0, self.seconds - self.compile_seconds), 'frame')
-        return f"{what} predicted ({self.source}{engine}); {rate}{startup}"
+        return f"{what} predicted ({self.source}{engine}); " \
+               f"{rate_text(self.frames, max(0.0, self.seconds - self.compile_seconds), 'frame')}"
+
+    def startup_line(self) -> str:
+        """'start-up: loaded in 0.4 s, the network exported and compiled in 1.1 s (OpenVINO 2026.4.1, the
+        network exported in memory)': what the run paid once, apart from the frames' time (the summary
+        line's rate leaves the export and compile out), the engine, and why auto ran PyTorch where it did."""
+        what = "the network exported and compiled" if "exported in memory" in self.engine else "compiled"
+        about = "; ".join(filter(None, (self.engine, self.engine_note)))
+        return f"start-up: loaded in {self.load_seconds:.1f} s" + \
+            (f", {what} in {self.compile_seconds:.1f} s" if self.compile_seconds else "") + (f" ({about})" if about else "")
 
     @property
     def startup(self) -> dict:
@@ -117,7 +125,7 @@ def predict_inputs(options: PredictOptions, say: Optional[Callable[[str], None]]
     images = [p for p in opts.images if not is_video(p)]
     t0, given = time.perf_counter(), predictor is not None
     predictor = predictor or open_predictor(opts.source, opts.device, opts.engine, prior=opts.prior is not None)
-    spent = _startup(predictor, 0.0 if given else time.perf_counter() - t0, given, say)
+    spent = _startup(predictor, 0.0 if given else time.perf_counter() - t0, given)
     engine = engine_used(predictor)  # said in the summary line (Predicted.line)
     if opts.beyond is not None:
         set_beyond(predictor, opts.beyond, opts.source)
@@ -136,13 +144,11 @@ def predict_inputs(options: PredictOptions, say: Optional[Callable[[str], None]]
         result = _predict_all(opts, predictor, images, videos, camera_for, say)
         result.engine = engine
         result.load_seconds, result.compile_seconds = spent()
+        result.engine_note = getattr(predictor, "engine_note", "")
     except BaseException:
         if not existed:
             _remove_empty(out)
         raise
-    finally:
-        if hasattr(predictor, "on_compiled"):
-            predictor.on_compiled = None
     if not existed and not result.written:
         _remove_empty(out)
     elif result.written:
@@ -157,32 +163,14 @@ def predict_inputs(options: PredictOptions, say: Optional[Callable[[str], None]]
     return result
 
 
-def _startup(predictor, load_s: float, given: bool, say: Optional[Callable[[str], None]]) -> Callable[[], tuple]:
-    """Say the start-up line on ``say``: the model's load (``load_s``, its wall time; a graph's compile
-    counted apart) and the network's export and compile (an exported engine's: on its first frame, when
-    it is compiled), the engine, and why auto chose PyTorch where it did. Returns a function giving
-    (load s, export/compile s) so far (``given``: loaded by the caller, its load and earlier compiles
-    not counted)."""
+def _startup(predictor, load_s: float, given: bool) -> Callable[[], tuple[float, float]]:
+    """A function giving (load s, export/compile s) of the run so far: ``load_s`` (the predictor's
+    load, wall time) less a graph's compile at its load, counted with the compiles (an exported
+    engine's: once per input size, at its first frame); ``given``: loaded by the caller, its load
+    and earlier compiles not counted."""
     before = getattr(predictor, "compile_seconds", 0.0) if given else 0.0
     load = max(0.0, load_s - (getattr(predictor, "compile_seconds", 0.0) - before))  # (a graph compiles at its load)
-    spent = lambda: (load, getattr(predictor, "compile_seconds", 0.0) - before)  # noqa: E731
-    if say is None:
-        return spent
-    engine, note = engine_used(predictor), getattr(predictor, "engine_note", "")
-    about = f" ({engine}{f'; {note}' if note else ''})" if engine else ""
-
-    def line(compiled: str = "") -> str:
-        c = spent()[1]
-        return f"start-up: loaded in {load:.1f} s" + (f", {compiled}compiled in {c:.1f} s" if c else "") + about
-
-    if getattr(predictor, "on_compiled", False) is None and predictor.engine not in (None, "torch"):
-        def first(shape: tuple, seconds: float) -> None:  # an exported engine: said once, at its first frame
-            predictor.on_compiled = None
-            say(line(f"the network exported for {shape[-1]}x{shape[-2]} and "))
-        predictor.on_compiled = first
-    else:
-        say(line())
-    return spent
+    return lambda: (load, getattr(predictor, "compile_seconds", 0.0) - before)
 
 
 def _keeping_poses(opts: PredictOptions, poses: dict) -> PredictOptions:

@@ -77,7 +77,6 @@ class Predictor:
         self.ray_channels = self.data.ray_channels
         self.engine, self.engine_note = "torch", ""
         self._onnx = None
-        self.on_compiled: Callable[[tuple[int, ...], float], None] | None = None  # hears each export (shape, s)
         self.load_seconds = time.perf_counter() - t0  # the checkpoint read and the network built
         self.use_engine(engine)
 
@@ -94,12 +93,8 @@ class Predictor:
         self.engine = choose_engine(engine, str(self.device))
         self.engine_note = engine_note(engine, str(self.device))
         self._onnx = None if self.engine == "torch" else \
-            OnnxNetwork(self.model, self._compiled, self.engine, key=file_sha256(self.path))
+            OnnxNetwork(self.model, engine=self.engine, key=file_sha256(self.path))
         return self.engine
-
-    def _compiled(self, shape: tuple[int, ...], seconds: float) -> None:
-        if self.on_compiled is not None:
-            self.on_compiled(shape, seconds)
 
     @property
     def compile_seconds(self) -> float:
