@@ -5,7 +5,8 @@ overlay) beside the network-only time of the same engine, measured in the same r
                                                      [--engines torch,onnx,openvino,graph,graph-ov,int8,int8-ov] [--quality]
                                                      [--only inprocess|whole] [--whole-frames 60,240]
 
-Model: models/road-multicamera/road.pt (the shipped resize model, lite0fpn, 480x360 working size).
+Model (``--model``, a shipped model's name or a .pt): ``shipped`` (models/road-street/road.pt since issue 82;
+figures before it: models/road-multicamera/road.pt, the same network: lite0fpn, resize, 480x360 working size).
 Frames: the first ``--frames`` CamVid val frames (../shared/data/camvid/val, 480x360, real), enlarged
 2x to 960x720, and to 1280x960 with its middle 720 rows kept for 1280x720; each size as an mp4v video
 (what a dashcam gives) and as a folder of PNGs.
@@ -81,7 +82,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: 
 from benchmarks.measure.data import DATA, KITTI, ROOT  # noqa: E402
 from benchmarks.measure.report import machine, results_dir, today, write_json  # noqa: E402
 
-MODEL = ROOT / "models" / "road-multicamera" / "road.pt"
+MODEL = ROOT / "models" / "road-multicamera" / "road.pt"  # (main() sets the --model given; default: shipped)
 ENGINES = ("torch", "onnx", "openvino", "graph", "graph-ov", "int8", "int8-ov")
 CITYSCAPES = DATA.parent / "cityscapes_pix2pix"
 
@@ -348,7 +349,7 @@ def run_whole(args) -> dict:
         rows = whole_command(args, args.workdir or Path(tmp))
     head = whole_headline(rows)
     write_json(results_dir(__file__) / "predict_e2e.whole.json",
-               {"command": "python " + " ".join(["benchmarks/speed/predict_e2e.py"] + sys.argv[1:]), "date": today(),
+               {"command": "python " + " ".join(["benchmarks/speed/predict_e2e.py"] + sys.argv[1:]), "date": today(), "model": MODEL.parent.name,
                 "machine": machine(), "threads": "the command's defaults", "load_average": [load0, os.getloadavg()[0]],
                 "cv2": cv2.__version__, "numpy": np.__version__,
                 "data": "1280x720: CamVid val (../shared/data/camvid/val), enlarged; 1242x375: "
@@ -362,6 +363,7 @@ def main() -> None:
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--frames", type=int, default=60)
+    ap.add_argument("--model", default="shipped", help="a shipped model's name or a .pt (default: shipped)")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--sizes", default="1280x720,960x720")
     ap.add_argument("--engines", default=",".join(ENGINES))
@@ -373,6 +375,10 @@ def main() -> None:
     ap.add_argument("--whole-engines", default=",".join(WHOLE_ENGINES))
     ap.add_argument("--whole-repeats", type=int, default=1, help="runs per length (the fastest is kept)")
     args = ap.parse_args()
+    global MODEL
+    from vctrain.shipped import resolve_model
+
+    MODEL = resolve_model(args.model)
     args.sizes = [tuple(int(v) for v in s.split("x")) for s in args.sizes.split(",")]
     args.engines = args.engines.split(",")
     args.whole_frames = tuple(int(v) for v in args.whole_frames.split(","))
@@ -418,7 +424,7 @@ def main() -> None:
                "float video 1280x720 overlay >= 20 fps": None if flt is None else flt >= 20,
                "end-to-end <= 1.3 x network only (every row)": all(r["ratio"] <= 1.3 for r in rows)}
     write_json(results_dir(__file__) / "predict_e2e.json",
-               {"command": "python " + " ".join(["benchmarks/speed/predict_e2e.py"] + sys.argv[1:]), "date": today(),
+               {"command": "python " + " ".join(["benchmarks/speed/predict_e2e.py"] + sys.argv[1:]), "date": today(), "model": MODEL.parent.name,
                 "machine": machine(), "threads": args.threads, "load_average": [load0, load1],
                 "frames": args.frames, "data": "CamVid val (../shared/data/camvid/val), first frames, enlarged",
                 "headline": headline, "targets": targets, "rows": rows, "quality": quality})
