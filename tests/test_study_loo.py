@@ -75,12 +75,14 @@ def test_each_condition_trains_in_its_own_domain(study_run):
 
 
 def test_heldout_score_matches_predict_and_eval(study_run, tmp_path):
-    """The study's held-out figure equals what the public predict + eval commands give."""
+    """The study's held-out figure equals what the public predict + eval commands give (``--engine torch``:
+    the engine studies score; the default engine's masks differ where P is within float rounding of 0.5,
+    which on these two tiny frames of a barely trained model moves the IoU by ~0.01)."""
     _, out, _ = study_run
     for cond, geom in (("within", "within"), ("resize", "between")):
         preds = tmp_path / cond
         p = run_cli("predict", out / "runs" / "cityscapes" / cond / "model.pt", "--store",
-                    out / "stores" / "cityscapes" / "test" / geom, "--out", preds, "-q", "--device", "cpu",
+                    out / "stores" / "cityscapes" / "test" / geom, "--out", preds, "-q", "--device", "cpu", "--engine", "torch",
                     prog="vctrain")
         assert p.returncode == 0, p.stderr
         e = run_cli("eval", preds, "--labels", out.parent / "data" / "cityscapes_test" / "labels", "-f", "camvid",
