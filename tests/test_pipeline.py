@@ -267,6 +267,25 @@ def test_the_written_probabilities_and_masks_are_numpys_bit_for_bit():
         assert np.array_equal(road_mask(prob), np.where(prob >= 0.5, 255, 0).astype(np.uint8))
 
 
+def test_the_tint_is_overlay_labels_whatever_the_masks_extent():
+    """tint_road (a table applied within the mask's bounding box) gives overlay_label's numbers bit for bit:
+    scattered road touching every border, one pixel in a corner, an empty mask and a full one."""
+    from vcprep.figures import overlay_label
+    from vctrain.predict.written import tint_road
+
+    rng = np.random.default_rng(1)
+    frame = rng.integers(0, 256, (72, 128, 3), dtype=np.uint8)
+    corner = np.zeros((72, 128), np.uint8)
+    corner[71, 127] = 255
+    blobs = np.where(rng.random((72, 128)) > 0.7, 255, 0).astype(np.uint8)
+    blobs[:5], blobs[:, :3] = 0, 0  # road away from the top and left borders: a box smaller than the frame
+    for mask in (corner, blobs, np.where(rng.random((72, 128)) > 0.5, 255, 0).astype(np.uint8),
+                 np.zeros((72, 128), np.uint8), np.full((72, 128), 255, np.uint8)):
+        assert np.array_equal(tint_road(frame, mask), overlay_label(frame, (mask > 0).astype(np.uint8)))
+    grey = frame[..., 1]
+    assert np.array_equal(tint_road(grey, blobs), overlay_label(grey, (blobs > 0).astype(np.uint8)))
+
+
 def test_a_graph_runs_in_openvino_with_onnxruntimes_masks(tmp_path):
     """The shipped model's 480x360 graph in OpenVINO (the default where installed: the faster runtime)
     and in onnxruntime (--engine onnx): P(road) within float rounding and the masks identical on the

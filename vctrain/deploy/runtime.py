@@ -28,6 +28,13 @@ __all__ = ["GRAPH_FORMAT", "RUNTIMES", "OnnxPredictor", "compiled", "graph_runti
            "vp_from_cam"]
 
 GRAPH_FORMAT = "vcseg-road-graph"
+# OpenVINO's CPU settings (:func:`compiled`): one request at a time, in float32 (module docstring), its
+# worker threads free to move between cores. OpenVINO pins them to cores by default, and a pinned worker
+# waits while ``vctrain predict``'s decoding or writing thread holds its core instead of running on the
+# other one: the shipped network at 480x360 on 2 cores beside a thread that computes half the time took
+# 43.4 ms a call pinned and 32.9 ms unpinned (23.0 / 23.4 ms alone; issue 81, benchmarks/speed/predict_e2e.py
+# gives the whole command). The numbers are the same either way.
+OPENVINO_CONFIG = {"PERFORMANCE_HINT": "LATENCY", "INFERENCE_PRECISION_HINT": "f32", "ENABLE_CPU_PINNING": False}
 DEPLOY_FIX = "pip install 'vcseg[deploy]'"
 RUNTIMES = ("openvino", "onnxruntime")  # what runs an ONNX graph, the fastest first (module docstring)
 
@@ -80,8 +87,7 @@ def compiled(model: str | bytes, runtime: str, threads: int = 0) -> Callable[[di
         return lambda feeds: session.run(None, feeds)
     ov = require("openvino")
     core = ov.Core()
-    net = core.compile_model(core.read_model(model), "CPU", {
-        "INFERENCE_NUM_THREADS": threads, "PERFORMANCE_HINT": "LATENCY", "INFERENCE_PRECISION_HINT": "f32"})
+    net = core.compile_model(core.read_model(model), "CPU", {**OPENVINO_CONFIG, "INFERENCE_NUM_THREADS": threads})
     request, outputs = net.create_infer_request(), list(net.outputs)
 
     def run(feeds: dict) -> list[np.ndarray]:

@@ -58,12 +58,16 @@ def tint_road(frame: np.ndarray, mask: np.ndarray) -> np.ndarray:
     """``frame`` with the road of ``mask`` (> 0) tinted green: :func:`vcprep.figures.overlay_label`'s
     numbers bit for bit (the same float64 expression, truncated, tabulated once per grey level) at
     a fraction of its cost (a lookup table and a masked copy: ~1-2 ms for a 1280x720 frame against
-    ~12 ms), so an overlay costs less than the network."""
+    ~12 ms), so an overlay costs less than the network. The table is applied within the mask's bounding
+    box only (the road is the lower part of a frame: about 1 ms of CPU a 1280x720 frame saved, issue 81)."""
     from vcprep.figures import to_bgr8
 
     frame = to_bgr8(frame)
     out = frame.copy()
-    cv2.copyTo(cv2.LUT(frame, _TINT), mask, out)
+    x, y, w, h = cv2.boundingRect(mask)
+    if w and h:
+        box = (slice(y, y + h), slice(x, x + w))
+        cv2.copyTo(cv2.LUT(frame[box], _TINT), mask[box], out[box])
     return out
 
 
