@@ -1,7 +1,10 @@
 """Label formats: the one table that says how each dataset encodes road / not road / ignore,
 and how its label files are named. Everything else derives from :data:`LABEL_FORMATS`.
 
-Decoded labels are uint8 with ``ROAD = 1``, ``NOT_ROAD = 0``, ``IGNORE = 255``.
+Decoded labels are uint8 with ``ROAD = 1``, ``NOT_ROAD = 0``, ``IGNORE = 255``. What "road" means is
+the format's ``definition`` (:data:`DEFINITIONS`): ``road`` (CamVid, Cityscapes, KITTI: the carriageway) or
+``drivable`` (IDD's and BDD100K's drivable area: the road and, in IDD, parking and dirt shoulders too); a
+model with two outputs (``vctrain fit --outputs road,drivable``) learns each from the datasets that label it.
 """
 from __future__ import annotations
 
@@ -14,10 +17,13 @@ import numpy as np
 
 from .errors import InputError, one_of
 
-__all__ = ["ROAD", "NOT_ROAD", "IGNORE", "LabelFormat", "LABEL_FORMATS", "LABEL_FORMAT_HELP", "get_label_format", "decode_label",
+__all__ = ["ROAD", "NOT_ROAD", "IGNORE", "DEFINITIONS", "LabelFormat", "LABEL_FORMATS", "LABEL_FORMAT_HELP", "get_label_format", "decode_label",
            "label_stem_for", "RoadShare"]
 
 NOT_ROAD, ROAD, IGNORE = 0, 1, 255
+# what a label's ROAD means: 'road' (the carriageway) or 'drivable' (drivable area: road, and in IDD parking and
+# dirt shoulders); a format's ``definition``, and the outputs of a two-output model (vctrain.training.outputs)
+DEFINITIONS = ("road", "drivable")
 
 
 @dataclass(frozen=True)
@@ -31,6 +37,7 @@ class LabelFormat:
     ``<stem><label_suffix>.png``; ``kitti_naming`` inserts ``_road`` after the category.
     ``drive_in_id``: the image's folder (a drive) prefixes its id, ``<folder>_<stem>``, for
     trees whose file names repeat from drive to drive (IDD); the drive is then the id's sequence.
+    ``definition``: what its road is (:data:`DEFINITIONS`): ``road`` or ``drivable`` (drivable area).
     """
 
     name: str
@@ -46,6 +53,7 @@ class LabelFormat:
     road_channel: int | None = None   # ``channels``: the BGR channel whose non-zero pixels are road
     valid_channel: int | None = None  # ``channels``: the BGR channel whose zero pixels are ignore
     description: str = ""
+    definition: str = "road"
     extra: dict = field(default_factory=dict)
 
 
@@ -63,35 +71,44 @@ LABEL_FORMATS: dict[str, LabelFormat] = {
         LabelFormat("cityscapes", "ids", road=(7,), ignore=(1, 2, 3), max_value=33,
                     image_suffix="_leftImg8bit", label_suffix="_gtFine_labelIds",
                     description="Cityscapes labelIds: 7 road; 1 ego vehicle, 2 rectification border, 3 out of roi = ignore"),
-        LabelFormat("bdd", "ids", road=(1, 2), max_value=2, label_suffix="_drivable_id",
+        LabelFormat("bdd", "ids", road=(1, 2), max_value=2, label_suffix="_drivable_id", definition="drivable",
                     description="BDD100K drivable ids: 1 direct, 2 alternative = road, 0 background"),
         LabelFormat("idd", "ids", road=(0,), ignore=(255,), max_value=255, image_suffix="_image",
-                    label_suffix="_label", drive_in_id=True,
+                    label_suffix="_label", drive_in_id=True, definition="drivable",
                     description="IDD / IDD-Lite level-1 ids: 0 drivable = road, 255 void = ignore; drive folders, "
                                 "<id>_image.jpg <-> <id>_label.png, item id <drive>_<id>"),
     ]
 }
 # --label-format's help, for every command that takes one: the named formats and the generic one, quoted
 # as it must be typed (a shell ends a command at an unquoted ;)
-LABEL_FORMAT_HELP = f"{', '.join(LABEL_FORMATS)} or 'values:road=3;ignore=11' (quoted)"
+LABEL_FORMAT_HELP = (f"{', '.join(LABEL_FORMATS)} or 'values:road=3;ignore=11' (quoted; add ';definition=drivable' "
+                     "where the labels' road is drivable area)")
 
 
 def _parse_values(spec: str) -> LabelFormat:
-    """``values:road=3,4;ignore=11[;max=11]`` -> a generic ids format."""
+    """``values:road=3,4;ignore=11[;max=11][;definition=drivable]`` -> a generic ids format."""
     body = spec[len("values:"):]
     road: list[int] = []
     ignore: list[int] = []
     max_value = None
+    definition = "road"
     for part in filter(None, (p.strip() for p in body.split(";"))):
         key, sep, vals = part.partition("=")
         key = key.strip()
+        if key == "definition":
+            definition = vals.strip()
+            if definition not in DEFINITIONS:
+                raise InputError(f"unknown label definition '{definition}' in '{part}'", spec,
+                                 f"write ;definition= one of {', '.join(DEFINITIONS)}")
+            continue
         try:
             nums = [int(v) for v in vals.split(",") if v.strip()]
         except ValueError:
             nums = None
         if not sep or key not in ("road", "ignore", "max") or not nums or any(n < 0 or n > 65535 for n in nums):
             raise InputError(f"cannot parse label format part '{part}'", spec,
-                             "write e.g. 'values:road=3;ignore=11' (comma-separated ids, optional ;max=N; quoted: "
+                             "write e.g. 'values:road=3;ignore=11' (comma-separated ids, optional ;max=N and "
+                             ";definition=drivable; quoted: "
                              "a shell ends a command at ;)")
         if key == "road":
             road += nums
@@ -102,7 +119,7 @@ def _parse_values(spec: str) -> LabelFormat:
     if not road:
         raise InputError("generic label format names no road value", spec, "write e.g. 'values:road=3;ignore=11'")
     return LabelFormat(spec, "ids", road=tuple(road), ignore=tuple(ignore), max_value=max_value,
-                       description="generic ids")
+                       description="generic ids", definition=definition)
 
 
 def get_label_format(name: str) -> LabelFormat:

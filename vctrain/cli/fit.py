@@ -76,6 +76,10 @@ HELP = {  # the options whose help does not fit on their line
     "overwrite": "replace a model of another run at --out (refused otherwise), or of this run on data changed since "
                  "(kept aside as OUT-stem.old1.pt otherwise; the same command again resumes an interrupted run, or "
                  "says a finished one is done)",
+    "outputs": "road (one output: P(road)) or road,drivable (two outputs, one network of three classes: each store "
+               "or --label-format supervises the output of its labels' definition, idd and bdd (and "
+               "'values:...;definition=drivable') drivable area, the others road; predict --output picks one); "
+               "default: road",
     "balance": "several stores: 'items' (each item once an epoch) or 'datasets' (each store equally often); default: "
                "the recipe's (multicamera: datasets; cpu, paper: items)",
 }
@@ -145,7 +149,9 @@ VAL_SPLIT_OPT = typer.Option(TRAIN.val_split, "--val-split", help=HELP["val_spli
 VAL_STORE_OPT = typer.Option(None, "--val-store", help="validation store (repeatable; replaces --val-fraction)")
 VAL_IMAGES_OPT = typer.Option(None, "--val-images", help=HELP["val_images"])
 VAL_LABELS_OPT = typer.Option(None, "--val-labels", help="--val-images' labels (in --label-format)")
-CLASS_WEIGHTS_OPT = typer.Option(TRAIN.class_weights, "--class-weights", help="'none' or 'median-freq' (median frequency balancing)")
+CLASS_WEIGHTS_OPT = typer.Option(TRAIN.class_weights, "--class-weights", help="'none' or 'median-freq' (median frequency "
+                                                                              "balancing; one output only)")
+OUTPUTS_OPT = typer.Option(TRAIN.outputs, "--outputs", help=HELP["outputs"])
 HFLIP_OPT = typer.Option(None, "--hflip/--no-hflip", help=HELP["hflip"])
 SCALE_AUG_OPT = typer.Option(None, "--scale-aug", help=HELP["scale_aug"])
 SHIFT_AUG_OPT = typer.Option(None, "--shift-aug", help=HELP["shift_aug"])
@@ -180,7 +186,7 @@ def fit_cmd(
     weight_decay: Optional[float] = WEIGHT_DECAY_OPT, schedule: Optional[str] = SCHEDULE_OPT, seed: int = SEED_OPT,
     device: str = DEVICE_OPT, val_fraction: Optional[float] = VAL_FRACTION_OPT, val_split: str = VAL_SPLIT_OPT,
     val_store: Optional[List[Path]] = VAL_STORE_OPT, val_images: Optional[Path] = VAL_IMAGES_OPT,
-    val_labels: Optional[Path] = VAL_LABELS_OPT, class_weights: str = CLASS_WEIGHTS_OPT,
+    val_labels: Optional[Path] = VAL_LABELS_OPT, class_weights: str = CLASS_WEIGHTS_OPT, outputs: str = OUTPUTS_OPT,
     hflip: Optional[bool] = HFLIP_OPT, scale_aug: Optional[float] = SCALE_AUG_OPT,
     shift_aug: Optional[float] = SHIFT_AUG_OPT, shading_aug: Optional[float] = SHADING_AUG_OPT,
     color_aug: Optional[float] = COLOR_AUG_OPT, greyscale: float = GREYSCALE_OPT, vp_channel: bool = VP_CHANNEL_OPT,
@@ -193,7 +199,8 @@ def fit_cmd(
 ):
     """Train a road segmentation network on virtual-camera stores (or the resize baseline).
 
-    Cross-entropy over not road / road, label 255 ignored. Three recipes set the defaults: 'cpu'
+    Cross-entropy over not road / road, label 255 ignored (--outputs road,drivable: one network with
+    a road and a drivable-area output, each dataset supervising the output its labels define). Three recipes set the defaults: 'cpu'
     (the default on every device, a GPU included: resfpn, AdamW 0.002, cosine, flip/scale/shift/
     colour augmentation, full-height windows of 4/9 of the width, 20 epochs; on a store of
     'vcprep warp' with no flags, this is what 'vctrain crossval' trains for one camera),
@@ -223,6 +230,7 @@ def fit_cmd(
       vctrain fit stores/camvid_train --model lite0fpn --out runs/vc_lite0.pt   # ImageNet encoder
       vctrain fit stores/cam_a stores/cam_b stores/cam_c --recipe multicamera --baseline resize --out runs/road.pt
       vctrain fit --baseline resize --images my/images --labels my/labels --label-format camvid --init shipped --out runs/mine_ft.pt
+      vctrain fit stores/camvid stores/idd --outputs road,drivable --out runs/two.pt   # road and drivable area
     """
     init = model_arg(init)  # 'shipped' -> the shipped model's file; a missing file is refused naming it
     cfg = _fit_config(locals())  # (first: locals() are the options, each named as its TrainConfig field)

@@ -22,13 +22,15 @@ class ModelArgs:
     arch: str = "segnet-narrow"  # 'segnet', 'segnet-narrow' (same topology, other widths), 'resfpn', 'lite<k>fpn'
     base_width: int = 16         # channels of the first block (lite0fpn: half the decoder's); 64 = the paper's SegNet
     in_channels: int = 3         # 3 (colour) or 4 (colour + VP proximity map)
-    num_classes: int = 2         # 0 = not road, 1 = road
+    num_classes: int = 2         # 0 = not road, 1 = road; 3: 0 not drivable, 1 drivable not road, 2 road
+                                 # (two outputs, vctrain.training.outputs)
 
     def to_dict(self) -> dict:
         return asdict(self)
 
 
-def model_args_for(arch: str, in_channels: int = 3, base_width: int | None = None) -> ModelArgs:
+def model_args_for(arch: str, in_channels: int = 3, base_width: int | None = None, num_classes: int = 2) -> ModelArgs:
     if arch not in ARCHITECTURES:
         raise ValueError(f"unknown architecture '{arch}'")
-    return ModelArgs(arch=arch, base_width=int(base_width or ARCHITECTURES[arch]), in_channels=int(in_channels))
+    return ModelArgs(arch=arch, base_width=int(base_width or ARCHITECTURES[arch]), in_channels=int(in_channels),
+                     num_classes=int(num_classes))

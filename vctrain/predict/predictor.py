@@ -17,7 +17,8 @@ New frames take one road (:mod:`vctrain.predict.road`, in memory). The store pat
 :func:`warp_like_training` warps frames into a store exactly as the checkpoint's training store was
 built (``--keep-store``; :mod:`vctrain.adapt`'s target stores), with the same rules as the road.
 Outputs per image ``<stem>_prob.png`` (uint8, round(255 * P(road))) and ``<stem>_mask.png``
-(255 where P(road) >= 0.5, else 0), both at the source image size.
+(255 where P(road) >= 0.5, else 0), both at the source image size. A model with two outputs
+(:mod:`vctrain.training.outputs`) gives the one chosen (``output``: P(road) or P(drivable)) in their place.
 """
 from __future__ import annotations
 
@@ -42,6 +43,7 @@ from vcprep.vp import frame_poses
 from ..training.checkpoint import load_checkpoint, model_from_checkpoint
 from ..training.checkpoint_data import CheckpointData
 from ..training.data import ray_angles, resize_pair, source_focal, to_input, vp_in_store, vp_proximity
+from ..training.outputs import check_output, output_probability_np
 from ..networks.build import fold_batchnorm
 from ..training.loop import resolve_device
 from ..training.trainset import MIN_SIDE
@@ -61,11 +63,13 @@ class Predictor:
     def check_frame_size(self, size: tuple[int, int], name: str | Path | None = None) -> None:
         """Frames of any size are taken (warped or resized to the working size)."""
 
-    def __init__(self, checkpoint: str | Path, device: str = "auto", engine: str = "torch"):
+    def __init__(self, checkpoint: str | Path, device: str = "auto", engine: str = "torch", output: str = "road"):
         t0 = time.perf_counter()
         self.path = Path(checkpoint)
         self.ckpt = load_checkpoint(self.path)
         self.data = CheckpointData.from_dict(self.ckpt["data"])  # (read here, once)
+        self.outputs = self.data.outputs  # the model's outputs; ``output`` the one it gives (use_output)
+        self.output = check_output(output, self.outputs, self.path)
         self.device = resolve_device(device)
         # BN folded into the convs and the channels last: the same function, faster on a CPU (the
         # depthwise convs of lite0fpn most: benchmarks/speed/networks.py)
@@ -109,15 +113,28 @@ class Predictor:
             return self._onnx(x[None])
         return self.model(self.network_input(x)).float()
 
+    def use_output(self, output: str) -> str:
+        """Give P(``output``) from now on ('road' or 'drivable'; a model without it: one line naming the fix)."""
+        self.output = check_output(output, self.outputs, self.path)
+        return self.output
+
     def road_softmax(self, x: np.ndarray) -> np.ndarray:
-        """P(road) float32 (h, w): the softmax's class 1 of the logits of ``x`` (C, h, w). The onnx
+        """P(road) float32 (h, w): the softmax's class 1 of the logits of ``x`` (C, h, w); a two-output model's
+        :attr:`output` (road: class 2, drivable: classes 1 and 2; :mod:`vctrain.training.outputs`). The onnx
         engine takes it in numpy: a torch operator between two onnxruntime calls wakes torch's
         OpenMP threads, which then spin on the cores onnxruntime needs (4x slower on 2 cores)."""
         logits = self.logits(x)
         if isinstance(logits, np.ndarray):
-            e = np.exp(logits[0] - logits[0].max(axis=0, keepdims=True))
-            return (e[1] / e.sum(axis=0)).astype(np.float32)
+            return output_probability_np(logits[0], self.output)
+        if logits.shape[1] != 2:
+            return self._softmax_of(logits)
         return torch.softmax(logits, dim=1)[0, 1].cpu().numpy().astype(np.float32)
+
+    def _softmax_of(self, logits: torch.Tensor) -> np.ndarray:
+        """:attr:`output`'s probability (h, w) of a three-class network's logits (1, 3, h, w)."""
+        from ..training.outputs import output_probability
+
+        return output_probability(logits, self.output)[0].cpu().numpy().astype(np.float32)
 
     @property
     def mode(self) -> str:

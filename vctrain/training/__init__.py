@@ -12,6 +12,7 @@ distributed      torchrun: ranks, BatchNorm statistics averaged over processes, 
 rerun            runs never lost: the same command resumes, says it is done, or keeps a model of other data aside
 checkpoint       self-describing checkpoints: everything predict and eval need to rebuild the model
 checkpoint_data  the checkpoint's ``data`` section typed (:class:`CheckpointData`), read once where a model is loaded
+outputs          a model's outputs, one per label definition (road, drivable), and the set-valued loss
 ===============  ======================================================================================
 
 The networks it trains are :mod:`vctrain.networks`; ``vctrain fit`` is its command.
@@ -37,5 +38,7 @@ _HOME = {
     "checkpoint": ("CKPT_FORMAT", "CKPT_VERSION", "save_checkpoint", "load_checkpoint", "model_from_checkpoint",
                    "last_path"),
     "checkpoint_data": ("CheckpointData",),
+    "outputs": ("ONE_OUTPUT", "TWO_OUTPUTS", "parse_outputs", "outputs_of", "check_output", "set_cross_entropy",
+                "output_probability"),
 }
 __all__, __getattr__, __dir__ = lazy_face(__name__, _HOME, globals())

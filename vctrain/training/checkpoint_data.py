@@ -36,6 +36,8 @@ class CheckpointData:
     crop_size: Optional[tuple[int, int]] = None  # the training windows (w, h)
     resize_size: Optional[tuple[int, int]] = None       # 'mixed': the resize view's working size
     resize_crop_size: Optional[tuple[int, int]] = None  # 'mixed': the resize view's windows
+    outputs: tuple[str, ...] = ("road",)        # the network's outputs (vctrain.training.outputs): road, or road and
+                                                 # drivable (3 classes); a model of an older vctrain: road
     train_items: Optional[int] = None
     val_items: Optional[int] = None
     extra: Mapping[str, Any] = field(default_factory=dict)  # every other key, as it was read
@@ -51,8 +53,9 @@ class CheckpointData:
         for k in _PAIRS:
             if k in kw:
                 kw[k] = tuple(int(v) for v in kw[k])
-        if "vp_status" in kw:
-            kw["vp_status"] = tuple(kw["vp_status"])
+        for k in ("vp_status", "outputs"):
+            if k in kw:
+                kw[k] = tuple(kw[k])
         for k, kind in (("vp_channel", bool), ("ray_channels", bool), ("greyscale", float)):
             if k in kw:
                 kw[k] = kind(kw[k])

@@ -85,7 +85,9 @@ class TrainConfig:
     val_stores: list[str] = field(default_factory=list)  # validation stores (replace val_fraction)
     val_images: Optional[str] = None   # resize baseline: validation frames (with val_labels, in label_format;
     val_labels: Optional[str] = None   #   replace val_fraction): e.g. a few of the light the model will see
-    class_weights: str = "none"        # 'none' or 'median-freq' (median frequency balancing)
+    class_weights: str = "none"        # 'none' or 'median-freq' (median frequency balancing; one output only)
+    outputs: str = "road"              # 'road' (2 classes, P(road)) or 'road,drivable' (3 classes: each dataset
+                                       # supervises the output of its label format's definition; training/outputs.py)
     hflip: Optional[bool] = None       # random horizontal flip, p = 0.5
     greyscale: float = 0.0             # probability of a greyscale image (1.0: greyscale model)
     vp_channel: bool = False           # 4th input channel: VP proximity map

@@ -57,6 +57,8 @@ from vcprep.io import read_image
 from vcprep.labels import IGNORE, decode_label, get_label_format
 from vcprep.store import Store
 
+from .outputs import ONE_OUTPUT, encode
+
 __all__ = ["Sample", "store_samples", "resize_samples", "source_focal", "RoadDataset", "to_input", "vp_proximity",
            "vp_in_store", "ray_angles", "resize_pair", "class_frequencies", "median_frequency_weights"]
 
@@ -81,6 +83,13 @@ class Sample:
     source: str = ""
     focal: tuple[float, float] | None = None  # (f_x, f_y) in the pixels of ``image`` (ray channels)
     warped_from: str | None = None  # a store label: the format its source label was read with
+
+    @property
+    def definition(self) -> str:
+        """What the label's road means (:data:`vcprep.labels.DEFINITIONS`): its format's ``definition``
+        (a store label's: the format it was warped from); 'road' where no format is known (an older store)."""
+        spec = self.label_format or self.warped_from
+        return get_label_format(spec).definition if spec else "road"
 
 
 def vp_in_store(record: dict[str, Any], store: Store | None = None) -> tuple[float, float]:
@@ -190,13 +199,16 @@ def _load(sample: Sample) -> tuple[np.ndarray, np.ndarray]:
 
 class RoadDataset(torch.utils.data.Dataset):
     """Samples resized to the working size ``size`` (w, h), decoded once and kept in memory;
-    with ``crop`` (cw, ch) every item is a random window of that size (module docstring)."""
+    with ``crop`` (cw, ch) every item is a random window of that size (module docstring). ``outputs``
+    (:mod:`vctrain.training.outputs`): with road and drivable, each item's target is its label's set codes
+    (:func:`~vctrain.training.outputs.encode` by its format's definition); road alone: the label itself."""
 
     def __init__(self, samples: Sequence[Sample], size: tuple[int, int], hflip: bool = False,
                  greyscale: float = 0.0, vp_channel: bool = False, scale_aug: float = 0.0, shift_aug: float = 0.0,
                  color_aug: float = 0.0, crop: tuple[int, int] | None = None, shading_aug: float = 0.0,
-                 ray_channels: bool = False):
+                 ray_channels: bool = False, outputs: Sequence[str] = ONE_OUTPUT):
         self.samples = list(samples)
+        self.definitions = None if tuple(outputs) == ONE_OUTPUT else [s.definition for s in self.samples]
         self.size = (int(size[0]), int(size[1]))
         self.crop = None
         if crop is not None and (int(crop[0]), int(crop[1])) != self.size:
@@ -340,6 +352,8 @@ class RoadDataset(torch.utils.data.Dataset):
             y = np.ascontiguousarray(y[:, ::-1])
             if vp is not None:
                 vp = (out_w - 1 - vp[0], vp[1])
+        if self.definitions is not None:  # two outputs: the label's set codes (vctrain.training.outputs)
+            y = encode(y, self.definitions[i])
         if self.vp_channel:
             x = np.concatenate([x, vp_proximity((out_w, img.shape[0]), vp, norm=self.size)[None]], axis=0)
         if self.ray_channels:  # (after the flip: the VP is flipped, so the angle beside it changes sign)

@@ -17,7 +17,9 @@ cpu        305 CamVid frames on a 2-core CPU in about 3 minutes at the default s
 =========  ==============================================================================
 
 Loss: cross-entropy over {not road, road}, label 255 ignored, optionally weighted by
-median-frequency balancing.
+median-frequency balancing. With ``outputs: road,drivable`` the network has three classes and each dataset
+supervises the output of its label format's definition through a set-valued cross entropy
+(:mod:`vctrain.training.outputs`); validation scores each item on its own definition's output.
 
 Validation: a seeded ``val_fraction`` of the training items, or separate ``val_stores``; the
 metric is the road IoU in the training domain (virtual camera for store training, the resized
@@ -48,10 +50,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import torch
 from torch import nn
-from torch.nn import functional as F
 from tqdm import tqdm
 
 from vcprep.errors import InputError
@@ -61,6 +61,7 @@ from .checkpoint_data import CheckpointData
 from .config import (BALANCES, FINETUNE_VAL_FRACTION, VAL_FRACTION, DEFAULT_RECIPE, OPTIMIZERS, RECIPES, SCHEDULES,
                      TrainConfig)
 from .data import RoadDataset, class_frequencies, median_frequency_weights
+from .outputs import ONE_OUTPUT, loss_of, num_classes, parse_outputs, scored
 from .finetune import (anchor_weights, as_saved, averaged, check_init, freeze_encoder, init_record, l2sp_penalty,
                        train_mode, trainable, unset_from_checkpoints)
 from . import guard
@@ -95,6 +96,7 @@ def resolve_recipe(cfg: TrainConfig, device: torch.device | None = None) -> Trai
     if cfg.balance not in BALANCES:
         raise InputError(f"unknown balance '{cfg.balance}'", None, f"use one of {', '.join(BALANCES)}")
     cfg.pretrained = resolve_pretrained(cfg.arch, cfg.pretrained)
+    parse_outputs(cfg.outputs)  # (an unknown value: its error before any data is read)
     for k in ("epochs", "batch_size"):
         if int(getattr(cfg, k)) < 1:
             raise InputError(f"{k.replace('_', ' ')} must be at least 1, got {getattr(cfg, k)}", None, "use e.g. 8")
@@ -134,7 +136,8 @@ def resolve_device(spec: str, local_rank: int = 0) -> torch.device:
 # -- evaluation ----------------------------------------------------------------------------------
 @torch.no_grad()
 def evaluate(model: nn.Module, loader, device: torch.device, weight: torch.Tensor | None = None) -> dict[str, float]:
-    """Loss and road metrics (argmax) of ``model`` over ``loader``."""
+    """Loss and road metrics (argmax; a two-output model each item on its own definition's output) of
+    ``model`` over ``loader``."""
     model.eval()
     m = RoadMetrics()
     loss_sum, n = 0.0, 0
@@ -142,10 +145,10 @@ def evaluate(model: nn.Module, loader, device: torch.device, weight: torch.Tenso
         x, y = x.to(device), y.to(device)
         logits = model(x)
         if (y != 255).any():
-            loss_sum += float(F.cross_entropy(logits, y, weight=weight, ignore_index=255)) * len(x)
+            loss_sum += float(loss_of(logits, y, weight)) * len(x)
             n += len(x)
-        pred = logits.argmax(1).cpu().numpy()
-        for p, g in zip(pred, y.cpu().numpy().astype(np.uint8)):
+        pred, labels = scored(logits, y)
+        for p, g in zip(pred, labels):
             m.add(p, g)
     model.train()
     return {"loss": loss_sum / max(n, 1), **m.result()}
@@ -171,15 +174,18 @@ def _network(cfg: TrainConfig, resume: dict[str, Any] | None, init: dict[str, An
         if trained.mode != info["mode"] or list(trained.input_size or ()) != list(info["input_size"]):
             raise InputError("checkpoint was trained on other data (mode or working size)", cfg.resume,
                              "resume with the same stores, --baseline and --size")
+        _same_outputs(cfg, resume, cfg.resume, "resume")
     else:
         arch = cfg.arch
         if arch not in ARCHITECTURES:
             raise InputError(f"unknown model '{arch}'", None, f"use one of {', '.join(ARCHITECTURES)}")
-        model_args = model_args_for(arch, cfg.in_channels, cfg.base_width).to_dict()
+        model_args = model_args_for(arch, cfg.in_channels, cfg.base_width,
+                                    num_classes(parse_outputs(cfg.outputs))).to_dict()
 
     torch.manual_seed(cfg.seed)
     if init is not None:  # fine-tuning: the checkpoint's network (weights loaded below), a fresh optimiser
         check_init(cfg, init, info)
+        _same_outputs(cfg, init, cfg.init, "fine-tune")
         model_args = init["model_args"]
     model = build_model(model_args)
     if resume is None and init is None and cfg.pretrained:
@@ -189,6 +195,14 @@ def _network(cfg: TrainConfig, resume: dict[str, Any] | None, init: dict[str, An
     elif init is not None:
         model = model_from_checkpoint(init, cfg.init)
     return model, model_args
+
+
+def _same_outputs(cfg: TrainConfig, ck: dict[str, Any], path: str | None, what: str) -> None:
+    """Refuse a checkpoint (``--resume``, ``--init``) whose outputs differ from the run's ``--outputs``."""
+    theirs = CheckpointData.from_dict(ck.get("data")).outputs
+    if theirs != parse_outputs(cfg.outputs):
+        raise InputError(f"checkpoint has the outputs {','.join(theirs)} but --outputs {cfg.outputs} was asked", path,
+                         f"{what} with --outputs {','.join(theirs)}")
 
 
 def _validate(row: dict[str, Any], model: nn.Module, loader, device: torch.device, weight: torch.Tensor | None,
@@ -205,6 +219,9 @@ def _class_weight(cfg: TrainConfig, train_ds: RoadDataset, info: dict[str, Any],
                   device: torch.device) -> torch.Tensor | None:
     """The loss's class weights (``median-freq``: recorded in ``info``), or None."""
     if cfg.class_weights == "median-freq":
+        if parse_outputs(cfg.outputs) != ONE_OUTPUT:
+            raise InputError("class weights median-freq are for one output (road); a set-valued loss over road and "
+                             "drivable has no class frequencies", None, "drop --class-weights, or train --outputs road")
         w = median_frequency_weights(class_frequencies(train_ds))
         info["class_weights"] = [float(v) for v in w]
         return torch.tensor(w, dtype=torch.float32, device=device)
@@ -291,7 +308,7 @@ def _step(net: nn.Module, opt: torch.optim.Optimizer, x: torch.Tensor, y: torch.
           weight: torch.Tensor | None, epoch: int, penalty=None) -> torch.Tensor:
     """One optimiser step on the batch (x, y), plus ``penalty()`` (L2-SP) when given; returns its loss."""
     logits = net(x)
-    loss = F.cross_entropy(logits, y, weight=weight, ignore_index=255)
+    loss = loss_of(logits, y, weight)
     if penalty is not None:
         loss = loss + penalty()
     if not torch.isfinite(loss):
@@ -389,6 +406,8 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
     unset_from_checkpoints(cfg, resume, init)
     resolve_recipe(cfg, device)
     train_s, val_s, info = prepare_data(cfg)
+    if parse_outputs(cfg.outputs) != ONE_OUTPUT:  # (a one-output model's data section as before)
+        info["outputs"] = list(parse_outputs(cfg.outputs))
     model, model_args = _network(cfg, resume, init, info)
     freeze_encoder(model, cfg)  # (before DDP wraps it: only the parameters that take gradients are reduced)
     fmt, net = _placed(model, model_args, device, distributed)

@@ -33,6 +33,10 @@ from .config import DEFAULT_RECIPE, RECIPES, RUN_ONLY, TrainConfig
 __all__ = ["request_of", "data_files", "data_stamp", "data_change", "keep_aside", "log_path", "rerun_plan"]
 
 DATA_KEYS = ("data_stamp", "data_files")  # what a request records of its data, not of its settings
+# settings added after requests were first recorded, and the value that trains as before: left out of a request
+# at that value, so the same command finds the runs of an older vctrain the same
+REQUEST_ADDED = {"outputs": "road"}
+_ALWAYS = object()  # (a setting not in REQUEST_ADDED is always recorded)
 
 
 def _data_folders(cfg: TrainConfig) -> list[tuple[str, str]]:
@@ -77,8 +81,8 @@ def data_stamp(cfg: TrainConfig, files: dict[str, dict[str, str]] | None = None)
 def request_of(cfg: TrainConfig) -> dict[str, Any]:
     """The run as asked: every setting but how it runs (RUN_ONLY), plus its data stamp and files."""
     files = data_files(cfg)
-    return {**{k: v for k, v in cfg.to_dict().items() if k not in RUN_ONLY}, "data_stamp": data_stamp(cfg, files),
-            "data_files": files}
+    asked = {k: v for k, v in cfg.to_dict().items() if k not in RUN_ONLY and REQUEST_ADDED.get(k, _ALWAYS) != v}
+    return {**asked, "data_stamp": data_stamp(cfg, files), "data_files": files}
 
 
 def _kind(role: str, rel: str) -> str | None:

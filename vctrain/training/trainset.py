@@ -28,6 +28,7 @@ from vcprep.store import Store, record_magnification
 
 from .config import BALANCES, VAL_SPLITS, TrainConfig
 from .data import RoadDataset, Sample, resize_samples, store_samples
+from .outputs import parse_outputs
 
 __all__ = ["BASELINES", "MIN_SIDE", "MixedViews", "view_batches", "prepare_data", "resize_working_size",
            "training_magnification", "crop_size", "epoch_order", "training_sets", "label_shares", "check_labels",
@@ -425,9 +426,12 @@ def training_sets(cfg: TrainConfig, train_s: list, val_s: list, info: dict[str, 
     def pair(train: list, val: list, size: list[int], crop: list[int]) -> tuple[RoadDataset, RoadDataset]:
         return (RoadDataset(train, tuple(size), hflip=cfg.hflip, greyscale=cfg.greyscale, vp_channel=cfg.vp_channel,
                             scale_aug=cfg.scale_aug, shift_aug=cfg.shift_aug, color_aug=cfg.color_aug,
-                            crop=tuple(crop), shading_aug=cfg.shading_aug, ray_channels=cfg.ray_channels),
+                            crop=tuple(crop), shading_aug=cfg.shading_aug, ray_channels=cfg.ray_channels,
+                            outputs=outputs),
                 RoadDataset(val, tuple(size), greyscale=1.0 if cfg.greyscale >= 1 else 0.0, vp_channel=cfg.vp_channel,
-                            ray_channels=cfg.ray_channels))
+                            ray_channels=cfg.ray_channels, outputs=outputs))
+
+    outputs = parse_outputs(cfg.outputs)
 
     if info["mode"] != "mixed":
         return pair(train_s, val_s, info["input_size"], info["crop_size"])
