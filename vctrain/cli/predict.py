@@ -78,6 +78,9 @@ EGO_OPT = typer.Option(None, "--ego", help=EGO_HELP)
 BEYOND_OPT = typer.Option(None, "--beyond", help=BEYOND_HELP)
 BEV_OPT = typer.Option(False, "--bev", help=BEV_HELP)
 QUIET_OPT = typer.Option(False, "--quiet", "-q", help="no progress bar")
+OUTPUT_HELP = ("which output: road (P(road), every model) or drivable (P(drivable area): a model trained with 'vctrain "
+               "fit --outputs road,drivable', or a graph exported with --output drivable); default: road")
+OUTPUT_OPT = typer.Option("road", "--output", help=OUTPUT_HELP)
 
 
 @app.command("predict")
@@ -90,7 +93,7 @@ def predict_cmd(
     vp_sequences: Optional[str] = VP_SEQUENCES_OPT, ego: Optional[str] = EGO_OPT, beyond: Optional[str] = BEYOND_OPT,
     bev: bool = BEV_OPT, corridor: float = corridor_option("with --bev: "),
     grid_range: Optional[str] = range_option("with --bev: "), res: float = res_option("with --bev: "),
-    threads: Optional[int] = threads_option(), quiet: bool = QUIET_OPT,
+    threads: Optional[int] = threads_option(), quiet: bool = QUIET_OPT, output: str = OUTPUT_OPT,
 ):
     """Predict road in original camera images with the checkpoint's own preprocessing.
 
@@ -111,7 +114,8 @@ def predict_cmd(
     model too, given --camera) adds each frame's road in metres: free_m (how far the --corridor
     ahead is road), width_m at 10, 20 and 30 m (null where not all in view), area_m2 and pose, as
     'vcprep bev' measures them (docs/bev.md). From Python: vctrain.load(MODEL).segment(frame, camera)
-    (docs/api.md), the same masks.
+    (docs/api.md), the same masks. A model trained with two outputs (road and drivable area) gives
+    the one --output names in the masks' place.
 
     \b
     Example:
@@ -124,6 +128,7 @@ def predict_cmd(
       vctrain predict --prior prior.npy --camera kitti data/kitti/image_2 --out preds/geoprior
       vctrain predict runs/vc.pt --camera camvid drive.mp4 --overlay --out preds/drive
       vctrain predict models/road-street/road.pt --camera camvid drive.mp4 --bev --overlay --out preds/drive
+      vctrain predict runs/two.pt --camera camvid my/frames --output drivable --out preds/drivable   # two outputs
     """
     from ..predict.inputs import PredictOptions, predict_inputs
 
@@ -133,7 +138,7 @@ def predict_cmd(
         camera=camera, prior=prior, store=store, device=device, engine=engine, keep_store=keep_store, within=within,
         overlay=overlay, mask_video=mask_video, ego=ego, vp_range=vp_range, vp_smooth=vp_smooth,
         vp_sequences=vp_sequences, beyond=beyond, bev=_bev_options(camera, corridor, grid_range, res) if bev else None,
-        progress=not quiet)
+        progress=not quiet, output=output)
     result = predict_inputs(options, say=None if quiet else (lambda msg: err(f"{out}: {msg}")),
                             note=None if quiet else err)
     _report(result, out, quiet, paths=not bev)
@@ -215,6 +220,9 @@ def export_cmd(
     as_json: bool = typer.Option(False, "--json", help="print the graph's description as one JSON object"),
     threads: Optional[int] = threads_option(),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="no summary on stderr"),
+    output: str = typer.Option("road", "--output", help="the output the graph computes: road, or drivable (a model "
+                                                       "trained with two outputs); recorded in the graph, which "
+                                                       "gives no other; default: road"),
 ):
     """Export a model with its camera inside as one ONNX graph (needs pip install 'vcseg[deploy]').
 
@@ -222,7 +230,8 @@ def export_cmd(
     camera's image size) and returns P(road) (float32 H x W) in the camera's own pixels: inside
     are the warp into the model's virtual camera with the training store's completion, the
     normalisation, the network, softmax and the back-projection -- what 'vctrain predict' does
-    for this camera (a resize baseline: resize in and back). Run it with 'vctrain predict
+    for this camera (a resize baseline: resize in and back). A model with two outputs: the graph
+    computes the one --output names (P(drivable) with --output drivable), and says so in its metadata. Run it with 'vctrain predict
     OUT.onnx FRAMES --out DIR' or any ONNX runtime. Prints the ONNX path.
 
     \b
@@ -232,6 +241,7 @@ def export_cmd(
       vctrain export models/road-street/road.pt --frame data/frames/0001.png -o road.onnx
       vctrain export models/road-street/road.pt --size 1280x720 --int8 --calib my/frames -o road_int8.onnx
       vctrain predict road.onnx data/kitti/image_2 --out preds/kitti
+      vctrain export runs/two.pt --camera camvid --output drivable -o drivable.onnx   # a two-output model
     """
     from vcprep.cli import camera_for
     from vcprep.cliutil import parse_size
@@ -252,7 +262,7 @@ def export_cmd(
 
         raise InputError("--calib is for --int8", calib, "add --int8, or drop --calib")
     info = export_onnx(model_arg(checkpoint), cam, out, vp_input=vp_input, pose_range=(pose_range, pose_range),
-                       size=frame_size, camera_spec=camera, int8=int8, calib=calib)
+                       size=frame_size, camera_spec=camera, int8=int8, calib=calib, output=output)
     if not quiet:
         _export_summary(info, out, camera, vp_input, int8, frame_size is None)
     path_or_json(out, info, as_json)

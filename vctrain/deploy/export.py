@@ -29,7 +29,10 @@ frame whose VP lies beyond the range sees less context around the training recta
 
 Sampling convention and the layout of the taps: :mod:`vctrain.deploy.graph_ops`. P(road) of a
 two-class network is ``sigmoid(l1 - l0)`` (softmax's value; onnxruntime's channel softmax is
-slow). Running a graph: :mod:`vctrain.deploy.runtime`. Graph I/O: ``frame`` uint8 (H, W, 3) BGR as ``cv2.imread`` gives it
+slow). A two-output network (three classes, :mod:`vctrain.training.outputs`) gives the output the graph is
+exported for (``output``; its metadata's ``prob_of``, which :class:`~vctrain.deploy.runtime.OnnxPredictor`
+holds to): road ``sigmoid(l2 - logsumexp(l0, l1))`` (softmax's class 2), drivable
+``sigmoid(logsumexp(l1, l2) - l0)`` (classes 1 and 2). Running a graph: :mod:`vctrain.deploy.runtime`. Graph I/O: ``frame`` uint8 (H, W, 3) BGR as ``cv2.imread`` gives it
 at the camera's image size, ``vp`` float32 (2,) with ``vp_input``; output ``road_prob`` float32
 (H, W). onnx / onnxruntime are optional (``pip install 'vcseg[deploy]'``) and imported only by :func:`require`.
 """
@@ -124,8 +127,10 @@ class RoadGraph(nn.Module):
         logits = self.model(x).float()
         if logits.shape[1] == 2:  # softmax's P(road) of two classes, without onnxruntime's slow channel softmax
             prob = torch.sigmoid(logits[:, 1:2] - logits[:, 0:1])
-        else:
-            prob = torch.softmax(logits, dim=1)[:, 1:2]
+        elif g.get("prob_of", "road") == "drivable":  # two outputs (module docstring): classes 1 and 2 against 0
+            prob = torch.sigmoid(torch.logsumexp(logits[:, 1:3], 1, keepdim=True) - logits[:, 0:1])
+        else:  # class 2 against 0 and 1
+            prob = torch.sigmoid(logits[:, 2:3] - torch.logsumexp(logits[:, 0:2], 1, keepdim=True))
         if tuple(g["work"]) != (ws, hs):
             prob = F.interpolate(prob, size=(hs, ws), mode="bilinear", align_corners=False)
         return prob[0, 0]
@@ -281,7 +286,8 @@ def frames_camera(size: tuple[int, int]) -> Camera:
 
 def export_onnx(checkpoint: str | Path, camera: Camera | None, out: str | Path, vp_input: bool = False,
                 pose_range: tuple[float, float] = POSE_RANGE, check: bool = True, size: tuple[int, int] | None = None,
-                camera_spec: str | None = None, int8: bool = False, calib: str | Path | None = None) -> dict[str, Any]:
+                camera_spec: str | None = None, int8: bool = False, calib: str | Path | None = None,
+                output: str = "road") -> dict[str, Any]:
     """Write the ONNX graph of ``checkpoint`` for ``camera`` to ``out`` (module docstring); with
     ``check`` runs it once in onnxruntime against the torch module. Returns its description (also
     stored in the graph's metadata ``vcseg``): inputs, output, sizes, opset, max_abs_diff.
@@ -289,11 +295,12 @@ def export_onnx(checkpoint: str | Path, camera: Camera | None, out: str | Path, 
     ``camera_spec``: how the camera was named (``--camera``), for the graph's own advice. ``int8``:
     the network quantized to 8 bits, calibrated on the frames of ``calib`` (None: the examples;
     :mod:`vctrain.deploy.quantize`); the description's ``int8`` gives the calibration and the share of
-    pixels whose mask is the float graph's."""
+    pixels whose mask is the float graph's. ``output``: which output of a two-output model the graph
+    computes (road or drivable; the description's ``prob_of``)."""
     onnx = require("onnx")
     from ..predict.predictor import Predictor
 
-    predictor = Predictor(checkpoint, "cpu")
+    predictor = Predictor(checkpoint, "cpu", output=output)  # (an output the model lacks: refused here)
     if camera is None:
         if predictor.mode != "resize" or predictor.vp_channel:
             raise InputError(f"a {'VP-channel ' if predictor.mode == 'resize' else 'virtual-camera '}model needs the "
@@ -305,7 +312,7 @@ def export_onnx(checkpoint: str | Path, camera: Camera | None, out: str | Path, 
     if not isinstance(camera, Camera):
         raise InputError("export needs one camera (the graph holds one mount)", None,
                          "give a preset or one calibration file, not a folder")
-    geom = _geometry(predictor, camera, vp_input, pose_range)
+    geom = {**_geometry(predictor, camera, vp_input, pose_range), "prob_of": predictor.output}
     graph = RoadGraph(predictor.model.eval(), geom).eval()
     w, h = geom["size"]
     frame = torch.zeros(h, w, 3, dtype=torch.uint8)
@@ -321,7 +328,7 @@ def export_onnx(checkpoint: str | Path, camera: Camera | None, out: str | Path, 
             **({"camera_file": camera_spec} if camera_spec else {}),
             "inputs": {"frame": ["uint8", [h, w, 3], "BGR"], **({"vp": ["float32", [2], "u, v source px"]}
                                                                  if vp_input else {})},
-            "output": {"road_prob": ["float32", [h, w]]},
+            "output": {"road_prob": ["float32", [h, w]]}, "prob_of": predictor.output,
             **{k: geom[k] for k in ("work", "store_size", "completion", "ego_rows", "vp_input") if k in geom},
             **({"beyond": "hybrid"} if geom["mode"] == "virtual" else {})}  # vctrain predict's default rule
     if vp_input and geom["mode"] == "virtual":

@@ -24,8 +24,8 @@ from vcprep.errors import InputError
 
 from ..training.checkpoint_data import CheckpointData
 
-__all__ = ["GRAPH_FORMAT", "RUNTIMES", "OnnxPredictor", "compiled", "graph_runtime", "require", "runtime_name",
-           "vp_from_cam"]
+__all__ = ["GRAPH_FORMAT", "RUNTIMES", "OnnxPredictor", "compiled", "graph_output", "graph_runtime", "require",
+           "runtime_name", "vp_from_cam"]
 
 GRAPH_FORMAT = "vcseg-road-graph"
 # OpenVINO's CPU settings (:func:`compiled`): one request at a time, in float32 (module docstring), its
@@ -129,6 +129,21 @@ def _graph_info(path: Path) -> dict:
     return json.loads(meta) if meta else {}
 
 
+def graph_output(info: dict, output: str, path: Path) -> str:
+    """``output`` if the graph of metadata ``info`` computes it (``info['prob_of']``; a graph of an older
+    vctrain: road); else one line naming the output it computes and the fix: a graph is exported for one
+    output and never gives another's probability."""
+    from vcprep.labels import DEFINITIONS
+
+    own = info.get("prob_of", "road")
+    if output not in DEFINITIONS:
+        raise InputError(f"unknown output '{output}'", path, f"use --output {' or '.join(DEFINITIONS)}")
+    if output != own:
+        raise InputError(f"graph computes P({own}), not P({output})", path,
+                         f"use --output {own}, or export the model again with --output {output}")
+    return output
+
+
 class OnnxPredictor:
     """An exported graph (``vctrain export``) run in ``runtime`` (:data:`RUNTIMES`; None: the fastest
     installed): frame (+ VP) -> P(road). It takes whole frames (``takes_frames``: the warp and
@@ -138,7 +153,7 @@ class OnnxPredictor:
     beyond_rule = None                    # (rays, inside the graph; vctrain.predict.kinds.RoadPredictor)
     vp_channel = ray_channels = False
 
-    def __init__(self, path: str | Path, threads: int = 0, runtime: str | None = None):
+    def __init__(self, path: str | Path, threads: int = 0, runtime: str | None = None, output: str = "road"):
         self.path = Path(path)
         if not self.path.is_file():
             raise InputError("ONNX graph not found", self.path, "give the .onnx file written by 'vctrain export'")
@@ -147,6 +162,7 @@ class OnnxPredictor:
         if info.get("format") != GRAPH_FORMAT:
             raise InputError("not a graph written by 'vctrain export' (no vcseg metadata)", self.path,
                              "export the model with 'vctrain export'")
+        self.output = graph_output(info, output, self.path)
         t0 = time.perf_counter()
         try:
             self._call = compiled(str(self.path), self.runtime, threads)
@@ -161,6 +177,10 @@ class OnnxPredictor:
         self.mode = info["mode"]
         self.data = CheckpointData()  # (no checkpoint: the VP rule is the detector's)
         self.beyond = 0  # frames predicted with a VP beyond the graph's pose range (beyond_range)
+
+    def use_output(self, output: str) -> str:
+        """``output`` if this graph computes it (:func:`graph_output`); refused otherwise."""
+        return graph_output(self.info, output, self.path)
 
     def beyond_range(self, vp: tuple[float, float] | None) -> bool:
         """Whether a ``--vp-input`` graph's pose range (``vctrain export --pose-range``) does not

@@ -99,6 +99,7 @@ class PredictOptions:
     beyond: Optional[str] = None          # None: vctrain.predict.frames.DEFAULT_BEYOND
     bev: Any = None                       # --bev: a vctrain.predict.bev.BevOptions
     progress: bool = True
+    output: str = "road"                  # --output: which output of a two-output model (road, drivable)
 
     @property
     def source(self) -> Path:
@@ -124,7 +125,10 @@ def predict_inputs(options: PredictOptions, say: Optional[Callable[[str], None]]
     videos = check_video_stems([p for p in opts.images if is_video(p)])
     images = [p for p in opts.images if not is_video(p)]
     t0, given = time.perf_counter(), predictor is not None
-    predictor = predictor or open_predictor(opts.source, opts.device, opts.engine, prior=opts.prior is not None)
+    if hasattr(predictor, "use_output"):  # (a model given loaded: the output asked)
+        predictor.use_output(opts.output)
+    predictor = predictor or open_predictor(opts.source, opts.device, opts.engine, prior=opts.prior is not None,
+                                            output=opts.output)
     spent = _startup(predictor, 0.0 if given else time.perf_counter() - t0, given)
     engine = engine_used(predictor)  # said in the summary line (Predicted.line)
     if opts.beyond is not None:

@@ -87,11 +87,14 @@ def check_frame(frame: Any, what: str = "frame") -> np.ndarray:
     return frame
 
 
-def open_predictor(model: str | Path, device: str = "auto", engine: str | None = None, prior: bool = False):
+def open_predictor(model: str | Path, device: str = "auto", engine: str | None = None, prior: bool = False,
+                   output: str = "road"):
     """The predictor of ``model``: an exported graph (``.onnx``: :class:`~vctrain.deploy.runtime.OnnxPredictor`),
     the geometric prior (``prior``: :class:`~vctrain.adapt.PriorPredictor`) or a checkpoint's network on
     ``device`` through ``engine`` (None: :data:`~vctrain.predict.settings.DEFAULT_ENGINE` for a checkpoint,
-    the fastest engine installed; :data:`~vctrain.predict.settings.GRAPH_ENGINE` for a graph)."""
+    the fastest engine installed; :data:`~vctrain.predict.settings.GRAPH_ENGINE` for a graph). ``output``:
+    which output it gives, 'road' or 'drivable' (a model trained with two, :mod:`vctrain.training.outputs`;
+    a graph exported for it); one it does not have is refused."""
     path = Path(model)
     if not prior and path.suffix.lower() == ".onnx":
         from ..deploy.runtime import OnnxPredictor
@@ -99,14 +102,16 @@ def open_predictor(model: str | Path, device: str = "auto", engine: str | None =
         if engine == "torch":
             raise InputError("an exported graph runs in OpenVINO or onnxruntime, not PyTorch", path,
                              "drop --engine torch, or give the .pt model")
-        return OnnxPredictor(path, runtime=engine or GRAPH_ENGINE)
+        return OnnxPredictor(path, runtime=engine or GRAPH_ENGINE, output=output)
     if prior:
         from ..adapt import PriorPredictor
+        from ..training.outputs import ONE_OUTPUT, check_output
 
+        check_output(output, ONE_OUTPUT, path)  # (the prior is the road's)
         return PriorPredictor(path)
     from .predictor import Predictor
 
-    return Predictor(path, device, engine or DEFAULT_ENGINE)
+    return Predictor(path, device, engine or DEFAULT_ENGINE, output=output)
 
 
 def engine_used(predictor) -> str:
@@ -125,7 +130,7 @@ def engine_used(predictor) -> str:
 
 
 def load(name_or_path: str | Path, engine: str | None = None, device: str = "auto",
-         beyond: str | None = None) -> "RoadModel":
+         beyond: str | None = None, output: str = "road") -> "RoadModel":
     """A road model ready to segment frames: ``name_or_path`` a checkpoint written by ``vctrain fit``
     (``.pt``, a virtual-camera or a resize model), a shipped model's name from any folder
     ('shipped'), or a graph written by ``vctrain export`` (``.onnx``). ``engine``: what runs a
@@ -134,9 +139,11 @@ def load(name_or_path: str | Path, engine: str | None = None, device: str = "aut
     'openvino') or a graph's ('onnx', 'openvino'; None: the fastest installed); ``device``: 'auto',
     'cpu', 'cuda:N' (a GPU runs PyTorch);
     ``beyond``: a virtual-camera model's rule for frame pixels outside its training rectangle
-    (:data:`vctrain.predict.frames.BEYOND`; None: the default)."""
+    (:data:`vctrain.predict.frames.BEYOND`; None: the default); ``output``: 'road' (P(road), every model)
+    or 'drivable' (P(drivable area): a model trained with ``--outputs road,drivable``, or a graph exported for
+    it); ``Segmentation.prob`` and ``mask`` are then that output's."""
     path = resolve_model(name_or_path)
-    predictor = open_predictor(path, device, engine)
+    predictor = open_predictor(path, device, engine, output=output)
     if beyond is not None:
         set_beyond(predictor, beyond, path)
     return RoadModel(predictor)

@@ -52,23 +52,28 @@ def evaluate_heldout(checkpoint: Path, store_dir: Path, progress: bool = False) 
 def score_store(predictor, store_dir: Path, progress: bool = False) -> dict[str, Any]:
     """Road metrics of ``predictor`` (a :class:`vctrain.predict.Predictor` or
     :class:`vctrain.adapt.PriorPredictor`: anything with ``store_item``) on every labelled item of
-    a test store, each scored in its ORIGINAL camera against its original label (P(road) >= 0.5)."""
+    a test store, each scored in its ORIGINAL camera against its original label (P(road) >= 0.5).
+    A model with two outputs (road, drivable) scores each item on the output of its label format's
+    definition (IDD-Lite's drivable area on drivable), and the result says which (``output``)."""
     from tqdm import tqdm
 
     from ..metrics import RoadMetrics
 
     store = Store.open(store_dir)
     m = RoadMetrics()
-    n = 0
+    n, two, used = 0, len(getattr(predictor, "outputs", ())) > 1, set()
     for rec in tqdm(list(store), desc="test", unit="img", disable=None if progress else True, leave=False):
         if not rec.get("label_source"):
             continue
+        fmt = get_label_format(rec["label_format"])
+        if two:  # (the label's own definition: every format's is an output of such a model)
+            used.add(predictor.use_output(fmt.definition))
         prob = predictor.store_item(store, rec)
         raw = read_image(rec["label_source"], label=True).array
-        label = decode_label(raw, get_label_format(rec["label_format"]), rec["label_source"])
+        label = decode_label(raw, fmt, rec["label_source"])
         m.add(prob >= 0.5, label)
         n += 1
-    return {**m.result(), "test_items": n}
+    return {**m.result(), "test_items": n, **({"output": ",".join(sorted(used))} if two else {})}
 
 
 def execute(run: Run, ctx: Context, tag: str) -> list[dict[str, Any]]:

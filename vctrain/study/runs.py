@@ -83,5 +83,5 @@ def write_result(run: Run, out: Path, ds: Dataset, metrics: dict[str, Any], info
     row = {"heldout": ds.name, "condition": run.condition, "role": ds.role, "run": run.name, **metrics,
            **{k: info[k] for k in INFO}, **extra, "total_seconds": round(seconds, 1), "settings_sha": sha}
     write_json(run.result_file(run.folder(out), ds), row)
-    say(f"{what(run, ds, tag)}: road IoU {row['iou']:.3f} ({row['total_seconds']:.0f} s)")
+    say(f"{what(run, ds, tag)}: {row.get('output', 'road')} IoU {row['iou']:.3f} ({row['total_seconds']:.0f} s)")
     return row
