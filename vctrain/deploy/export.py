@@ -69,6 +69,12 @@ def _sees_store(idx: torch.Tensor, ax: torch.Tensor, ay: torch.Tensor) -> torch.
     return (idx > 0) | (ax > 0) | (ay > 0)
 
 
+def _logaddexp(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """log(exp(a) + exp(b)) without overflow, in operators every runtime has (ONNX's ReduceLogSumExp, which
+    torch.logsumexp exports to, sums the exponentials unshifted: a trained network's logits overflow it)."""
+    return torch.maximum(a, b) + torch.log1p(torch.exp(-(a - b).abs()))
+
+
 # -- the graph -----------------------------------------------------------------------------------------
 
 class RoadGraph(nn.Module):
@@ -128,9 +134,9 @@ class RoadGraph(nn.Module):
         if logits.shape[1] == 2:  # softmax's P(road) of two classes, without onnxruntime's slow channel softmax
             prob = torch.sigmoid(logits[:, 1:2] - logits[:, 0:1])
         elif g.get("prob_of", "road") == "drivable":  # two outputs (module docstring): classes 1 and 2 against 0
-            prob = torch.sigmoid(torch.logsumexp(logits[:, 1:3], 1, keepdim=True) - logits[:, 0:1])
+            prob = torch.sigmoid(_logaddexp(logits[:, 1:2], logits[:, 2:3]) - logits[:, 0:1])
         else:  # class 2 against 0 and 1
-            prob = torch.sigmoid(logits[:, 2:3] - torch.logsumexp(logits[:, 0:2], 1, keepdim=True))
+            prob = torch.sigmoid(logits[:, 2:3] - _logaddexp(logits[:, 0:1], logits[:, 1:2]))
         if tuple(g["work"]) != (ws, hs):
             prob = F.interpolate(prob, size=(hs, ws), mode="bilinear", align_corners=False)
         return prob[0, 0]
