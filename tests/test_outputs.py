@@ -27,10 +27,9 @@ from vcprep.synthetic import RoadScene, render_road
 
 from conftest import assert_one_error_line, run_cli
 
-from vctrain.training import TrainConfig, fit, load_checkpoint, save_checkpoint  # noqa: E402
-from vctrain.training.data import RoadDataset, store_samples  # noqa: E402
-from vctrain.training.outputs import (CLASS_SETS, ONE_OUTPUT, TWO_OUTPUTS, encode, loss_of,  # noqa: E402
-                                      output_probability, output_probability_np, set_cross_entropy)
+from vctrain.training import (CLASS_SETS, TWO_OUTPUTS, RoadDataset, TrainConfig, encode, fit,  # noqa: E402
+                              load_checkpoint, loss_of, output_probability, output_probability_np, save_checkpoint,
+                              set_cross_entropy, store_samples)
 
 torch.set_num_threads(1)
 CAM = PRESETS["camvid"].resized(0.1)  # 96x72: --camera camvid scales to it

@@ -77,8 +77,8 @@ HELP = {  # the options whose help does not fit on their line
                  "(kept aside as OUT-stem.old1.pt otherwise; the same command again resumes an interrupted run, or "
                  "says a finished one is done)",
     "outputs": "road (one output: P(road)) or road,drivable (two outputs, one network of three classes: each store "
-               "or --label-format supervises the output of its labels' definition, idd and bdd (and "
-               "'values:...;definition=drivable') drivable area, the others road; predict --output picks one); "
+               "or --label-format supervises the output of its labels' definition: drivable area for idd, bdd and a "
+               "values: format given definition=drivable, road for the others; predict --output picks one); "
                "default: road",
     "balance": "several stores: 'items' (each item once an epoch) or 'datasets' (each store equally often); default: "
                "the recipe's (multicamera: datasets; cpu, paper: items)",

@@ -38,7 +38,7 @@ _HOME = {
     "checkpoint": ("CKPT_FORMAT", "CKPT_VERSION", "save_checkpoint", "load_checkpoint", "model_from_checkpoint",
                    "last_path"),
     "checkpoint_data": ("CheckpointData",),
-    "outputs": ("ONE_OUTPUT", "TWO_OUTPUTS", "parse_outputs", "outputs_of", "check_output", "set_cross_entropy",
-                "output_probability"),
+    "outputs": ("ONE_OUTPUT", "TWO_OUTPUTS", "CLASS_SETS", "parse_outputs", "outputs_of", "check_output", "encode",
+                "set_cross_entropy", "loss_of", "output_probability", "output_probability_np"),
 }
 __all__, __getattr__, __dir__ = lazy_face(__name__, _HOME, globals())

@@ -406,8 +406,6 @@ def fit(cfg: TrainConfig) -> dict[str, Any]:
     unset_from_checkpoints(cfg, resume, init)
     resolve_recipe(cfg, device)
     train_s, val_s, info = prepare_data(cfg)
-    if parse_outputs(cfg.outputs) != ONE_OUTPUT:  # (a one-output model's data section as before)
-        info["outputs"] = list(parse_outputs(cfg.outputs))
     model, model_args = _network(cfg, resume, init, info)
     freeze_encoder(model, cfg)  # (before DDP wraps it: only the parameters that take gradients are reduced)
     fmt, net = _placed(model, model_args, device, distributed)

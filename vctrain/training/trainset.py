@@ -28,7 +28,7 @@ from vcprep.store import Store, record_magnification
 
 from .config import BALANCES, VAL_SPLITS, TrainConfig
 from .data import RoadDataset, Sample, resize_samples, store_samples
-from .outputs import parse_outputs
+from .outputs import ONE_OUTPUT, parse_outputs
 
 __all__ = ["BASELINES", "MIN_SIDE", "MixedViews", "view_batches", "prepare_data", "resize_working_size",
            "training_magnification", "crop_size", "epoch_order", "training_sets", "label_shares", "check_labels",
@@ -326,6 +326,8 @@ def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str
     rules = Counter(json.dumps(rec["vp_rule"], sort_keys=True) for s in stores for rec in s if rec.get("vp_rule"))
     if rules:  # the rule the estimated VPs were found with (of most items): predict follows it
         info["vp_rule"] = json.loads(max(sorted(rules), key=rules.get))
+    if parse_outputs(cfg.outputs) != ONE_OUTPUT:  # (a one-output model's data section as before)
+        info["outputs"] = list(parse_outputs(cfg.outputs))
     info["train_items"] = len(train)
     info["train_items_per_source"] = dict(Counter(t.source for t in train))  # (in the stores' order)
     info["val_items"] = len(val)
