@@ -16,6 +16,7 @@ they are: condition ``resize``, the network the project ships):
 | ``four`` | CamVid, Cityscapes, ``kitti_semantics``, IDD-Lite (the issue's four-dataset run) |
 | ``six`` | all six: ``today`` with ``kitti_semantics``, or ``four`` with BDD100K and LUMS |
 | ``four-virtual`` | ``four``'s datasets, condition ``within``: ``four``'s virtual-camera twin (:data:`TWINS`) |
+| ``six-two`` | ``six``'s datasets, two outputs (:data:`TWO_OUTPUTS`): road from CamVid, Cityscapes, ``kitti_semantics`` and LUMS, drivable from IDD-Lite and BDD100K |
 
 A virtual-camera twin trains on its candidate's datasets warped into one virtual camera designed from
 their cameras (crossval's condition ``within``: each frame's VP corrects its pan and tilt, projective
@@ -23,6 +24,13 @@ completion fills the gaps) and is scored with the held-out camera given (its cam
 CamVid, Cityscapes and ``kitti_semantics``, IDD-Lite's assumed one), its masks back-projected; it shares its
 candidate's study folder, stores and seeds, so ``<twin>_minus_<candidate>`` is paired per seed (issue 82:
 the twin ships behind the candidate's name only if it wins on the held-out folds with the camera given).
+
+A two-output candidate (``train: outputs: road,drivable``, docs/training.md) trains one network with a road
+and a drivable output, each dataset supervising only the output its labels define (IDD-Lite's and
+BDD100K's labels are drivable area); a held-out road dataset is scored on the road output, held-out
+IDD-Lite on the drivable one (what its labels are). It trains in its own folder on the stores of the
+candidate with its datasets (``six``'s: the same frames, so ``six-two`` against ``six`` isolates the
+label definitions).
 
 ``four`` against ``six`` isolates BDD100K and LUMS (27 dashcams' drivable areas and a low campus
 camera, two fifths of every epoch of ``today``); ``today`` against ``six`` isolates ``kitti_semantics``.
@@ -74,7 +82,9 @@ CANDIDATES = {
     "six": ["camvid", "cityscapes", "kitti_semantics", "idd", "bdd", "lums"],
 }
 TWINS = {"four-virtual": "four"}  # virtual-camera twin -> the candidate whose datasets, folder and stores it shares
-CANDIDATES.update({t: CANDIDATES[c] for t, c in TWINS.items()})
+# two-output candidates -> the candidate whose datasets and stores they share (their own study folder)
+TWO_OUTPUTS = {"six-two": "six"}
+CANDIDATES.update({t: CANDIDATES[c] for t, c in {**TWINS, **TWO_OUTPUTS}.items()})
 FOLDS = ["kitti_semantics", "camvid", "cityscapes", "idd"]
 BASELINE = "today"
 COND, TWIN_COND = "resize", "within"
@@ -102,10 +112,12 @@ def embed(table: str, docs: list[Path] = DOCS) -> None:
 
 def candidate_study(wd: Path, cand: str, quick: bool, epochs: int | None) -> Path:
     """WORKDIR/<cand>/study.yaml: the candidate's datasets (a fold ``both``, its others ``train``), the folds
-    it does not train on ``test``."""
+    it does not train on ``test``; a two-output candidate names the source files of the candidate whose
+    stores it shares and trains with ``outputs: road,drivable``."""
     sets = CANDIDATES[cand]
     names = sets + [f for f in FOLDS if f not in sets]
-    path = study_file(wd / cand, quick, epochs, names=names)
+    shares = wd / TWO_OUTPUTS[cand] if cand in TWO_OUTPUTS else None
+    path = study_file(wd / cand, quick, epochs, names=names, home=shares)
     study = yaml.safe_load(path.read_text())
     for d in study["datasets"]:
         if d["name"] not in sets:
@@ -115,6 +127,8 @@ def candidate_study(wd: Path, cand: str, quick: bool, epochs: int | None) -> Pat
             d["role"] = "train"
             del d["test"]
     study["train"]["arch"] = "lite0fpn"
+    if cand in TWO_OUTPUTS:
+        study["train"]["outputs"] = "road,drivable"
     path.write_text(yaml.safe_dump(study, sort_keys=False))
     return path
 
@@ -131,9 +145,9 @@ def condition(cand: str) -> str:
 
 def same_model(cand: str, fold: str) -> str:
     """The first candidate whose model for ``fold`` trains on the very same datasets as ``cand``'s in the same
-    condition (same recipe, seed and stores: the same model; ``six`` without ``kitti_semantics`` is ``today``):
-    ``cand`` itself if none."""
-    trained = lambda c: (frozenset(CANDIDATES[c]) - {fold}, condition(c))
+    condition with the same outputs (same recipe, seed and stores: the same model; ``six`` without
+    ``kitti_semantics`` is ``today``): ``cand`` itself if none."""
+    trained = lambda c: (frozenset(CANDIDATES[c]) - {fold}, condition(c), c in TWO_OUTPUTS)
     return next(c for c in CANDIDATES if trained(c) == trained(cand))
 
 
@@ -224,7 +238,8 @@ def render(head: dict, tg: dict, cands: list[str], folds: list[str], seeds: list
         row = [f"{f(head[f'{cand}_{x}'])} ({f(head[f'{cand}_precision_{x}'])} / {f(head[f'{cand}_recall_{x}'])})"
                for x in folds]
         sd = head[f"{cand}_mean_std"]
-        what = ", ".join(CANDIDATES[cand]) + (" (virtual camera, the held-out camera given)" if cand in TWINS else "")
+        what = ", ".join(CANDIDATES[cand]) + (" (virtual camera, the held-out camera given)" if cand in TWINS else
+                                              " (two outputs; IDD-Lite scored on drivable)" if cand in TWO_OUTPUTS else "")
         lines.append(f"| `{cand}` | {what} | " + " | ".join(row) + f" | {f(head[f'{cand}_mean'])}"
                      + (f" ± {sd:.1f}" if sd is not None else "") + f" | {f(head.get(f'{cand}_minus_{BASELINE}'), '+')} |")
     for twin, cand in [(t, c) for t, c in TWINS.items() if t in cands and c in cands]:
@@ -281,8 +296,8 @@ def main() -> None:
             for cand in [c for c in cands if same_model(c, fold) == c]:  # (the others: an earlier candidate's model)
                 study = candidate_study(wd, home(cand), a.quick, a.epochs)
                 sd = wd / home(cand) / f"seed{seed}"
-                if seed != seeds[0]:
-                    link_stores(sd, wd / home(cand) / f"seed{seeds[0]}")
+                if seed != seeds[0] or cand in TWO_OUTPUTS:
+                    link_stores(sd, wd / TWO_OUTPUTS.get(cand, home(cand)) / f"seed{seeds[0]}")
                 run_study(study, sd, [condition(cand)], seed, a.threads, heldout=[fold])
             report(a, wd, cands, folds, seeds)
     print(json.dumps(report(a, wd, cands, folds, seeds)))
