@@ -117,6 +117,7 @@ def candidate_study(wd: Path, cand: str, quick: bool, epochs: int | None) -> Pat
     sets = CANDIDATES[cand]
     names = sets + [f for f in FOLDS if f not in sets]
     shares = wd / TWO_OUTPUTS[cand] if cand in TWO_OUTPUTS else None
+    (wd / cand).mkdir(parents=True, exist_ok=True)  # (a study sharing another's frames links none of its own)
     path = study_file(wd / cand, quick, epochs, names=names, home=shares)
     study = yaml.safe_load(path.read_text())
     for d in study["datasets"]:
