@@ -175,6 +175,22 @@ def test_the_road_output_leaves_the_shoulder_out_and_drivable_takes_it_in(two, t
     assert driv_m[band].mean() - road_m[band].mean() > 0.25, (driv_m[band].mean(), road_m[band].mean())
 
 
+def test_the_record_says_the_output_and_keeps_the_outputs_apart(two, tmp_path):
+    """predict.json names a drivable run's output; road masks of the same model written into that folder
+    next are another model's masks: they replace the record (eval never mixes the two), which names no output."""
+    import json
+
+    write_png(tmp_path / "t_45.png", _frame(45)[0])
+    record = lambda: json.loads((tmp_path / "p" / "predict.json").read_text())
+    for output in ("drivable", "road"):
+        r = run_cli("predict", two / "two.pt", tmp_path / "t_45.png", "--camera", "camvid", "--engine", "torch",
+                    "--output", output, "--out", tmp_path / "p", prog="vctrain")
+        assert r.returncode == 0, r.stderr
+        assert (f"its {output} output" in r.stderr) == (output == "drivable")
+        assert record().get("output", "road") == output and len(record()["runs"]) == 1
+    assert "output" not in record()
+
+
 def test_the_python_face_gives_the_output_asked(two):
     import vctrain
 

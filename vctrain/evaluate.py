@@ -40,7 +40,7 @@ RECORD = "predict.json"  # in a prediction folder: which model's runs wrote whic
 
 def record_predictions(out: Path, model: Path, masks: list[Path], engine: str = "",
                        inputs: list[str] | None = None, poses: dict[str, dict] | None = None,
-                       startup: dict | None = None) -> None:
+                       startup: dict | None = None, output: str = "road") -> None:
     """Note in ``out/predict.json`` that ``model`` wrote ``masks`` (``<id>_mask.png`` in ``out``, an id
     with folders for a tree's frames: ``drive1/000123``) through ``engine`` (what ran its network,
     given: ``engine``): a run of the same model (the same file content) adds its frames to the
@@ -48,11 +48,14 @@ def record_predictions(out: Path, model: Path, masks: list[Path], engine: str = 
     what it was given; its ``frames``; a later run of the same inputs replaces it, a frame belongs to
     the last run that wrote it); ``poses`` (given: ``predict --bev``'s, stem -> the frame's BEV pose)
     are kept under ``bev_poses``; ``startup`` (given: what the run paid once, ``load_s`` and
-    ``compile_s``) under its run."""
+    ``compile_s``) under its run. ``output``: the model output the masks are of (a two-output model's
+    ``drivable``: recorded, and masks of another output of the same model are another model's: they
+    replace the record; road, every one-output model's, is not written)."""
     stems = [m.relative_to(out).as_posix()[: -len("_mask.png")] for m in masks if m.name.endswith("_mask.png")]
     sha = file_sha256(model)
     old = _read_record(out)
-    runs = old.get("runs", []) if old is not None and old.get("model_sha256") == sha else []
+    same = old is not None and old.get("model_sha256") == sha and old.get("output", "road") == output
+    runs = old.get("runs", []) if same else []
     bev_poses = dict(old.get("bev_poses", {})) if runs else {}
     new = set(stems)
     runs = [{**r, "frames": [f for f in r["frames"] if f not in new]} for r in runs
@@ -61,7 +64,8 @@ def record_predictions(out: Path, model: Path, masks: list[Path], engine: str = 
                                                   **({"startup": startup} if startup else {})}]
     bev_poses.update(poses or {})
     frames = [f for r in runs for f in r["frames"]]
-    doc = {"model": str(model), "model_sha256": sha, **({"engine": engine} if engine else {}), "frames": frames,
+    doc = {"model": str(model), "model_sha256": sha, **({"output": output} if output != "road" else {}),
+           **({"engine": engine} if engine else {}), "frames": frames,
            "runs": runs, **({"bev_poses": bev_poses} if bev_poses else {})}
     write_bytes_atomic(out / RECORD, (json.dumps(doc, indent=1) + "\n").encode())
 

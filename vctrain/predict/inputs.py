@@ -158,7 +158,7 @@ def predict_inputs(options: PredictOptions, say: Optional[Callable[[str], None]]
     elif result.written:
         from ..evaluate import record_predictions
 
-        record_predictions(out, opts.source, result.masks, engine, poses=poses, startup=result.startup,
+        record_predictions(out, opts.source, result.masks, engine, poses=poses, startup=result.startup, output=opts.output,
                            inputs=[str(p) for p in [*videos, *images, *([opts.store] if opts.store else [])]])
         if poses and say is not None:
             from .bev import poses_line
@@ -258,7 +258,7 @@ def _predict_all(opts: PredictOptions, predictor, images: list[Path], videos: li
         masks += run.written
         failed = run.failed
         n_images = len(run.written) + len(failed)
-    return Predicted(written, n_images if images or opts.store else None, len(videos), _source(predictor, opts.prior),
+    return Predicted(written, n_images if images or opts.store else None, len(videos), _source(predictor, opts.prior, opts.output),
                      failed, times.frames + n_images - len(failed), time.perf_counter() - t0, masks)
 
 
@@ -272,14 +272,15 @@ def _store_bev(bev, store, camera_for: Optional[CameraFor], within: str):
     return BevRun(bev, camera_for(sources[0], frames=sources) if sources else None, within, store.root)
 
 
-def _source(predictor, prior: Optional[Path]) -> str:
-    """What predicted, for the summary line; a graph also says how many frames' VPs lay beyond its
-    pose range (P(road) cut to its rectangle there)."""
+def _source(predictor, prior: Optional[Path], output: str = "road") -> str:
+    """What predicted, for the summary line (the output written where it is not road); a graph also says
+    how many frames' VPs lay beyond its pose range (P(road) cut to its rectangle there)."""
     if prior is not None:
         return "geometric prior"
+    which = "" if output == "road" else f", its {output} output"
     if not predictor.takes_frames:
-        return predictor.mode + " model"
-    source = f"ONNX graph, {predictor.mode} model"
+        return predictor.mode + " model" + which
+    source = f"ONNX graph, {predictor.mode} model{which}"
     if predictor.beyond:
         pan, tilt = predictor.info["pose_range"]
         source += (f"; {count(predictor.beyond, 'frame')} with a VP beyond the graph's pose range ({pan:g}, {tilt:g} deg):"
