@@ -43,7 +43,7 @@ from vcprep.vp import frame_poses
 from ..training.checkpoint import load_checkpoint, model_from_checkpoint
 from ..training.checkpoint_data import CheckpointData
 from ..training.data import ray_angles, resize_pair, source_focal, to_input, vp_in_store, vp_proximity
-from ..training.outputs import check_output, output_probability_np
+from ..training.outputs import check_output, output_probability, output_probability_np
 from ..networks.build import fold_batchnorm
 from ..training.loop import resolve_device
 from ..training.trainset import MIN_SIDE
@@ -126,14 +126,6 @@ class Predictor:
         logits = self.logits(x)
         if isinstance(logits, np.ndarray):
             return output_probability_np(logits[0], self.output)
-        if logits.shape[1] != 2:
-            return self._softmax_of(logits)
-        return torch.softmax(logits, dim=1)[0, 1].cpu().numpy().astype(np.float32)
-
-    def _softmax_of(self, logits: torch.Tensor) -> np.ndarray:
-        """:attr:`output`'s probability (h, w) of a three-class network's logits (1, 3, h, w)."""
-        from ..training.outputs import output_probability
-
         return output_probability(logits, self.output)[0].cpu().numpy().astype(np.float32)
 
     @property
