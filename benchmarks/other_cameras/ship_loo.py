@@ -17,6 +17,7 @@ they are: condition ``resize``, the network the project ships):
 | ``six`` | all six: ``today`` with ``kitti_semantics``, or ``four`` with BDD100K and LUMS |
 | ``four-virtual`` | ``four``'s datasets, condition ``within``: ``four``'s virtual-camera twin (:data:`TWINS`) |
 | ``six-two`` | ``six``'s datasets, two outputs (:data:`TWO_OUTPUTS`): road from CamVid, Cityscapes, ``kitti_semantics`` and LUMS, drivable from IDD-Lite and BDD100K |
+| ``four-long``, ``today-long`` | ``four``'s and ``today``'s datasets with twice the epochs (:data:`LONGER`): the training budget |
 
 A virtual-camera twin trains on its candidate's datasets warped into one virtual camera designed from
 their cameras (crossval's condition ``within``: each frame's VP corrects its pan and tilt, projective
@@ -31,6 +32,10 @@ BDD100K's labels are drivable area); a held-out road dataset is scored on the ro
 IDD-Lite on the drivable one (what its labels are). It trains in its own folder on the stores of the
 candidate with its datasets (``six``'s: the same frames, so ``six-two`` against ``six`` isolates the
 label definitions).
+
+A longer-budget candidate (:data:`LONGER`) trains ``BUDGET_FACTOR`` times the epochs (the same steps an epoch)
+in its own folder on its candidate's stores: ``four-long`` − ``four`` is the budget's effect on the same
+frames, ``four-long`` − ``today-long`` the data mix's at the longer budget.
 
 ``four`` against ``six`` isolates BDD100K and LUMS (27 dashcams' drivable areas and a low campus
 camera, two fifths of every epoch of ``today``); ``today`` against ``six`` isolates ``kitti_semantics``.
@@ -84,7 +89,13 @@ CANDIDATES = {
 TWINS = {"four-virtual": "four"}  # virtual-camera twin -> the candidate whose datasets, folder and stores it shares
 # two-output candidates -> the candidate whose datasets and stores they share (their own study folder)
 TWO_OUTPUTS = {"six-two": "six"}
-CANDIDATES.update({t: CANDIDATES[c] for t, c in {**TWINS, **TWO_OUTPUTS}.items()})
+# twice the training budget (epochs) -> the candidate whose datasets and stores they share (their own study folder)
+LONGER = {"four-long": "four", "today-long": "today"}
+BUDGET_FACTOR = 2
+SHARES = {**TWO_OUTPUTS, **LONGER}
+# paired differences reported (per seed): each twin and longer budget against its candidate, the longer budgets' recipes
+PAIRS = [*TWINS.items(), *LONGER.items(), ("four-long", "today-long")]  # a candidate trained in its own folder on another's stores
+CANDIDATES.update({t: CANDIDATES[c] for t, c in {**TWINS, **SHARES}.items()})
 FOLDS = ["kitti_semantics", "camvid", "cityscapes", "idd"]
 BASELINE = "today"
 COND, TWIN_COND = "resize", "within"
@@ -116,8 +127,9 @@ def candidate_study(wd: Path, cand: str, quick: bool, epochs: int | None) -> Pat
     stores it shares and trains with ``outputs: road,drivable``."""
     sets = CANDIDATES[cand]
     names = sets + [f for f in FOLDS if f not in sets]
-    shares = wd / TWO_OUTPUTS[cand] if cand in TWO_OUTPUTS else None
+    shares = wd / SHARES[cand] if cand in SHARES else None
     (wd / cand).mkdir(parents=True, exist_ok=True)  # (a study sharing another's frames links none of its own)
+    epochs = epochs * BUDGET_FACTOR if cand in LONGER and epochs else epochs
     path = study_file(wd / cand, quick, epochs, names=names, home=shares)
     study = yaml.safe_load(path.read_text())
     for d in study["datasets"]:
@@ -148,7 +160,7 @@ def same_model(cand: str, fold: str) -> str:
     """The first candidate whose model for ``fold`` trains on the very same datasets as ``cand``'s in the same
     condition with the same outputs (same recipe, seed and stores: the same model; ``six`` without
     ``kitti_semantics`` is ``today``): ``cand`` itself if none."""
-    trained = lambda c: (frozenset(CANDIDATES[c]) - {fold}, condition(c), c in TWO_OUTPUTS)
+    trained = lambda c: (frozenset(CANDIDATES[c]) - {fold}, condition(c), c in TWO_OUTPUTS, c in LONGER)
     return next(c for c in CANDIDATES if trained(c) == trained(cand))
 
 
@@ -205,7 +217,7 @@ def headline(cells: dict, cands: list[str], folds: list[str], seeds: list[int]) 
         worst = [None if head[f"{cand}_{f}"] is None or head[f"{BASELINE}_{f}"] is None
                  else head[f"{cand}_{f}"] - head[f"{BASELINE}_{f}"] for f in folds]
         head[f"{cand}_worst_fold_minus_{BASELINE}"] = None if None in worst else r2(min(worst))
-    for twin, cand in [(t, c) for t, c in TWINS.items() if t in cands and c in cands]:
+    for twin, cand in [(t, c) for t, c in PAIRS if t in cands and c in cands]:
         d = [a - b for a, b in zip(per_seed[twin], per_seed[cand]) if a is not None and b is not None]
         head[f"{twin}_minus_{cand}"] = r2(np.mean(d)) if d else None
     return head
@@ -240,11 +252,12 @@ def render(head: dict, tg: dict, cands: list[str], folds: list[str], seeds: list
                for x in folds]
         sd = head[f"{cand}_mean_std"]
         what = ", ".join(CANDIDATES[cand]) + (" (virtual camera, the held-out camera given)" if cand in TWINS else
-                                              " (two outputs; IDD-Lite scored on drivable)" if cand in TWO_OUTPUTS else "")
+                                              " (two outputs; IDD-Lite scored on drivable)" if cand in TWO_OUTPUTS else
+                                              f" ({BUDGET_FACTOR}× the epochs)" if cand in LONGER else "")
         lines.append(f"| `{cand}` | {what} | " + " | ".join(row) + f" | {f(head[f'{cand}_mean'])}"
                      + (f" ± {sd:.1f}" if sd is not None else "") + f" | {f(head.get(f'{cand}_minus_{BASELINE}'), '+')} |")
-    for twin, cand in [(t, c) for t, c in TWINS.items() if t in cands and c in cands]:
-        lines += ["", f"`{twin}` − `{cand}` (paired per seed): {f(head.get(f'{twin}_minus_{cand}'), '+')}."]
+    pairs = [f"`{t}` − `{c}` {f(head.get(f'{t}_minus_{c}'), '+')}" for t, c in PAIRS if t in cands and c in cands]
+    lines += ["", f"Paired per seed: {'; '.join(pairs)}."] if pairs else []
     if missing:
         lines += ["", f"Missing (not finished): {', '.join(missing)}."]
     lines += ["", "| target (issue 82) | met |", "|---|---|"] + [
@@ -297,8 +310,8 @@ def main() -> None:
             for cand in [c for c in cands if same_model(c, fold) == c]:  # (the others: an earlier candidate's model)
                 study = candidate_study(wd, home(cand), a.quick, a.epochs)
                 sd = wd / home(cand) / f"seed{seed}"
-                if seed != seeds[0] or cand in TWO_OUTPUTS:
-                    link_stores(sd, wd / TWO_OUTPUTS.get(cand, home(cand)) / f"seed{seeds[0]}")
+                if seed != seeds[0] or cand in SHARES:
+                    link_stores(sd, wd / SHARES.get(cand, home(cand)) / f"seed{seeds[0]}")
                 run_study(study, sd, [condition(cand)], seed, a.threads, heldout=[fold])
             report(a, wd, cands, folds, seeds)
     print(json.dumps(report(a, wd, cands, folds, seeds)))
