@@ -28,7 +28,17 @@ def _avx2_without_avx512() -> bool:
 if _avx2_without_avx512():
     os.environ.setdefault("DNNL_MAX_CPU_ISA", "AVX")
 
+# Under pytest-xdist every core already runs a worker: a worker (and every command it starts) computing with
+# one thread, not torch's and OpenCV's default of all cores, leaves no thread of an OpenMP pool waiting at a
+# barrier for a core the other worker holds (vctrain/threads.py). Set before torch and cv2 are imported;
+# a test that sets OMP_NUM_THREADS or --threads itself is unaffected.
+if int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")) > 1:
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+
 import cv2  # noqa: E402
+
+if int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")) > 1:
+    cv2.setNumThreads(1)
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
@@ -57,11 +67,12 @@ def default_sigint() -> None:
 # out whole files in collection order. The files that take longest (they train models or kill and
 # resume builds) go first so that no core is left alone with one of them at the end; the rest keep
 # their alphabetical order. A file missing from this list still runs, after these.
-LONGEST_FIRST = ["test_store_scale.py", "test_cli_store.py", "test_vctrain.py", "test_store_lock.py",
-                 "test_shell_use.py", "test_examples_pipeline.py", "test_ego.py", "test_vanishing_point.py",
-                 "test_completion.py", "test_docs.py", "test_datasets.py", "test_study_prior_adapt.py",
-                 "test_camera_estimate.py", "test_adapt.py", "test_study_loo.py", "test_study_roles.py",
-                 "test_export.py"]
+LONGEST_FIRST = ["test_store_scale.py", "test_cli_store.py", "test_examples_pipeline.py",
+                 "test_study_predict.py", "test_vctrain.py", "test_store_lock.py", "test_shell_use.py",
+                 "test_ego.py", "test_road.py", "test_pipeline.py", "test_vanishing_point.py",
+                 "test_fit_runs.py", "test_multi_camera.py", "test_completion.py", "test_export.py",
+                 "test_docs.py", "test_store_sources.py", "test_datasets.py", "test_api.py", "test_adapt.py",
+                 "test_store_stamp.py", "test_efficientnet.py", "test_study_roles.py", "test_study_loo.py"]
 
 
 def pytest_configure(config):
