@@ -208,20 +208,30 @@ def test_the_default_engine_is_the_fastest_installed_and_its_start_up_is_said_ap
 
 # -- the int8 graph ---------------------------------------------------------------------------------
 
-def test_int8_graph_agrees_with_the_float_graph_and_refuses_another_size(tmp_path):
+@pytest.fixture(scope="module")
+def float_graph(tmp_path_factory) -> Path:
+    """The shipped model's float graph for 480x360 frames (export_onnx), exported once for the tests
+    that read it (none writes it)."""
+    pytest.importorskip("onnxruntime")
+    from vctrain.deploy import export_onnx
+
+    path = tmp_path_factory.mktemp("graph") / "f.onnx"
+    export_onnx(SHIPPED, None, path, size=(480, 360))
+    return path
+
+
+def test_int8_graph_agrees_with_the_float_graph_and_refuses_another_size(float_graph, tmp_path):
     """`vctrain export --int8` of the shipped model for 480x360 frames, calibrated on the examples:
     its masks are the float graph's on >= 99 % of the examples' pixels (measured here with both
     graphs, and as the export reports it); predict says and records the int8 graph; a 240x180 frame is
     refused with one line naming both sizes and the export that fits."""
-    pytest.importorskip("onnxruntime")
-    from vctrain.deploy import OnnxPredictor, export_onnx
+    from vctrain.deploy import OnnxPredictor
 
-    export_onnx(SHIPPED, None, tmp_path / "f.onnx", size=(480, 360))
     r = run_cli("export", SHIPPED, "--size", "480x360", "--int8", "-o", tmp_path / "q.onnx", "--threads", "1",
                 prog="vctrain")
     assert r.returncode == 0, r.stderr
     assert "int8 network, calibrated on" in r.stderr and "% of their pixels" in r.stderr
-    f, q = OnnxPredictor(tmp_path / "f.onnx", threads=1), OnnxPredictor(tmp_path / "q.onnx", threads=1)
+    f, q = OnnxPredictor(float_graph, threads=1), OnnxPredictor(tmp_path / "q.onnx", threads=1)
     same = total = 0
     for img in (read_image(p).array for p in sorted(EXAMPLES.iterdir())):
         a, b = f.road_probability(img) >= 0.5, q.road_probability(img) >= 0.5
@@ -229,7 +239,7 @@ def test_int8_graph_agrees_with_the_float_graph_and_refuses_another_size(tmp_pat
         assert 0.05 < a.mean() < 0.95  # a real road in view
     assert same / total >= 0.99
     assert abs(q.info["int8"]["mask_agreement"] - same / total) < 0.01  # (it also saw the KITTI frame, resized)
-    assert (tmp_path / "q.onnx").stat().st_size < 0.5 * (tmp_path / "f.onnx").stat().st_size
+    assert (tmp_path / "q.onnx").stat().st_size < 0.5 * float_graph.stat().st_size
     import onnx  # the first convolution and the finest lateral keep float weights, every other conv int8
 
     graph = onnx.load(str(tmp_path / "q.onnx")).graph
@@ -286,26 +296,24 @@ def test_the_tint_is_overlay_labels_whatever_the_masks_extent():
     assert np.array_equal(tint_road(grey, blobs), overlay_label(grey, (blobs > 0).astype(np.uint8)))
 
 
-def test_a_graph_runs_in_openvino_with_onnxruntimes_masks(tmp_path):
+def test_a_graph_runs_in_openvino_with_onnxruntimes_masks(float_graph, tmp_path):
     """The shipped model's 480x360 graph in OpenVINO (the default where installed: the faster runtime)
     and in onnxruntime (--engine onnx): P(road) within float rounding and the masks identical on the
     examples (OpenVINO in float32, not the bf16 it would pick on a CPU with bf16 units); predict says
     which ran; --engine torch on a graph is refused."""
     pytest.importorskip("openvino")
-    pytest.importorskip("onnxruntime")
-    from vctrain.deploy import OnnxPredictor, export_onnx
+    from vctrain.deploy import OnnxPredictor
 
-    export_onnx(SHIPPED, None, tmp_path / "f.onnx", size=(480, 360))
-    ov, ort = (OnnxPredictor(tmp_path / "f.onnx", threads=1, runtime=r) for r in ("openvino", "onnxruntime"))
-    assert OnnxPredictor(tmp_path / "f.onnx", threads=1).runtime == "openvino"
+    ov, ort = (OnnxPredictor(float_graph, threads=1, runtime=r) for r in ("openvino", "onnxruntime"))
+    assert OnnxPredictor(float_graph, threads=1).runtime == "openvino"
     for img in (read_image(p).array for p in sorted(EXAMPLES.iterdir())):
         a, b = ov.road_probability(img), ort.road_probability(img)
         assert a.dtype == b.dtype == np.float32 and np.abs(a - b).max() < 1e-4
         assert np.array_equal(a >= 0.5, b >= 0.5)
     for engine, said in ((None, "OpenVINO "), ("onnx", "onnxruntime ")):
-        r = run_cli("predict", tmp_path / "f.onnx", EXAMPLES, "--out", tmp_path / str(engine), "--threads", "1",
+        r = run_cli("predict", float_graph, EXAMPLES, "--out", tmp_path / str(engine), "--threads", "1",
                     *(["--engine", engine] if engine else []), prog="vctrain")
         assert r.returncode == 0, r.stderr
         assert json.loads((tmp_path / str(engine) / "predict.json").read_text())["engine"].startswith(said)
-    assert_one_error_line(run_cli("predict", tmp_path / "f.onnx", EXAMPLES, "--out", tmp_path / "t", "--engine",
+    assert_one_error_line(run_cli("predict", float_graph, EXAMPLES, "--out", tmp_path / "t", "--engine",
                                   "torch", prog="vctrain"), "not PyTorch")
