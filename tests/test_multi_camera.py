@@ -502,8 +502,12 @@ def test_condition_resize_rays_trains_on_each_frames_camera_and_vp(tmp_path):
 def test_warp_into_a_models_virtual_camera_to_fine_tune_it(two_stores, tmp_path):
     """`vcprep warp --virtual MODEL.pt` (or --virtual STORE) warps new frames into the virtual camera
     and scale the model was trained in, so `vctrain fit NEW --init MODEL.pt` trains in its domain;
-    a resize model, or a file that is no vctrain checkpoint, is refused in one line."""
-    from conftest import run_cli
+    a resize model, or a file that is no vctrain checkpoint, is refused in one line.
+
+    The warps run `vcprep warp`'s entry point in this process (conftest._in_process: its own argv,
+    stdout and stderr apart, the exit status), one job: a new interpreter importing torch to read the
+    model cost ~2 s each, and nothing here is about processes or pools."""
+    from conftest import _in_process
     from vcprep.store import Store
     from vcprep.store.trained import trained_virtual
 
@@ -513,6 +517,10 @@ def test_warp_into_a_models_virtual_camera_to_fine_tune_it(two_stores, tmp_path)
     cam_file = tmp_path / "cam.yaml"
     cam_file.write_text(__import__("yaml").safe_dump(cam.to_dict(), sort_keys=False))
     src = root / "src1"
+
+    def run_cli(*args):  # vcprep, here, -j 1
+        return _in_process("vcprep", [*map(str, args), "-j", "1"], None)
+
     proc = run_cli("warp", "--camera", cam_file, "--images", src / "images", "--labels", src / "labels",
                    "--label-format", FMT, "--virtual", root / "a.pt", "--within", "none", "--out", tmp_path / "new-a", "-q")
     assert proc.returncode == 0, proc.stderr
