@@ -402,14 +402,14 @@ def _kill_in_the_orphan_window(proc, out: Path, delay: float) -> None:
 
 
 def test_verify_after_sigkill_of_a_parallel_build_fails_only_on_damage(ds, tmp_path):
-    """A `--jobs 2` build killed (SIGKILL, process group) at several moments: verify exits 0 and
+    """A `--jobs 2` build killed (SIGKILL, process group) at three moments: verify exits 0 and
     reports the interrupted build's orphan and temp files (--strict fails on them); a record is
     never damaged. The next build removes every orphan, also one whose source is gone."""
     images, labels = tmp_path / "images", tmp_path / "labels"
     shutil.copytree(ds[0], images)
     shutil.copytree(ds[1], labels)
     out, left, strict_seen = tmp_path / "store", [], False
-    for delay in (0.0, 0.01, 0.03, 0.06, 0.1):
+    for delay in (0.0, 0.03, 0.1):  # right at the first record of the run, and two moments later
         _kill_in_the_orphan_window(_start((images, labels), out, jobs=2), out, delay)
         proc = _in_process("vcprep", ["store", "verify", str(out), "--no-sources", "--json", "-q", "-j", "1"], None)
         problems = [json.loads(x) for x in proc.stdout.splitlines()]
