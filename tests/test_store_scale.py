@@ -149,13 +149,13 @@ def test_verify_finds_each_kind_of_problem(ds, reference, tmp_path):
 
 def test_store_info(reference):
     out, _ = reference
-    proc = run_cli("store", "info", out, "--json")
+    proc = _in_process("vcprep", ["store", "info", str(out), "--json"], None)  # (one process; reads only)
     assert proc.returncode == 0, proc.stderr
     info = json.loads(proc.stdout)
     assert info["items"] == info["with_labels"] == N_ITEMS and info["store_size"] == [688, 350]
     assert info["scale"] == 0.125 and info["completion"] == {"projective": N_ITEMS}
     assert info["disk"]["images"]["files"] == N_ITEMS and info["disk_bytes"] > 0 and info["pending_parts"] == []
-    text = run_cli("store", "info", out)
+    text = _in_process("vcprep", ["store", "info", str(out)], None)
     assert "items\t40 (40 with labels)" in text.stdout and "688x350" in text.stdout
 
 
@@ -266,7 +266,7 @@ def test_sharded_build_merges_to_the_unsharded_store(ds, reference, tmp_path):
     assert sum(int(e.split(" items:")[0].split()[-1]) for _, e in results) == N_ITEMS
     # readable before the merge: the parts are read too
     assert len(Store.open(out)) == N_ITEMS
-    info = json.loads(run_cli("store", "info", out, "--json").stdout)
+    info = json.loads(_in_process("vcprep", ["store", "info", str(out), "--json"], None).stdout)
     assert len(info["pending_parts"]) == 3
     proc, problems = _verify(out)
     assert proc.returncode == 0 and problems == []
