@@ -21,7 +21,15 @@ from vcprep.errors import InputError
 from vcprep.warp import vp_from_pose
 from vcprep.synthetic import RoadScene, render_road
 
-from conftest import PAPER_STORE, assert_one_error_line, run_cli
+from conftest import PAPER_STORE, _in_process, assert_one_error_line, run_cli
+
+
+def _camera_ego(*args):
+    """``vcprep camera ego ARGS``, the command's entry point run in this process (conftest._in_process:
+    argv, stdout and stderr apart, the exit status): it reads labels or frames and prints, no pool or
+    signal, and a new interpreter cost ~0.4 s a call."""
+    return _in_process("vcprep", ["camera", "ego", *map(str, args)], None)
+
 
 EGO = 36  # CamVid 0001TP: the bonnet fills the bottom 36 rows of the 480x360 frames
 BONNET_BGR = (255, 0, 255)  # magenta: no colour of the synthetic scene comes near it
@@ -484,14 +492,14 @@ def test_vcprep_camera_ego_prints_and_writes_the_rows(tmp_path):
     labels.mkdir(parents=True)
     for i, lab in enumerate(_label_set(bonnet=25)):
         cv2.imwrite(str(labels / f"f{i}.png"), np.where(lab == 1, 3, np.where(lab == 255, 11, 0)).astype(np.uint8))
-    proc = run_cli("camera", "ego", "--labels", tmp_path / "labels", "--label-format", "camvid")
+    proc = _camera_ego("--labels", tmp_path / "labels", "--label-format", "camvid")
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == "25" and "bottom 25 of 160 rows" in proc.stderr
     # the camera at twice the labels' size gets the rows at its size, everything else as it was
     cam = Camera("mine", (480, 320), 400.0, 400.0, 239.5, 159.5, 1.3, tilt=2.0)
     (tmp_path / "mine.yaml").write_text(camera_to_yaml(cam))
     out = tmp_path / "cams" / "mine-ego.yaml"
-    proc = run_cli("camera", "ego", "-l", tmp_path / "labels", "-f", "camvid", "-c", tmp_path / "mine.yaml", "-o", out,
+    proc = _camera_ego("-l", tmp_path / "labels", "-f", "camvid", "-c", tmp_path / "mine.yaml", "-o", out,
                    "--json")
     assert proc.returncode == 0, proc.stderr
     rep = json.loads(proc.stdout)
@@ -500,11 +508,11 @@ def test_vcprep_camera_ego_prints_and_writes_the_rows(tmp_path):
     # no vehicle: 0; too few frames and -o without a camera: one error line each
     for f in list(labels.iterdir()):
         cv2.imwrite(str(f), np.full((160, 240), 3, np.uint8))
-    assert run_cli("camera", "ego", "-l", tmp_path / "labels", "-f", "camvid").stdout.strip() == "0"
+    assert _camera_ego("-l", tmp_path / "labels", "-f", "camvid").stdout.strip() == "0"
     for f in list(labels.iterdir())[4:]:
         f.unlink()
-    assert_one_error_line(run_cli("camera", "ego", "-l", tmp_path / "labels", "-f", "camvid"), "too few", "ego_rows")
-    assert_one_error_line(run_cli("camera", "ego", "-l", tmp_path / "labels", "-f", "camvid", "-o", out),
+    assert_one_error_line(_camera_ego("-l", tmp_path / "labels", "-f", "camvid"), "too few", "ego_rows")
+    assert_one_error_line(_camera_ego("-l", tmp_path / "labels", "-f", "camvid", "-o", out),
                           "no --camera")
 
 
@@ -573,12 +581,12 @@ def test_ego_rows_from_frames_refuses_repeats_and_two_sizes(drive):
 def test_vcprep_camera_ego_without_labels_uses_the_frames(drive, tmp_path):
     for i, f in enumerate(drive):
         cv2.imwrite(str(tmp_path / f"f{i:03d}.png"), _paint_bonnet(f, 25))
-    proc = run_cli("camera", "ego", "--images", tmp_path, "--json")
+    proc = _camera_ego("--images", tmp_path, "--json")
     assert proc.returncode == 0, proc.stderr
     rep = json.loads(proc.stdout)
     assert abs(rep["ego_rows"] - 25) <= 2 and rep["method"].startswith("frames")
     assert "no labels" in proc.stderr and "from the frames" in proc.stderr
-    assert_one_error_line(run_cli("camera", "ego"), "no --labels and no --images")
+    assert_one_error_line(_camera_ego(), "no --labels and no --images")
 
 
 def _mirror_bonnet(img, rows, gain):
