@@ -12,7 +12,15 @@ from vcprep.camera import PRESETS, Camera, camera_to_yaml, load_camera, read_cam
     read_kitti_calib
 from vcprep.errors import InputError
 
-from conftest import EXAMPLES
+from conftest import EXAMPLES, _in_process
+
+
+def _here(*args, cwd=None):
+    """``vcprep ARGS``'s entry point run in this process (conftest._in_process: argv, stdout and
+    stderr apart, the exit status), for commands that start no pool and catch no signal
+    (camera show, vp of a missing camera): a new interpreter cost ~0.4 s a call."""
+    return _in_process("vcprep", [str(a) for a in args], cwd)
+
 
 GOOD = """name: mycam
 image_size: [960, 720]
@@ -177,22 +185,22 @@ def test_camera_names_that_yaml_would_misread_round_trip(tmp_path, name):
 def test_a_name_that_is_both_a_preset_and_a_path_is_an_error_naming_both(tmp_path):
     """One rule (issue 26.5): preset:NAME is the preset, ./NAME the path, a bare NAME that is both
     an error naming both readings; a bare preset name with no such path is the preset."""
-    from conftest import assert_one_error_line, run_cli
+    from conftest import assert_one_error_line
     from vcprep.camera import PRESETS, camera_to_yaml
 
-    assert run_cli("camera", "show", "kitti", "--json", cwd=tmp_path).returncode == 0    # no ./kitti: the preset
+    assert _here("camera", "show", "kitti", "--json", cwd=tmp_path).returncode == 0    # no ./kitti: the preset
     (tmp_path / "kitti").mkdir()
-    assert_one_error_line(run_cli("camera", "show", "kitti", cwd=tmp_path), "both the camera preset kitti and the "
+    assert_one_error_line(_here("camera", "show", "kitti", cwd=tmp_path), "both the camera preset kitti and the "
                           "folder ./kitti", "preset:kitti", "./kitti")
-    proc = run_cli("camera", "show", "preset:kitti", "--json", cwd=tmp_path)
+    proc = _here("camera", "show", "preset:kitti", "--json", cwd=tmp_path)
     assert proc.returncode == 0 and json.loads(proc.stdout)["fx"] == PRESETS["kitti"].fx
     (tmp_path / "camvid").write_text(camera_to_yaml(PRESETS["kitti"]))   # a file named like another preset
-    assert_one_error_line(run_cli("camera", "show", "camvid", cwd=tmp_path), "file ./camvid", "preset:camvid")
-    assert_one_error_line(run_cli("camera", "show", "preset:nope", cwd=tmp_path), "unknown camera preset 'nope'")
+    assert_one_error_line(_here("camera", "show", "camvid", cwd=tmp_path), "file ./camvid", "preset:camvid")
+    assert_one_error_line(_here("camera", "show", "preset:nope", cwd=tmp_path), "unknown camera preset 'nope'")
     # a per-frame folder: ./kitti is the folder, kitti ambiguous, in every command that takes one
     import cv2
     import numpy as np
 
     (tmp_path / "img").mkdir()
     cv2.imwrite(str(tmp_path / "img" / "a.png"), np.zeros((375, 1242, 3), np.uint8))
-    assert_one_error_line(run_cli("vp", "--camera", "kitti", "img", cwd=tmp_path), "both the camera preset")
+    assert_one_error_line(_here("vp", "--camera", "kitti", "img", cwd=tmp_path), "both the camera preset")
