@@ -32,13 +32,14 @@ if _avx2_without_avx512():
 # one thread, not torch's and OpenCV's default of all cores, leaves no thread of an OpenMP pool waiting at a
 # barrier for a core the other worker holds (vctrain/threads.py). Set before torch and cv2 are imported;
 # a test that sets OMP_NUM_THREADS or --threads itself is unaffected.
-if int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")) > 1:
+XDIST_WORKERS = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
+if XDIST_WORKERS > 1:
     os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import cv2  # noqa: E402
 
-if int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")) > 1:
-    cv2.setNumThreads(1)
+if XDIST_WORKERS > 1:
+    cv2.setNumThreads(1)  # (OpenCV's pool: the same reason)
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
@@ -103,6 +104,14 @@ def run_cli(*args: str, prog: str = "vcprep", cwd: Path | None = None, process: 
         return _in_process(prog, [str(a) for a in args], cwd)
     exe = BIN / prog
     return subprocess.run([str(exe), *map(str, args)], capture_output=True, text=True, cwd=cwd, timeout=300)
+
+
+def run_here(*args, prog: str = "vcprep", cwd: Path | None = None) -> subprocess.CompletedProcess:
+    """``prog ARGS`` run by its console script's entry point in this process (:func:`_in_process`), for a
+    command that starts no pool and catches no signal (a refusal, ``store show``/``info``/``verify -j 1``,
+    ``vp``, ``camera show``, ``prior``): a new interpreter cost ~0.4 s a call. Builds, kills, locks, pools
+    and pipes stay real processes (:func:`run_cli`)."""
+    return _in_process(prog, [str(a) for a in args], cwd)
 
 
 def _in_process(prog: str, args: list[str], cwd: Path | None) -> subprocess.CompletedProcess:

@@ -12,14 +12,8 @@ from vcprep.camera import PRESETS, Camera, camera_to_yaml, load_camera, read_cam
     read_kitti_calib
 from vcprep.errors import InputError
 
-from conftest import EXAMPLES, _in_process
+from conftest import EXAMPLES, run_here
 
-
-def _here(*args, cwd=None):
-    """``vcprep ARGS``'s entry point run in this process (conftest._in_process: argv, stdout and
-    stderr apart, the exit status), for commands that start no pool and catch no signal
-    (camera show, vp of a missing camera): a new interpreter cost ~0.4 s a call."""
-    return _in_process("vcprep", [str(a) for a in args], cwd)
 
 
 GOOD = """name: mycam
@@ -188,19 +182,19 @@ def test_a_name_that_is_both_a_preset_and_a_path_is_an_error_naming_both(tmp_pat
     from conftest import assert_one_error_line
     from vcprep.camera import PRESETS, camera_to_yaml
 
-    assert _here("camera", "show", "kitti", "--json", cwd=tmp_path).returncode == 0    # no ./kitti: the preset
+    assert run_here("camera", "show", "kitti", "--json", cwd=tmp_path).returncode == 0    # no ./kitti: the preset
     (tmp_path / "kitti").mkdir()
-    assert_one_error_line(_here("camera", "show", "kitti", cwd=tmp_path), "both the camera preset kitti and the "
+    assert_one_error_line(run_here("camera", "show", "kitti", cwd=tmp_path), "both the camera preset kitti and the "
                           "folder ./kitti", "preset:kitti", "./kitti")
-    proc = _here("camera", "show", "preset:kitti", "--json", cwd=tmp_path)
+    proc = run_here("camera", "show", "preset:kitti", "--json", cwd=tmp_path)
     assert proc.returncode == 0 and json.loads(proc.stdout)["fx"] == PRESETS["kitti"].fx
     (tmp_path / "camvid").write_text(camera_to_yaml(PRESETS["kitti"]))   # a file named like another preset
-    assert_one_error_line(_here("camera", "show", "camvid", cwd=tmp_path), "file ./camvid", "preset:camvid")
-    assert_one_error_line(_here("camera", "show", "preset:nope", cwd=tmp_path), "unknown camera preset 'nope'")
+    assert_one_error_line(run_here("camera", "show", "camvid", cwd=tmp_path), "file ./camvid", "preset:camvid")
+    assert_one_error_line(run_here("camera", "show", "preset:nope", cwd=tmp_path), "unknown camera preset 'nope'")
     # a per-frame folder: ./kitti is the folder, kitti ambiguous, in every command that takes one
     import cv2
     import numpy as np
 
     (tmp_path / "img").mkdir()
     cv2.imwrite(str(tmp_path / "img" / "a.png"), np.zeros((375, 1242, 3), np.uint8))
-    assert_one_error_line(_here("vp", "--camera", "kitti", "img", cwd=tmp_path), "both the camera preset")
+    assert_one_error_line(run_here("vp", "--camera", "kitti", "img", cwd=tmp_path), "both the camera preset")

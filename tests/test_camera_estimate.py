@@ -12,7 +12,7 @@ import cv2
 import numpy as np
 import pytest
 
-from conftest import _in_process, assert_one_error_line, run_cli
+from conftest import run_here, assert_one_error_line, run_cli
 from vcprep.camera import Camera, read_camera_yaml
 from vcprep.camera import ASSUMED_HFOV, ROAD_WIDTH, estimate_camera, exif_focal_35mm, road_widths
 from vcprep.errors import InputError
@@ -21,13 +21,6 @@ from vcprep.labels import get_label_format
 from vcprep.synthetic import RoadScene, render_road
 from vcprep.vp import read_vp_csv
 
-
-def _here(*args, cwd=None):
-    """``vcprep ARGS``'s entry point run in this process (conftest._in_process: argv, stdout and
-    stderr apart, the exit status), for commands that start no pool and catch no signal
-    (camera estimate, camera show, vp, figure camera): a new interpreter cost ~0.4 s a call. Warps
-    stay real processes."""
-    return _in_process("vcprep", [str(a) for a in args], cwd)
 
 
 PANS = [0.0, 1.5, -1.0, 2.0, -2.0, 0.5]   # per-frame heading of the road relative to the camera
@@ -196,7 +189,7 @@ def test_vcprep_camera_estimate_writes_a_camera_the_tools_read(tmp_path):
         lab[-20:] = 11
         cv2.imwrite(str(labels / f"seq_{i:04d}.png"), lab)
     out, vps = tmp_path / "cams" / "est.yaml", tmp_path / "vps.csv"
-    proc = _here("camera", "estimate", tmp_path / "f", "-o", out, "--fx", "300", "--vps", vps, "--labels", labels,
+    proc = run_here("camera", "estimate", tmp_path / "f", "-o", out, "--fx", "300", "--vps", vps, "--labels", labels,
                  "-f", "camvid", "--json")
     assert proc.returncode == 0, proc.stderr
     rep = json.loads(proc.stdout)
@@ -212,9 +205,9 @@ def test_vcprep_camera_estimate_writes_a_camera_the_tools_read(tmp_path):
                    "--scale", "0.05", "-q")
     assert proc.returncode == 0, proc.stderr
     # errors: one line, naming what is missing
-    assert_one_error_line(_here("camera", "estimate", tmp_path / "f", "-o", out, "--fx", "300", "--hfov", "60"),
+    assert_one_error_line(run_here("camera", "estimate", tmp_path / "f", "-o", out, "--fx", "300", "--hfov", "60"),
                           "--fx and --hfov")
-    assert_one_error_line(_here("camera", "estimate", tmp_path / "f" / "seq_0000.png", "-o", out), "too few")
+    assert_one_error_line(run_here("camera", "estimate", tmp_path / "f" / "seq_0000.png", "-o", out), "too few")
 
 
 def test_warp_with_camera_estimate_equals_warp_with_the_estimated_camera(tmp_path):
@@ -238,7 +231,7 @@ def test_figure_camera_draws_the_horizon_where_the_camera_puts_it(tmp_path):
     files = _frames(tmp_path / "f", cam, n=2)
     (tmp_path / "cam.yaml").write_text(__import__("vcprep.camera", fromlist=["camera_to_yaml"]).camera_to_yaml(cam))
     out = tmp_path / "fig" / "cam.png"
-    proc = _here("figure", "camera", tmp_path / "cam.yaml", *files, "-o", out, "--width", "640", "--samples", "2")
+    proc = run_here("figure", "camera", tmp_path / "cam.yaml", *files, "-o", out, "--width", "640", "--samples", "2")
     assert proc.returncode == 0, proc.stderr
     fig = cv2.imread(str(proc.stdout.strip()))
     assert fig.shape[1] == 640
@@ -257,10 +250,10 @@ def test_camera_estimate_wherever_frames_are_given(tmp_path):
     to estimate from says what to do instead."""
     cam = Camera("true", (320, 240), 277.128, 277.128, 159.5, 119.5, 1.4, tilt=2.0)
     _frames(tmp_path / "f", cam)
-    a = _here("vp", "--camera", "estimate", tmp_path / "f")
+    a = run_here("vp", "--camera", "estimate", tmp_path / "f")
     assert a.returncode == 0, a.stderr
     assert "camera ESTIMATED from 6 frames" in a.stderr
-    assert _here("camera", "estimate", tmp_path / "f", "-o", tmp_path / "c.yaml", "-q").returncode == 0
-    b = _here("vp", "--camera", tmp_path / "c.yaml", tmp_path / "f")
+    assert run_here("camera", "estimate", tmp_path / "f", "-o", tmp_path / "c.yaml", "-q").returncode == 0
+    b = run_here("vp", "--camera", tmp_path / "c.yaml", tmp_path / "f")
     assert a.stdout == b.stdout
-    assert_one_error_line(_here("camera", "show", "estimate"), "not a camera preset")
+    assert_one_error_line(run_here("camera", "show", "estimate"), "not a camera preset")

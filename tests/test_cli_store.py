@@ -12,7 +12,7 @@ import pytest
 from vcprep.camera import PRESETS, camera_to_yaml
 from vcprep.warp import virt_H_src, virtual_at_scale
 
-from conftest import PAPER_STORE, EXAMPLES, _in_process, assert_one_error_line, run_cli, write_synthetic_dataset
+from conftest import PAPER_STORE, EXAMPLES, run_here, assert_one_error_line, run_cli, write_synthetic_dataset
 
 
 @pytest.fixture(scope="module")
@@ -29,9 +29,9 @@ def _warp(images, labels, out, *extra):
 
 def _records(store):
     """The records `vcprep store show --json` prints, the command's entry point run in this process
-    (conftest._in_process): the file's ~25 reads of a store each cost a new interpreter (~0.4 s); the
+    (conftest.run_here): the file's ~25 reads of a store each cost a new interpreter (~0.4 s); the
     commands under test (warp, backproject, ...) stay real processes."""
-    proc = _in_process("vcprep", ["store", "show", str(store), "--json"], None)
+    proc = run_here("store", "show", store, "--json")
     assert proc.returncode == 0, proc.stderr
     return [json.loads(line) for line in proc.stdout.splitlines()]
 

@@ -26,7 +26,7 @@ from vcprep.labels import LABEL_FORMATS
 from vcprep.synthetic import RoadScene, render_road
 from vcprep.warp import OUTSIDE, maps_for, warp_image, warp_label
 
-from conftest import PAPER_STORE, EXAMPLES, _in_process, assert_one_error_line, run_cli, write_synthetic_dataset
+from conftest import PAPER_STORE, EXAMPLES, run_here, assert_one_error_line, run_cli, write_synthetic_dataset
 
 V8 = virtual_at_scale(PRESETS["virtual"], 0.125)  # 688 x 350
 SCENE = RoadScene(offset=0.8, width=9.0, texture_seed=3)
@@ -287,20 +287,15 @@ def dataset(tmp_path_factory, camvid_half):
     return images, labels
 
 
-def _warp(images, labels, out, *extra):
-    return run_cli("warp", "--camera", "camvid", "--images", images, "--labels", labels, "--label-format", "camvid",
-                   "--out", out, "--quiet", *PAPER_STORE, *extra)
+def _warp(images, labels, out, *extra, run=run_cli):
+    """``vcprep warp`` of the frames into the paper's store; ``run=run_here`` for a refusal before any item."""
+    return run("warp", "--camera", "camvid", "--images", images, "--labels", labels, "--label-format", "camvid",
+               "--out", out, "--quiet", *PAPER_STORE, *extra)
 
 
 def _files(store: Path) -> dict[str, bytes]:
     return {str(p.relative_to(store)): p.read_bytes() for p in sorted(store.rglob("*.png"))}
 
-
-def _here(*args):
-    """``vcprep ARGS``'s entry point in this process (conftest._in_process: argv, stdout and stderr apart,
-    the exit status): for the commands that start no pool (a refusal before any item, a figure), where a
-    new interpreter cost ~0.4 s; the builds and completions stay real processes."""
-    return _in_process("vcprep", [str(a) for a in args], None)
 
 
 def test_complete_command_equals_warp_complete_and_is_idempotent(dataset, tmp_path):
@@ -329,7 +324,7 @@ def test_complete_command_equals_warp_complete_and_is_idempotent(dataset, tmp_pa
     valid = cv2.imread(str(a / rec0["valid"]), cv2.IMREAD_UNCHANGED)
     assert (lab[valid == 0] != 255).all() and ((lab == 255) & (valid == 1)).any()  # bonnet kept, rest filled
     fig = tmp_path / "fig.png"
-    proc = _here("figure", "completion", a, "seq_0000", "-o", fig)
+    proc = run_here("figure", "completion", a, "seq_0000", "-o", fig)
     assert proc.returncode == 0 and proc.stdout.strip() == str(fig)
     f = cv2.imread(str(fig))
     assert f.shape[1] == 1400 and f.shape[0] > 300
@@ -337,14 +332,13 @@ def test_complete_command_equals_warp_complete_and_is_idempotent(dataset, tmp_pa
 
 def test_complete_cli_errors(dataset, tmp_path):
     images, labels = dataset
-    assert_one_error_line(_here("complete", tmp_path / "nope"), "no such store directory")
-    assert_one_error_line(_here("warp", "--camera", "camvid", "--images", images, "--labels", labels, "--label-format",
-                                "camvid", "--out", tmp_path / "x", "--quiet", *PAPER_STORE, "--complete", "mirror"),
+    assert_one_error_line(run_here("complete", tmp_path / "nope"), "no such store directory")
+    assert_one_error_line(_warp(images, labels, tmp_path / "x", "--complete", "mirror", run=run_here),
                           "unknown completion method")
     st = tmp_path / "st"
     assert _warp(images, labels, st, "--complete", "none").returncode == 0
-    assert_one_error_line(_here("complete", st, "--method", "bogus"), "unknown completion method", "projective")
-    assert_one_error_line(_here("figure", "completion", st, "no_such_id", "-o", tmp_path / "f.png"), "no item")
+    assert_one_error_line(run_here("complete", st, "--method", "bogus"), "unknown completion method", "projective")
+    assert_one_error_line(run_here("figure", "completion", st, "no_such_id", "-o", tmp_path / "f.png"), "no item")
     # a source changed after warping: refuse, name the file, say how to fix
     moved = tmp_path / "imgs"
     moved.mkdir()

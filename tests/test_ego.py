@@ -21,14 +21,14 @@ from vcprep.errors import InputError
 from vcprep.warp import vp_from_pose
 from vcprep.synthetic import RoadScene, render_road
 
-from conftest import PAPER_STORE, _in_process, assert_one_error_line, run_cli
+from conftest import PAPER_STORE, run_here, assert_one_error_line, run_cli
 
 
 def _camera_ego(*args):
-    """``vcprep camera ego ARGS``, the command's entry point run in this process (conftest._in_process:
+    """``vcprep camera ego ARGS``, the command's entry point run in this process (conftest.run_here:
     argv, stdout and stderr apart, the exit status): it reads labels or frames and prints, no pool or
     signal, and a new interpreter cost ~0.4 s a call."""
-    return _in_process("vcprep", ["camera", "ego", *map(str, args)], None)
+    return run_here("camera", "ego", *args)
 
 
 EGO = 36  # CamVid 0001TP: the bonnet fills the bottom 36 rows of the 480x360 frames

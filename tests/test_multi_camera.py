@@ -504,10 +504,10 @@ def test_warp_into_a_models_virtual_camera_to_fine_tune_it(two_stores, tmp_path)
     and scale the model was trained in, so `vctrain fit NEW --init MODEL.pt` trains in its domain;
     a resize model, or a file that is no vctrain checkpoint, is refused in one line.
 
-    The warps run `vcprep warp`'s entry point in this process (conftest._in_process: its own argv,
+    The warps run `vcprep warp`'s entry point in this process (conftest.run_here: its own argv,
     stdout and stderr apart, the exit status), one job: a new interpreter importing torch to read the
     model cost ~2 s each, and nothing here is about processes or pools."""
-    from conftest import _in_process
+    from conftest import run_here
     from vcprep.store import Store
     from vcprep.store.trained import trained_virtual
 
@@ -519,7 +519,7 @@ def test_warp_into_a_models_virtual_camera_to_fine_tune_it(two_stores, tmp_path)
     src = root / "src1"
 
     def run_cli(*args):  # vcprep, here, -j 1
-        return _in_process("vcprep", [*map(str, args), "-j", "1"], None)
+        return run_here(*args, "-j", "1")
 
     proc = run_cli("warp", "--camera", cam_file, "--images", src / "images", "--labels", src / "labels",
                    "--label-format", FMT, "--virtual", root / "a.pt", "--within", "none", "--out", tmp_path / "new-a", "-q")

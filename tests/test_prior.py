@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from conftest import _in_process, assert_one_error_line, run_cli, write_synthetic_dataset
+from conftest import run_here, assert_one_error_line, run_cli, write_synthetic_dataset
 from vcprep.store import WarpSettings, warp_dataset
 from vcprep.dataset import list_dataset
 from vcprep.camera import PRESETS
@@ -18,12 +18,6 @@ from vcprep.labels import get_label_format
 from vcprep.prior import (compute_prior, meta_path, read_prior, surrogate_labels, write_prior)
 from vcprep.store import Store
 
-
-def _here(*args, cwd=None):
-    """``vcprep ARGS``'s entry point run in this process (conftest._in_process: argv, stdout and
-    stderr apart, the exit status), for commands that start no pool and catch no signal
-    (prior, figure prior): a new interpreter cost ~0.4 s a call."""
-    return _in_process("vcprep", [str(a) for a in args], cwd)
 
 
 CAM = PRESETS["camvid"].resized(0.1)  # 96x72
@@ -84,7 +78,7 @@ def test_prior_equals_direct_mean_with_ignore_excluded(stores):
 
 def test_cli_writes_npy_png_and_description(stores, tmp_path):
     root, st, _ = stores
-    proc = _here("prior", root / "a", root / "b", "-o", tmp_path / "p.npy")
+    proc = run_here("prior", root / "a", root / "b", "-o", tmp_path / "p.npy")
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.strip() == str(tmp_path / "p.npy")
     _, n_unl = compute_prior(st)
@@ -95,7 +89,7 @@ def test_cli_writes_npy_png_and_description(stores, tmp_path):
     meta = json.loads(meta_path(tmp_path / "p.npy").read_text())
     assert meta["items"] == 5 and meta["unlabelled_pixels"] == n_unl
     assert meta["store_params"]["scale"] == 0.02 and meta["store_params"]["store_size"] == [110, 56]
-    assert _here("prior", root / "a", root / "b", "-o", tmp_path / "p.png", "-q").returncode == 0
+    assert run_here("prior", root / "a", root / "b", "-o", tmp_path / "p.png", "-q").returncode == 0
     png = read_image(tmp_path / "p.png", label=True).array
     assert png.dtype == np.uint8 and np.array_equal(png, np.rint(255 * direct.astype(np.float64)).astype(np.uint8))
     back, meta2 = read_prior(tmp_path / "p.png", size=(110, 56))
@@ -105,7 +99,7 @@ def test_cli_writes_npy_png_and_description(stores, tmp_path):
 def test_mixed_stores_are_refused(stores, tmp_path):
     root, _, _ = stores
     other = _store(tmp_path, "coarse", 1, scale=0.025)
-    proc = _here("prior", root / "a", other.root, "-o", tmp_path / "p.npy")
+    proc = run_here("prior", root / "a", other.root, "-o", tmp_path / "p.npy")
     assert_one_error_line(proc, str(other.root), "scale")
     assert not (tmp_path / "p.npy").exists()
     with pytest.raises(InputError, match="another"):
@@ -133,24 +127,24 @@ def test_bad_prior_files(tmp_path):
                          ("missing.npy", "not found"), ("p.txt", "unknown prior file type")):
         with pytest.raises(InputError, match=needle.replace("[", r"\[").replace("]", r"\]")):
             read_prior(tmp_path / name)
-    proc = _here("prior", tmp_path, "-o", tmp_path / "x.npy")
+    proc = run_here("prior", tmp_path, "-o", tmp_path / "x.npy")
     assert_one_error_line(proc, "not a vcprep store")
 
 
 def test_unlabelled_store_and_bad_output(stores, tmp_path):
     root, _, _ = stores
     bare = _store(tmp_path, "bare", 1, labels=False)
-    assert_one_error_line(_here("prior", bare.root, "-o", tmp_path / "p.npy"), "no labelled item")
-    assert_one_error_line(_here("prior", root / "a", "-o", tmp_path / "p.jpg"), "unknown prior file type")
+    assert_one_error_line(run_here("prior", bare.root, "-o", tmp_path / "p.npy"), "no labelled item")
+    assert_one_error_line(run_here("prior", root / "a", "-o", tmp_path / "p.jpg"), "unknown prior file type")
 
 
 def test_figure_prior_and_help(stores, tmp_path):
     root, _, _ = stores
-    proc = _here("figure", "prior", root / "a", root / "b", "-o", tmp_path / "fig.png", "--width", "440")
+    proc = run_here("figure", "prior", root / "a", root / "b", "-o", tmp_path / "fig.png", "--width", "440")
     assert proc.returncode == 0, proc.stderr
     fig = read_image(tmp_path / "fig.png").array
     assert fig.shape[1] == 440 and fig.shape[0] > 224 and fig.std() > 20
-    assert_one_error_line(_here("figure", "prior", root / "a", "-o", tmp_path / "f.png", "--lo", "0.9"), "--lo")
+    assert_one_error_line(run_here("figure", "prior", root / "a", "-o", tmp_path / "f.png", "--lo", "0.9"), "--lo")
     for cmd in (["prior"], ["figure", "prior"]):
         help_ = run_cli(*cmd, "--help")
         assert help_.returncode == 0 and "Example" in help_.stdout

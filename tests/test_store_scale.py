@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 import pytest
 
-from conftest import PAPER_STORE, BIN, _in_process, default_sigint, assert_one_error_line, run_cli, write_synthetic_dataset
+from conftest import PAPER_STORE, BIN, run_here, default_sigint, assert_one_error_line, run_cli, write_synthetic_dataset
 from vcprep.store import Shard, Store
 
 N_ITEMS = 40
@@ -55,11 +55,11 @@ def reference(ds, tmp_path_factory):
 def _verify(store, *extra, process=False):
     """``store verify --json``, one process (a 40-item store: a pool's start costs more than it
     saves); the pool's verify is test_verify_finds_each_kind_of_problem's. Unless ``process`` the
-    command runs in this process (the console script's own entry point, :func:`conftest._in_process`):
+    command runs in this process (the console script's own entry point, :func:`conftest.run_here`):
     a new interpreter for each of the file's ~20 verifies cost ~0.5 s of CPU each, and reading a store
     is the same code either way (the builds it checks, and the kills, stay real processes)."""
     args = ["store", "verify", store, "--json", "--quiet", "-j", "1", *extra]
-    proc = run_cli(*args) if process else _in_process("vcprep", [str(a) for a in args], None)
+    proc = run_cli(*args) if process else run_here(*args)
     return proc, [json.loads(x) for x in proc.stdout.splitlines()]
 
 
@@ -149,13 +149,13 @@ def test_verify_finds_each_kind_of_problem(ds, reference, tmp_path):
 
 def test_store_info(reference):
     out, _ = reference
-    proc = _in_process("vcprep", ["store", "info", str(out), "--json"], None)  # (one process; reads only)
+    proc = run_here("store", "info", out, "--json")  # (one process; reads only)
     assert proc.returncode == 0, proc.stderr
     info = json.loads(proc.stdout)
     assert info["items"] == info["with_labels"] == N_ITEMS and info["store_size"] == [688, 350]
     assert info["scale"] == 0.125 and info["completion"] == {"projective": N_ITEMS}
     assert info["disk"]["images"]["files"] == N_ITEMS and info["disk_bytes"] > 0 and info["pending_parts"] == []
-    text = _in_process("vcprep", ["store", "info", str(out)], None)
+    text = run_here("store", "info", out)
     assert "items\t40 (40 with labels)" in text.stdout and "688x350" in text.stdout
 
 
@@ -266,7 +266,7 @@ def test_sharded_build_merges_to_the_unsharded_store(ds, reference, tmp_path):
     assert sum(int(e.split(" items:")[0].split()[-1]) for _, e in results) == N_ITEMS
     # readable before the merge: the parts are read too
     assert len(Store.open(out)) == N_ITEMS
-    info = json.loads(_in_process("vcprep", ["store", "info", str(out), "--json"], None).stdout)
+    info = json.loads(run_here("store", "info", out, "--json").stdout)
     assert len(info["pending_parts"]) == 3
     proc, problems = _verify(out)
     assert proc.returncode == 0 and problems == []
@@ -411,12 +411,12 @@ def test_verify_after_sigkill_of_a_parallel_build_fails_only_on_damage(ds, tmp_p
     out, left, strict_seen = tmp_path / "store", [], False
     for delay in (0.0, 0.03, 0.1):  # right at the first record of the run, and two moments later
         _kill_in_the_orphan_window(_start((images, labels), out, jobs=2), out, delay)
-        proc = _in_process("vcprep", ["store", "verify", str(out), "--no-sources", "--json", "-q", "-j", "1"], None)
+        proc = run_here("store", "verify", out, "--no-sources", "--json", "-q", "-j", "1")
         problems = [json.loads(x) for x in proc.stdout.splitlines()]
         assert proc.returncode == 0, proc.stderr  # nothing recorded is damaged
         assert all(p["id"] is None and p["kind"] in ("orphan", "temp") for p in problems), problems
         if problems and not strict_seen:
-            strict = _in_process("vcprep", ["store", "verify", str(out), "--no-sources", "--strict", "-j", "1"], None)
+            strict = run_here("store", "verify", out, "--no-sources", "--strict", "-j", "1")
             assert strict.returncode == 1 and "orphan or temp file" in strict.stderr, strict.stderr
             strict_seen = True
         left.append([p["path"] for p in problems])
@@ -430,6 +430,6 @@ def test_verify_after_sigkill_of_a_parallel_build_fails_only_on_damage(ds, tmp_p
         stray, items = "gone", N_ITEMS
         shutil.copy(out / "images" / "seq_0000.png", out / "images" / f"{stray}.png")
     assert _warp(images, labels, out, "-q").returncode == 0
-    proc = _in_process("vcprep", ["store", "verify", str(out), "--strict", "-j", "1"], None)
+    proc = run_here("store", "verify", out, "--strict", "-j", "1")
     assert proc.returncode == 0 and proc.stdout == "", proc.stdout + proc.stderr
     assert len(Store.open(out)) == items and not (out / "images" / f"{stray}.png").exists()

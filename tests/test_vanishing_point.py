@@ -18,14 +18,8 @@ from vcprep.vp import (VPConfig, VPResult, apply_reliability, detect_segments, e
                                     read_vp_csv, refine_segments, score_vps, sequence_key, smooth_sequences,
                                     write_vp_csv)
 
-from conftest import EXAMPLES, _in_process, assert_one_error_line, run_cli
+from conftest import EXAMPLES, run_here, assert_one_error_line, run_cli
 
-
-def _here(*args):
-    """``vcprep ARGS``'s entry point run in this process (conftest._in_process: argv, stdout and stderr
-    apart, the exit status), for the commands that start no pool and catch no signal (vp, figure vp,
-    store show): a new interpreter cost ~0.4 s a call. Warps stay real processes."""
-    return _in_process("vcprep", [str(a) for a in args], None)
 
 
 RNG_SEED = 7
@@ -356,7 +350,7 @@ def test_vp_command_falls_back_to_the_frame_s_own_sequence(tmp_path, camvid_half
             img, _ = render_road(camvid_half, RoadScene(texture_seed=k), pan=pan, tilt=tilt, supersample=1)
             cv2.imwrite(str(d / f"{rig}_{k:04d}.png"), img)
     cv2.imwrite(str(d / "B_0099.png"), np.full((360, 480, 3), 90, np.uint8))
-    proc = _here("vp", "--camera", "camvid", d, "--json", "-q")
+    proc = run_here("vp", "--camera", "camvid", d, "--json", "-q")
     assert proc.returncode == 0, proc.stderr
     objs = {json.loads(line)["image"].rsplit("/", 1)[-1]: json.loads(line) for line in proc.stdout.splitlines()}
     fb = objs["B_0099.png"]
@@ -449,7 +443,7 @@ def posed_dataset(tmp_path_factory, camvid_half):
 
 
 def _records(store):
-    proc = _here("store", "show", store, "--json")
+    proc = run_here("store", "show", store, "--json")
     assert proc.returncode == 0, proc.stderr
     return [json.loads(line) for line in proc.stdout.splitlines()]
 
@@ -478,7 +472,7 @@ def test_warp_within_maps_each_vp_to_virtual_principal_point(posed_dataset, tmp_
 def test_vp_command_json_and_csv(posed_dataset, tmp_path):
     root, img_dir, poses = posed_dataset
     files = sorted(img_dir.glob("*.png"))
-    proc = _here("vp", "--camera", "camvid", *files, "--json", "-q")
+    proc = run_here("vp", "--camera", "camvid", *files, "--json", "-q")
     assert proc.returncode == 0, proc.stderr
     objs = [json.loads(line) for line in proc.stdout.splitlines()]
     assert [o["image"] for o in objs] == [str(f) for f in files]
@@ -486,7 +480,7 @@ def test_vp_command_json_and_csv(posed_dataset, tmp_path):
         assert {"image", "vp", "confidence", "n_support", "pan_deg", "tilt_deg", "status"} <= set(o)
         assert o["status"] == "accepted"
     out = tmp_path / "vps.csv"
-    proc = _here("vp", "--camera", "camvid", img_dir, "-o", out)
+    proc = run_here("vp", "--camera", "camvid", img_dir, "-o", out)
     assert proc.returncode == 0 and proc.stdout.strip() == str(out)
     assert "3 accepted" in proc.stderr
     assert set(read_vp_csv(out)) == {f.stem for f in files}
@@ -495,7 +489,7 @@ def test_vp_command_json_and_csv(posed_dataset, tmp_path):
 def test_vp_command_uniform_image_falls_back(tmp_path):
     p = tmp_path / "grey_0001.png"
     cv2.imwrite(str(p), np.full((360, 480, 3), 128, np.uint8))
-    proc = _here("vp", "--camera", "camvid", p, EXAMPLES / "camvid" / "images" / "0001TP_007170.png", "--json", "-q")
+    proc = run_here("vp", "--camera", "camvid", p, EXAMPLES / "camvid" / "images" / "0001TP_007170.png", "--json", "-q")
     assert proc.returncode == 0, proc.stderr
     grey, real = [json.loads(line) for line in proc.stdout.splitlines()]
     assert grey["status"] == "fallback" and real["status"] == "accepted"
@@ -504,7 +498,7 @@ def test_vp_command_uniform_image_falls_back(tmp_path):
 
 def test_figure_vp(tmp_path):
     out = tmp_path / "vp.png"
-    proc = _here("figure", "vp", EXAMPLES / "camvid" / "images" / "0016E5_05280.png", "--camera", "camvid", "-o", out)
+    proc = run_here("figure", "vp", EXAMPLES / "camvid" / "images" / "0016E5_05280.png", "--camera", "camvid", "-o", out)
     assert proc.returncode == 0, proc.stderr
     img = cv2.imread(str(out))
     assert img is not None and img.shape[1] == 480 and img.shape[0] > 360
@@ -537,13 +531,13 @@ def test_warp_within_bad_inputs_one_error_line(posed_dataset, tmp_path, case):
 
 
 def test_vp_command_bad_inputs(tmp_path):
-    proc = _here("vp", "--camera", "camvid", tmp_path / "nope.png")
+    proc = run_here("vp", "--camera", "camvid", tmp_path / "nope.png")
     assert_one_error_line(proc, "nope.png", "not found")
     bad = tmp_path / "odd.png"
     cv2.imwrite(str(bad), np.zeros((100, 100, 3), np.uint8))
-    proc = _here("vp", "--camera", "camvid", bad)
+    proc = run_here("vp", "--camera", "camvid", bad)
     assert_one_error_line(proc, "odd.png", "not a uniform rescale")
-    proc = _here("figure", "vp", bad, "--camera", "camvid", "-o", tmp_path / "missing" / "f.png")
+    proc = run_here("figure", "vp", bad, "--camera", "camvid", "-o", tmp_path / "missing" / "f.png")
     assert_one_error_line(proc)
 
 
