@@ -18,6 +18,7 @@ they are: condition ``resize``, the network the project ships):
 | ``four-virtual`` | ``four``'s datasets, condition ``within``: ``four``'s virtual-camera twin (:data:`TWINS`) |
 | ``six-two`` | ``six``'s datasets, two outputs (:data:`TWO_OUTPUTS`): road from CamVid, Cityscapes, ``kitti_semantics`` and LUMS, drivable from IDD-Lite and BDD100K |
 | ``four-long``, ``today-long`` | ``four``'s and ``today``'s datasets with twice the epochs (:data:`LONGER`): the training budget |
+| ``today-items`` | ``today``'s datasets, ``balance: items`` (:data:`ITEMS`): each dataset's share of an epoch its share of the frames |
 
 A virtual-camera twin trains on its candidate's datasets warped into one virtual camera designed from
 their cameras (crossval's condition ``within``: each frame's VP corrects its pan and tilt, projective
@@ -36,6 +37,12 @@ label definitions).
 A longer-budget candidate (:data:`LONGER`) trains ``BUDGET_FACTOR`` times the epochs (the same steps an epoch)
 in its own folder on its candidate's stores: ``four-long`` − ``four`` is the budget's effect on the same
 frames, ``four-long`` − ``today-long`` the data mix's at the longer budget.
+
+An items-balanced candidate (:data:`ITEMS`) draws every epoch from all of its training frames at random, so
+each dataset's share is its share of the frames (``today``'s, all five: IDD-Lite 57 %, CamVid 19 %, Cityscapes 16 %,
+LUMS 6 %, BDD100K 2 %) instead of ``balance: datasets``' equal fifths (BDD100K's 41 frames and LUMS's 144 two
+fifths of every epoch); it trains in its own folder on its candidate's stores: ``today-items`` − ``today``
+is the shares' effect on the same frames and budget.
 
 ``four`` against ``six`` isolates BDD100K and LUMS (27 dashcams' drivable areas and a low campus
 camera, two fifths of every epoch of ``today``); ``today`` against ``six`` isolates ``kitti_semantics``.
@@ -92,9 +99,11 @@ TWO_OUTPUTS = {"six-two": "six"}
 # twice the training budget (epochs) -> the candidate whose datasets and stores they share (their own study folder)
 LONGER = {"four-long": "four", "today-long": "today"}
 BUDGET_FACTOR = 2
-SHARES = {**TWO_OUTPUTS, **LONGER}
+# each dataset's share of an epoch its share of the frames (balance: items) -> the candidate whose datasets and stores they share
+ITEMS = {"today-items": "today"}
+SHARES = {**TWO_OUTPUTS, **LONGER, **ITEMS}
 # paired differences reported (per seed): each twin and longer budget against its candidate, the longer budgets' recipes
-PAIRS = [*TWINS.items(), *LONGER.items(), ("four-long", "today-long")]  # a candidate trained in its own folder on another's stores
+PAIRS = [*TWINS.items(), *LONGER.items(), ("four-long", "today-long"), *ITEMS.items(), ("four", "today-items")]  # a candidate trained in its own folder on another's stores
 CANDIDATES.update({t: CANDIDATES[c] for t, c in {**TWINS, **SHARES}.items()})
 FOLDS = ["kitti_semantics", "camvid", "cityscapes", "idd"]
 BASELINE = "today"
@@ -142,6 +151,8 @@ def candidate_study(wd: Path, cand: str, quick: bool, epochs: int | None) -> Pat
     study["train"]["arch"] = "lite0fpn"
     if cand in TWO_OUTPUTS:
         study["train"]["outputs"] = "road,drivable"
+    if cand in ITEMS:
+        study["train"]["balance"] = "items"
     path.write_text(yaml.safe_dump(study, sort_keys=False))
     return path
 
@@ -160,7 +171,7 @@ def same_model(cand: str, fold: str) -> str:
     """The first candidate whose model for ``fold`` trains on the very same datasets as ``cand``'s in the same
     condition with the same outputs (same recipe, seed and stores: the same model; ``six`` without
     ``kitti_semantics`` is ``today``): ``cand`` itself if none."""
-    trained = lambda c: (frozenset(CANDIDATES[c]) - {fold}, condition(c), c in TWO_OUTPUTS, c in LONGER)
+    trained = lambda c: (frozenset(CANDIDATES[c]) - {fold}, condition(c), c in TWO_OUTPUTS, c in LONGER, c in ITEMS)
     return next(c for c in CANDIDATES if trained(c) == trained(cand))
 
 
@@ -243,7 +254,7 @@ def render(head: dict, tg: dict, cands: list[str], folds: list[str], seeds: list
     """The markdown table: a row per candidate, a column per held-out dataset (IoU, P / R)."""
     f = lambda v, s="": "-" if v is None else f"{v:{s}.1f}"
     lines = [f"Issue 82: candidate data mixes for the shipped model, each dataset held out whole in turn and scored "
-             f"by a model that never saw its camera (`resize` unless the row says virtual camera, lite0fpn, balance: datasets, {camvid_steps_per_epoch()} steps an epoch, "
+             f"by a model that never saw its camera (`resize` unless the row says virtual camera, lite0fpn, balance: datasets unless the row says items, {camvid_steps_per_epoch()} steps an epoch, "
              f"{epochs} epochs; seeds {seeds}; a model trained on the same datasets as another candidate's is that one). Road IoU % (precision / recall %).", "",
              "| candidate | trained on | " + " | ".join(f"held out {x}" for x in folds) + " | mean | − today |",
              "|---|---|" + "---|" * (len(folds) + 2)]
@@ -253,7 +264,8 @@ def render(head: dict, tg: dict, cands: list[str], folds: list[str], seeds: list
         sd = head[f"{cand}_mean_std"]
         what = ", ".join(CANDIDATES[cand]) + (" (virtual camera, the held-out camera given)" if cand in TWINS else
                                               " (two outputs; IDD-Lite scored on drivable)" if cand in TWO_OUTPUTS else
-                                              f" ({BUDGET_FACTOR}× the epochs)" if cand in LONGER else "")
+                                              f" ({BUDGET_FACTOR}× the epochs)" if cand in LONGER else
+                                              " (balance: items)" if cand in ITEMS else "")
         lines.append(f"| `{cand}` | {what} | " + " | ".join(row) + f" | {f(head[f'{cand}_mean'])}"
                      + (f" ± {sd:.1f}" if sd is not None else "") + f" | {f(head.get(f'{cand}_minus_{BASELINE}'), '+')} |")
     pairs = [f"`{t}` − `{c}` {f(head.get(f'{t}_minus_{c}'), '+')}" for t, c in PAIRS if t in cands and c in cands]
