@@ -298,6 +298,15 @@ def report(a: argparse.Namespace, wd: Path, cands: list[str], folds: list[str], 
     return head
 
 
+def selection(a: argparse.Namespace) -> tuple[list[str], list[str]]:
+    """(candidates, folds) of ``--candidates`` and ``--held-out`` (comma-separated); stops on an unknown one."""
+    cands = [c for c in a.candidates.split(",") if c]
+    folds = [f for f in a.held_out.split(",") if f]
+    if set(cands) - set(CANDIDATES) or set(folds) - set(FOLDS) or not cands or not folds:
+        raise SystemExit(f"candidates are {', '.join(CANDIDATES)}; folds {', '.join(FOLDS)}")
+    return cands, folds
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--candidates", default=",".join(CANDIDATES), help="comma-separated: " + ", ".join(CANDIDATES))
@@ -309,10 +318,7 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="smoke run: a few frames, 2 steps, seed 0")
     ap.add_argument("--collect", action="store_true", help="run nothing: report what is finished")
     a = ap.parse_args()
-    cands = [c for c in a.candidates.split(",") if c]
-    folds = [f for f in a.held_out.split(",") if f]
-    if set(cands) - set(CANDIDATES) or set(folds) - set(FOLDS) or not cands or not folds:
-        raise SystemExit(f"candidates are {', '.join(CANDIDATES)}; folds {', '.join(FOLDS)}")
+    cands, folds = selection(a)
     seeds = [0] if a.quick else [int(s) for s in a.seeds.split(",") if s]
     require_data(DATA, CITYSCAPES, KITTI_SEM, IDD, BDD, LUMS)
     wd = a.workdir / "quick" if a.quick else a.workdir

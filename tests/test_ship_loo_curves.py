@@ -1,0 +1,61 @@
+"""benchmarks/other_cameras/ship_loo_curves.py (issue 82): the figures it derives from per-threshold counts, against
+thresholding the probability maps directly; a model whose P(road) is a monotone rescaling of another's has the
+other's precision at the other's recall (the same ranking of pixels: the same precision-recall curve)."""
+from __future__ import annotations
+
+import numpy as np
+
+from benchmarks.other_cameras import ship_loo_curves as curves
+from vctrain.metrics import KittiMetrics, RoadMetrics
+
+
+def _scene(seed: int = 0, n: int = 20000) -> tuple[np.ndarray, np.ndarray]:
+    """(P(road) float32, label 0/1/255): road pixels score higher on average; some pixels ignored."""
+    rng = np.random.default_rng(seed)
+    label = (rng.random(n) < 0.4).astype(np.uint8)
+    prob = 1.0 / (1.0 + np.exp(-(rng.normal(0.0, 1.2, n) + 2.0 * label - 1.0)))
+    label[rng.random(n) < 0.05] = 255
+    return prob.astype(np.float32).reshape(100, -1), label.reshape(100, -1)
+
+
+def _counts(prob: np.ndarray, label: np.ndarray) -> dict:
+    road, km = RoadMetrics(), KittiMetrics()
+    road.add(prob >= 0.5, label)
+    km.add(np.clip(np.rint(prob * 255.0), 0, 255).astype(np.uint8), label)
+    return {"at_half": road.result(), "pos_hist": km.pos_hist.tolist(), "neg_hist": km.neg_hist.tolist()}
+
+
+def test_curve_is_the_thresholded_maps():
+    prob, label = _scene()
+    c = curves.curve(_counts(prob, label))
+    q = np.clip(np.rint(prob * 255.0), 0, 255)
+    valid, road = label != 255, label == 1
+    for k in (0, 40, curves.HALF, 200, 255):
+        m = q >= k
+        tp, fp, fn = (m & road & valid).sum(), (m & ~road & valid).sum(), (~m & road & valid).sum()
+        assert np.isclose(c["iou"][k], tp / (tp + fp + fn)) and np.isclose(c["recall"][k], tp / (tp + fn))
+        assert np.isclose(c["precision"][k], tp / max(tp + fp, 1))
+    assert np.all(np.diff(c["recall"]) <= 0)  # a higher threshold never finds more road
+
+
+def test_precision_at_the_baselines_recall_is_the_curves_not_the_threshold():
+    prob, label = _scene(1)
+    base = _counts(prob, label)
+    sharper = _counts(prob ** 3, label)  # the same ranking, far less road at 0.5
+    assert sharper["at_half"]["recall"] < base["at_half"]["recall"] - 0.2
+    m = curves.fold_metrics(sharper, base["at_half"]["recall"])
+    assert abs(m["precision_at_baseline_recall"] - base["at_half"]["precision"]) < 0.01
+    assert m["recall"] == sharper["at_half"]["recall"] and m["iou"] == sharper["at_half"]["iou"]
+    assert abs(m["maxf"] - curves.fold_metrics(base, None)["maxf"]) < 0.01  # MaxF: the curve's, not the threshold's
+
+
+def test_lofo_threshold_comes_from_the_other_folds():
+    folds = {f: curves.curve(_counts(*_scene(s))) for f, s in (("a", 2), ("b", 3), ("c", 4))}
+    cheat = dict(folds, c={k: v.copy() for k, v in folds["c"].items()})
+    cheat["c"]["iou"][:] = 0.0
+    cheat["c"]["iou"][250] = 1.0  # fold c's own best threshold: not what c is scored at
+    for f, (t, iou) in curves.lofo(cheat).items():
+        k = int(round(t * 255))
+        assert k == int(np.argmax(np.mean([cheat[g]["iou"] for g in cheat if g != f], axis=0)))
+        assert iou == cheat[f]["iou"][k]
+    assert curves.lofo(cheat)["c"][1] == 0.0 and curves.lofo(cheat)["c"][0] != 250 / 255
