@@ -59,12 +59,11 @@ def score_fold(model: Path, store_dir: Path, threads: int) -> dict:
     ``vctrain.study.score_store`` scores them (its loop, keeping the probability maps' histograms)."""
     import torch
     from tqdm import tqdm
-    from vcprep.io.images import read_image
+    from vcprep.io import read_image
     from vcprep.labels import decode_label, get_label_format
     from vcprep.store import Store
     from vctrain.metrics import KittiMetrics, RoadMetrics
-    from vctrain.predict.predictor import Predictor
-    from vctrain.predict.settings import STUDY_ENGINE
+    from vctrain.predict import STUDY_ENGINE, Predictor
 
     torch.set_num_threads(threads)
     predictor = Predictor(model, device="cpu", engine=STUDY_ENGINE)
