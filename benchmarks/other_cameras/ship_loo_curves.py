@@ -56,25 +56,16 @@ def test_store(wd: Path, cand: str, seed: int, fold: str) -> Path:
 
 def score_fold(model: Path, store_dir: Path, threads: int) -> dict:
     """Per-threshold counts and the P >= 0.5 metrics of ``model`` on every labelled item of ``store_dir``, as
-    ``vctrain.study.score_store`` scores them (its loop, keeping the probability maps' histograms)."""
+    ``vctrain.study.score_store`` scores them (its items, :func:`vctrain.study.scored_items`, keeping the probability maps' histograms)."""
     import torch
-    from tqdm import tqdm
-    from vcprep.io import read_image
-    from vcprep.labels import decode_label, get_label_format
-    from vcprep.store import Store
     from vctrain.metrics import KittiMetrics, RoadMetrics
     from vctrain.predict import STUDY_ENGINE, Predictor
+    from vctrain.study import scored_items
 
     torch.set_num_threads(threads)
     predictor = Predictor(model, device="cpu", engine=STUDY_ENGINE)
-    store = Store.open(store_dir)
     road, curve, n = RoadMetrics(), KittiMetrics(), 0
-    for rec in tqdm(list(store), desc=store_dir.parent.parent.name, unit="img", leave=False, disable=None):
-        if not rec.get("label_source"):
-            continue
-        fmt = get_label_format(rec["label_format"])
-        prob = predictor.store_item(store, rec)
-        label = decode_label(read_image(rec["label_source"], label=True).array, fmt, rec["label_source"])
+    for prob, label in scored_items(predictor, store_dir, progress=True):
         road.add(prob >= 0.5, label)
         curve.add(np.clip(np.rint(prob * 255.0), 0, 255).astype(np.uint8), label)
         n += 1

@@ -21,7 +21,7 @@ The tables are written by :mod:`vctrain.report`.
 from __future__ import annotations
 
 from .conditions import training_settings
-from .execute import evaluate_heldout, run_study, score_store
+from .execute import evaluate_heldout, run_study, score_store, scored_items
 from .hashing import settings_sha
 from .resolve import Resolution
 from .runs import plan_runs
@@ -32,4 +32,4 @@ from .spec import (ADAPT_COMBINE, CANVASES, CONDITIONS, DEFAULT_ABOVE, DEFAULT_C
 __all__ = ["CONDITIONS", "DEFAULT_CONDITIONS", "DEFAULT_STORE_PIXELS", "DEFAULT_ABOVE", "DEFAULT_TRAIN", "CANVASES",
            "DEFAULT_CANVAS", "GEOMETRIES", "ROLES", "ADAPT_COMBINE", "RUN_KEYS", "TRAIN_KEYS", "Split", "Dataset",
            "Study", "load_study", "camera_spec", "check_conditions", "evaluated_datasets", "Resolution", "plan_runs",
-           "training_settings", "run_study", "evaluate_heldout", "score_store", "settings_sha"]
+           "training_settings", "run_study", "evaluate_heldout", "score_store", "scored_items", "settings_sha"]

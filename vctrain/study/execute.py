@@ -37,7 +37,7 @@ from .runs import Run, pending, plan_runs, write_result
 from .spec import CONDITIONS, Study, check_conditions, evaluated_datasets
 from .stores import Stores
 
-__all__ = ["run_study", "execute", "evaluate_heldout", "score_store"]
+__all__ = ["run_study", "execute", "evaluate_heldout", "score_store", "scored_items"]
 
 
 def evaluate_heldout(checkpoint: Path, store_dir: Path, progress: bool = False) -> dict[str, Any]:
@@ -55,25 +55,36 @@ def score_store(predictor, store_dir: Path, progress: bool = False) -> dict[str,
     a test store, each scored in its ORIGINAL camera against its original label (P(road) >= 0.5).
     A model with two outputs (road, drivable) scores each item on the output of its label format's
     definition (IDD-Lite's drivable area on drivable), and the result says which (``output``)."""
-    from tqdm import tqdm
-
     from ..metrics import RoadMetrics
 
-    store = Store.open(store_dir)
     m = RoadMetrics()
-    n, two, used = 0, len(getattr(predictor, "outputs", ())) > 1, set()
+    n, used = 0, set()
+    for prob, label in scored_items(predictor, store_dir, progress, used):
+        m.add(prob >= 0.5, label)
+        n += 1
+    two = len(getattr(predictor, "outputs", ())) > 1
+    return {**m.result(), "test_items": n, **({"output": ",".join(sorted(used))} if two else {})}
+
+
+def scored_items(predictor, store_dir: Path, progress: bool = False, used: set | None = None):
+    """(P(road) float32, label 0/1/255) of every labelled item of a test store, in the item's ORIGINAL
+    camera, as :func:`score_store` scores them; a two-output model on each label format's own output
+    (added to ``used``)."""
+    from tqdm import tqdm
+
+    store = Store.open(store_dir)
+    two = len(getattr(predictor, "outputs", ())) > 1
     for rec in tqdm(list(store), desc="test", unit="img", disable=None if progress else True, leave=False):
         if not rec.get("label_source"):
             continue
         fmt = get_label_format(rec["label_format"])
         if two:  # (the label's own definition: every format's is an output of such a model)
-            used.add(predictor.use_output(fmt.definition))
+            chosen = predictor.use_output(fmt.definition)
+            if used is not None:
+                used.add(chosen)
         prob = predictor.store_item(store, rec)
         raw = read_image(rec["label_source"], label=True).array
-        label = decode_label(raw, fmt, rec["label_source"])
-        m.add(prob >= 0.5, label)
-        n += 1
-    return {**m.result(), "test_items": n, **({"output": ",".join(sorted(used))} if two else {})}
+        yield prob, decode_label(raw, fmt, rec["label_source"])
 
 
 def execute(run: Run, ctx: Context, tag: str) -> list[dict[str, Any]]:
