@@ -19,6 +19,7 @@ they are: condition ``resize``, the network the project ships):
 | ``six-two`` | ``six``'s datasets, two outputs (:data:`TWO_OUTPUTS`): road from CamVid, Cityscapes, ``kitti_semantics`` and LUMS, drivable from IDD-Lite and BDD100K |
 | ``four-long``, ``today-long`` | ``four``'s and ``today``'s datasets with twice the epochs (:data:`LONGER`): the training budget |
 | ``today-items`` | ``today``'s datasets, ``balance: items`` (:data:`ITEMS`): each dataset's share of an epoch its share of the frames |
+| ``four-aspect`` | ``four``'s datasets, ``keep_aspect`` (:data:`ASPECT`): every frame, trained and scored, at the working size's pixel count at its own aspect |
 
 A virtual-camera twin trains on its candidate's datasets warped into one virtual camera designed from
 their cameras (crossval's condition ``within``: each frame's VP corrects its pan and tilt, projective
@@ -43,6 +44,12 @@ each dataset's share is its share of the frames (``today``'s, all five: IDD-Lite
 LUMS 6 %, BDD100K 2 %) instead of ``balance: datasets``' equal fifths (BDD100K's 41 frames and LUMS's 144 two
 fifths of every epoch); it trains in its own folder on its candidate's stores: ``today-items`` − ``today``
 is the shares' effect on the same frames and budget.
+
+A pixel-budget candidate (:data:`ASPECT`, the issue's "pixel budget of wide frames") trains with ``keep_aspect``:
+each frame at the working size's pixel count (480x360's 172,800 with CamVid first) at its own aspect,
+``kitti_semantics``' 1242x375 at 757x228 instead of squashed to 4:3, a batch frames of one size (so of one
+dataset here), and its models size every scored frame the same way; in its own folder on its candidate's
+stores: ``four-aspect`` − ``four`` is the aspect's effect on the same frames, budget and pixel count.
 
 ``four`` against ``six`` isolates BDD100K and LUMS (27 dashcams' drivable areas and a low campus
 camera, two fifths of every epoch of ``today``); ``today`` against ``six`` isolates ``kitti_semantics``.
@@ -101,9 +108,12 @@ LONGER = {"four-long": "four", "today-long": "today"}
 BUDGET_FACTOR = 2
 # each dataset's share of an epoch its share of the frames (balance: items) -> the candidate whose datasets and stores they share
 ITEMS = {"today-items": "today"}
-SHARES = {**TWO_OUTPUTS, **LONGER, **ITEMS}
+# every frame at the working size's pixel count at its own aspect (train: keep_aspect) -> the candidate whose stores they share
+ASPECT = {"four-aspect": "four"}
+SHARES = {**TWO_OUTPUTS, **LONGER, **ITEMS, **ASPECT}
 # paired differences reported (per seed): each twin and longer budget against its candidate, the longer budgets' recipes
-PAIRS = [*TWINS.items(), *LONGER.items(), ("four-long", "today-long"), *ITEMS.items(), ("four", "today-items")]  # a candidate trained in its own folder on another's stores
+PAIRS = [*TWINS.items(), *LONGER.items(), ("four-long", "today-long"), *ITEMS.items(), ("four", "today-items"),
+         *ASPECT.items()]  # a candidate trained in its own folder on another's stores
 CANDIDATES.update({t: CANDIDATES[c] for t, c in {**TWINS, **SHARES}.items()})
 FOLDS = ["kitti_semantics", "camvid", "cityscapes", "idd"]
 BASELINE = "today"
@@ -153,6 +163,8 @@ def candidate_study(wd: Path, cand: str, quick: bool, epochs: int | None) -> Pat
         study["train"]["outputs"] = "road,drivable"
     if cand in ITEMS:
         study["train"]["balance"] = "items"
+    if cand in ASPECT:
+        study["train"]["keep_aspect"] = True
     path.write_text(yaml.safe_dump(study, sort_keys=False))
     return path
 
@@ -171,7 +183,8 @@ def same_model(cand: str, fold: str) -> str:
     """The first candidate whose model for ``fold`` trains on the very same datasets as ``cand``'s in the same
     condition with the same outputs (same recipe, seed and stores: the same model; ``six`` without
     ``kitti_semantics`` is ``today``): ``cand`` itself if none."""
-    trained = lambda c: (frozenset(CANDIDATES[c]) - {fold}, condition(c), c in TWO_OUTPUTS, c in LONGER, c in ITEMS)
+    trained = lambda c: (frozenset(CANDIDATES[c]) - {fold}, condition(c), c in TWO_OUTPUTS, c in LONGER, c in ITEMS,
+                         c in ASPECT)
     return next(c for c in CANDIDATES if trained(c) == trained(cand))
 
 
@@ -265,7 +278,8 @@ def render(head: dict, tg: dict, cands: list[str], folds: list[str], seeds: list
         what = ", ".join(CANDIDATES[cand]) + (" (virtual camera, the held-out camera given)" if cand in TWINS else
                                               " (two outputs; IDD-Lite scored on drivable)" if cand in TWO_OUTPUTS else
                                               f" ({BUDGET_FACTOR}× the epochs)" if cand in LONGER else
-                                              " (balance: items)" if cand in ITEMS else "")
+                                              " (balance: items)" if cand in ITEMS else
+                                              " (each frame at its own aspect)" if cand in ASPECT else "")
         lines.append(f"| `{cand}` | {what} | " + " | ".join(row) + f" | {f(head[f'{cand}_mean'])}"
                      + (f" ± {sd:.1f}" if sd is not None else "") + f" | {f(head.get(f'{cand}_minus_{BASELINE}'), '+')} |")
     pairs = [f"`{t}` − `{c}` {f(head.get(f'{t}_minus_{c}'), '+')}" for t, c in PAIRS if t in cands and c in cands]

@@ -47,6 +47,8 @@ HELP = {  # the options whose help does not fit on their line
     "shift_aug": "augment: random shift up to this share of the size (cpu: 0.05)",
     "shading_aug": "augment: lens shading, a smooth per-channel gain field exp(+-A) on half the items",
     "color_aug": "augment: brightness/contrast/gain jitter (cpu: 0.3)",
+    "keep_aspect": "resize baseline: every frame at the working size's pixel count at its own aspect (KITTI's 1242x375 "
+                   "not squashed to 4:3), a batch frames of one size; predict sizes frames the same way",
     "ray_channels": "two extra input channels: each pixel's ray angles beside and below the road VP, from the camera's "
                     "focal length",
     "init": "fine-tune: start from this checkpoint's weights, or a shipped model's name from any folder: shipped "
@@ -159,6 +161,7 @@ SHADING_AUG_OPT = typer.Option(None, "--shading-aug", help=HELP["shading_aug"])
 COLOR_AUG_OPT = typer.Option(None, "--color-aug", help=HELP["color_aug"])
 GREYSCALE_OPT = typer.Option(TRAIN.greyscale, "--greyscale", help="augment: probability of greyscale (1 = a greyscale model)")
 VP_CHANNEL_OPT = typer.Option(TRAIN.vp_channel, "--vp-channel", help="extra input channel: the VP proximity map")
+KEEP_ASPECT_OPT = typer.Option(TRAIN.keep_aspect, "--keep-aspect", help=HELP["keep_aspect"])
 RAY_CHANNELS_OPT = typer.Option(TRAIN.ray_channels, "--ray-channels", help=HELP["ray_channels"])
 RESUME_OPT = typer.Option(None, "--resume", help=HELP["resume"])
 INIT_OPT = typer.Option(None, "--init", help=HELP["init"])
@@ -193,6 +196,7 @@ def fit_cmd(
     ray_channels: bool = RAY_CHANNELS_OPT, resume: Optional[Path] = RESUME_OPT, init: Optional[Path] = INIT_OPT,
     freeze_bn: Optional[bool] = FREEZE_BN_OPT, freeze_encoder: Optional[bool] = FREEZE_ENCODER_OPT,
     average_init: Optional[float] = AVERAGE_INIT_OPT, balance: Optional[str] = BALANCE_OPT,
+    keep_aspect: bool = KEEP_ASPECT_OPT,
     l2sp: Optional[float] = L2SP_OPT, force_labels: bool = FORCE_LABELS_OPT, overwrite: bool = OVERWRITE_OPT,
     workers: int = WORKERS_OPT, log: Optional[Path] = LOG_OPT, as_json: bool = AS_JSON_OPT,
     threads: Optional[int] = threads_option(), quiet: bool = QUIET_OPT,
@@ -229,6 +233,7 @@ def fit_cmd(
       vctrain fit stores/camvid_train_fine --crop 0.67 --out runs/vc_fine.pt
       vctrain fit stores/camvid_train --model lite0fpn --out runs/vc_lite0.pt   # ImageNet encoder
       vctrain fit stores/cam_a stores/cam_b stores/cam_c --recipe multicamera --baseline resize --out runs/road.pt
+      vctrain fit stores/kitti stores/camvid --recipe multicamera --baseline resize --keep-aspect --out runs/aspect.pt
       vctrain fit --baseline resize --images my/images --labels my/labels --label-format camvid --init shipped --out runs/mine_ft.pt
       vctrain fit stores/camvid stores/idd --outputs road,drivable --out runs/two.pt   # road and drivable area
     """

@@ -206,7 +206,7 @@ def _geometry(predictor, camera: Camera, vp_input: bool, pose_range: tuple[float
         if vp_input and not predictor.vp_channel:
             raise InputError("a resize model without the VP channel takes no VP (the frame is only resized)",
                              predictor.path, "export without --vp-input")
-        g["work"] = list(predictor.size)
+        g["work"] = list(predictor.frame_working_size((w, h)))  # (a keep_aspect model: the frame's aspect)
         if predictor.vp_channel:
             S = scale_matrix(g["work"][0] / w, g["work"][1] / h)
             p = S @ np.array([vp_src[0], vp_src[1], 1.0])

@@ -144,7 +144,7 @@ class Predictor:
         ``size`` (w, h), and back). ``vp`` (image pixels) is needed for models with the VP channel,
         and with ``focal`` (the camera's f_x, f_y in image pixels) for models with ray channels."""
         h0, w0 = image.shape[:2]
-        size = tuple(size) if size is not None else self.size
+        size = tuple(size) if size is not None else self.frame_working_size((w0, h0))
         img, _ = resize_pair(image, None, size)
         x = to_input(img, greyscale=self.greyscale)
         if self.vp_channel:
@@ -165,6 +165,16 @@ class Predictor:
         if (w0, h0) != size:
             prob = cv2.resize(prob, (w0, h0), interpolation=cv2.INTER_LINEAR)
         return prob
+
+    def frame_working_size(self, frame_size: tuple[int, int]) -> tuple[int, int]:
+        """The size (w, h) a frame of ``frame_size`` is resized to: the model's input size, or for a
+        model trained with ``keep_aspect`` its pixel count at the frame's own aspect (as in training,
+        :func:`vctrain.training.parts.resize_working_size`)."""
+        if not self.data.keep_aspect:
+            return self.size
+        from ..training.parts import resize_working_size
+
+        return resize_working_size(self.size, frame_size)
 
     def working_size(self, store_size: tuple[int, int], magnification: float | None = None) -> tuple[int, int]:
         """The working size for a store image of ``store_size``: the training store's own size
@@ -199,10 +209,10 @@ class Predictor:
         if self.mode == "mixed":
             return 0.5 * (self._virtual_item(store, rec) + self._resized_item(rec, self.data.resize_size))
         if self.mode == "resize":
-            return self._resized_item(rec, self.size)
+            return self._resized_item(rec, None)
         return self._virtual_item(store, rec)
 
-    def _resized_item(self, rec: dict[str, Any], size: tuple[int, int]) -> np.ndarray:
+    def _resized_item(self, rec: dict[str, Any], size: tuple[int, int] | None) -> np.ndarray:
         img = read_image(rec["source"]).array
         return self.road_probability(img, tuple(rec["vp"]) if rec.get("vp") else None, size, source_focal(rec))
 

@@ -62,7 +62,7 @@ def train_config(study: Study, stores: list[Path], out: Path, baseline: str, siz
 SETTINGS_ADDED: dict[str, Any] = {"balance": "items", "shading_aug": 0.0, "pretrained": False,
                                   "ray_channels": False, "val_split": "auto", "freeze_bn": None, "average_init": None,
                                   "val_images": None, "val_labels": None,
-                                  "freeze_encoder": None, "outputs": "road"}
+                                  "freeze_encoder": None, "outputs": "road", "keep_aspect": False}
 
 
 def training_settings(study: Study, overrides: dict[str, Any] | None = None) -> dict[str, Any]:

@@ -39,7 +39,7 @@ class Stores:
     def resize_size(self, datasets: Sequence[Dataset], store_size: tuple[int, int]) -> tuple[int, int]:
         """The resize baseline's working size: the virtual store's pixel count at the aspect of
         the first training dataset's images (same pixel budget, no squashing of the source)."""
-        from ..training.trainset import resize_working_size
+        from ..training.parts import resize_working_size
 
         return resize_working_size(store_size, image_size(self.res.items(datasets[0], "train")[0].image))
 

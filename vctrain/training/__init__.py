@@ -5,6 +5,7 @@ config           :class:`TrainConfig` (every setting declared once, ``None`` = t
                  :class:`AdaptSettings`
 data             the training items: reading a store item or a resized frame, decoding, augmenting
 trainset         a run's data: its stores, samples, validation split, working size, window, epoch order
+parts            training sets of several input sizes, a batch one size's: mixed views, frames at their own aspect
 loop             :func:`fit`: the loop (nanoGPT style), validation, resume, fine-tuning, torchrun
 finetune         starting from a checkpoint: what --init and --resume take from it, the average with the start, L2-SP
 guard            fine-tuning never worse than its start: the held-out frames, the start's score, what --out keeps
@@ -29,9 +30,10 @@ _HOME = {
                "AdaptSettings", "ADAPT_EPOCHS", "ADAPT_LR_FACTOR", "RUN_ONLY", "VAL_FRACTION"),
     "data": ("Sample", "RoadDataset", "store_samples", "resize_samples", "source_focal", "to_input", "vp_proximity",
              "vp_in_store", "ray_angles", "resize_pair", "class_frequencies", "median_frequency_weights"),
-    "trainset": ("BASELINES", "MIN_SIDE", "MixedViews", "view_batches", "prepare_data", "resize_working_size",
+    "trainset": ("BASELINES", "MIN_SIDE", "prepare_data",
                  "training_magnification", "crop_size", "epoch_order", "training_sets", "label_shares", "check_labels",
                  "sequence_of", "sequence_items"),
+    "parts": ("Parts", "MixedViews", "AspectParts", "resize_working_size", "view_batches"),
     "loop": ("fit", "evaluate", "get_lr", "resolve_device", "resolve_recipe"),
     "guard": ("score_start", "say_plan", "keeps", "verdict", "finetune_record", "settle"),
     "rerun": ("request_of", "data_files", "data_stamp", "data_change", "keep_aside", "log_path", "rerun_plan"),

@@ -36,6 +36,7 @@ class CheckpointData:
     crop_size: Optional[tuple[int, int]] = None  # the training windows (w, h)
     resize_size: Optional[tuple[int, int]] = None       # 'mixed': the resize view's working size
     resize_crop_size: Optional[tuple[int, int]] = None  # 'mixed': the resize view's windows
+    keep_aspect: bool = False                    # 'resize': each frame at input_size's pixel count at its own aspect
     outputs: tuple[str, ...] = ("road",)        # the network's outputs (vctrain.training.outputs): road, or road and
                                                  # drivable (3 classes); a model of an older vctrain: road
     train_items: Optional[int] = None
@@ -56,7 +57,7 @@ class CheckpointData:
         for k in ("vp_status", "outputs"):
             if k in kw:
                 kw[k] = tuple(kw[k])
-        for k, kind in (("vp_channel", bool), ("ray_channels", bool), ("greyscale", float)):
+        for k, kind in (("vp_channel", bool), ("ray_channels", bool), ("keep_aspect", bool), ("greyscale", float)):
             if k in kw:
                 kw[k] = kind(kw[k])
         return cls(**kw, extra={k: v for k, v in d.items() if k not in known}, keys=tuple(d))

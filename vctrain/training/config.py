@@ -110,6 +110,10 @@ class TrainConfig:
     balance: Optional[str] = None      # 'items': each training item once an epoch; 'datasets': each training
                                        # store (and the --images folder) drawn equally often (BALANCES); None:
                                        # the recipe's (multicamera: datasets; cpu, paper: items)
+    keep_aspect: bool = False          # resize baseline: every training source (store, folder) at the working size's
+                                       # pixel count at its own frames' aspect, a batch one source's (its windows the
+                                       # crop's share of its size); prediction sizes each frame the same way. False:
+                                       # every frame squashed to the working size (issue 82's pixel budget of wide frames)
 
     @property
     def in_channels(self) -> int:

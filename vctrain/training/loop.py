@@ -67,7 +67,8 @@ from .finetune import (anchor_weights, as_saved, averaged, check_init, freeze_en
 from . import guard
 from .distributed import average_buffers, import_before_group, leave_group, ranks
 from .rerun import log_path, request_of
-from .trainset import MixedViews, check_labels, crop_size, epoch_order, prepare_data, training_sets, view_batches
+from .parts import MixedViews, Parts, view_batches
+from .trainset import check_labels, crop_size, epoch_order, prepare_data, training_sets
 from ..metrics import RoadMetrics
 from ..networks.args import ARCHITECTURES, model_args_for
 from ..networks.build import build_model, resolve_pretrained
@@ -246,7 +247,7 @@ def _epoch_loader(train_ds: RoadDataset, cfg: TrainConfig, epoch: int, rank: int
         order += order[: (-len(order)) % world]
         order = order[rank::world]
     torch.manual_seed(cfg.seed * 1000003 + epoch * 101 + rank + 1)
-    if isinstance(train_ds, MixedViews):  # batches of one view each (its own working size)
+    if isinstance(train_ds, Parts):  # batches of one part each (its own working size)
         return torch.utils.data.DataLoader(train_ds, batch_sampler=view_batches(train_ds, order, batch),
                                            num_workers=cfg.workers)
     return torch.utils.data.DataLoader(torch.utils.data.Subset(train_ds, order), batch_size=batch, shuffle=False,

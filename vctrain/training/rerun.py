@@ -35,7 +35,7 @@ __all__ = ["request_of", "data_files", "data_stamp", "data_change", "keep_aside"
 DATA_KEYS = ("data_stamp", "data_files")  # what a request records of its data, not of its settings
 # settings added after requests were first recorded, and the value that trains as before: left out of a request
 # at that value, so the same command finds the runs of an older vctrain the same
-REQUEST_ADDED = {"outputs": "road"}
+REQUEST_ADDED = {"outputs": "road", "keep_aspect": False}
 _ALWAYS = object()  # (a setting not in REQUEST_ADDED is always recorded)
 
 

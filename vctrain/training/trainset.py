@@ -1,12 +1,14 @@
 """A training run's data: its stores opened and checked, the samples of the view it trains on
 (:data:`BASELINES`), the validation share or stores, the working size, the training window
 (:func:`crop_size`), the datasets (:func:`training_sets`) and each epoch's batches
-(:func:`epoch_order`, :func:`view_batches`). The items themselves, their decoding and augmentation:
+(:func:`epoch_order`, :func:`vctrain.training.parts.view_batches`). The items themselves, their decoding and augmentation:
 :mod:`vctrain.training.data`.
 
 Mixed views (``baseline: mixed``, issue 53's candidate): every frame twice, its virtual-camera store
 item and its original image resized, each view at its own working size and window
-(:class:`MixedViews`); a batch holds one view.
+(:class:`~vctrain.training.parts.MixedViews`); a batch holds one view. ``keep_aspect`` (a resize baseline):
+every frame at the working size's pixel count at its own aspect (:class:`~vctrain.training.parts.AspectParts`);
+a batch holds frames of one size.
 """
 from __future__ import annotations
 
@@ -29,8 +31,9 @@ from vcprep.store import Store, record_magnification
 from .config import BALANCES, VAL_SPLITS, TrainConfig
 from .data import RoadDataset, Sample, resize_samples, store_samples
 from .outputs import ONE_OUTPUT, parse_outputs
+from .parts import AspectParts, MixedViews, resize_working_size
 
-__all__ = ["BASELINES", "MIN_SIDE", "MixedViews", "view_batches", "prepare_data", "resize_working_size",
+__all__ = ["BASELINES", "MIN_SIDE", "prepare_data",
            "training_magnification", "crop_size", "epoch_order", "training_sets", "label_shares", "check_labels",
            "sequence_of", "sequence_items"]
 
@@ -41,54 +44,6 @@ BASELINES = ("none", "resize", "mixed")
 # the 'sequence' split holds out whole sequences only where the names show at least this many: with fewer
 # (KITTI road's um_/umm_/uu_, one drive) a single one is a third of the frames or more, not a fifth (issue 80)
 MIN_SEQUENCES = 5
-
-
-class MixedViews(torch.utils.data.Dataset):
-    """Mixed-view training (issue 53's candidate): every frame twice, its virtual-camera store item
-    (view 0) and its original image simply resized (view 1), each view at its own working size and
-    training window; items ``[0, len(virtual))`` are view 0, the rest view 1. Batches hold one view
-    (:func:`view_batches`), so each keeps its own input size. At test time the model's two views'
-    probabilities are averaged in the camera's own pixels (:class:`vctrain.predict.Predictor`)."""
-
-    def __init__(self, virtual: RoadDataset, resized: RoadDataset):
-        self.parts = (virtual, resized)
-        self.samples = virtual.samples + resized.samples
-        self.n_virtual = len(virtual)
-
-    def __len__(self) -> int:
-        return len(self.samples)
-
-    def view(self, i: int) -> int:
-        return 0 if i < self.n_virtual else 1
-
-    def _part(self, i: int) -> tuple[RoadDataset, int]:
-        return (self.parts[0], i) if i < self.n_virtual else (self.parts[1], i - self.n_virtual)
-
-    def item(self, i: int):
-        ds, j = self._part(i)
-        return ds.item(j)
-
-    def __getitem__(self, i: int):
-        ds, j = self._part(i)
-        return ds[j]
-
-
-def view_batches(dataset: Any, order: Sequence[int], batch: int) -> list[list[int]]:
-    """``order`` cut into batches of ``batch`` items; for :class:`MixedViews` every batch holds one
-    view (items join their view's open batch in ``order``'s order; a batch is emitted when full,
-    then the open ones), so the order's randomness carries over to the batches."""
-    if not isinstance(dataset, MixedViews):
-        return [list(order[k:k + batch]) for k in range(0, len(order), batch)]
-    out: list[list[int]] = []
-    pending: dict[int, list[int]] = {0: [], 1: []}
-    for i in order:
-        b = pending[dataset.view(i)]
-        b.append(i)
-        if len(b) == batch:
-            out.append(list(b))
-            b.clear()
-    out += [b for b in pending.values() if b]
-    return out
 
 
 def _open_stores(paths: list[str]) -> list[Store]:
@@ -307,6 +262,29 @@ def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str
         train = [s for i, s in enumerate(train) if i not in held]
     else:
         val = []
+    size = _working_size(cfg, stores, train)
+    info["input_size"] = list(size)
+    info["crop_size"] = list(crop_size(cfg.crop, size))
+    if cfg.keep_aspect:  # (input_size: the pixel budget; each frame at its own aspect, parts.AspectParts)
+        if cfg.baseline != "resize":
+            raise InputError("--keep-aspect is for the resize baseline (a store's items have one size)", None,
+                             "add --baseline resize, or leave --keep-aspect out")
+        info["keep_aspect"] = True
+    info["vp_status"] = sorted({rec.get("vp_status", "camera") for s in stores for rec in s})
+    rules = Counter(json.dumps(rec["vp_rule"], sort_keys=True) for s in stores for rec in s if rec.get("vp_rule"))
+    if rules:  # the rule the estimated VPs were found with (of most items): predict follows it
+        info["vp_rule"] = json.loads(max(sorted(rules), key=rules.get))
+    if parse_outputs(cfg.outputs) != ONE_OUTPUT:  # (a one-output model's data section as before)
+        info["outputs"] = list(parse_outputs(cfg.outputs))
+    info["train_items"] = len(train)
+    info["train_items_per_source"] = dict(Counter(t.source for t in train))  # (in the stores' order)
+    info["val_items"] = len(val)
+    return train, val, info
+
+
+def _working_size(cfg: TrainConfig, stores: list[Store], train: list[Sample]) -> tuple[int, int]:
+    """A run's working size (w, h): ``--size``; a resize baseline on stores the store's pixels at the first
+    frame's aspect; a store's size; the first frame's (folders). Refused below MIN_SIDE."""
     if cfg.size is not None:
         size = (int(cfg.size[0]), int(cfg.size[1]))
     elif stores and cfg.baseline == "resize":  # the store's pixels at the frames' own aspect (as a study's twin)
@@ -320,18 +298,7 @@ def prepare_data(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str
     if min(size) < MIN_SIDE:
         raise InputError(f"working size {size[0]}x{size[1]} is below {MIN_SIDE} pixels", None,
                          "use a larger --size or store scale")
-    info["input_size"] = list(size)
-    info["crop_size"] = list(crop_size(cfg.crop, size))
-    info["vp_status"] = sorted({rec.get("vp_status", "camera") for s in stores for rec in s})
-    rules = Counter(json.dumps(rec["vp_rule"], sort_keys=True) for s in stores for rec in s if rec.get("vp_rule"))
-    if rules:  # the rule the estimated VPs were found with (of most items): predict follows it
-        info["vp_rule"] = json.loads(max(sorted(rules), key=rules.get))
-    if parse_outputs(cfg.outputs) != ONE_OUTPUT:  # (a one-output model's data section as before)
-        info["outputs"] = list(parse_outputs(cfg.outputs))
-    info["train_items"] = len(train)
-    info["train_items_per_source"] = dict(Counter(t.source for t in train))  # (in the stores' order)
-    info["val_items"] = len(val)
-    return train, val, info
+    return size
 
 
 def _prepare_mixed(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[str, Any]]:
@@ -354,15 +321,6 @@ def _prepare_mixed(cfg: TrainConfig) -> tuple[list[Sample], list[Sample], dict[s
             "views": [len(tv), len(tr)], "train_items": len(tv) + len(tr), "val_items": len(vv) + len(vr),
             "train_items_per_source": dict(Counter(t.source for t in tv + tr))}
     return tv + tr, vv + vr, info
-
-
-def resize_working_size(store_size: tuple[int, int], frame_size: tuple[int, int]) -> tuple[int, int]:
-    """The resize baseline's working size (w, h): the virtual store's pixel count at the aspect of the
-    frames (``frame_size``, w, h), so the twin gets the same pixel budget and no frame is squashed
-    (``vctrain fit STORE --baseline resize`` without --size, and a study's resize twin)."""
-    n = store_size[0] * store_size[1]
-    w0, h0 = frame_size
-    return max(32, int(round(math.sqrt(n * w0 / h0)))), max(32, int(round(math.sqrt(n * h0 / w0))))
 
 
 def crop_size(crop: Any, size: tuple[int, int]) -> tuple[int, int]:
@@ -435,6 +393,10 @@ def training_sets(cfg: TrainConfig, train_s: list, val_s: list, info: dict[str, 
 
     outputs = parse_outputs(cfg.outputs)
 
+    if info.get("keep_aspect"):  # every frame at the budget's pixels at its own aspect, a part per size
+        budget = info["input_size"]
+        return (AspectParts(train_s, budget, lambda g, size: pair(g, [], size, crop_size(cfg.crop, size))[0]),
+                AspectParts(val_s, budget, lambda g, size: pair([], g, size, size)[1]))
     if info["mode"] != "mixed":
         return pair(train_s, val_s, info["input_size"], info["crop_size"])
     nt, nv = len(train_s) // 2, len(val_s) // 2  # (the virtual view's samples, then the resize view's)
