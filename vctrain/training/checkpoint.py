@@ -12,7 +12,9 @@ A checkpoint is a ``torch.save`` dict (loadable with ``weights_only=True``)::
                  (per-image VP statuses seen in training), vp_rule (the VPRule of its estimated VPs, when
                  the stores record one: predict estimates with it), source_magnification (the most the
                  warp enlarged a training camera's frames: predictors shrink their working size only for
-                 frames enlarged more; absent in models trained before it), train_items, val_items
+                 frames enlarged more; absent in models trained before it), keep_aspect (a resize model:
+                 each frame at input_size's pixel count at its own aspect; absent: squashed to input_size),
+                 train_items, val_items
     epoch, step, metrics (of this epoch), best_iou, best_epoch, history (per-epoch log rows)
     optimizer    optimizer state (for --resume)
 
