@@ -120,3 +120,15 @@ def test_keep_aspect_is_refused_where_items_have_one_size(tmp_path):
     with pytest.raises(InputError, match="keep-aspect is for the resize baseline"):
         prepare_data(TrainConfig(stores=[str(tmp_path / "store")], keep_aspect=True, val_fraction=0))
     assert "keep_aspect" not in prepare_data(TrainConfig(stores=[str(tmp_path / "store")], val_fraction=0))[2]
+
+
+def test_fine_tuning_a_keep_aspect_model_keeps_the_frames_aspect(two_cameras, tmp_path):
+    """fit --init of a keep_aspect model trains at its budget and at the frames' own aspect, as it learnt."""
+    from dataclasses import replace
+
+    root, cfg = two_cameras
+    tuned = replace(cfg, keep_aspect=False, size=None, init=str(root / "aspect.pt"), out=str(tmp_path / "ft.pt"),
+                    val_fraction=None, base_width=None, lr=None)
+    fit(tuned)
+    ck = load_checkpoint(tmp_path / "ft.pt")
+    assert ck["data"]["keep_aspect"] is True and ck["data"]["input_size"] == list(BUDGET)

@@ -52,7 +52,7 @@ def init_network(cfg: TrainConfig, init: dict[str, Any]) -> None:
     """Fill the settings a fine-tuning run left unset from the ``init`` checkpoint (in place): the
     network (``--model``, ``--width``), so :func:`check_init` only refuses what was asked otherwise;
     a resize model's working size (the frames' own would show the network another scale than it
-    learnt, and CamVid's 960x720 costs four times the steps); BatchNorm frozen or not
+    learnt, and CamVid's 960x720 costs four times the steps) and its frames' own aspect (``keep_aspect``); BatchNorm frozen or not
     (:data:`FINETUNE_FREEZE_BN`); and the learning rate, ``ADAPT_LR_FACTOR`` (a tenth) of the checkpoint's own (benchmarks/archive/what_a_user_gets/finetune.py
     measured that rule: 20 frames of an unseen camera, +4.2 over training on them from scratch)."""
     if cfg.lr is None and (init.get("config") or {}).get("lr"):
@@ -60,6 +60,8 @@ def init_network(cfg: TrainConfig, init: dict[str, Any]) -> None:
     data = CheckpointData.from_dict(init.get("data"))
     if cfg.size is None and cfg.baseline == "resize" and data.mode == "resize" and data.input_size:
         cfg.size = data.input_size  # the scale the model learnt, not the frames' own
+    if cfg.baseline == "resize" and data.mode == "resize" and data.keep_aspect:
+        cfg.keep_aspect = True  # every frame at its own aspect, as the model learnt them
     if cfg.freeze_bn is None:
         cfg.freeze_bn = FINETUNE_FREEZE_BN
     if cfg.freeze_encoder is None:
