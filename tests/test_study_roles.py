@@ -340,3 +340,41 @@ def test_footprint_canvas_keeps_the_budget_for_training_and_covers_every_test_pi
 
 
 # -- conditions prior (Table 5 "Geo-Prior") and adapt (the within model adapted without labels) ----
+
+
+def test_an_interrupted_training_resumes_after_its_last_epoch(tmp_path):
+    """A study's model whose training stopped (no train.json; model.last.pt of the same request, fewer epochs
+    than asked) resumes after that epoch instead of starting afresh; one of other settings starts afresh."""
+    import torch
+
+    from studies import _mixed_study
+    from vctrain.training import save_checkpoint
+
+    study = _mixed_study(tmp_path / "data")
+    out = tmp_path / "out"
+    args = ("crossval", study, "--out", out, "--heldout", "kitti", "--conditions", "resize", "--epochs", "2", "--seed", "3")
+    first = run_cli(*args, prog="vctrain")
+    assert first.returncode == 0, first.stderr
+    run_dir = out / "runs" / "kitti" / "resize"
+    last = run_dir / "model.last.pt"
+    done = torch.load(last, map_location="cpu", weights_only=False)
+    assert done["epoch"] == 2 and len(done["history"]) == 2
+
+    def interrupt(**request) -> None:  # the state a training stopped after epoch 1 leaves
+        ck = {**done, "epoch": 1, "history": done["history"][:1], "request": {**done["request"], **request}}
+        save_checkpoint(last, ck)
+        for f in ("train.json", "result.json", "model.pt"):
+            (run_dir / f).unlink(missing_ok=True)
+
+    interrupt()
+    again = run_cli(*args, prog="vctrain")
+    assert again.returncode == 0, again.stderr
+    assert "resumed after epoch 1" in again.stderr
+    ck = torch.load(last, map_location="cpu", weights_only=False)
+    assert ck["epoch"] == 2 and [h["epoch"] for h in ck["history"]] == [1, 2]  # epoch 1 kept, epoch 2 trained again
+    assert json.loads((run_dir / "result.json").read_text())["iou"] is not None
+    interrupt(lr=0.5)  # another run's checkpoint: afresh
+    other = run_cli(*args, prog="vctrain")
+    assert other.returncode == 0, other.stderr
+    assert "training on" in other.stderr and "resumed" not in other.stderr
+    assert torch.load(last, map_location="cpu", weights_only=False)["request"] == done["request"]

@@ -101,6 +101,26 @@ def _model_predictor(checkpoint: Path):
     return Predictor(checkpoint, device="cpu", engine=STUDY_ENGINE)  # (on every install: settings.py says why)
 
 
+def interrupted_after(cfg: TrainConfig) -> int | None:
+    """The epoch after which a training of ``cfg`` stopped unfinished: its ``.last.pt`` beside ``cfg.out``
+    holds the very request (settings and data, :func:`vctrain.training.rerun.request_of`) and fewer epochs
+    than asked; None otherwise (no such file, another run's, unreadable, or finished)."""
+    from vcprep.errors import VCError
+    from ..training.checkpoint import last_path, load_checkpoint
+    from ..training.rerun import request_of
+
+    last = last_path(Path(cfg.out))
+    if not last.is_file():
+        return None
+    try:
+        ck = load_checkpoint(last)
+    except VCError:
+        return None
+    if ck.get("request") != request_of(cfg) or int(ck["epoch"]) >= int(ck["config"]["epochs"]):
+        return None
+    return int(ck["epoch"])
+
+
 def trained(run: Run, ctx: Context, tag: str) -> tuple[TrainConfig, dict[str, Any]]:
     """``(config, train.json)`` of ``run``'s model: trained now, or found trained earlier with
     the settings it depends on (``keys.model(run)``; ``runs/<run>/<condition>/train.json``), so a
@@ -127,11 +147,16 @@ def trained(run: Run, ctx: Context, tag: str) -> tuple[TrainConfig, dict[str, An
             info["model_sha"] = model_sha
             write_json(record, info)
         return cfg, info
-    # a training of other settings, or one that was interrupted: start afresh
-    for old in (record, Path(cfg.out), run_dir / "model.last.pt", run_dir / "model.log.jsonl"):
-        old.unlink(missing_ok=True)
+    # a training of other settings: start afresh; one interrupted (no record, its last epoch's checkpoint of
+    # these very settings and data): resumed after that epoch (the same model: the draws depend on seed and epoch)
+    stopped = None if info is not None else interrupted_after(cfg)
+    if stopped is None:
+        for old in (record, Path(cfg.out), run_dir / "model.last.pt", run_dir / "model.log.jsonl"):
+            old.unlink(missing_ok=True)
+    else:
+        cfg.resume = str(run_dir / "model.last.pt")
     say(f"{tag} {run.name}, {c}: training on {', '.join(d.name for d in run.train)} "
-        f"({cfg.epochs} epochs at {size[0]}x{size[1]})")
+        f"({cfg.epochs} epochs at {size[0]}x{size[1]}{'' if stopped is None else f'; resumed after epoch {stopped}'})")
     t0 = time.perf_counter()
     summary = fit(cfg)
     data = CheckpointData.from_dict(summary["data"])
