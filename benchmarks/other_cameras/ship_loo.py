@@ -18,6 +18,7 @@ they are: condition ``resize``, the network the project ships):
 | ``four-virtual`` | ``four``'s datasets, condition ``within``: ``four``'s virtual-camera twin (:data:`TWINS`) |
 | ``six-two`` | ``six``'s datasets, two outputs (:data:`TWO_OUTPUTS`): road from CamVid, Cityscapes, ``kitti_semantics`` and LUMS, drivable from IDD-Lite and BDD100K |
 | ``four-long``, ``today-long`` | ``four``'s and ``today``'s datasets with twice the epochs (:data:`LONGER`): the training budget |
+| ``four-30``, ``today-30`` | the same with five times the epochs (30 at ``--epochs 6``: the shipped model's budget) |
 | ``today-items`` | ``today``'s datasets, ``balance: items`` (:data:`ITEMS`): each dataset's share of an epoch its share of the frames |
 | ``four-aspect`` | ``four``'s datasets, ``keep_aspect`` (:data:`ASPECT`): every frame, trained and scored, at the working size's pixel count at its own aspect |
 
@@ -35,7 +36,7 @@ IDD-Lite on the drivable one (what its labels are). It trains in its own folder 
 candidate with its datasets (``six``'s: the same frames, so ``six-two`` against ``six`` isolates the
 label definitions).
 
-A longer-budget candidate (:data:`LONGER`) trains ``BUDGET_FACTOR`` times the epochs (the same steps an epoch)
+A longer-budget candidate (:data:`LONGER`) trains its ``BUDGET_FACTOR`` times the epochs (the same steps an epoch)
 in its own folder on its candidate's stores: ``four-long`` − ``four`` is the budget's effect on the same
 frames, ``four-long`` − ``today-long`` the data mix's at the longer budget.
 
@@ -104,15 +105,16 @@ TWINS = {"four-virtual": "four"}  # virtual-camera twin -> the candidate whose d
 # two-output candidates -> the candidate whose datasets and stores they share (their own study folder)
 TWO_OUTPUTS = {"six-two": "six"}
 # twice the training budget (epochs) -> the candidate whose datasets and stores they share (their own study folder)
-LONGER = {"four-long": "four", "today-long": "today"}
-BUDGET_FACTOR = 2
+LONGER = {"four-long": "four", "today-long": "today", "four-30": "four", "today-30": "today"}
+# each longer candidate's epochs, times --epochs (2x; 5x: 30 at the protocol's 6, the shipped model's budget)
+BUDGET_FACTOR = {"four-long": 2, "today-long": 2, "four-30": 5, "today-30": 5}
 # each dataset's share of an epoch its share of the frames (balance: items) -> the candidate whose datasets and stores they share
 ITEMS = {"today-items": "today"}
 # every frame at the working size's pixel count at its own aspect (train: keep_aspect) -> the candidate whose stores they share
 ASPECT = {"four-aspect": "four"}
 SHARES = {**TWO_OUTPUTS, **LONGER, **ITEMS, **ASPECT}
 # paired differences reported (per seed): each twin and longer budget against its candidate, the longer budgets' recipes
-PAIRS = [*TWINS.items(), *LONGER.items(), ("four-long", "today-long"), *ITEMS.items(), ("four", "today-items"),
+PAIRS = [*TWINS.items(), *LONGER.items(), ("four-long", "today-long"), ("four-30", "today-30"), *ITEMS.items(), ("four", "today-items"),
          *ASPECT.items()]  # a candidate trained in its own folder on another's stores
 CANDIDATES.update({t: CANDIDATES[c] for t, c in {**TWINS, **SHARES}.items()})
 FOLDS = ["kitti_semantics", "camvid", "cityscapes", "idd"]
@@ -148,7 +150,7 @@ def candidate_study(wd: Path, cand: str, quick: bool, epochs: int | None) -> Pat
     names = sets + [f for f in FOLDS if f not in sets]
     shares = wd / SHARES[cand] if cand in SHARES else None
     (wd / cand).mkdir(parents=True, exist_ok=True)  # (a study sharing another's frames links none of its own)
-    epochs = epochs * BUDGET_FACTOR if cand in LONGER and epochs else epochs
+    epochs = epochs * BUDGET_FACTOR[cand] if cand in LONGER and epochs else epochs
     path = study_file(wd / cand, quick, epochs, names=names, home=shares)
     study = yaml.safe_load(path.read_text())
     for d in study["datasets"]:
@@ -183,7 +185,7 @@ def same_model(cand: str, fold: str) -> str:
     """The first candidate whose model for ``fold`` trains on the very same datasets as ``cand``'s in the same
     condition with the same outputs (same recipe, seed and stores: the same model; ``six`` without
     ``kitti_semantics`` is ``today``): ``cand`` itself if none."""
-    trained = lambda c: (frozenset(CANDIDATES[c]) - {fold}, condition(c), c in TWO_OUTPUTS, c in LONGER, c in ITEMS,
+    trained = lambda c: (frozenset(CANDIDATES[c]) - {fold}, condition(c), c in TWO_OUTPUTS, BUDGET_FACTOR.get(c, 1), c in ITEMS,
                          c in ASPECT)
     return next(c for c in CANDIDATES if trained(c) == trained(cand))
 
@@ -277,7 +279,7 @@ def render(head: dict, tg: dict, cands: list[str], folds: list[str], seeds: list
         sd = head[f"{cand}_mean_std"]
         what = ", ".join(CANDIDATES[cand]) + (" (virtual camera, the held-out camera given)" if cand in TWINS else
                                               " (two outputs; IDD-Lite scored on drivable)" if cand in TWO_OUTPUTS else
-                                              f" ({BUDGET_FACTOR}× the epochs)" if cand in LONGER else
+                                              f" ({BUDGET_FACTOR[cand]}× the epochs)" if cand in LONGER else
                                               " (balance: items)" if cand in ITEMS else
                                               " (each frame at its own aspect)" if cand in ASPECT else "")
         lines.append(f"| `{cand}` | {what} | " + " | ".join(row) + f" | {f(head[f'{cand}_mean'])}"
