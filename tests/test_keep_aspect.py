@@ -132,3 +132,20 @@ def test_fine_tuning_a_keep_aspect_model_keeps_the_frames_aspect(two_cameras, tm
     fit(tuned)
     ck = load_checkpoint(tmp_path / "ft.pt")
     assert ck["data"]["keep_aspect"] is True and ck["data"]["input_size"] == list(BUDGET)
+
+
+def test_an_exported_keep_aspect_model_runs_the_network_at_the_frames_aspect(two_cameras, tmp_path):
+    """vctrain export of a keep_aspect model for wide frames: the graph's P(road) is the Predictor's (each frame
+    at its own aspect), not that of the frame squashed to the pixel budget's 128x96."""
+    pytest.importorskip("onnxruntime")
+    import onnxruntime as ort
+
+    from vctrain.deploy import export_onnx
+
+    root, _ = two_cameras
+    export_onnx(root / "aspect.pt", None, tmp_path / "wide.onnx", size=WIDE)
+    img = np.random.default_rng(1).integers(0, 255, (WIDE[1], WIDE[0], 3), dtype=np.uint8)
+    got = ort.InferenceSession(str(tmp_path / "wide.onnx")).run(None, {"frame": img})[0].reshape(WIDE[1], WIDE[0])
+    model = Predictor(root / "aspect.pt", device="cpu")
+    aspect, squashed = model.road_probability(img), model.road_probability(img, size=BUDGET)
+    assert np.abs(got - aspect).max() < 1e-3 < np.abs(got - squashed).max()
