@@ -101,6 +101,9 @@ def _model_predictor(checkpoint: Path):
     return Predictor(checkpoint, device="cpu", engine=STUDY_ENGINE)  # (on every install: settings.py says why)
 
 
+ASPECT_NOTE = "'s pixels, each frame at its own aspect"  # (a keep_aspect model's size is its pixel budget)
+
+
 def interrupted_after(cfg: TrainConfig) -> int | None:
     """The epoch after which a training of ``cfg`` stopped unfinished: its ``.last.pt`` beside ``cfg.out``
     holds the very request (settings and data, :func:`vctrain.training.rerun.request_of`) and fewer epochs
@@ -156,7 +159,8 @@ def trained(run: Run, ctx: Context, tag: str) -> tuple[TrainConfig, dict[str, An
     else:
         cfg.resume = str(run_dir / "model.last.pt")
     say(f"{tag} {run.name}, {c}: training on {', '.join(d.name for d in run.train)} "
-        f"({cfg.epochs} epochs at {size[0]}x{size[1]}{'' if stopped is None else f'; resumed after epoch {stopped}'})")
+        f"({cfg.epochs} epochs at {size[0]}x{size[1]}{ASPECT_NOTE if cfg.keep_aspect else ''}"
+        f"{'' if stopped is None else f'; resumed after epoch {stopped}'})")
     t0 = time.perf_counter()
     summary = fit(cfg)
     data = CheckpointData.from_dict(summary["data"])
