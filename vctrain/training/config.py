@@ -110,9 +110,9 @@ class TrainConfig:
     balance: Optional[str] = None      # 'items': each training item once an epoch; 'datasets': each training
                                        # store (and the --images folder) drawn equally often (BALANCES); None:
                                        # the recipe's (multicamera: datasets; cpu, paper: items)
-    keep_aspect: bool = False          # resize baseline: every training source (store, folder) at the working size's
-                                       # pixel count at its own frames' aspect, a batch one source's (its windows the
-                                       # crop's share of its size); prediction sizes each frame the same way. False:
+    keep_aspect: bool = False          # resize baseline: every frame at the working size's pixel count at its own
+                                       # aspect, a batch frames of one such size (training/parts.py; its windows the
+                                       # crop's share of that size); prediction sizes each frame the same way. False:
                                        # every frame squashed to the working size (issue 82's pixel budget of wide frames)
 
     @property
