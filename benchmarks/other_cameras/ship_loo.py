@@ -67,7 +67,9 @@ One ``vctrain crossval`` study per candidate and seed (WORKDIR/<candidate>/seed<
 a candidate are built once and shared by its seeds). Scores: road IoU, precision and recall over the
 held-out dataset's frames in its own camera (sum over the set, ignore excluded).
 
-**Baseline**: ``today`` (the shipped recipe) in the same run, same folds, seeds and budget.
+**Baseline**: ``today`` (the recipe shipped until issue 82) in the same run, same folds, seeds and budget;
+a longer-budget candidate's is ``today``'s mix at its budget (:data:`SAME_BUDGET`: ``four-long`` against
+``today-long``, ``four-30`` against ``today-30``), never the 6-epoch ``today``.
 
 **Targets** (issue 82, checked, not asserted): a candidate's mean road IoU over the folds >= ``today``'s + 3,
 its precision up, no fold below ``today``'s by more than 1.
@@ -76,7 +78,7 @@ Outputs: benchmarks/other_cameras/results/ship_loo.{md,json} (rewritten after ev
 smoke run, a few frames, 2 steps, into WORKDIR/quick/results). ``--collect`` runs nothing and reports what
 is finished. The last stdout line is one JSON object: ``<candidate>_<fold>`` (road IoU %, the mean over
 seeds), ``<candidate>_precision_<fold>``, ``<candidate>_recall_<fold>``, ``<candidate>_mean`` (the folds'
-mean, per seed then averaged; ``_std`` over seeds), ``<candidate>_minus_today`` (paired per seed),
+mean, per seed then averaged; ``_std`` over seeds), ``<candidate>_minus_<its baseline>`` (paired per seed),
 ``minutes_per_model``, ``seeds``, ``missing``.
 """
 from __future__ import annotations
@@ -119,6 +121,9 @@ PAIRS = [*TWINS.items(), *LONGER.items(), ("four-long", "today-long"), ("four-30
 CANDIDATES.update({t: CANDIDATES[c] for t, c in {**TWINS, **SHARES}.items()})
 FOLDS = ["kitti_semantics", "camvid", "cityscapes", "idd"]
 BASELINE = "today"
+# a longer-budget candidate is judged against `today`'s mix at its own budget, trained in the same run
+SAME_BUDGET = {"four-long": "today-long", "four-30": "today-30"}
+BASELINES = {BASELINE, *SAME_BUDGET.values()}
 COND, TWIN_COND = "resize", "within"
 TARGET_GAIN, TARGET_WORST = 3.0, -1.0
 # the documents that show the table (between these markers; tests/test_docs.py checks they match the results file)
@@ -237,31 +242,44 @@ def headline(cells: dict, cands: list[str], folds: list[str], seeds: list[int]) 
         head[f"{cand}_mean"] = r2(np.mean(s)) if s else None
         head[f"{cand}_mean_std"] = r2(seed_stats(s)["std"] or 0.0) if len(s) > 1 else None
         head[f"{cand}_precision_mean"] = mean([head[f"{cand}_precision_{f}"] for f in folds])
-    for cand in cands if BASELINE in cands else []:
-        d = [a - b for a, b in zip(per_seed[cand], per_seed[BASELINE]) if a is not None and b is not None]
-        head[f"{cand}_minus_{BASELINE}"] = r2(np.mean(d)) if d else None
-        worst = [None if head[f"{cand}_{f}"] is None or head[f"{BASELINE}_{f}"] is None
-                 else head[f"{cand}_{f}"] - head[f"{BASELINE}_{f}"] for f in folds]
-        head[f"{cand}_worst_fold_minus_{BASELINE}"] = None if None in worst else r2(min(worst))
+    for cand, base in [(c, baseline_of(c)) for c in cands if baseline_of(c) in cands]:
+        d = [a - b for a, b in zip(per_seed[cand], per_seed[base]) if a is not None and b is not None]
+        head[f"{cand}_minus_{base}"] = r2(np.mean(d)) if d else None
+        worst = [None if head[f"{cand}_{f}"] is None or head[f"{base}_{f}"] is None
+                 else head[f"{cand}_{f}"] - head[f"{base}_{f}"] for f in folds]
+        head[f"{cand}_worst_fold_minus_{base}"] = None if None in worst else r2(min(worst))
     for twin, cand in [(t, c) for t, c in PAIRS if t in cands and c in cands]:
         d = [a - b for a, b in zip(per_seed[twin], per_seed[cand]) if a is not None and b is not None]
         head[f"{twin}_minus_{cand}"] = r2(np.mean(d)) if d else None
     return head
 
 
+def baseline_of(cand: str) -> str:
+    """The candidate a candidate is judged against: `today`'s mix at the same budget."""
+    return SAME_BUDGET.get(cand, BASELINE)
+
+
 def targets(head: dict, cands: list[str]) -> dict:
-    """Issue 82's rule for every candidate but the baseline."""
+    """Issue 82's rule for every candidate but the baselines, each against its own budget's baseline."""
     out = {}
-    for cand in [c for c in cands if c != BASELINE and BASELINE in cands]:
-        gain, worst = head[f"{cand}_minus_{BASELINE}"], head[f"{cand}_worst_fold_minus_{BASELINE}"]
-        p, p0 = head[f"{cand}_precision_mean"], head[f"{BASELINE}_precision_mean"]
-        out[f"{cand}: mean >= {BASELINE} + {TARGET_GAIN:g}"] = None if gain is None else gain >= TARGET_GAIN
+    for cand, base in [(c, baseline_of(c)) for c in cands if c not in BASELINES and baseline_of(c) in cands]:
+        gain, worst = head[f"{cand}_minus_{base}"], head[f"{cand}_worst_fold_minus_{base}"]
+        p, p0 = head[f"{cand}_precision_mean"], head[f"{base}_precision_mean"]
+        out[f"{cand}: mean >= {base} + {TARGET_GAIN:g}"] = None if gain is None else gain >= TARGET_GAIN
         out[f"{cand}: precision up"] = None if p is None or p0 is None else p > p0
-        out[f"{cand}: no fold below {BASELINE} - {-TARGET_WORST:g}"] = None if worst is None else worst >= TARGET_WORST
+        out[f"{cand}: no fold below {base} - {-TARGET_WORST:g}"] = None if worst is None else worst >= TARGET_WORST
     for twin, cand in [(t, c) for t, c in TWINS.items() if t in cands and c in cands]:
         gain = head.get(f"{twin}_minus_{cand}")
         out[f"{twin}: mean above {cand} (ships behind its name)"] = None if gain is None else gain > 0
     return out
+
+
+def gain_cell(head: dict, cand: str) -> str:
+    """The table's last column: a candidate's paired gain over `today`'s mix at its budget ("baseline" for those)."""
+    if cand in BASELINES:
+        return "baseline"
+    v = head.get(f"{cand}_minus_{baseline_of(cand)}")
+    return "-" if v is None else f"{v:+.1f}"
 
 
 def render(head: dict, tg: dict, cands: list[str], folds: list[str], seeds: list[int], epochs: int | None,
@@ -271,7 +289,7 @@ def render(head: dict, tg: dict, cands: list[str], folds: list[str], seeds: list
     lines = [f"Issue 82: candidate data mixes for the shipped model, each dataset held out whole in turn and scored "
              f"by a model that never saw its camera (`resize` unless the row says virtual camera, lite0fpn, balance: datasets unless the row says items, {camvid_steps_per_epoch()} steps an epoch, "
              f"{epochs} epochs; seeds {seeds}; a model trained on the same datasets as another candidate's is that one). Road IoU % (precision / recall %).", "",
-             "| candidate | trained on | " + " | ".join(f"held out {x}" for x in folds) + " | mean | − today |",
+             "| candidate | trained on | " + " | ".join(f"held out {x}" for x in folds) + " | mean | − today at its budget |",
              "|---|---|" + "---|" * (len(folds) + 2)]
     for cand in cands:
         row = [f"{f(head[f'{cand}_{x}'])} ({f(head[f'{cand}_precision_{x}'])} / {f(head[f'{cand}_recall_{x}'])})"
@@ -283,7 +301,7 @@ def render(head: dict, tg: dict, cands: list[str], folds: list[str], seeds: list
                                               " (balance: items)" if cand in ITEMS else
                                               " (each frame at its own aspect)" if cand in ASPECT else "")
         lines.append(f"| `{cand}` | {what} | " + " | ".join(row) + f" | {f(head[f'{cand}_mean'])}"
-                     + (f" ± {sd:.1f}" if sd is not None else "") + f" | {f(head.get(f'{cand}_minus_{BASELINE}'), '+')} |")
+                     + (f" ± {sd:.1f}" if sd is not None else "") + f" | {gain_cell(head, cand)} |")
     pairs = [f"`{t}` − `{c}` {f(head.get(f'{t}_minus_{c}'), '+')}" for t, c in PAIRS if t in cands and c in cands]
     lines += ["", f"Paired per seed: {'; '.join(pairs)}."] if pairs else []
     if missing:
@@ -308,7 +326,7 @@ def report(a: argparse.Namespace, wd: Path, cands: list[str], folds: list[str], 
     write_json(rd / "ship_loo.json", {
         "headline": head, "targets": tg, "cells": cells, "candidates": {c: CANDIDATES[c] for c in cands},
         "held_out": folds, "seeds": seeds, "epochs": a.epochs, "steps_per_epoch": 2 if a.quick else camvid_steps_per_epoch(),
-        "condition": {c: condition(c) for c in cands}, "arch": "lite0fpn", "issue": 82, "threads": a.threads, "machine": machine(), "date": today(),
+        "condition": {c: condition(c) for c in cands}, "budget_factor": {c: BUDGET_FACTOR.get(c, 1) for c in cands}, "arch": "lite0fpn", "issue": 82, "threads": a.threads, "machine": machine(), "date": today(),
         "command": "benchmarks/other_cameras/ship_loo.py " + " ".join(sys.argv[1:])})
     print(table, flush=True)
     return head

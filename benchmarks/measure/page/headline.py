@@ -107,12 +107,14 @@ def shipped(data: dict[str, dict]) -> Row:
     if loo.get(f"{cand}_mean") is not None and loo.get("today_mean") is not None:
         by += (f"; held out ({len(data[SHIP_LOO]['held_out'])} folds, {data[SHIP_LOO]['epochs']} epochs): "
                f"{loo[f'{cand}_mean']:.1f} against {loo['today_mean']:.1f}")
-        longer = loo.get(f"{cand}-long_minus_today-long")  # the same at twice the epochs, where measured
-        if longer is not None:
-            cells, folds = data[SHIP_LOO]["cells"], data[SHIP_LOO]["held_out"]
-            done = [s for i, s in enumerate(data[SHIP_LOO]["seeds"])
-                    if all(cells[f"{c}-long|{f}|iou"][i] is not None for c in (cand, "today") for f in folds)]
-            by += f"; {2 * data[SHIP_LOO]['epochs']} epochs, {_seeds(done)}: {longer:+.1f}"
+        factors = data[SHIP_LOO].get("budget_factor", {})  # the same at longer budgets, where measured
+        for tail in ("long", "30"):
+            longer, factor = loo.get(f"{cand}-{tail}_minus_today-{tail}"), factors.get(f"{cand}-{tail}", 2)
+            if longer is not None:
+                cells, folds = data[SHIP_LOO]["cells"], data[SHIP_LOO]["held_out"]
+                done = [s for i, s in enumerate(data[SHIP_LOO]["seeds"])
+                        if all(cells[f"{c}-{tail}|{f}|iou"][i] is not None for c in (cand, "today") for f in folds)]
+                by += f"; {factor * data[SHIP_LOO]['epochs']} epochs, {_seeds(done)}: {longer:+.1f}"
     return Row("the shipped model", f"the shipped model, {SHIPPED}", WINNER["resize"], by,
                f"{len(d['splits'])} held-out splits: " + ", ".join(SPLIT_NAMES.get(s, NAMES.get(s, s)) for s in d["splits"]), fig,
                SHIP_RESULT)
