@@ -19,6 +19,7 @@ they are: condition ``resize``, the network the project ships):
 | ``six-two`` | ``six``'s datasets, two outputs (:data:`TWO_OUTPUTS`): road from CamVid, Cityscapes, ``kitti_semantics`` and LUMS, drivable from IDD-Lite and BDD100K |
 | ``four-long``, ``today-long`` | ``four``'s and ``today``'s datasets with twice the epochs (:data:`LONGER`): the training budget |
 | ``four-30``, ``today-30`` | the same with five times the epochs (30 at ``--epochs 6``: the shipped model's budget) |
+| ``six-long``, ``six-30`` | ``six``'s datasets at twice and five times the epochs: does a longer budget close ``six``'s gap to ``four`` |
 | ``today-items`` | ``today``'s datasets, ``balance: items`` (:data:`ITEMS`): each dataset's share of an epoch its share of the frames |
 | ``four-aspect`` | ``four``'s datasets, ``keep_aspect`` (:data:`ASPECT`): every frame, trained and scored, at the working size's pixel count at its own aspect |
 
@@ -107,22 +108,24 @@ TWINS = {"four-virtual": "four"}  # virtual-camera twin -> the candidate whose d
 # two-output candidates -> the candidate whose datasets and stores they share (their own study folder)
 TWO_OUTPUTS = {"six-two": "six"}
 # twice the training budget (epochs) -> the candidate whose datasets and stores they share (their own study folder)
-LONGER = {"four-long": "four", "today-long": "today", "four-30": "four", "today-30": "today"}
+LONGER = {"four-long": "four", "today-long": "today", "four-30": "four", "today-30": "today", "six-long": "six",
+          "six-30": "six"}
 # each longer candidate's epochs, times --epochs (2x; 5x: 30 at the protocol's 6, the shipped model's budget)
-BUDGET_FACTOR = {"four-long": 2, "today-long": 2, "four-30": 5, "today-30": 5}
+BUDGET_FACTOR = {"four-long": 2, "today-long": 2, "four-30": 5, "today-30": 5, "six-long": 2, "six-30": 5}
 # each dataset's share of an epoch its share of the frames (balance: items) -> the candidate whose datasets and stores they share
 ITEMS = {"today-items": "today"}
 # every frame at the working size's pixel count at its own aspect (train: keep_aspect) -> the candidate whose stores they share
 ASPECT = {"four-aspect": "four"}
 SHARES = {**TWO_OUTPUTS, **LONGER, **ITEMS, **ASPECT}
 # paired differences reported (per seed): each twin and longer budget against its candidate, the longer budgets' recipes
-PAIRS = [*TWINS.items(), *LONGER.items(), ("four-long", "today-long"), ("four-30", "today-30"), *ITEMS.items(), ("four", "today-items"),
+PAIRS = [*TWINS.items(), *LONGER.items(), ("four-long", "today-long"), ("four-30", "today-30"), ("six-long", "today-long"),
+         ("six-long", "four-long"), ("six-30", "today-30"), ("six-30", "four-30"), *ITEMS.items(), ("four", "today-items"),
          *ASPECT.items()]  # a candidate trained in its own folder on another's stores
 CANDIDATES.update({t: CANDIDATES[c] for t, c in {**TWINS, **SHARES}.items()})
 FOLDS = ["kitti_semantics", "camvid", "cityscapes", "idd"]
 BASELINE = "today"
 # a longer-budget candidate is judged against `today`'s mix at its own budget, trained in the same run
-SAME_BUDGET = {"four-long": "today-long", "four-30": "today-30"}
+SAME_BUDGET = {"four-long": "today-long", "four-30": "today-30", "six-long": "today-long", "six-30": "today-30"}
 BASELINES = {BASELINE, *SAME_BUDGET.values()}
 COND, TWIN_COND = "resize", "within"
 TARGET_GAIN, TARGET_WORST = 3.0, -1.0
