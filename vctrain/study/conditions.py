@@ -28,6 +28,7 @@ from vcprep.store import Store
 
 from ..training.checkpoint_data import CheckpointData
 from ..training.config import AdaptSettings, TrainConfig
+from ..training.rerun import interrupted_after
 from ..report import write_json
 from .hashing import file_sha256, settings_sha
 from .keys import TEST_WARP, Keys
@@ -102,26 +103,6 @@ def _model_predictor(checkpoint: Path):
 
 
 ASPECT_NOTE = "'s pixels, each frame at its own aspect"  # (a keep_aspect model's size is its pixel budget)
-
-
-def interrupted_after(cfg: TrainConfig) -> int | None:
-    """The epoch after which a training of ``cfg`` stopped unfinished: its ``.last.pt`` beside ``cfg.out``
-    holds the very request (settings and data, :func:`vctrain.training.rerun.request_of`) and fewer epochs
-    than asked; None otherwise (no such file, another run's, unreadable, or finished)."""
-    from vcprep.errors import VCError
-    from ..training.checkpoint import last_path, load_checkpoint
-    from ..training.rerun import request_of
-
-    last = last_path(Path(cfg.out))
-    if not last.is_file():
-        return None
-    try:
-        ck = load_checkpoint(last)
-    except VCError:
-        return None
-    if ck.get("request") != request_of(cfg) or int(ck["epoch"]) >= int(ck["config"]["epochs"]):
-        return None
-    return int(ck["epoch"])
 
 
 def trained(run: Run, ctx: Context, tag: str) -> tuple[TrainConfig, dict[str, Any]]:

@@ -30,7 +30,8 @@ from vcprep.errors import InputError, VCError
 
 from .config import DEFAULT_RECIPE, RECIPES, RUN_ONLY, TrainConfig
 
-__all__ = ["request_of", "data_files", "data_stamp", "data_change", "keep_aside", "log_path", "rerun_plan"]
+__all__ = ["request_of", "data_files", "data_stamp", "data_change", "keep_aside", "log_path", "rerun_plan",
+           "interrupted_after"]
 
 DATA_KEYS = ("data_stamp", "data_files")  # what a request records of its data, not of its settings
 # settings added after requests were first recorded, and the value that trains as before: left out of a request
@@ -211,3 +212,22 @@ def rerun_plan(cfg: TrainConfig, overwrite: bool) -> tuple[str, str | None]:
             return "train", f"{out}: resuming the interrupted run after epoch {ck['epoch']} of {epochs} ({last})"
         return "train", None  # OUT alone, of this run before its first epoch: afresh
     return "train", None
+
+
+def interrupted_after(cfg: TrainConfig) -> int | None:
+    """The epoch after which a training of ``cfg`` stopped unfinished: its ``.last.pt`` beside ``cfg.out``
+    holds the very request (settings and data, :func:`request_of`) and fewer epochs than asked; None
+    otherwise (no such file, another run's, unreadable, or finished). A study's quiet form of
+    :func:`rerun_plan`'s resume, which refuses another run's files instead of passing them by."""
+    from .checkpoint import last_path, load_checkpoint
+
+    last = last_path(Path(cfg.out))
+    if not last.is_file():
+        return None
+    try:
+        ck = load_checkpoint(last)
+    except VCError:
+        return None
+    if ck.get("request") != request_of(cfg) or int(ck["epoch"]) >= int(ck["config"]["epochs"]):
+        return None
+    return int(ck["epoch"])
