@@ -59,3 +59,11 @@ def test_lofo_threshold_comes_from_the_other_folds():
         assert k == int(np.argmax(np.mean([cheat[g]["iou"] for g in cheat if g != f], axis=0)))
         assert iou == cheat[f]["iou"][k]
     assert curves.lofo(cheat)["c"][1] == 0.0 and curves.lofo(cheat)["c"][0] != 250 / 255
+
+
+def test_each_candidate_is_compared_with_todays_mix_at_its_own_budget():
+    both = ["today", "four", "today-long", "four-long"]
+    assert curves.compared_with("four", both) == "today"
+    assert curves.compared_with("four-long", both) == "today-long"  # never the 6-epoch today
+    assert curves.compared_with("today-long", both) is None  # a baseline is compared with nothing
+    assert curves.compared_with("four-long", ["today", "four-long"]) is None  # its baseline not in this run

@@ -17,17 +17,19 @@ are cached in WORKDIR/curves/ (resumable). From them, per candidate and fold (me
 - ``ap`` and ``maxf`` (KITTI devkit definitions: 11-point average precision, max F1 over thresholds):
   figures of the whole precision-recall curve, no threshold chosen;
 - ``precision_at_baseline_recall``: the candidate's precision at the highest threshold where its recall still
-  reaches ``today``'s recall at 0.5 (same seed and fold): precision compared at equal recall;
+  reaches its baseline's recall at 0.5 (same seed and fold): precision compared at equal recall;
 - ``iou_lofo``: the IoU at one threshold chosen leave-one-fold-out (the threshold that maximises the mean IoU
   of the other folds, per seed), against ``iou`` at 0.5: what shipping another threshold than 0.5 would give on
   a camera it was not chosen on (``lofo_thresholds``: the thresholds chosen).
 
-**Baseline**: ``today`` in the same run (the same folds, seeds and frames).
+**Baseline**: ``today``'s mix at the candidate's own budget (``ship_loo.baseline_of``: ``today`` for the 6-epoch
+candidates, ``today-long`` for ``four-long``, ``today-30`` for ``four-30``), in the same run (the same folds, seeds
+and frames). A baseline has no comparison of its own.
 
 Outputs: benchmarks/other_cameras/results/ship_loo_curves.{md,json}. ``--collect`` scores nothing and reports
 the cached folds. The last stdout line is one JSON object: ``<candidate>_<metric>_<fold>`` and
-``<candidate>_<metric>_mean`` (% ; thresholds in [0, 1]), ``<candidate>_minus_today_<iou|maxf|ap|precision_at_baseline_recall>``
-and ``<candidate>_iou_minus_today_iou_lofo`` (the folds' means; points), ``missing``.
+``<candidate>_<metric>_mean`` (% ; thresholds in [0, 1]), ``<candidate>_minus_<baseline>_<iou|maxf|ap|precision_at_baseline_recall>``
+and ``<candidate>_iou_minus_<baseline>_iou_lofo`` (the folds' means; points), ``missing``.
 """
 from __future__ import annotations
 
@@ -118,6 +120,13 @@ def fold_metrics(counts: dict, baseline_recall: float | None) -> dict:
     return out
 
 
+def compared_with(cand: str, cands: list[str]) -> str | None:
+    """The baseline ``cand`` is judged against (``today``'s mix at its budget) when it is in this run; None for a
+    baseline itself or when its baseline was not selected."""
+    base = loo.baseline_of(cand)
+    return base if cand not in loo.BASELINES and base in cands else None
+
+
 def lofo(curves: dict[str, dict[str, np.ndarray]]) -> dict[str, tuple[float, float]]:
     """Per fold (one seed): (the threshold maximising the other folds' mean IoU, this fold's IoU there)."""
     out = {}
@@ -138,8 +147,10 @@ def collect(wd: Path, cands: list[str], folds: list[str], seeds: list[int], thre
             ok = {f: counts[(cand, f)] for f in folds if counts[(cand, f)] is not None}
             missing += [f"{cand}|{f}|seed{seed}" for f in folds if f not in ok]
             chosen = lofo({f: curve(c) for f, c in ok.items()}) if len(ok) == len(folds) > 1 else {}
+            # a baseline's own "precision at the baseline's recall" is its precision at 0.5: what candidates are compared with
+            ref = compared_with(cand, cands) or (cand if cand in loo.BASELINES else None)
             for f, c in ok.items():
-                b = counts.get((loo.BASELINE, f)) if loo.BASELINE in cands else None
+                b = counts.get((ref, f)) if ref else None
                 m = fold_metrics(c, b["at_half"]["recall"] if b else None)
                 if f in chosen:
                     m["lofo_threshold"], m["iou_lofo"] = chosen[f]
@@ -162,8 +173,7 @@ def headline(cells: dict, cands: list[str], folds: list[str]) -> dict:
             head[f"{cand}_{k}_mean"] = None if None in per else round(100 * float(np.mean(per)), 2)
         ths = [t for f in folds for t in cells.get(f"{cand}|{f}|lofo_threshold", []) if t is not None]
         head[f"{cand}_lofo_thresholds"] = sorted({round(t, 3) for t in ths})
-    b = loo.BASELINE
-    for cand in [c for c in cands if c != b and b in cands]:  # the folds' means against the baseline's
+    for cand, b in [(c, compared_with(c, cands)) for c in cands if compared_with(c, cands)]:  # against the baseline's
         d = lambda x, y: None if x is None or y is None else round(x - y, 2)
         for k in ("iou", "maxf", "ap", "precision_at_baseline_recall"):
             head[f"{cand}_minus_{b}_{k}"] = d(head[f"{cand}_{k}_mean"], head[f"{b}_{k}_mean"])
@@ -175,15 +185,15 @@ def render(head: dict, cands: list[str], folds: list[str], seeds: list[int], mis
     f = lambda v: "-" if v is None else f"{v:.1f}"
     lines = [f"Issue 82: ship_loo's models (each dataset held out whole, scored by a model that never saw its camera; seeds "
              f"{seeds}) at every threshold of P(road). Per held-out dataset: road IoU at P >= 0.5 · AP (11-point) · "
-             f"precision at `{loo.BASELINE}`'s recall at 0.5 · IoU at a threshold chosen on the other folds; %.", "",
+             f"precision at the baseline's recall at 0.5 (`today`'s mix at the same budget) · IoU at a threshold "
+             f"chosen on the other folds; %.", "",
              "| candidate | " + " | ".join(f"held out {x}" for x in folds) + " | mean | thresholds chosen |",
              "|---|" + "---|" * (len(folds) + 2)]
     for cand in cands:
         cell = lambda x: " · ".join(f(head[f"{cand}_{k}_{x}"]) for k in ("iou", "ap", "precision_at_baseline_recall", "iou_lofo"))
         lines.append(f"| `{cand}` | " + " | ".join(cell(x) for x in folds) + f" | {cell('mean')} | "
                      + (", ".join(f"{t:.2f}" for t in head[f"{cand}_lofo_thresholds"]) or "-") + " |")
-    b = loo.BASELINE
-    for cand in [c for c in cands if c != b and b in cands]:
+    for cand, b in [(c, compared_with(c, cands)) for c in cands if compared_with(c, cands)]:
         g = lambda k: f(head[f"{cand}_minus_{b}_{k}"]) if head[f"{cand}_minus_{b}_{k}"] is None else f"{head[f'{cand}_minus_{b}_{k}']:+.1f}"
         lofo = head[f"{cand}_iou_minus_{b}_iou_lofo"]
         lines += ["", f"`{cand}` − `{b}` (means of the folds): IoU at 0.5 {g('iou')}; precision at `{b}`'s recall "
@@ -212,7 +222,7 @@ def main() -> None:
     (rd / "ship_loo_curves.md").write_text(table)
     write_json(rd / "ship_loo_curves.json", {
         "headline": head, "cells": cells, "candidates": {c: loo.CANDIDATES[c] for c in cands}, "held_out": folds,
-        "seeds": seeds, "baseline": loo.BASELINE, "issue": 82, "threads": a.threads, "machine": machine(),
+        "seeds": seeds, "baselines": {c: compared_with(c, cands) for c in cands}, "issue": 82, "threads": a.threads, "machine": machine(),
         "date": today(), "command": "benchmarks/other_cameras/ship_loo_curves.py " + " ".join(sys.argv[1:])})
     print(table, flush=True)
     print(json.dumps(head))
