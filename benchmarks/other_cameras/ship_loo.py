@@ -244,7 +244,8 @@ def headline(cells: dict, cands: list[str], folds: list[str], seeds: list[int]) 
         s = [x for x in per_seed[cand] if x is not None]
         head[f"{cand}_mean"] = r2(np.mean(s)) if s else None
         head[f"{cand}_mean_std"] = r2(seed_stats(s)["std"] or 0.0) if len(s) > 1 else None
-        head[f"{cand}_precision_mean"] = mean([head[f"{cand}_precision_{f}"] for f in folds])
+        prec = [head[f"{cand}_precision_{f}"] for f in folds]  # a mean of every fold, as the IoU's, or none
+        head[f"{cand}_precision_mean"] = None if None in prec else mean(prec)
     for cand, base in [(c, baseline_of(c)) for c in cands if baseline_of(c) in cands]:
         d = [a - b for a, b in zip(per_seed[cand], per_seed[base]) if a is not None and b is not None]
         head[f"{cand}_minus_{base}"] = r2(np.mean(d)) if d else None
