@@ -41,3 +41,36 @@ def test_a_candidate_with_a_fold_to_train_is_not_judged():
     assert head["six-30_camvid"] == 85.0 and head["six-30_idd"] is None
     assert head["six-30_mean"] is None and head["six-30_precision_mean"] is None
     assert set(ship_loo.targets(head, ["today-30", "six-30"]).values()) == {None}
+
+
+def test_precision_is_judged_on_the_seeds_both_have_finished_paired():
+    base = {f: [80.0, 80.0] for f in FOLDS}
+    cand = {**{f: [84.0, 84.0] for f in FOLDS}, "idd": [84.0, None]}  # seed 1 part-trained
+    prec = {**{f: [91.0, 99.0] for f in FOLDS}, "idd": [91.0, None]}
+    cells = {**_cells("today-30", base, {f: [92.0, 88.0] for f in FOLDS}), **_cells("six-30", cand, prec)}
+    head = ship_loo.headline(cells, ["today-30", "six-30"], FOLDS, [0, 1])
+    # seed 0 only: 91 against the baseline's 92 (a mean over whatever seeds each fold has would say 94 against 90)
+    assert head["six-30_precision_mean"] == 91.0 and head["today-30_precision_mean"] == 90.0
+    assert head["six-30_precision_minus_today-30"] == -1.0 and head["six-30_minus_today-30"] == 4.0
+    assert ship_loo.targets(head, ["today-30", "six-30"])["six-30: precision up"] is False
+
+
+def test_scores_of_an_earlier_checkout_are_carried_and_a_new_result_file_wins(tmp_path):
+    import json
+    old = {"epochs": 6, "steps_per_epoch": 35, "seeds": [0, 1], "condition": {"four-30": "resize"},
+           "budget_factor": {"four-30": 5},
+           "cells": {"four-30|camvid|iou": [90.0, None], "four-30|camvid|precision": [95.0, None],
+                     "four-30|camvid|recall": [94.0, None], "four-30|idd|iou": [85.0, 84.0],
+                     "four-30|idd|precision": [96.0, 97.0], "four-30|idd|recall": [88.0, 86.0]}}
+    (tmp_path / "ship_loo.json").write_text(json.dumps(old))
+    earlier = ship_loo.kept(tmp_path / "ship_loo.json", 6, 35)
+    assert set(earlier) == {"four-30|camvid|seed0", "four-30|idd|seed0", "four-30|idd|seed1"}
+    assert ship_loo.kept(tmp_path / "ship_loo.json", 10, 35) == {}  # another protocol carries nothing
+    wd = tmp_path / "wd"
+    f = ship_loo.result_file(wd, 1, "four-30", "idd")  # seed 1's idd retrained in this workdir
+    f.parent.mkdir(parents=True)
+    f.write_text(json.dumps({"iou": 0.8, "precision": 0.9, "recall": 0.85, "train_seconds": 1800}))
+    cells, missing, minutes, carried = ship_loo.collect(wd, ["four-30"], ["camvid", "idd"], [0, 1], earlier)
+    assert cells["four-30|idd|iou"] == [85.0, 80.0] and cells["four-30|camvid|precision"] == [95.0, None]
+    assert carried == ["four-30|camvid|seed0", "four-30|idd|seed0"] and missing == ["four-30|camvid|seed1"]
+    assert minutes == [30.0]  # the carried scores have no training time on record

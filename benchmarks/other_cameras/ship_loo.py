@@ -65,7 +65,10 @@ is scored on. BDD100K and LUMS, where a candidate has them, are trained on in ev
 train``): their cameras' held-out figures are in ``shipped_model.py``'s splits, not here.
 
 One ``vctrain crossval`` study per candidate and seed (WORKDIR/<candidate>/seed<k>/, resumable; the stores of
-a candidate are built once and shared by its seeds). Scores: road IoU, precision and recall over the
+a candidate are built once and shared by its seeds). The workdir is not committed: a fold whose result file
+it lacks but whose scores the results file has from an earlier run at the same protocol (epochs, steps an epoch,
+condition, budget) is not trained again and is reported from there (``carried``; delete its cells to retrain
+it), so a new checkout adds seeds and folds to what earlier ones measured. Scores: road IoU, precision and recall over the
 held-out dataset's frames in its own camera (sum over the set, ignore excluded).
 
 **Baseline**: ``today`` (the recipe shipped until issue 82) in the same run, same folds, seeds and budget;
@@ -80,7 +83,7 @@ smoke run, a few frames, 2 steps, into WORKDIR/quick/results). ``--collect`` run
 is finished. The last stdout line is one JSON object: ``<candidate>_<fold>`` (road IoU %, the mean over
 seeds), ``<candidate>_precision_<fold>``, ``<candidate>_recall_<fold>``, ``<candidate>_mean`` (the folds'
 mean, per seed then averaged; ``_std`` over seeds), ``<candidate>_minus_<its baseline>`` (paired per seed),
-``minutes_per_model``, ``seeds``, ``missing``.
+``minutes_per_model`` (over the models whose training time is known), ``seeds``, ``missing``, ``carried``.
 """
 from __future__ import annotations
 
@@ -208,23 +211,54 @@ def result_file(wd: Path, seed: int, cand: str, fold: str) -> Path:
     return sd / "runs" / "_all" / condition(cand) / f"result-{fold}.json"
 
 
-def collect(wd: Path, cands: list[str], folds: list[str], seeds: list[int]) -> tuple[dict, list[str], list[float]]:
-    """(cells {'<cand>|<fold>|<iou|precision|recall>': % per seed, None where missing}, missing, minutes)."""
+def kept(path: Path, epochs: int | None, steps: int) -> dict:
+    """``'<cand>|<fold>|seed<k>'`` -> its ``iou``, ``precision``, ``recall`` (%) and ``minutes`` where known, from an
+    earlier run's results file at the same protocol (epochs, steps an epoch, each candidate's condition and budget):
+    the scores of models trained in a workdir this checkout does not have (benchmarks/out is not committed).
+    {} when there is no such file or it ran another protocol."""
+    if not path.is_file():
+        return {}
+    old = json.loads(path.read_text())
+    if old.get("epochs") != epochs or old.get("steps_per_epoch") != steps:
+        return {}
+    same = lambda c: (old.get("condition", {}).get(c), old.get("budget_factor", {}).get(c, 1)) == (condition(c), BUDGET_FACTOR.get(c, 1))
+    out: dict[str, dict] = {}
+    for key, vals in old["cells"].items():
+        cand, fold, k = key.split("|")
+        for seed, v in zip(old["seeds"], vals):
+            if cand in CANDIDATES and same(cand) and v is not None:
+                out.setdefault(f"{cand}|{fold}|seed{seed}", {})[k] = v
+    return {k: v for k, v in out.items() if v.get("iou") is not None}
+
+
+def collect(wd: Path, cands: list[str], folds: list[str], seeds: list[int],
+            earlier: dict | None = None) -> tuple[dict, list[str], list[float], list[str]]:
+    """(cells {'<cand>|<fold>|<iou|precision|recall|minutes>': per seed, None where missing}, missing, minutes a
+    model, carried): a fold's result file in ``wd``, else its scores in ``earlier`` (:func:`kept`; listed in carried)."""
     cells: dict[str, list] = {}
-    missing, minutes = [], {}
+    missing, minutes, carried = [], {}, []
     for cand in cands:
         for i, seed in enumerate(seeds):
             for fold in folds:
                 f = result_file(wd, seed, cand, fold)
-                keys = {k: cells.setdefault(f"{cand}|{fold}|{k}", [None] * len(seeds)) for k in ("iou", "precision", "recall")}
-                if not f.is_file():
+                keys = {k: cells.setdefault(f"{cand}|{fold}|{k}", [None] * len(seeds))
+                        for k in ("iou", "precision", "recall", "minutes")}
+                old = (earlier or {}).get(f"{cand}|{fold}|seed{seed}")
+                if f.is_file():
+                    row = json.loads(f.read_text())
+                    old = {k: round(100 * row[k], 2) if row.get(k) is not None else None for k in ("iou", "precision", "recall")}
+                    old["minutes"] = round(row["train_seconds"] / 60, 2)
+                elif old:
+                    carried.append(f"{cand}|{fold}|seed{seed}")
+                else:
                     missing.append(f"{cand}|{fold}|seed{seed}")
                     continue
-                row = json.loads(f.read_text())
                 for k, cell in keys.items():
-                    cell[i] = round(100 * row[k], 2) if row.get(k) is not None else None
-                minutes[(same_model(cand, fold), seed, row.get("run", fold))] = row["train_seconds"] / 60
-    return cells, missing, list(minutes.values())
+                    cell[i] = old.get(k)
+                if old.get("minutes") is not None:  # one model scored on several folds counts once
+                    run = fold if fold in CANDIDATES[same_model(cand, fold)] else "_all"
+                    minutes[(same_model(cand, fold), seed, run)] = old["minutes"]
+    return cells, missing, list(minutes.values()), carried
 
 
 def headline(cells: dict, cands: list[str], folds: list[str], seeds: list[int]) -> dict:
@@ -234,21 +268,24 @@ def headline(cells: dict, cands: list[str], folds: list[str], seeds: list[int]) 
     mean = lambda v: r2(np.mean([x for x in v if x is not None])) if any(x is not None for x in v) else None
     head: dict = {}
     per_seed: dict[str, list] = {}
+    prec_seed: dict[str, list] = {}
     for cand in cands:
         for fold in folds:
             head[f"{cand}_{fold}"] = mean(cells[f"{cand}|{fold}|iou"])
             for k in ("precision", "recall"):
                 head[f"{cand}_{k}_{fold}"] = mean(cells[f"{cand}|{fold}|{k}"])
-        per_seed[cand] = [None if any(cells[f"{cand}|{f}|iou"][i] is None for f in folds)
-                          else float(np.mean([cells[f"{cand}|{f}|iou"][i] for f in folds])) for i in range(len(seeds))]
+        per_seed[cand] = seed_means(cells, cand, "iou", folds, len(seeds))
         s = [x for x in per_seed[cand] if x is not None]
         head[f"{cand}_mean"] = r2(np.mean(s)) if s else None
         head[f"{cand}_mean_std"] = r2(seed_stats(s)["std"] or 0.0) if len(s) > 1 else None
-        prec = [head[f"{cand}_precision_{f}"] for f in folds]  # a mean of every fold, as the IoU's, or none
-        head[f"{cand}_precision_mean"] = None if None in prec else mean(prec)
+        prec_seed[cand] = seed_means(cells, cand, "precision", folds, len(seeds))  # per seed with every fold, as the IoU's
+        p = [x for x in prec_seed[cand] if x is not None]
+        head[f"{cand}_precision_mean"] = r2(np.mean(p)) if p else None
     for cand, base in [(c, baseline_of(c)) for c in cands if baseline_of(c) in cands]:
         d = [a - b for a, b in zip(per_seed[cand], per_seed[base]) if a is not None and b is not None]
         head[f"{cand}_minus_{base}"] = r2(np.mean(d)) if d else None
+        d = [a - b for a, b in zip(prec_seed[cand], prec_seed[base]) if a is not None and b is not None]
+        head[f"{cand}_precision_minus_{base}"] = r2(np.mean(d)) if d else None  # paired per seed, as the IoU's gain
         worst = [None if head[f"{cand}_{f}"] is None or head[f"{base}_{f}"] is None
                  else head[f"{cand}_{f}"] - head[f"{base}_{f}"] for f in folds]
         head[f"{cand}_worst_fold_minus_{base}"] = None if None in worst else r2(min(worst))
@@ -256,6 +293,12 @@ def headline(cells: dict, cands: list[str], folds: list[str], seeds: list[int]) 
         d = [a - b for a, b in zip(per_seed[twin], per_seed[cand]) if a is not None and b is not None]
         head[f"{twin}_minus_{cand}"] = r2(np.mean(d)) if d else None
     return head
+
+
+def seed_means(cells: dict, cand: str, metric: str, folds: list[str], n: int) -> list:
+    """Per seed the mean of ``metric`` over the folds, None for a seed with a fold still to train."""
+    col = [cells[f"{cand}|{f}|{metric}"] for f in folds]
+    return [None if any(c[i] is None for c in col) else float(np.mean([c[i] for c in col])) for i in range(n)]
 
 
 def baseline_of(cand: str) -> str:
@@ -268,9 +311,9 @@ def targets(head: dict, cands: list[str]) -> dict:
     out = {}
     for cand, base in [(c, baseline_of(c)) for c in cands if c not in BASELINES and baseline_of(c) in cands]:
         gain, worst = head[f"{cand}_minus_{base}"], head[f"{cand}_worst_fold_minus_{base}"]
-        p, p0 = head[f"{cand}_precision_mean"], head[f"{base}_precision_mean"]
+        dp = head[f"{cand}_precision_minus_{base}"]
         out[f"{cand}: mean >= {base} + {TARGET_GAIN:g}"] = None if gain is None else gain >= TARGET_GAIN
-        out[f"{cand}: precision up"] = None if p is None or p0 is None else p > p0
+        out[f"{cand}: precision up"] = None if dp is None else dp > 0
         out[f"{cand}: no fold below {base} - {-TARGET_WORST:g}"] = None if worst is None else worst >= TARGET_WORST
     for twin, cand in [(t, c) for t, c in TWINS.items() if t in cands and c in cands]:
         gain = head.get(f"{twin}_minus_{cand}")
@@ -315,14 +358,27 @@ def render(head: dict, tg: dict, cands: list[str], folds: list[str], seeds: list
     return "\n".join(lines) + "\n"
 
 
+def results_of(a: argparse.Namespace, wd: Path) -> Path:
+    """The results folder: the committed one, or the workdir's for ``--quick``."""
+    return wd / "results" if a.quick else results_dir(__file__)
+
+
+def earlier_scores(a: argparse.Namespace, wd: Path) -> dict:
+    """The results file's scores at this run's protocol (:func:`kept`)."""
+    return kept(results_of(a, wd) / "ship_loo.json", a.epochs, 2 if a.quick else camvid_steps_per_epoch())
+
+
 def report(a: argparse.Namespace, wd: Path, cands: list[str], folds: list[str], seeds: list[int]) -> dict:
-    cells, missing, minutes = collect(wd, cands, folds, seeds)
+    cells, missing, minutes, carried = collect(wd, cands, folds, seeds, earlier_scores(a, wd))
     head = headline(cells, cands, folds, seeds)
     tg = targets(head, cands)
     head.update({"minutes_per_model": round(float(np.mean(minutes)), 2) if minutes else None, "seeds": seeds,
-                 "missing": missing})
+                 "missing": missing, "carried": carried})
     table = render(head, tg, cands, folds, seeds, a.epochs, missing)
-    rd = wd / "results" if a.quick else results_dir(__file__)
+    if carried:
+        table += (f"\nCarried from the results file's earlier run (their models are not in this workdir): "
+                  f"{len(carried)} of {sum(len(v) - v.count(None) for k, v in cells.items() if k.endswith('|iou'))} scores.\n")
+    rd = results_of(a, wd)
     (rd / "ship_loo.md").parent.mkdir(parents=True, exist_ok=True)
     (rd / "ship_loo.md").write_text(table)
     if not a.quick:
@@ -360,12 +416,16 @@ def main() -> None:
     seeds = [0] if a.quick else [int(s) for s in a.seeds.split(",") if s]
     require_data(DATA, CITYSCAPES, KITTI_SEM, IDD, BDD, LUMS)
     wd = a.workdir / "quick" if a.quick else a.workdir
+    earlier = earlier_scores(a, wd)  # what an earlier checkout trained is not trained again
     # seed by seed, fold by fold, every candidate in turn: a cut-off run leaves folds that every candidate has
     for seed in seeds if not a.collect else []:
         for fold in folds:
             for cand in [c for c in cands if same_model(c, fold) == c]:  # (the others: an earlier candidate's model)
                 study = candidate_study(wd, home(cand), a.quick, a.epochs)
                 sd = wd / home(cand) / f"seed{seed}"
+                if not result_file(wd, seed, cand, fold).is_file() and f"{cand}|{fold}|seed{seed}" in earlier:
+                    print(f"{cand}, seed {seed}, held out {fold}: scored in the results file's earlier run", flush=True)
+                    continue
                 if seed != seeds[0] or cand in SHARES:
                     link_stores(sd, wd / SHARES.get(cand, home(cand)) / f"seed{seeds[0]}")
                 run_study(study, sd, [condition(cand)], seed, a.threads, heldout=[fold])
