@@ -83,7 +83,8 @@ smoke run, a few frames, 2 steps, into WORKDIR/quick/results). ``--collect`` run
 is finished. The last stdout line is one JSON object: ``<candidate>_<fold>`` (road IoU %, the mean over
 seeds), ``<candidate>_precision_<fold>``, ``<candidate>_recall_<fold>``, ``<candidate>_mean`` (the folds'
 mean, per seed then averaged; ``_std`` over seeds), ``<candidate>_minus_<its baseline>`` (paired per seed),
-``minutes_per_model`` (over the models whose training time is known), ``seeds``, ``missing``, ``carried``.
+``minutes_per_model`` (over the models whose training time is known), ``seeds``, ``missing``; the results file
+also lists the scores ``carried``.
 """
 from __future__ import annotations
 
@@ -373,7 +374,7 @@ def report(a: argparse.Namespace, wd: Path, cands: list[str], folds: list[str], 
     head = headline(cells, cands, folds, seeds)
     tg = targets(head, cands)
     head.update({"minutes_per_model": round(float(np.mean(minutes)), 2) if minutes else None, "seeds": seeds,
-                 "missing": missing, "carried": carried})
+                 "missing": missing})
     table = render(head, tg, cands, folds, seeds, a.epochs, missing)
     if carried:
         table += (f"\nCarried from the results file's earlier run (their models are not in this workdir): "
@@ -384,7 +385,7 @@ def report(a: argparse.Namespace, wd: Path, cands: list[str], folds: list[str], 
     if not a.quick:
         embed(table)
     write_json(rd / "ship_loo.json", {
-        "headline": head, "targets": tg, "cells": cells, "candidates": {c: CANDIDATES[c] for c in cands},
+        "headline": head, "targets": tg, "cells": cells, "carried": carried, "candidates": {c: CANDIDATES[c] for c in cands},
         "held_out": folds, "seeds": seeds, "epochs": a.epochs, "steps_per_epoch": 2 if a.quick else camvid_steps_per_epoch(),
         "condition": {c: condition(c) for c in cands}, "budget_factor": {c: BUDGET_FACTOR.get(c, 1) for c in cands}, "arch": "lite0fpn", "issue": 82, "threads": a.threads, "machine": machine(), "date": today(),
         "command": "benchmarks/other_cameras/ship_loo.py " + " ".join(sys.argv[1:])})
