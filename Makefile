@@ -13,7 +13,7 @@ PY     := $(VENV)/bin/python
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 OUT    ?= out/demo
-MODEL  ?= $(ROOT)models/road-street/road.pt
+MODEL  ?= $(ROOT)models/road-all/road.pt
 
 .PHONY: install test demo bench clean fuzz docs
 

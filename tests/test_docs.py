@@ -101,18 +101,19 @@ def test_headline_is_a_short_table_of_both_regimes_and_the_shipped_model():
     assert f"**{c['headline']['loo_within_minus_resize']:+.1f} ± {c['headline']['loo_within_minus_resize_std']:.1f}**" in calibrated[2]
     assert calibrated[1].startswith("the virtual camera") and f"{len(c['seeds'])} seeds" in calibrated[2]
     assert f"worst CamVid {c['headline']['loo_within_minus_resize_camvid']:+.1f}" in calibrated[3]
-    ship = _result("what_a_user_gets", "ship_mix_four")  # issue 82: the model shipped, beside the one it replaced
+    ship = _result("what_a_user_gets", "ship_mix_six")  # issue 82: the model shipped, beside the ones shipped before
     h = ship["headline"]
-    assert "models/road-street" in shipped[0] and shipped[1] == "resize"
-    assert (f"held-out mean **{h['mean_four']:.1f}** (1 seed, {ship['epochs']} epochs) against {h['mean_shipped']:.1f} "
-            "for `road-multicamera`") in shipped[2]
+    assert "models/road-all" in shipped[0] and shipped[1] == "resize"
+    assert (f"held-out mean **{h['mean_six']:.1f}** (1 seed, {ship['epochs']} epochs) against {h['mean_road-street']:.1f} "
+            f"for `road-street` and {h['mean_shipped']:.1f} for `road-multicamera`, shipped before") in shipped[2]
     loo = _result("other_cameras", "ship_loo")["headline"]
-    if loo.get("four_mean") is not None and loo.get("today_mean") is not None:  # the held-out-camera verdict
-        assert f"{loo['four_mean']:.1f} against {loo['today_mean']:.1f}" in shipped[2]
+    if loo.get("six_mean") is not None and loo.get("today_mean") is not None:  # the held-out-camera verdict
+        assert f"{loo['six_mean']:.1f} against {loo['today_mean']:.1f}" in shipped[2]
     assert f"{len(ship['splits'])} held-out splits" in shipped[3]
     text = " ".join(lines)
-    assert "a lite0fpn trained on CamVid, Cityscapes, KITTI, IDD-Lite with the frames read as they are" in text
-    assert "`road-multicamera`, which trained on them" in text
+    assert "a lite0fpn trained on CamVid, Cityscapes, KITTI, IDD-Lite, BDD100K, LUMS with the frames read as they are" in text
+    assert (f"`road-street` is {-loo['six-30_minus_four-30']:.1f} ahead on held-out datasets" in text
+            and f"`road-multicamera` {h['shipped_bdd'] - h['six_bdd']:.1f} on BDD100K's dashcams" in text)
     assert f"used on others ({a['real_within_minus_resize']:+.1f} ± " in text
     assert "[docs/results.md](docs/results.md)" in text
 

@@ -11,7 +11,7 @@ import pytest
 from conftest import EXAMPLES, assert_one_error_line, run_cli
 
 ROOT = Path(__file__).resolve().parent.parent
-SHIPPED = ROOT / "models" / "road-street" / "road.pt"
+SHIPPED = ROOT / "models" / "road-all" / "road.pt"
 
 
 def _make_n(cwd: Path, *args: str) -> subprocess.CompletedProcess:
@@ -28,27 +28,28 @@ def test_make_demo_runs_from_another_folder(tmp_path):
     assert proc.returncode == 0, proc.stderr
     named = {w.strip("'") for w in proc.stdout.split() if w.startswith((str(ROOT), f"'{ROOT}"))}
     for rel in ("examples/camvid/images", "examples/kitti/image_2", "examples/kitti/gt_image_2",
-                "models/road-street/road.pt"):
+                "models/road-all/road.pt"):
         assert str(ROOT / rel) in named and (ROOT / rel).exists(), rel
     assert "--out out/demo/store" in proc.stdout  # the outputs go where make runs
     here = _make_n(ROOT)
     assert here.returncode == 0 and str(ROOT) not in here.stdout, here.stdout
     assert "--images examples/camvid/images --labels examples/camvid/labels" in here.stdout
-    assert "predict models/road-street/road.pt examples/kitti/image_2" in here.stdout
+    assert "predict models/road-all/road.pt examples/kitti/image_2" in here.stdout
 
 
 def test_the_shipped_model_by_name_from_another_folder(tmp_path):
     from vctrain.cli.common import model_arg
 
-    assert model_arg(Path("shipped")) == model_arg(Path("road-street")) == SHIPPED
-    # the model shipped before issue 82 stays reachable by its name
+    assert model_arg(Path("shipped")) == model_arg(Path("road-all")) == SHIPPED
+    assert model_arg(Path("road-street")) == ROOT / "models" / "road-street" / "road.pt"
+    # the models shipped before stay reachable by their names
     assert model_arg(Path("road-multicamera")) == ROOT / "models" / "road-multicamera" / "road.pt"
     proc = run_cli("predict", "shipped", EXAMPLES / "kitti/image_2/um_000000.png", "--out", "o", "--quiet",
                    prog="vctrain", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert (tmp_path / "o" / "um_000000_mask.png").is_file()
     # the README's path from another folder: refused, naming where the shipped model is and its name
-    proc = run_cli("predict", "models/road-street/road.pt", EXAMPLES / "kitti/image_2", "--out", "o2",
+    proc = run_cli("predict", "models/road-all/road.pt", EXAMPLES / "kitti/image_2", "--out", "o2",
                    prog="vctrain", cwd=tmp_path)
     assert_one_error_line(proc, "checkpoint not found", str(SHIPPED), "shipped")
     assert_one_error_line(run_cli("predict", "road-multicamra", EXAMPLES / "kitti/image_2", "--out", "o2",
@@ -88,7 +89,7 @@ def test_fine_tuning_starts_from_the_shipped_model_by_name(tmp_path):
     proc = run_cli("fit", *data, "--init", "shipped", "--out", "ft.pt", prog="vctrain", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert f"fine-tuning {SHIPPED}" in proc.stderr.split("epoch 1/1")[0] and (tmp_path / "ft.pt").is_file()
-    proc = run_cli("fit", *data, "--init", "models/road-street/road.pt", "--out", "ft2.pt", prog="vctrain",
+    proc = run_cli("fit", *data, "--init", "models/road-all/road.pt", "--out", "ft2.pt", prog="vctrain",
                    cwd=tmp_path)
     assert_one_error_line(proc, "checkpoint not found", str(SHIPPED), "shipped")
     assert not (tmp_path / "ft2.pt").exists()

@@ -616,7 +616,7 @@ def test_every_command_has_an_example(cmd):
 def test_predict_help_shows_the_shipped_model_and_when_the_overlay_has_a_horizon():
     text = " ".join(runner.invoke(app, ["predict", "--help"]).stdout.split())
     example = text.split("Example:", 1)[1]
-    assert "vctrain predict models/road-street/road.pt " in example
+    assert "vctrain predict models/road-all/road.pt " in example
     overlay = text.split("Options:", 1)[1].split("--overlay", 1)[1].split(" --mask-video", 1)[0]
     assert "horizon" in overlay and "only with --camera" in overlay, overlay
 

@@ -11,9 +11,9 @@ from vcprep.errors import InputError, one_of
 __all__ = ["MODELS", "SHIPPED", "shipped_models", "resolve_model"]
 
 MODELS = Path(__file__).resolve().parents[1] / "models"
-# the model `shipped` names (issue 82: chosen on cameras held out of training); the one it replaced,
-# road-multicamera, stays reachable by its name (BDD100K- and LUMS-like cameras: its card)
-SHIPPED = "road-street"
+# the model `shipped` names (issue 82: chosen on cameras held out of training, all six datasets); the
+# ones shipped before, road-street and road-multicamera, stay reachable by their names (their cards)
+SHIPPED = "road-all"
 
 
 def shipped_models() -> dict[str, Path]:
@@ -23,9 +23,9 @@ def shipped_models() -> dict[str, Path]:
 
 
 def resolve_model(arg: str | Path | None) -> Path | None:
-    """A model as given: a file that exists as given; else a shipped model's name ('shipped', 'road-street',
-    'road-multicamera'; :func:`shipped_models`); a missing .pt/.onnx file or unknown name is refused naming the
-    shipped model's path and its names (anything else is left to the loader)."""
+    """A model as given: a file that exists as given; else a shipped model's name ('shipped', 'road-all',
+    'road-street', 'road-multicamera'; :func:`shipped_models`); a missing .pt/.onnx file or unknown name is
+    refused naming the shipped model's path and its names (anything else is left to the loader)."""
     if arg is None:
         return None
     arg = Path(arg)

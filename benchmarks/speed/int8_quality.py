@@ -5,13 +5,13 @@ model itself (issue 69; run by ``benchmarks/speed/predict_e2e.py --quality`` or 
 
 ``--model``: a shipped model's name or a .pt (default ``shipped``: ``vctrain.shipped.SHIPPED``); results
 ``int8_quality.json`` (``road-multicamera``'s run, issue 69) or ``int8_quality_<tag>.json`` (issue 82:
-``--tag road-street``).
+``--tag road-street``, ``--tag road-all``).
 
-Splits (never trained on by either shipped model: models/road-multicamera/README.md,
-models/road-street/README.md): CamVid val (101 frames, 480x360),
+Splits (never trained on by any shipped model: models/road-multicamera/README.md,
+models/road-street/README.md, models/road-all/README.md): CamVid val (101 frames, 480x360),
 the KITTI road frame (1242x375), Cityscapes cs_25xx-cs_29xx (43 frames, 256x256), LUMS captures 1-79
 (640x640), BDD100K sources 0a3*/0a4* (15 frames, 1280x720), IDD-Lite's held-out drives (drive % 7 ==
-3: 170 frames, 320x227), ``kitti_semantics`` 000100-000123 (19 frames, 1242x375; road-street's
+3: 170 frames, 320x227), ``kitti_semantics`` 000100-000123 (19 frames, 1242x375; road-street's and road-all's
 held-out KITTI frames, new to road-multicamera; not in the issue-69 run). Per split: road.pt through PyTorch (the model card's route), its float graph and its int8
 graph (``vctrain export --size WxH [--int8]``, int8 calibrated on the shipped examples, never on the
 split) at the split's frame size, the graphs in their default runtime (OpenVINO where installed, else
@@ -36,7 +36,7 @@ from benchmarks.measure.data import CS_FORMAT, DATA, KITTI, KITTI_SEM, KITTI_SEM
 from benchmarks.measure.report import machine, results_dir, today, write_json  # noqa: E402
 
 BDD_HELD = ("0a3", "0a4")  # road-multicamera's held-out BDD100K sources (models/road-multicamera/README.md)
-KITTI_SEM_HELD = (100, 123)  # road-street's held-out kitti_semantics frames (models/road-street/README.md)
+KITTI_SEM_HELD = (100, 123)  # road-street's and road-all's held-out kitti_semantics frames (their cards)
 
 
 def splits() -> list[tuple[str, list[Path], Path, str]]:

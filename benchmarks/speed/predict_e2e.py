@@ -5,8 +5,8 @@ overlay) beside the network-only time of the same engine, measured in the same r
                                                      [--engines torch,onnx,openvino,graph,graph-ov,int8,int8-ov] [--quality]
                                                      [--only inprocess|whole] [--whole-frames 60,240]
 
-Model (``--model``, a shipped model's name or a .pt): ``shipped`` (models/road-street/road.pt since issue 82;
-figures before it: models/road-multicamera/road.pt, the same network: lite0fpn, resize, 480x360 working size).
+Model (``--model``, a shipped model's name or a .pt): ``shipped`` (models/road-all/road.pt since issue 82, road-street before it;
+figures before them: models/road-multicamera/road.pt, the same network: lite0fpn, resize, 480x360 working size).
 Frames: the first ``--frames`` CamVid val frames (../shared/data/camvid/val, 480x360, real), enlarged
 2x to 960x720, and to 1280x960 with its middle 720 rows kept for 1280x720; each size as an mp4v video
 (what a dashcam gives) and as a folder of PNGs.

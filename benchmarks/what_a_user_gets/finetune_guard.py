@@ -7,7 +7,7 @@ of finetune.py and own_frames.py for ``fit --init``'s defaults).
 
 **The model** (``--model``, a shipped model's name or a .pt): ``road-multicamera`` (lite0fpn, resize
 480x360; the shipped model until issue 82, the default here so the issue-72 tables keep their cells), or
-``road-street`` (what ships since issue 82: ``--model road-street --tag road-street``). Cells are cached
+``road-street`` and ``road-all`` (shipped since issue 82: ``--model road-all --tag road-all``). Cells are cached
 under WORKDIR/<model folder name>.
 
 **Cases** (../shared/data):
@@ -18,7 +18,7 @@ under WORKDIR/<model folder name>.
   (there: 92.81 -> 91.29 with the defaults before this benchmark).
 * ``kitti`` -- for ``road-multicamera`` a camera it never saw (KITTI is in none of its training sets): the
   first N of the 98 KITTI semantics frames in name order; scored on the last 38 (000061_10 ...), never
-  trained on. For ``road-street``, which trained on every frame but 000100-000123, a camera it knows (as
+  trained on. For ``road-street`` and ``road-all``, which trained on every frame but 000100-000123, a camera it knows (as
   ``idd``): the same first N (frames it trained on too), scored on its 19 held-out frames 000100-000123
   (:data:`KITTI_HELD`). Read with ``values:road=1;ignore=255;max=255``. At most 60 frames (200 are not there).
 * ``idd`` -- a camera it knows, 200 frames (no camera of ../shared has 200 labelled frames it never saw
@@ -53,6 +53,7 @@ Time: a fit of 60 frames took 3-6 minutes on 2 shared cores.
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import shlex
 import sys
@@ -114,11 +115,34 @@ CASES = {
 }
 
 
-def cell(model: Path, case: str, variant: str, frames: Path, test: Path, seed: int, out: Path, threads: int) -> dict:
-    """One fit and its scores (cached in out/cell.json)."""
+def cache_key(model: Path, test_items: list) -> dict:
+    """What a cached score depends on beyond its folder: the model's bytes and the test frames."""
+    return {"model_sha256": hashlib.sha256(model.read_bytes()).hexdigest()[:16], "test": [t[2] for t in test_items]}
+
+
+def cached(path: Path, key: dict) -> dict | None:
+    """``path``'s scores if they were made for ``key`` (its ``<path>.key`` file), else None: a folder
+    reused with another model or other test frames is scored again."""
+    k = path.with_suffix(".key")
+    if path.is_file() and k.is_file() and json.loads(k.read_text()) == key:
+        return json.loads(path.read_text())
+    return None
+
+
+def store(path: Path, key: dict, res: dict) -> dict:
+    """``res`` into ``path``, with the ``key`` it was made for."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(res))
+    path.with_suffix(".key").write_text(json.dumps(key))
+    return res
+
+
+def cell(model: Path, case: str, variant: str, frames: Path, test: Path, seed: int, out: Path, threads: int,
+         key: dict) -> dict:
+    """One fit and its scores (cached in out/cell.json for ``key``: :func:`cached`)."""
     done = out / "cell.json"
-    if done.is_file():
-        return json.loads(done.read_text())
+    if (hit := cached(done, key)) is not None:
+        return hit
     fmt = CASES[case][0]
     env = {"OMP_NUM_THREADS": str(threads)}
     out.mkdir(parents=True, exist_ok=True)
@@ -135,8 +159,7 @@ def cell(model: Path, case: str, variant: str, frames: Path, test: Path, seed: i
            "held_start": round(100 * fine["start_val_iou"], 2) if fine else None,
            "held_trained": round(100 * fine["trained_val_iou"], 2) if fine.get("trained_val_iou") is not None else None,
            "kept": fine.get("kept", "last epoch")}
-    done.write_text(json.dumps(res))
-    return res
+    return store(done, key, res)
 
 
 def measure(a: argparse.Namespace) -> dict:
@@ -148,10 +171,11 @@ def measure(a: argparse.Namespace) -> dict:
         wd = a.workdir / a.model.parent.name / case
         relink = (lambda items, d: d) if a.cached_only else (lambda items, d: link_frames(items, d, suffixes))
         test = relink(test_items, wd / "frames" / "test")  # (--cached-only: never under a running fit's feet)
-        zero_file = wd / "zero.json"
-        if not zero_file.is_file():
-            zero_file.write_text(json.dumps(score(a.model, test, fmt, wd / "pred-zero-shot", a.threads)))
-        out[case] = {"zero-shot": json.loads(zero_file.read_text())}
+        key = cache_key(a.model, test_items)
+        zero = cached(wd / "zero.json", key)
+        if zero is None:
+            zero = store(wd / "zero.json", key, score(a.model, test, fmt, wd / "pred-zero-shot", a.threads))
+        out[case] = {"zero-shot": zero}
         for n in a.frames:
             if n > len(pool):
                 print(f"{case}: {n} frames asked, its pool has {len(pool)}: skipped", flush=True)
@@ -160,10 +184,10 @@ def measure(a: argparse.Namespace) -> dict:
             for seed in a.seeds:
                 for variant in a.variants:
                     folder = wd / f"n{n}" / f"seed{seed}" / variant.replace("/", "-").replace(" ", "-")
-                    if (a.cached_only and not (folder / "cell.json").is_file()) or (
+                    if (a.cached_only and cached(folder / "cell.json", key) is None) or (
                             variant == "daylight guard" and case != "dusk"):
                         continue
-                    c = cell(a.model, case, variant, frames, test, seed, folder, a.threads)
+                    c = cell(a.model, case, variant, frames, test, seed, folder, a.threads, key)
                     out[case].setdefault(variant, {}).setdefault(str(n), []).append(c)
                     print(f"{case} n={n} seed={seed} {variant}: {c}", flush=True)
     return out

@@ -119,15 +119,15 @@ def predict_cmd(
 
     \b
     Example:
-      vctrain predict models/road-street/road.pt my/frames --out preds --overlay   # the shipped model
+      vctrain predict models/road-all/road.pt my/frames --out preds --overlay   # the shipped model
       vctrain predict shipped my/frames --out preds   # the same model by its name, from any folder
-      vctrain predict models/road-street/road.pt dashcam/ --ego auto --out preds/dashcam   # bonnet cut off
+      vctrain predict models/road-all/road.pt dashcam/ --ego auto --out preds/dashcam   # bonnet cut off
       vctrain predict runs/vc.pt --camera kitti data/kitti/image_2 --out preds/kitti
       vctrain predict runs/vc.pt --camera low.yaml frames/ --beyond rays --out preds/low   # far below the training camera
       vctrain predict runs/vc.pt --store stores/camvid_val --out preds/camvid_val
       vctrain predict --prior prior.npy --camera kitti data/kitti/image_2 --out preds/geoprior
       vctrain predict runs/vc.pt --camera camvid drive.mp4 --overlay --out preds/drive
-      vctrain predict models/road-street/road.pt --camera camvid drive.mp4 --bev --overlay --out preds/drive
+      vctrain predict models/road-all/road.pt --camera camvid drive.mp4 --bev --overlay --out preds/drive
       vctrain predict runs/two.pt --camera camvid my/frames --output drivable --out preds/drivable   # two outputs
     """
     from ..predict.inputs import PredictOptions, predict_inputs
@@ -238,8 +238,8 @@ def export_cmd(
     Example:
       vctrain export runs/vc.pt --camera kitti --frame data/kitti/image_2/000000.png -o road.onnx
       vctrain export runs/vc.pt --camera mycam.yaml --vp-input -o road_vp.onnx
-      vctrain export models/road-street/road.pt --frame data/frames/0001.png -o road.onnx
-      vctrain export models/road-street/road.pt --size 1280x720 --int8 --calib my/frames -o road_int8.onnx
+      vctrain export models/road-all/road.pt --frame data/frames/0001.png -o road.onnx
+      vctrain export models/road-all/road.pt --size 1280x720 --int8 --calib my/frames -o road_int8.onnx
       vctrain predict road.onnx data/kitti/image_2 --out preds/kitti
       vctrain export runs/two.pt --camera camvid --output drivable -o drivable.onnx   # a two-output model
     """
