@@ -263,19 +263,21 @@ def collect(wd: Path, cands: list[str], folds: list[str], seeds: list[int],
 
 
 def headline(cells: dict, cands: list[str], folds: list[str], seeds: list[int]) -> dict:
-    """Per candidate and fold the mean over seeds; the folds' mean per seed (seeds with every fold) and
-    each candidate's gain over ``today`` paired per seed."""
+    """Per candidate and fold the mean over its seeds with every fold (over every seed it has, where none has
+    every fold yet: a seed part-trained shows in no fold's cell, so the folds are read on the same seeds); the
+    folds' mean per seed (seeds with every fold) and each candidate's gain over ``today`` paired per seed."""
     r2 = lambda x: None if x is None else round(float(x), 2)
     mean = lambda v: r2(np.mean([x for x in v if x is not None])) if any(x is not None for x in v) else None
     head: dict = {}
     per_seed: dict[str, list] = {}
     prec_seed: dict[str, list] = {}
     for cand in cands:
-        for fold in folds:
-            head[f"{cand}_{fold}"] = mean(cells[f"{cand}|{fold}|iou"])
-            for k in ("precision", "recall"):
-                head[f"{cand}_{k}_{fold}"] = mean(cells[f"{cand}|{fold}|{k}"])
         per_seed[cand] = seed_means(cells, cand, "iou", folds, len(seeds))
+        done = [i for i, x in enumerate(per_seed[cand]) if x is not None] or range(len(seeds))
+        for fold in folds:
+            for k, key in (("iou", f"{cand}_{fold}"), ("precision", f"{cand}_precision_{fold}"),
+                           ("recall", f"{cand}_recall_{fold}")):
+                head[key] = mean([cells[f"{cand}|{fold}|{k}"][i] for i in done])
         s = [x for x in per_seed[cand] if x is not None]
         head[f"{cand}_mean"] = r2(np.mean(s)) if s else None
         head[f"{cand}_mean_std"] = r2(seed_stats(s)["std"] or 0.0) if len(s) > 1 else None
