@@ -67,3 +67,15 @@ def test_each_candidate_is_compared_with_todays_mix_at_its_own_budget():
     assert curves.compared_with("four-long", both) == "today-long"  # never the 6-epoch today
     assert curves.compared_with("today-long", both) is None  # a baseline is compared with nothing
     assert curves.compared_with("four-long", ["today", "four-long"]) is None  # its baseline not in this run
+
+
+def test_a_run_without_the_models_would_lose_the_measured_cells_and_says_which():
+    """A new checkout has no ship_loo models and no cached counts: scoring its candidates again would replace
+    the committed curves with nothing. would_lose names each such cell; a candidate the run does not ask
+    for, or a cell this run measures, is not one."""
+    old = {"seeds": [0, 1], "cells": {"four|camvid|iou": [0.85, 0.86], "today|camvid|iou": [0.74, None]}}
+    cells = {"four|camvid|iou": [0.85, None]}  # seed 1's model gone
+    assert curves.would_lose(old, cells, ["four"], [0, 1]) == ["four|camvid|iou|seed1"]
+    assert curves.would_lose(old, cells, ["four", "today"], [0, 1]) == ["four|camvid|iou|seed1", "today|camvid|iou|seed0"]
+    assert curves.would_lose(old, {"four|camvid|iou": [0.85, 0.86]}, ["four"], [0, 1]) == []
+    assert curves.would_lose(old, {"four|camvid|iou": [0.85]}, ["four"], [0]) == ["four|camvid|iou|seed1"]

@@ -27,7 +27,8 @@ candidates, ``today-long`` for ``four-long``, ``today-30`` for ``four-30``), in 
 and frames). A baseline has no comparison of its own.
 
 Outputs: benchmarks/other_cameras/results/ship_loo_curves.{md,json}. ``--collect`` scores nothing and reports
-the cached folds. The last stdout line is one JSON object: ``<candidate>_<metric>_<fold>`` and
+the cached folds. A run that would replace a measured cell of one of its candidates with nothing (a new checkout
+has no models and no cached counts: benchmarks/out is not committed) stops and writes nothing, unless ``--replace``. The last stdout line is one JSON object: ``<candidate>_<metric>_<fold>`` and
 ``<candidate>_<metric>_mean`` (% ; thresholds in [0, 1]), ``<candidate>_minus_<baseline>_<iou|maxf|ap|precision_at_baseline_recall>``
 and ``<candidate>_iou_minus_<baseline>_iou_lofo`` (the folds' means; points), ``missing``.
 """
@@ -204,6 +205,18 @@ def render(head: dict, cands: list[str], folds: list[str], seeds: list[int], mis
     return "\n".join(lines) + "\n"
 
 
+def would_lose(old: dict, cells: dict, cands: list[str], seeds: list[int]) -> list[str]:
+    """'<cand>|<fold>|<metric>|seed<k>' of the results file ``old`` that this run's ``cells`` would replace with
+    nothing: a measured candidate of this run whose models (or cached counts) this checkout does not have."""
+    lost = []
+    for key, vals in old.get("cells", {}).items():
+        for seed, v in zip(old.get("seeds", []), vals):
+            new = cells.get(key, [])[seeds.index(seed)] if seed in seeds and cells.get(key) else None
+            if key.split("|")[0] in cands and v is not None and new is None:
+                lost.append(f"{key}|seed{seed}")
+    return lost
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--candidates", default="today,four", help="comma-separated: " + ", ".join(loo.CANDIDATES))
@@ -212,6 +225,7 @@ def main() -> None:
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--workdir", type=Path, default=loo.ROOT / "benchmarks" / "out" / "ship_loo")
     ap.add_argument("--collect", action="store_true", help="score nothing: report the cached folds")
+    ap.add_argument("--replace", action="store_true", help="write the results file even where it loses measured cells")
     a = ap.parse_args()
     cands, folds = loo.selection(a)
     seeds = [int(s) for s in a.seeds.split(",") if s]
@@ -219,6 +233,11 @@ def main() -> None:
     head = {**headline(cells, cands, folds), "missing": missing}
     table = render(head, cands, folds, seeds, missing)
     rd = results_dir(__file__)
+    old = json.loads((rd / "ship_loo_curves.json").read_text()) if (rd / "ship_loo_curves.json").is_file() else {}
+    if (lost := would_lose(old, cells, cands, seeds)) and not a.replace:
+        raise SystemExit(f"Error: {rd / 'ship_loo_curves.json'}: this run would drop {len(lost)} measured cells "
+                         f"(e.g. {lost[0]}; their models are not in {a.workdir}) (train them with ship_loo.py, "
+                         "or --replace to write it anyway)")
     (rd / "ship_loo_curves.md").write_text(table)
     write_json(rd / "ship_loo_curves.json", {
         "headline": head, "cells": cells, "candidates": {c: loo.CANDIDATES[c] for c in cands}, "held_out": folds,
