@@ -156,9 +156,10 @@ def _before(data: dict[str, dict]) -> str:
     """The models shipped before, by name, and where each is ahead of the shipped one (measured)."""
     d, loo = data[SHIP_RESULT], data.get(SHIP_LOO, {}).get("headline", {})
     h, cand = d["headline"], d["candidate"]
-    street, dash = loo.get(f"{cand}-30_minus_four-30"), h.get("shipped_bdd", 0) - h.get(f"{cand}_bdd", 0)
-    if cand != "six" or street is None:
+    street, bdd = loo.get(f"{cand}-30_minus_four-30"), (h.get("shipped_bdd"), h.get(f"{cand}_bdd"))
+    if cand != "six" or street is None or None in bdd:  # (a figure not measured is not written as 0)
         return ""
+    dash = bdd[0] - bdd[1]
     seeds = _seeds(_done(data[SHIP_LOO], (f"{cand}-30", "four-30")))
     return (f"; by name, `road-street` is {-street:.1f} ahead on held-out datasets (30 epochs, {seeds}) and "
             f"`road-multicamera` {dash:.1f} on BDD100K's dashcams")
