@@ -53,7 +53,6 @@ Time: a fit of 60 frames took 3-6 minutes on 2 shared cores.
 from __future__ import annotations
 
 import argparse
-import hashlib
 import json
 import shlex
 import sys
@@ -64,6 +63,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.measure.data import BIN, DATA, KITTI_SEM, ROOT, require_data, run
+from benchmarks.measure.keyed import cached, model_key, store
 from benchmarks.measure.report import machine, results_dir, today, write_json
 from benchmarks.what_a_user_gets.own_frames import SHIPPED, _idd, link_frames, score
 
@@ -117,24 +117,7 @@ CASES = {
 
 def cache_key(model: Path, test_items: list) -> dict:
     """What a cached score depends on beyond its folder: the model's bytes and the test frames."""
-    return {"model_sha256": hashlib.sha256(model.read_bytes()).hexdigest()[:16], "test": [t[2] for t in test_items]}
-
-
-def cached(path: Path, key: dict) -> dict | None:
-    """``path``'s scores if they were made for ``key`` (its ``<path>.key`` file), else None: a folder
-    reused with another model or other test frames is scored again."""
-    k = path.with_suffix(".key")
-    if path.is_file() and k.is_file() and json.loads(k.read_text()) == key:
-        return json.loads(path.read_text())
-    return None
-
-
-def store(path: Path, key: dict, res: dict) -> dict:
-    """``res`` into ``path``, with the ``key`` it was made for."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(res))
-    path.with_suffix(".key").write_text(json.dumps(key))
-    return res
+    return model_key(model, test=[t[2] for t in test_items])
 
 
 def cell(model: Path, case: str, variant: str, frames: Path, test: Path, seed: int, out: Path, threads: int,

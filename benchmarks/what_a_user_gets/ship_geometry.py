@@ -43,6 +43,7 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.measure.data import BDD, CITYSCAPES, DATA, IDD, KITTI, KITTI_SEM, LUMS, ROOT, require_data
+from benchmarks.measure.keyed import scored, store_key
 from benchmarks.measure.studies import run_study, share_stores
 from benchmarks.measure.folds import frames_only_entry
 from benchmarks.measure.page.multi_camera import r_ship_geometry
@@ -71,16 +72,16 @@ def geometry_study(wd: Path, quick: bool, epochs: int, model: str) -> Path:
 
 def shipped_scores(model: Path, sd: Path, sets: list[str]) -> dict[str, float | None]:
     """{set: road IoU %} of ``model`` on each test store of the study ``sd`` that its resize twin was scored on
-    (the same items, each read from its source frame; cached in sd/shipped/)."""
+    (the same items, each read from its source frame; cached in sd/shipped/ for the model's bytes and the
+    store's items: :mod:`benchmarks.measure.keyed`)."""
     from vctrain.study import CONDITIONS, evaluate_heldout
 
-    out = {}
+    out: dict[str, float | None] = {t: None for t in sets}
     for t in sets:
         cache, store = sd / "shipped" / f"result-{t}.json", sd / "stores" / t / "test" / CONDITIONS["resize"][0]
-        if not cache.is_file() and store.is_dir():
-            cache.parent.mkdir(parents=True, exist_ok=True)
-            write_json(cache, {**evaluate_heldout(model, store), "model": str(model)})
-        out[t] = round(100 * json.loads(cache.read_text())["iou"], 2) if cache.is_file() else None
+        if store.is_dir():
+            row = scored(cache, store_key(model, store), lambda: {**evaluate_heldout(model, store), "model": str(model)})
+            out[t] = round(100 * row["iou"], 2)
     return out
 
 

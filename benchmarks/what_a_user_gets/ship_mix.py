@@ -36,6 +36,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.measure.data import BDD, CITYSCAPES, DATA, IDD, KITTI, KITTI_SEM, LUMS, ROOT, require_data
+from benchmarks.measure.keyed import scored, store_key
 from benchmarks.measure.studies import run_study, share_stores
 from benchmarks.other_cameras.ship_loo import CANDIDATES
 from benchmarks.measure.report import machine, results_dir, today, write_json
@@ -48,17 +49,14 @@ KEYS = ("iou", "precision", "recall")
 
 def shipped_scores(model: Path, sd: Path, sets: list[str], who: str = "shipped") -> dict[str, dict]:
     """{set: {iou, precision, recall} %} of ``model`` on each resize test store of the study ``sd`` (cached
-    in sd/<who>/, scored again if the cache is another model's)."""
+    in sd/<who>/ for the model's bytes and the store's items: :mod:`benchmarks.measure.keyed`)."""
     from vctrain.study import CONDITIONS, evaluate_heldout
 
     out = {}
     for t in sets:
         cache, store = sd / who / f"result-{t}.json", sd / "stores" / t / "test" / CONDITIONS["resize"][0]
-        stale = cache.is_file() and json.loads(cache.read_text()).get("model") != str(model)
-        if (stale or not cache.is_file()) and store.is_dir():
-            write_json(cache, {**evaluate_heldout(model, store), "model": str(model)})
-        if cache.is_file():
-            row = json.loads(cache.read_text())
+        if store.is_dir():
+            row = scored(cache, store_key(model, store), lambda: {**evaluate_heldout(model, store), "model": str(model)})
             out[t] = {k: round(100 * row[k], 2) for k in KEYS if row.get(k) is not None}
     return out
 
