@@ -360,8 +360,9 @@ def test_an_interrupted_training_resumes_after_its_last_epoch(tmp_path):
     done = torch.load(last, map_location="cpu", weights_only=False)
     assert done["epoch"] == 2 and len(done["history"]) == 2
 
-    def interrupt(**request) -> None:  # the state a training stopped after epoch 1 leaves
-        ck = {**done, "epoch": 1, "history": done["history"][:1], "request": {**done["request"], **request}}
+    def interrupt(**request) -> None:  # the state a training stopped after epoch 1 (of 1,000 s) leaves
+        first = {**done["history"][0], "seconds": 900.0, "val_seconds": 100.0}
+        ck = {**done, "epoch": 1, "history": [first], "request": {**done["request"], **request}}
         save_checkpoint(last, ck)
         for f in ("train.json", "result.json", "model.pt"):
             (run_dir / f).unlink(missing_ok=True)
@@ -373,8 +374,14 @@ def test_an_interrupted_training_resumes_after_its_last_epoch(tmp_path):
     ck = torch.load(last, map_location="cpu", weights_only=False)
     assert ck["epoch"] == 2 and [h["epoch"] for h in ck["history"]] == [1, 2]  # epoch 1 kept, epoch 2 trained again
     assert json.loads((run_dir / "result.json").read_text())["iou"] is not None
+    # its time is the whole training's: epoch 1's 1,000 s before the interruption, and this invocation's
+    record = json.loads((run_dir / "train.json").read_text())
+    second = ck["history"][1]["seconds"] + ck["history"][1].get("val_seconds", 0.0)
+    assert record["resumed_after"] == 1 and record["train_seconds"] >= round(1000.0 + second, 1) - 0.1
+    assert record["train_seconds"] < 1000.0 + 600  # (and not counted twice)
     interrupt(lr=0.5)  # another run's checkpoint: afresh
     other = run_cli(*args, prog="vctrain")
     assert other.returncode == 0, other.stderr
     assert "training on" in other.stderr and "resumed" not in other.stderr
     assert torch.load(last, map_location="cpu", weights_only=False)["request"] == done["request"]
+    assert "resumed_after" not in json.loads((run_dir / "train.json").read_text())

@@ -142,7 +142,7 @@ def trained(run: Run, ctx: Context, tag: str) -> tuple[TrainConfig, dict[str, An
     say(f"{tag} {run.name}, {c}: training on {', '.join(d.name for d in run.train)} "
         f"({cfg.epochs} epochs at {size[0]}x{size[1]}{ASPECT_NOTE if cfg.keep_aspect else ''}"
         f"{'' if stopped is None else f'; resumed after epoch {stopped}'})")
-    t0 = time.perf_counter()
+    t0 = time.perf_counter() - (0.0 if stopped is None else earlier_seconds(Path(cfg.resume)))
     summary = fit(cfg)
     data = CheckpointData.from_dict(summary["data"])
     info = {"train_datasets": [d.name for d in run.train], "train_items": data.train_items,
@@ -150,9 +150,19 @@ def trained(run: Run, ctx: Context, tag: str) -> tuple[TrainConfig, dict[str, An
             "best_val_iou": summary["best_val_iou"], "epochs": cfg.epochs, "input_size": list(size),
             "train_seconds": round(time.perf_counter() - t0, 1),
             "train_images_per_s": summary["train_images_per_s"], "model_args": summary["model_args"],
-            "settings_sha": keys.full, "model_sha": model_sha}
+            "settings_sha": keys.full, "model_sha": model_sha, **({} if stopped is None else {"resumed_after": stopped})}
     write_json(record, info)
     return cfg, info
+
+
+def earlier_seconds(last: Path) -> float:
+    """The wall clock an interrupted training already spent (each epoch's training steps and validation, its
+    ``.last.pt``'s history): a resumed model's ``train_seconds`` is its whole training's, not the last
+    invocation's (the setup of the earlier invocations is not recorded, so left out)."""
+    from ..training.checkpoint import load_checkpoint
+
+    return sum(float(h.get("seconds") or 0.0) + float(h.get("val_seconds") or 0.0)
+               for h in load_checkpoint(last).get("history", []))
 
 
 def write_run_prior(run: Run, ctx: Context) -> tuple[Path, dict[str, Any], float]:
