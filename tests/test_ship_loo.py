@@ -76,3 +76,19 @@ def test_scores_of_an_earlier_checkout_are_carried_and_a_new_result_file_wins(tm
     assert cells["four-30|idd|iou"] == [85.0, 80.0] and cells["four-30|camvid|precision"] == [95.0, None]
     assert carried == ["four-30|camvid|seed0", "four-30|idd|seed0"] and missing == ["four-30|camvid|seed1"]
     assert minutes == [30.0]  # the carried scores have no training time on record
+
+
+def test_a_models_minutes_count_every_epoch_it_trained_when_a_resume_recorded_only_the_last_invocation(tmp_path):
+    import json
+    f = ship_loo.result_file(tmp_path, 1, "four-30", "camvid")
+    f.parent.mkdir(parents=True)
+    f.write_text(json.dumps({"iou": 0.91, "precision": 0.96, "recall": 0.95, "train_seconds": 1800}))
+    log = f.parent / "model.log.jsonl"
+    # 4 epochs of 90 s before the interruption, 26 of 80 s after it: 2,440 s, where train.json says 1,800
+    log.write_text("".join(json.dumps({"epoch": e, "seconds": 60.0, "val_seconds": 30.0 if e <= 4 else 20.0}) + "\n"
+                           for e in range(1, 31)))
+    assert ship_loo.model_minutes(f, json.loads(f.read_text())) == pytest.approx(2440 / 60, abs=0.01)
+    log.write_text(json.dumps({"epoch": 1, "seconds": 60.0, "val_seconds": 30.0}) + "\n")  # less than train_seconds
+    assert ship_loo.model_minutes(f, json.loads(f.read_text())) == 30.0  # (setup and saving are in train_seconds)
+    log.unlink()
+    assert ship_loo.model_minutes(f, json.loads(f.read_text())) == 30.0

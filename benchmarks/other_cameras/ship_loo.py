@@ -232,6 +232,17 @@ def kept(path: Path, epochs: int | None, steps: int) -> dict:
     return {k: v for k, v in out.items() if v.get("iou") is not None}
 
 
+def model_minutes(result: Path, row: dict) -> float:
+    """A model's training time (minutes): its study's ``train_seconds``, or its log's epochs (training steps and
+    validation, ``model.log.jsonl`` beside ``result``) where they add up to more: a model a study resumed before it
+    counted the interrupted invocation's epochs (``resumed_after``) recorded only the last invocation's."""
+    log = result.parent / "model.log.jsonl"
+    rows = {r["epoch"]: r for r in (json.loads(x) for x in log.read_text().splitlines() if x.strip())} \
+        if log.is_file() else {}
+    logged = sum(float(r.get("seconds") or 0) + float(r.get("val_seconds") or 0) for r in rows.values())
+    return round(max(float(row["train_seconds"]), logged) / 60, 2)
+
+
 def collect(wd: Path, cands: list[str], folds: list[str], seeds: list[int],
             earlier: dict | None = None) -> tuple[dict, list[str], list[float], list[str]]:
     """(cells {'<cand>|<fold>|<iou|precision|recall|minutes>': per seed, None where missing}, missing, minutes a
@@ -248,7 +259,7 @@ def collect(wd: Path, cands: list[str], folds: list[str], seeds: list[int],
                 if f.is_file():
                     row = json.loads(f.read_text())
                     old = {k: round(100 * row[k], 2) if row.get(k) is not None else None for k in ("iou", "precision", "recall")}
-                    old["minutes"] = round(row["train_seconds"] / 60, 2)
+                    old["minutes"] = model_minutes(f, row)
                 elif old:
                     carried.append(f"{cand}|{fold}|seed{seed}")
                 else:
