@@ -47,3 +47,16 @@ def test_a_baseline_on_a_store_is_scored_again_when_the_model_or_the_store_chang
     keyed.scored(cache, keyed.store_key(model, store), score)
     assert len(calls) == 3
     assert keyed.digest(model) == __import__("hashlib").sha256(b"weights retrained").hexdigest()[:16]
+
+
+def test_a_workdir_cleaned_of_its_stores_keeps_the_scores_cached_for_the_same_model(tmp_path):
+    store = tmp_path / "store"
+    store.mkdir()
+    (store / "manifest.jsonl").write_text('{"id": "a"}\n')
+    model, cache = _model(tmp_path), tmp_path / "shipped" / "result-bdd.json"
+    assert keyed.scored_on_store(cache, model, store, lambda: {"iou": 0.7}) == {"iou": 0.7}
+    (store / "manifest.jsonl").unlink()
+    store.rmdir()  # the stores deleted, the cache kept
+    assert keyed.scored_on_store(cache, model, store, lambda: {"iou": 0.1}) == {"iou": 0.7}  # nothing to score on
+    model.write_bytes(b"weights two")
+    assert keyed.scored_on_store(cache, model, store, lambda: {"iou": 0.1}) is None  # another model's score: none

@@ -58,3 +58,15 @@ def scored(path: Path, key: dict, score: Callable[[], dict]) -> dict:
     """The cached score at ``path`` for ``key``, else ``score()``, stored there with its key."""
     hit = cached(path, key)
     return hit if hit is not None else store(path, key, score())
+
+
+def scored_on_store(cache: Path, model: Path, store_dir: Path, score: Callable[[], dict]) -> dict | None:
+    """``model``'s score on the store ``store_dir``, cached at ``cache`` (:func:`scored` with
+    :func:`store_key`). Where the store is gone (a workdir cleaned of its stores), the score cached for these
+    model bytes, else None."""
+    if store_dir.is_dir():
+        return scored(cache, store_key(model, store_dir), score)
+    k = cache.with_suffix(".key")
+    if cache.is_file() and k.is_file() and json.loads(k.read_text()).get("model_sha256") == digest(model):
+        return json.loads(cache.read_text())
+    return None

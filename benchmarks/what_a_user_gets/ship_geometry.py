@@ -43,7 +43,7 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.measure.data import BDD, CITYSCAPES, DATA, IDD, KITTI, KITTI_SEM, LUMS, ROOT, require_data
-from benchmarks.measure.keyed import scored, store_key
+from benchmarks.measure.keyed import scored_on_store
 from benchmarks.measure.studies import run_study, share_stores
 from benchmarks.measure.folds import frames_only_entry
 from benchmarks.measure.page.multi_camera import r_ship_geometry
@@ -79,9 +79,8 @@ def shipped_scores(model: Path, sd: Path, sets: list[str]) -> dict[str, float | 
     out: dict[str, float | None] = {t: None for t in sets}
     for t in sets:
         cache, store = sd / "shipped" / f"result-{t}.json", sd / "stores" / t / "test" / CONDITIONS["resize"][0]
-        if store.is_dir():
-            row = scored(cache, store_key(model, store), lambda: {**evaluate_heldout(model, store), "model": str(model)})
-            out[t] = round(100 * row["iou"], 2)
+        row = scored_on_store(cache, model, store, lambda: {**evaluate_heldout(model, store), "model": str(model)})
+        out[t] = None if row is None else round(100 * row["iou"], 2)
     return out
 
 

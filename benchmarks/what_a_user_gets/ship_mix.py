@@ -36,7 +36,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository: `benchmarks.` imports in a file run
 from benchmarks.measure.data import BDD, CITYSCAPES, DATA, IDD, KITTI, KITTI_SEM, LUMS, ROOT, require_data
-from benchmarks.measure.keyed import scored, store_key
+from benchmarks.measure.keyed import scored_on_store
 from benchmarks.measure.studies import run_study, share_stores
 from benchmarks.other_cameras.ship_loo import CANDIDATES
 from benchmarks.measure.report import machine, results_dir, today, write_json
@@ -55,8 +55,8 @@ def shipped_scores(model: Path, sd: Path, sets: list[str], who: str = "shipped")
     out = {}
     for t in sets:
         cache, store = sd / who / f"result-{t}.json", sd / "stores" / t / "test" / CONDITIONS["resize"][0]
-        if store.is_dir():
-            row = scored(cache, store_key(model, store), lambda: {**evaluate_heldout(model, store), "model": str(model)})
+        row = scored_on_store(cache, model, store, lambda: {**evaluate_heldout(model, store), "model": str(model)})
+        if row is not None:
             out[t] = {k: round(100 * row[k], 2) for k in KEYS if row.get(k) is not None}
     return out
 
