@@ -236,11 +236,12 @@ def model_minutes(result: Path, row: dict) -> float:
     """A model's training time (minutes): its study's ``train_seconds``, or its log's epochs (training steps and
     validation, ``model.log.jsonl`` beside ``result``) where they add up to more: a model a study resumed before it
     counted the interrupted invocation's epochs (``resumed_after``) recorded only the last invocation's."""
+    from vctrain.study.conditions import epochs_seconds
+
     log = result.parent / "model.log.jsonl"
     rows = {r["epoch"]: r for r in (json.loads(x) for x in log.read_text().splitlines() if x.strip())} \
         if log.is_file() else {}
-    logged = sum(float(r.get("seconds") or 0) + float(r.get("val_seconds") or 0) for r in rows.values())
-    return round(max(float(row["train_seconds"]), logged) / 60, 2)
+    return round(max(float(row["train_seconds"]), epochs_seconds(rows.values())) / 60, 2)
 
 
 def collect(wd: Path, cands: list[str], folds: list[str], seeds: list[int],

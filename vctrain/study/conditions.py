@@ -155,14 +155,19 @@ def trained(run: Run, ctx: Context, tag: str) -> tuple[TrainConfig, dict[str, An
     return cfg, info
 
 
+def epochs_seconds(rows) -> float:
+    """The wall clock of a training's epochs (each one's training steps and validation) from its rows (the
+    ``.last.pt`` history or ``model.log.jsonl``; one row an epoch)."""
+    return sum(float(h.get("seconds") or 0.0) + float(h.get("val_seconds") or 0.0) for h in rows)
+
+
 def earlier_seconds(last: Path) -> float:
-    """The wall clock an interrupted training already spent (each epoch's training steps and validation, its
-    ``.last.pt``'s history): a resumed model's ``train_seconds`` is its whole training's, not the last
-    invocation's (the setup of the earlier invocations is not recorded, so left out)."""
+    """The wall clock an interrupted training already spent (:func:`epochs_seconds` of its ``.last.pt``'s
+    history): a resumed model's ``train_seconds`` is its whole training's, not the last invocation's (the
+    setup of the earlier invocations is not recorded, so left out)."""
     from ..training.checkpoint import load_checkpoint
 
-    return sum(float(h.get("seconds") or 0.0) + float(h.get("val_seconds") or 0.0)
-               for h in load_checkpoint(last).get("history", []))
+    return epochs_seconds(load_checkpoint(last).get("history", []))
 
 
 def write_run_prior(run: Run, ctx: Context) -> tuple[Path, dict[str, Any], float]:
