@@ -92,3 +92,15 @@ def test_a_models_minutes_count_every_epoch_it_trained_when_a_resume_recorded_on
     assert ship_loo.model_minutes(f, json.loads(f.read_text())) == 30.0  # (setup and saving are in train_seconds)
     log.unlink()
     assert ship_loo.model_minutes(f, json.loads(f.read_text())) == 30.0
+
+
+def test_the_worst_fold_is_judged_on_the_seeds_both_have_finished_paired():
+    base = {**{f: [80.0, None] for f in FOLDS}, "cityscapes": [84.85, None]}  # the baseline has seed 0 only
+    cand = {**{f: [85.0, 85.0] for f in FOLDS}, "cityscapes": [84.35, 83.02]}
+    cells = {**_cells("today-30", base, {f: [90.0, None] for f in FOLDS}),
+             **_cells("four-30", cand, {f: [90.0, 90.0] for f in FOLDS})}
+    head = ship_loo.headline(cells, ["today-30", "four-30"], FOLDS, [0, 1])
+    # seed 0: 84.35 - 84.85; the candidate's two-seed cell (83.69) against the baseline's one would say -1.16
+    assert head["four-30_cityscapes"] == pytest.approx(83.69) and head["today-30_cityscapes"] == 84.85
+    assert head["four-30_worst_fold_minus_today-30"] == pytest.approx(-0.5)
+    assert ship_loo.targets(head, ["today-30", "four-30"])["four-30: no fold below today-30 - 1"] is True

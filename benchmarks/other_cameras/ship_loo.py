@@ -301,13 +301,21 @@ def headline(cells: dict, cands: list[str], folds: list[str], seeds: list[int]) 
         head[f"{cand}_minus_{base}"] = r2(np.mean(d)) if d else None
         d = [a - b for a, b in zip(prec_seed[cand], prec_seed[base]) if a is not None and b is not None]
         head[f"{cand}_precision_minus_{base}"] = r2(np.mean(d)) if d else None  # paired per seed, as the IoU's gain
-        worst = [None if head[f"{cand}_{f}"] is None or head[f"{base}_{f}"] is None
-                 else head[f"{cand}_{f}"] - head[f"{base}_{f}"] for f in folds]
-        head[f"{cand}_worst_fold_minus_{base}"] = None if None in worst else r2(min(worst))
+        head[f"{cand}_worst_fold_minus_{base}"] = worst_fold(cells, cand, base, folds, per_seed)
     for twin, cand in [(t, c) for t, c in PAIRS if t in cands and c in cands]:
         d = [a - b for a, b in zip(per_seed[twin], per_seed[cand]) if a is not None and b is not None]
         head[f"{twin}_minus_{cand}"] = r2(np.mean(d)) if d else None
     return head
+
+
+def worst_fold(cells: dict, cand: str, base: str, folds: list[str], per_seed: dict[str, list]) -> float | None:
+    """The fold where ``cand`` is furthest below ``base``, each fold's gap a mean over the seeds on which both
+    have every fold (paired, as the gain: a candidate's two seeds against its baseline's one would compare seeds)."""
+    both = [i for i, (a, b) in enumerate(zip(per_seed[cand], per_seed[base])) if a is not None and b is not None]
+    if not both:
+        return None
+    gap = lambda f: np.mean([cells[f"{cand}|{f}|iou"][i] - cells[f"{base}|{f}|iou"][i] for i in both])
+    return round(float(min(gap(f) for f in folds)), 2)
 
 
 def seed_means(cells: dict, cand: str, metric: str, folds: list[str], n: int) -> list:
@@ -350,7 +358,8 @@ def render(head: dict, tg: dict, cands: list[str], folds: list[str], seeds: list
     f = lambda v, s="": "-" if v is None else f"{v:{s}.1f}"
     lines = [f"Issue 82: candidate data mixes for the shipped model, each dataset held out whole in turn and scored "
              f"by a model that never saw its camera (`resize` unless the row says virtual camera, lite0fpn, balance: datasets unless the row says items, {camvid_steps_per_epoch()} steps an epoch, "
-             f"{epochs} epochs; seeds {seeds}; a model trained on the same datasets as another candidate's is that one). Road IoU % (precision / recall %).", "",
+             f"{epochs} epochs; seeds {seeds}; a model trained on the same datasets as another candidate's is that one). Road IoU % (precision / recall %): "
+             f"a row's cells are means over the seeds on which it has every fold (± the seeds' spread where two or more); the last column and the targets pair the seeds both rows have.", "",
              "| candidate | trained on | " + " | ".join(f"held out {x}" for x in folds) + " | mean | − today at its budget |",
              "|---|---|" + "---|" * (len(folds) + 2)]
     for cand in cands:
