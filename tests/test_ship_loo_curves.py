@@ -79,3 +79,48 @@ def test_a_run_without_the_models_would_lose_the_measured_cells_and_says_which()
     assert curves.would_lose(old, cells, ["four", "today"], [0, 1]) == ["four|camvid|iou|seed1", "today|camvid|iou|seed0"]
     assert curves.would_lose(old, {"four|camvid|iou": [0.85, 0.86]}, ["four"], [0, 1]) == []
     assert curves.would_lose(old, {"four|camvid|iou": [0.85]}, ["four"], [0]) == ["four|camvid|iou|seed1"]
+
+
+def test_an_earlier_runs_figures_are_carried_only_where_ship_loo_scores_the_same_model_alike():
+    """A new checkout has ship_loo's committed scores but not the models: a fold's earlier curve figures are kept
+    where ship_loo's results file scores that candidate, fold and seed alike at 0.5 (the same model), and not where
+    it scores it otherwise (a model trained again), not at all, or on a seed it does not have."""
+    fig = {"iou": 0.8490, "precision": 0.9936, "recall": 0.8537, "ap": 0.9367}
+    old = {"seeds": [0, 1], "cells": {f"today-30|camvid|{k}": [v, None] for k, v in fig.items()}
+           | {f"four-30|camvid|{k}": [v, v] for k, v in fig.items()}}
+    loo_result = {"seeds": [0], "cells": {"today-30|camvid|iou": [84.9], "today-30|camvid|precision": [99.36],
+                                          "today-30|camvid|recall": [85.37], "four-30|camvid|iou": [90.81],
+                                          "four-30|camvid|precision": [95.9], "four-30|camvid|recall": [94.49]}}
+    kept = curves.carried(old, loo_result)
+    assert kept == {"today-30|camvid|seed0": fig}  # four-30's seed 0 scored otherwise; seed 1 not in ship_loo's file
+    loo_result["cells"]["today-30|camvid|recall"] = [85.40]  # a model trained again: 0.03 point off
+    assert curves.carried(old, loo_result) == {}
+
+
+def test_a_run_adds_its_scored_folds_to_the_carried_ones_and_compares_them_with_a_carried_baseline(tmp_path):
+    """The folds this workdir has counts for are scored from them (the threshold chosen on the other folds
+    included); the baseline's folds carried from an earlier run still give the candidate its precision at the
+    baseline's recall; a fold neither has is missing."""
+    import json
+
+    from benchmarks.other_cameras import ship_loo as loo
+
+    folds, counts = ["camvid", "cityscapes"], {}
+    for fold, s in zip(folds, (5, 6)):
+        counts[fold] = c = _counts(*_scene(s))
+        result = loo.result_file(tmp_path, 1, "four-30", fold)
+        result.parent.mkdir(parents=True)
+        result.write_text(json.dumps({k: c["at_half"][k] for k in ("iou", "precision", "recall")}))
+        cache = tmp_path / "curves" / f"{loo.same_model('four-30', fold)}_seed1_{fold}.json"
+        cache.parent.mkdir(exist_ok=True)
+        cache.write_text(json.dumps(c))
+    base = {"iou": 0.6, "precision": 0.9, "recall": 0.55}
+    earlier = {"today-30|camvid|seed1": base}
+    cells, missing, kept = curves.collect(tmp_path, ["today-30", "four-30"], folds, [1], 1, False, earlier)
+    assert kept == ["today-30|camvid|seed1"] and missing == ["today-30|cityscapes|seed1"]
+    assert cells["today-30|camvid|recall"] == [0.55] and cells["today-30|camvid|iou"] == [0.6]
+    want = curves.fold_metrics(counts["camvid"], 0.55)["precision_at_baseline_recall"]
+    assert cells["four-30|camvid|precision_at_baseline_recall"] == [want]
+    assert want != counts["camvid"]["at_half"]["precision"]  # read on the curve at the baseline's recall, not at 0.5
+    assert cells.get("four-30|cityscapes|precision_at_baseline_recall", [None]) == [None]  # no baseline for that fold
+    assert cells["four-30|cityscapes|iou_lofo"][0] == curves.lofo({f: curves.curve(c) for f, c in counts.items()})["cityscapes"][1]

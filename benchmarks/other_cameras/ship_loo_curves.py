@@ -28,7 +28,9 @@ and frames). A baseline has no comparison of its own.
 
 Outputs: benchmarks/other_cameras/results/ship_loo_curves.{md,json}. ``--collect`` scores nothing and reports
 the cached folds. A run that would replace a measured cell of one of its candidates with nothing (a new checkout
-has no models and no cached counts: benchmarks/out is not committed) stops and writes nothing, unless ``--replace``. The last stdout line is one JSON object: ``<candidate>_<metric>_<fold>`` and
+has no models and no cached counts: benchmarks/out is not committed) keeps the earlier run's figures of a fold where
+ship_loo's results file scores the same model alike at 0.5 (``carried``); one that would still lose a measured cell
+stops and writes nothing, unless ``--replace``. The last stdout line is one JSON object: ``<candidate>_<metric>_<fold>`` and
 ``<candidate>_<metric>_mean`` (% ; thresholds in [0, 1]), ``<candidate>_minus_<baseline>_<iou|maxf|ap|precision_at_baseline_recall>``
 and ``<candidate>_iou_minus_<baseline>_iou_lofo`` (the folds' means; points), ``missing``.
 """
@@ -138,26 +140,57 @@ def lofo(curves: dict[str, dict[str, np.ndarray]]) -> dict[str, tuple[float, flo
     return out
 
 
-def collect(wd: Path, cands: list[str], folds: list[str], seeds: list[int], threads: int, run: bool) -> tuple[dict, list]:
-    """(cells {'<cand>|<fold>|<metric>': per seed, None where missing}, missing)."""
+def carried(old: dict, loo_result: dict) -> dict[str, dict]:
+    """``'<cand>|<fold>|seed<k>'`` -> its figures (fractions) in an earlier run's results file ``old``, where ship_loo's
+    results file ``loo_result`` scores the same candidate, fold and seed at P >= 0.5 alike (IoU, precision and
+    recall within 0.01 point: the same model): the curves of models whose counts this checkout does not have
+    (benchmarks/out is not committed). A cell ship_loo scores otherwise (a model trained again) or not at all
+    is not carried."""
+    seeds, loo_cells, at_half = loo_result.get("seeds", []), loo_result.get("cells", {}), ("iou", "precision", "recall")
+    out: dict[tuple, dict] = {}
+    for key, vals in old.get("cells", {}).items():
+        cand, fold, k = key.split("|")
+        for seed, v in zip(old.get("seeds", []), vals):
+            if v is not None:
+                out.setdefault((cand, fold, seed), {})[k] = v
+
+    def alike(cand: str, fold: str, seed: int, m: dict) -> bool:
+        want = [(loo_cells.get(f"{cand}|{fold}|{k}") or [None] * len(seeds))[seeds.index(seed)] for k in at_half]
+        got = [m.get(k) for k in at_half]
+        return None not in want + got and all(abs(100 * g - w) <= 0.01 + 1e-9 for g, w in zip(got, want))
+    return {f"{c}|{f}|seed{s}": m for (c, f, s), m in out.items() if s in seeds and alike(c, f, s, m)}
+
+
+def collect(wd: Path, cands: list[str], folds: list[str], seeds: list[int], threads: int, run: bool,
+            earlier: dict | None = None) -> tuple[dict, list, list]:
+    """(cells {'<cand>|<fold>|<metric>': per seed, None where missing}, missing, carried): a fold's cached or scored
+    counts, else its figures in ``earlier`` (:func:`carried`; listed in carried). The threshold chosen on the other
+    folds needs every fold's curve of a seed: a seed part carried keeps the carried folds' choices (made on the same
+    models' curves) and has none for the others."""
     cells: dict[str, list] = {}
-    missing = []
+    missing, kept = [], []
+    earlier = earlier or {}
     for i, seed in enumerate(seeds):
         counts = {(c, f): fold_counts(wd, c, seed, f, threads, run) for f in folds for c in cands}
         for cand in cands:
             ok = {f: counts[(cand, f)] for f in folds if counts[(cand, f)] is not None}
-            missing += [f"{cand}|{f}|seed{seed}" for f in folds if f not in ok]
+            carry = {f: earlier[k] for f in folds if f not in ok and (k := f"{cand}|{f}|seed{seed}") in earlier}
+            missing += [f"{cand}|{f}|seed{seed}" for f in folds if f not in ok and f not in carry]
+            kept += [f"{cand}|{f}|seed{seed}" for f in carry]
             chosen = lofo({f: curve(c) for f, c in ok.items()}) if len(ok) == len(folds) > 1 else {}
             # a baseline's own "precision at the baseline's recall" is its precision at 0.5: what candidates are compared with
             ref = compared_with(cand, cands) or (cand if cand in loo.BASELINES else None)
+            figures = dict(carry)
             for f, c in ok.items():
                 b = counts.get((ref, f)) if ref else None
-                m = fold_metrics(c, b["at_half"]["recall"] if b else None)
+                recall = b["at_half"]["recall"] if b else earlier.get(f"{ref}|{f}|seed{seed}", {}).get("recall")
+                figures[f] = fold_metrics(c, recall)
                 if f in chosen:
-                    m["lofo_threshold"], m["iou_lofo"] = chosen[f]
+                    figures[f]["lofo_threshold"], figures[f]["iou_lofo"] = chosen[f]
+            for f, m in figures.items():
                 for k, v in m.items():
                     cells.setdefault(f"{cand}|{f}|{k}", [None] * len(seeds))[i] = v
-    return cells, missing
+    return cells, missing, kept
 
 
 def headline(cells: dict, cands: list[str], folds: list[str]) -> dict:
@@ -229,18 +262,22 @@ def main() -> None:
     a = ap.parse_args()
     cands, folds = loo.selection(a)
     seeds = [int(s) for s in a.seeds.split(",") if s]
-    cells, missing = collect(a.workdir, cands, folds, seeds, a.threads, not a.collect)
+    rd = results_dir(__file__)
+    read = lambda name: json.loads((rd / name).read_text()) if (rd / name).is_file() else {}
+    old = read("ship_loo_curves.json")
+    cells, missing, kept = collect(a.workdir, cands, folds, seeds, a.threads, not a.collect,
+                                   carried(old, read("ship_loo.json")))
     head = {**headline(cells, cands, folds), "missing": missing}
     table = render(head, cands, folds, seeds, missing)
-    rd = results_dir(__file__)
-    old = json.loads((rd / "ship_loo_curves.json").read_text()) if (rd / "ship_loo_curves.json").is_file() else {}
+    if kept:
+        table += f"\nCarried from the results file's earlier run (no model or counts in this workdir): {len(kept)} folds.\n"
     if (lost := would_lose(old, cells, cands, seeds)) and not a.replace:
         raise SystemExit(f"Error: {rd / 'ship_loo_curves.json'}: this run would drop {len(lost)} measured cells "
                          f"(e.g. {lost[0]}; their models are not in {a.workdir}) (train them with ship_loo.py, "
                          "or --replace to write it anyway)")
     (rd / "ship_loo_curves.md").write_text(table)
     write_json(rd / "ship_loo_curves.json", {
-        "headline": head, "cells": cells, "candidates": {c: loo.CANDIDATES[c] for c in cands}, "held_out": folds,
+        "headline": head, "cells": cells, "carried": kept, "candidates": {c: loo.CANDIDATES[c] for c in cands}, "held_out": folds,
         "seeds": seeds, "baselines": {c: compared_with(c, cands) for c in cands}, "issue": 82, "threads": a.threads, "machine": machine(),
         "date": today(), "command": "benchmarks/other_cameras/ship_loo_curves.py " + " ".join(sys.argv[1:])})
     print(table, flush=True)
