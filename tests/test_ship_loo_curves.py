@@ -124,3 +124,17 @@ def test_a_run_adds_its_scored_folds_to_the_carried_ones_and_compares_them_with_
     assert want != counts["camvid"]["at_half"]["precision"]  # read on the curve at the baseline's recall, not at 0.5
     assert cells.get("four-30|cityscapes|precision_at_baseline_recall", [None]) == [None]  # no baseline for that fold
     assert cells["four-30|cityscapes|iou_lofo"][0] == curves.lofo({f: curves.curve(c) for f, c in counts.items()})["cityscapes"][1]
+
+
+def test_a_threshold_choice_on_fewer_seeds_than_the_rest_is_said():
+    """A seed carried without its threshold choice leaves that candidate's IoU at the chosen threshold on fewer
+    seeds than its IoU at 0.5: the page says which, and says nothing where both stand on the same seeds."""
+    folds = ["camvid", "idd"]
+    cells = {"six-30|camvid|iou": [0.89, 0.88], "six-30|idd|iou": [0.84, 0.85],
+             "six-30|camvid|iou_lofo": [None, 0.90], "six-30|idd|iou_lofo": [0.86, 0.87],
+             "today-30|camvid|iou": [0.85, 0.89], "today-30|idd|iou": [0.84, 0.84],
+             "today-30|camvid|iou_lofo": [0.87, 0.90], "today-30|idd|iou_lofo": [0.85, 0.85]}
+    notes = curves.fewer_seeds(cells, ["today-30", "six-30"], folds, [0, 1])
+    assert notes == ["`six-30`'s IoU at a threshold chosen on the other folds is seed 1's only (its other figures: seeds 0, 1)."]
+    head = curves.headline(cells, ["today-30", "six-30"], folds)
+    assert notes[0] in curves.render(head, ["today-30", "six-30"], folds, [0, 1], [], notes)

@@ -215,7 +215,19 @@ def headline(cells: dict, cands: list[str], folds: list[str]) -> dict:
     return head
 
 
-def render(head: dict, cands: list[str], folds: list[str], seeds: list[int], missing: list[str]) -> str:
+def fewer_seeds(cells: dict, cands: list[str], folds: list[str], seeds: list[int]) -> list[str]:
+    """A sentence per candidate whose IoU at the threshold chosen on the other folds stands on fewer seeds than its
+    IoU at 0.5 (a seed part carried from a run that lacked one of its folds has no threshold chosen)."""
+    def on(cand: str, metric: str) -> list[int]:
+        return [s for i, s in enumerate(seeds)
+                if all((cells.get(f"{cand}|{f}|{metric}") or [None] * len(seeds))[i] is not None for f in folds)]
+    return [f"`{c}`'s IoU at a threshold chosen on the other folds is seed {', '.join(map(str, on(c, 'iou_lofo')))}'s "
+            f"only (its other figures: seeds {', '.join(map(str, on(c, 'iou')))})."
+            for c in cands if on(c, "iou_lofo") and on(c, "iou_lofo") != on(c, "iou")]
+
+
+def render(head: dict, cands: list[str], folds: list[str], seeds: list[int], missing: list[str],
+           notes: list[str] = ()) -> str:
     f = lambda v: "-" if v is None else f"{v:.1f}"
     lines = [f"Issue 82: ship_loo's models (each dataset held out whole, scored by a model that never saw its camera; seeds "
              f"{seeds}) at every threshold of P(road). Per held-out dataset: road IoU at P >= 0.5 · AP (11-point) · "
@@ -233,6 +245,7 @@ def render(head: dict, cands: list[str], folds: list[str], seeds: list[int], mis
         lines += ["", f"`{cand}` − `{b}` (means of the folds): IoU at 0.5 {g('iou')}; precision at `{b}`'s recall "
                   f"{g('precision_at_baseline_recall')}; MaxF {g('maxf')}; AP {g('ap')}; `{cand}` at 0.5 against `{b}` at "
                   f"its threshold chosen on the other folds {'-' if lofo is None else f'{lofo:+.1f}'}."]
+    lines += ["", *notes] if notes else []
     if missing:
         lines += ["", f"Missing (no model or not scored): {', '.join(missing)}."]
     return "\n".join(lines) + "\n"
@@ -268,7 +281,7 @@ def main() -> None:
     cells, missing, kept = collect(a.workdir, cands, folds, seeds, a.threads, not a.collect,
                                    carried(old, read("ship_loo.json")))
     head = {**headline(cells, cands, folds), "missing": missing}
-    table = render(head, cands, folds, seeds, missing)
+    table = render(head, cands, folds, seeds, missing, fewer_seeds(cells, cands, folds, seeds))
     if kept:
         table += f"\nCarried from the results file's earlier run (no model or counts in this workdir): {len(kept)} folds.\n"
     if (lost := would_lose(old, cells, cands, seeds)) and not a.replace:
