@@ -223,13 +223,20 @@ def kept(path: Path, epochs: int | None, steps: int) -> dict:
     if old.get("epochs") != epochs or old.get("steps_per_epoch") != steps:
         return {}
     same = lambda c: (old.get("condition", {}).get(c), old.get("budget_factor", {}).get(c, 1)) == (condition(c), BUDGET_FACTOR.get(c, 1))
-    out: dict[str, dict] = {}
-    for key, vals in old["cells"].items():
+    return {f"{c}|{f}|seed{s}": m for (c, f, s), m in cells_by_seed(old).items()
+            if c in CANDIDATES and same(c) and m.get("iou") is not None}
+
+
+def cells_by_seed(results: dict) -> dict[tuple[str, str, int], dict]:
+    """A results file's measured cells (``'<cand>|<fold>|<metric>'``: one value a seed) by (candidate, fold, seed):
+    {metric: value}."""
+    out: dict[tuple[str, str, int], dict] = {}
+    for key, vals in results.get("cells", {}).items():
         cand, fold, k = key.split("|")
-        for seed, v in zip(old["seeds"], vals):
-            if cand in CANDIDATES and same(cand) and v is not None:
-                out.setdefault(f"{cand}|{fold}|seed{seed}", {})[k] = v
-    return {k: v for k, v in out.items() if v.get("iou") is not None}
+        for seed, v in zip(results.get("seeds", []), vals):
+            if v is not None:
+                out.setdefault((cand, fold, seed), {})[k] = v
+    return out
 
 
 def model_minutes(result: Path, row: dict) -> float:

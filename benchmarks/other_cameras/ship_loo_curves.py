@@ -146,19 +146,13 @@ def carried(old: dict, loo_result: dict) -> dict[str, dict]:
     recall within 0.01 point: the same model): the curves of models whose counts this checkout does not have
     (benchmarks/out is not committed). A cell ship_loo scores otherwise (a model trained again) or not at all
     is not carried."""
-    seeds, loo_cells, at_half = loo_result.get("seeds", []), loo_result.get("cells", {}), ("iou", "precision", "recall")
-    out: dict[tuple, dict] = {}
-    for key, vals in old.get("cells", {}).items():
-        cand, fold, k = key.split("|")
-        for seed, v in zip(old.get("seeds", []), vals):
-            if v is not None:
-                out.setdefault((cand, fold, seed), {})[k] = v
+    scored = loo.cells_by_seed(loo_result)
 
-    def alike(cand: str, fold: str, seed: int, m: dict) -> bool:
-        want = [(loo_cells.get(f"{cand}|{fold}|{k}") or [None] * len(seeds))[seeds.index(seed)] for k in at_half]
-        got = [m.get(k) for k in at_half]
-        return None not in want + got and all(abs(100 * g - w) <= 0.01 + 1e-9 for g, w in zip(got, want))
-    return {f"{c}|{f}|seed{s}": m for (c, f, s), m in out.items() if s in seeds and alike(c, f, s, m)}
+    def alike(key: tuple[str, str, int], m: dict) -> bool:
+        want = scored.get(key, {})
+        return all(m.get(k) is not None and want.get(k) is not None and abs(100 * m[k] - want[k]) <= 0.01 + 1e-9
+                   for k in ("iou", "precision", "recall"))
+    return {f"{c}|{f}|seed{s}": m for (c, f, s), m in loo.cells_by_seed(old).items() if alike((c, f, s), m)}
 
 
 def collect(wd: Path, cands: list[str], folds: list[str], seeds: list[int], threads: int, run: bool,
